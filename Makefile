@@ -1,0 +1,99 @@
+# gimany.h - build, test, bench. `make test` and `make demo` install what they need (tools/install-deps.sh).
+.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench fuzz fuzz-short demo deps clean
+.DEFAULT_GOAL := test
+
+CC      ?= cc
+WARN    := -Wall -Wextra -pedantic -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
+CSTD    := -std=c99
+INC     := -I. -Itests
+SAN     := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+B       := build
+DEPS    := tools/install-deps.sh
+
+HDRS        := gimany.h shaders_embedded.h $(wildcard tests/*.h)
+CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
+GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
+BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c)))
+FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
+SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
+FUZZ_SECONDS ?= 300
+FUZZ_SHORT  ?= 15
+
+deps:
+	@$(DEPS) build test gl shaders fuzz
+
+# --- shaders ------------------------------------------------------------------------------
+$(B)/embed-shaders: tools/embed_shaders.c 
+	@mkdir -p $(@D)
+	$(CC) $(CSTD) $(WARN) -O2 $< -o $@
+
+shaders: $(B)/embed-shaders
+	$(B)/embed-shaders shaders_embedded.h $(SHADERS)
+
+# The committed header must be what `make shaders` makes, and every shader must validate.
+check-shaders: $(B)/embed-shaders
+	@$(B)/embed-shaders $(B)/shaders_embedded.h $(SHADERS)
+	@cmp -s $(B)/shaders_embedded.h shaders_embedded.h || { echo "shaders_embedded.h is stale: run 'make shaders' and commit it"; exit 1; }
+	@for s in $(SHADERS); do tools/validate-shader.sh $$s || exit 1; done
+	@echo "shaders: $(words $(SHADERS)) validated, shaders_embedded.h up to date"
+
+# --- tests --------------------------------------------------------------------------------
+# CPU tests: no GL at all, gcc with ASan+UBSan and clang -O2 with UBSan.
+$(B)/asan/%: tests/%.c $(HDRS) 
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
+$(B)/clang/%: tests/%.c $(HDRS) 
+	@mkdir -p $(@D)
+	clang $(CSTD) $(WARN) $(INC) -O2 -g -fsanitize=undefined -fno-sanitize-recover=all -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
+# GL tests: headless EGL on Mesa llvmpipe, ASan+UBSan.
+$(B)/gl/%: tests/%.c $(HDRS) 
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) $< -o $@ -lcmocka -lEGL -lGL -lm
+# C++11 with g++ and clang++, and two translation units (implementation in one).
+$(B)/cxx/two_tu_gcc: tests/cxx_impl.cpp tests/cxx_user.cpp $(HDRS) 
+	@mkdir -p $(@D)
+	g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $(SAN) tests/cxx_impl.cpp tests/cxx_user.cpp -o $@ -lEGL -lGL -lm
+$(B)/cxx/two_tu_clang: tests/cxx_impl.cpp tests/cxx_user.cpp $(HDRS) 
+	@mkdir -p $(@D)
+	clang++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O2 tests/cxx_impl.cpp tests/cxx_user.cpp -o $@ -lEGL -lGL -lm
+$(B)/cxx/two_tu_c: tests/two_tu_a.c tests/two_tu_b.c $(HDRS) 
+	@mkdir -p $(@D)
+	clang $(CSTD) $(WARN) $(INC) -O1 -DGIMANY_NO_GL tests/two_tu_a.c tests/two_tu_b.c -o $@ -lm
+
+CPU_BINS := $(addprefix $(B)/asan/,$(CPU_TESTS)) $(addprefix $(B)/clang/,$(CPU_TESTS))
+GL_BINS  := $(addprefix $(B)/gl/,$(GL_TESTS))
+CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c
+
+test: deps check-shaders
+	@$(MAKE) --no-print-directory $(CPU_BINS) $(GL_BINS) $(CXX_BINS)
+	@$(MAKE) --no-print-directory fuzz-short
+	@tools/run-tests.sh $(CPU_BINS) $(GL_BINS) $(CXX_BINS)
+
+# --- benchmarks ---------------------------------------------------------------------------
+$(B)/bench/%: tests/%.c $(HDRS) 
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -O2 -march=native -DNDEBUG $< -o $@ -lEGL -lGL -lm
+
+bench: deps
+	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES))
+	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
+
+# --- fuzzing (libFuzzer) ------------------------------------------------------------------
+$(B)/fuzz/%: tests/%.c $(HDRS) 
+	@mkdir -p $(@D)
+	clang $(CSTD) $(INC) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -DGIMANY_NO_GL $< -o $@ -lm
+
+# Each target replays its committed corpus (tests/corpus/NAME) and fuzzes for a bounded time.
+fuzz-short: $(addprefix $(B)/fuzz/,$(FUZZERS))
+	@for f in $(FUZZERS); do tools/run-fuzzer.sh $(B)/fuzz/$$f $(FUZZ_SHORT) || exit 1; done
+
+fuzz: deps $(addprefix $(B)/fuzz/,$(FUZZERS))
+	@for f in $(FUZZERS); do tools/run-fuzzer.sh $(B)/fuzz/$$f $(FUZZ_SECONDS) || exit 1; done
+
+# --- main job -----------------------------------------------------------------------------
+demo:
+	@echo "make demo: the headless demo (build/gimany-demo, issue 'Examples and the main job') is not built yet."
+	@echo "It will render the default street scene with LightSkin + BRSM into out/demo/. Today: 'make test' and 'make bench'."
+
+clean:
+	rm -rf $(B)
