@@ -412,7 +412,37 @@ GIMANY_API gim_result gim_importance_select(const double *column, const double *
 #endif
 
 /* @section gl ============================================================================= */
+/* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
+   host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
+   the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
+   every call below. Every call that touches GL leaves the GL state as it found it. */
 #ifndef GIMANY_NO_GL
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
+typedef void (*gim_gl_proc)(void);
+
+/* Input of gim_create; zero means default. */
+typedef struct gim_desc {
+    gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
+    gim_env env;                                        /* allocator and log of the context */
+} gim_desc;
+
+/* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
+typedef struct gim_context gim_context;
+
+/* Create a context for the current GL context: loads the GL functions, checks for GL 4.3
+   (GIM_ERROR_UNSUPPORTED, with what is missing logged), logs the renderer. Shaders are
+   compiled lazily on first use. *out is written only on GIM_OK. */
+GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
+/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine. */
+GIMANY_API void gim_destroy(gim_context *ctx);
+
+#ifdef __cplusplus
+}
+#endif
 #endif /* GIMANY_NO_GL */
 
 #endif /* GIMANY_H */
@@ -841,6 +871,758 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 
 /* @impl gl ================================================================================ */
 #ifndef GIMANY_NO_GL
+#include "shaders_embedded.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* --- GL declarations without a GL header -------------------------------------------------
+   Private type and constant names (GIM__GL_*), so that no host GL header or loader, included
+   before or after gimany.h, can clash with them (typedefs cannot be guarded with #ifndef). */
+#if defined(_WIN32) && !defined(__CYGWIN__)
+#define GIM__APIENTRY __stdcall
+#else
+#define GIM__APIENTRY
+#endif
+typedef unsigned int gim__GLenum;
+typedef unsigned int gim__GLuint;
+typedef unsigned int gim__GLbitfield;
+typedef int gim__GLint;
+typedef int gim__GLsizei;
+typedef unsigned char gim__GLboolean;
+typedef char gim__GLchar;
+typedef float gim__GLfloat;
+typedef ptrdiff_t gim__GLsizeiptr;
+typedef ptrdiff_t gim__GLintptr;
+typedef int64_t gim__GLint64;
+
+enum {
+    GIM__GL_NO_ERROR = 0,
+    GIM__GL_FALSE = 0,
+    GIM__GL_TRUE = 1,
+    GIM__GL_VENDOR = 0x1F00,
+    GIM__GL_RENDERER = 0x1F01,
+    GIM__GL_VERSION = 0x1F02,
+    GIM__GL_SHADING_LANGUAGE_VERSION = 0x8B8C,
+    GIM__GL_MAJOR_VERSION = 0x821B,
+    GIM__GL_MINOR_VERSION = 0x821C,
+    GIM__GL_CURRENT_PROGRAM = 0x8B8D,
+    GIM__GL_VERTEX_ARRAY_BINDING = 0x85B5,
+    GIM__GL_ARRAY_BUFFER = 0x8892,
+    GIM__GL_ARRAY_BUFFER_BINDING = 0x8894,
+    GIM__GL_ELEMENT_ARRAY_BUFFER = 0x8893,
+    GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING = 0x8895,
+    GIM__GL_DISPATCH_INDIRECT_BUFFER = 0x90EE,
+    GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING = 0x90EF,
+    GIM__GL_DRAW_INDIRECT_BUFFER = 0x8F3F,
+    GIM__GL_DRAW_INDIRECT_BUFFER_BINDING = 0x8F43,
+    GIM__GL_PIXEL_PACK_BUFFER = 0x88EB,
+    GIM__GL_PIXEL_PACK_BUFFER_BINDING = 0x88ED,
+    GIM__GL_PIXEL_UNPACK_BUFFER = 0x88EC,
+    GIM__GL_PIXEL_UNPACK_BUFFER_BINDING = 0x88EF,
+    GIM__GL_COPY_READ_BUFFER = 0x8F36,
+    GIM__GL_COPY_READ_BUFFER_BINDING = 0x8F36,
+    GIM__GL_COPY_WRITE_BUFFER = 0x8F37,
+    GIM__GL_COPY_WRITE_BUFFER_BINDING = 0x8F37,
+    GIM__GL_SHADER_STORAGE_BUFFER = 0x90D2,
+    GIM__GL_SHADER_STORAGE_BUFFER_BINDING = 0x90D3,
+    GIM__GL_SHADER_STORAGE_BUFFER_START = 0x90D4,
+    GIM__GL_SHADER_STORAGE_BUFFER_SIZE = 0x90D5,
+    GIM__GL_UNIFORM_BUFFER = 0x8A11,
+    GIM__GL_UNIFORM_BUFFER_BINDING = 0x8A28,
+    GIM__GL_UNIFORM_BUFFER_START = 0x8A29,
+    GIM__GL_UNIFORM_BUFFER_SIZE = 0x8A2A,
+    GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
+    GIM__GL_READ_FRAMEBUFFER = 0x8CA8,
+    GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
+    GIM__GL_READ_FRAMEBUFFER_BINDING = 0x8CAA,
+    GIM__GL_VIEWPORT = 0x0BA2,
+    GIM__GL_SCISSOR_BOX = 0x0C10,
+    GIM__GL_BLEND = 0x0BE2,
+    GIM__GL_CULL_FACE = 0x0B44,
+    GIM__GL_DEPTH_TEST = 0x0B71,
+    GIM__GL_STENCIL_TEST = 0x0B90,
+    GIM__GL_SCISSOR_TEST = 0x0C11,
+    GIM__GL_PRIMITIVE_RESTART = 0x8F9D,
+    GIM__GL_RASTERIZER_DISCARD = 0x8C89,
+    GIM__GL_POLYGON_OFFSET_FILL = 0x8037,
+    GIM__GL_FRAMEBUFFER_SRGB = 0x8DB9,
+    GIM__GL_DEPTH_CLAMP = 0x864F,
+    GIM__GL_BLEND_SRC_RGB = 0x80C9,
+    GIM__GL_BLEND_DST_RGB = 0x80C8,
+    GIM__GL_BLEND_SRC_ALPHA = 0x80CB,
+    GIM__GL_BLEND_DST_ALPHA = 0x80CA,
+    GIM__GL_BLEND_EQUATION_RGB = 0x8009,
+    GIM__GL_BLEND_EQUATION_ALPHA = 0x883D,
+    GIM__GL_DEPTH_FUNC = 0x0B74,
+    GIM__GL_DEPTH_WRITEMASK = 0x0B72,
+    GIM__GL_COLOR_WRITEMASK = 0x0C23,
+    GIM__GL_FRONT_FACE = 0x0B46,
+    GIM__GL_CULL_FACE_MODE = 0x0B45,
+    GIM__GL_POLYGON_MODE = 0x0B40,
+    GIM__GL_FRONT_AND_BACK = 0x0408,
+    GIM__GL_ACTIVE_TEXTURE = 0x84E0,
+    GIM__GL_TEXTURE0 = 0x84C0,
+    GIM__GL_TEXTURE_2D = 0x0DE1,
+    GIM__GL_TEXTURE_2D_ARRAY = 0x8C1A,
+    GIM__GL_TEXTURE_BINDING_2D = 0x8069,
+    GIM__GL_TEXTURE_BINDING_2D_ARRAY = 0x8C1D,
+    GIM__GL_SAMPLER_BINDING = 0x8919,
+    GIM__GL_IMAGE_BINDING_NAME = 0x8F3A,
+    GIM__GL_IMAGE_BINDING_LEVEL = 0x8F3B,
+    GIM__GL_IMAGE_BINDING_LAYERED = 0x8F3C,
+    GIM__GL_IMAGE_BINDING_LAYER = 0x8F3D,
+    GIM__GL_IMAGE_BINDING_ACCESS = 0x8F3E,
+    GIM__GL_IMAGE_BINDING_FORMAT = 0x906E,
+    GIM__GL_PACK_ALIGNMENT = 0x0D05,
+    GIM__GL_UNPACK_ALIGNMENT = 0x0CF5,
+    GIM__GL_PACK_ROW_LENGTH = 0x0D02,
+    GIM__GL_UNPACK_ROW_LENGTH = 0x0CF2,
+    GIM__GL_COLOR_CLEAR_VALUE = 0x0C22,
+    GIM__GL_DEPTH_CLEAR_VALUE = 0x0B73,
+    GIM__GL_COMPUTE_SHADER = 0x91B9,
+    GIM__GL_VERTEX_SHADER = 0x8B31,
+    GIM__GL_FRAGMENT_SHADER = 0x8B30,
+    GIM__GL_GEOMETRY_SHADER = 0x8DD9,
+    GIM__GL_COMPILE_STATUS = 0x8B81,
+    GIM__GL_LINK_STATUS = 0x8B82,
+    GIM__GL_MAX_COMPUTE_SHARED_MEMORY_SIZE = 0x8262,
+    GIM__GL_MAX_IMAGE_UNITS = 0x8F38,
+    GIM__GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS = 0x8B4D,
+    GIM__GL_SHADER_STORAGE_BARRIER_BIT = 0x00002000,
+    GIM__GL_TEXTURE_FETCH_BARRIER_BIT = 0x00000008,
+    GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x00000020,
+    GIM__GL_BUFFER_UPDATE_BARRIER_BIT = 0x00000200,
+    GIM__GL_DYNAMIC_COPY = 0x88EA,
+    GIM__GL_STREAM_READ = 0x88E1,
+    GIM__GL_R32F = 0x822E,
+    GIM__GL_RGBA32F = 0x8814,
+    GIM__GL_READ_ONLY = 0x88B8,
+    GIM__GL_RED = 0x1903,
+    GIM__GL_RGBA = 0x1908,
+    GIM__GL_FLOAT = 0x1406,
+    GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE = 0x90DE,
+    GIM__GL_INVALID_ENUM = 0x0500
+};
+
+/* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
+#define GIM__GL_FUNCS(X)                                                                          \
+    X(gim__GLenum, GetError, (void))                                                              \
+    X(const unsigned char *, GetString, (gim__GLenum name))                                      \
+    X(void, GetIntegerv, (gim__GLenum pname, gim__GLint *data))                                  \
+    X(void, GetIntegeri_v, (gim__GLenum target, gim__GLuint index, gim__GLint *data))            \
+    X(void, GetInteger64i_v, (gim__GLenum target, gim__GLuint index, gim__GLint64 *data))        \
+    X(void, GetInteger64v, (gim__GLenum pname, gim__GLint64 *data))                             \
+    X(void, GetBooleanv, (gim__GLenum pname, gim__GLboolean *data))                              \
+    X(void, GetFloatv, (gim__GLenum pname, gim__GLfloat *data))                                  \
+    X(gim__GLboolean, IsEnabled, (gim__GLenum cap))                                              \
+    X(void, Enable, (gim__GLenum cap))                                                           \
+    X(void, Disable, (gim__GLenum cap))                                                          \
+    X(void, UseProgram, (gim__GLuint program))                                                   \
+    X(void, BindVertexArray, (gim__GLuint array))                                                \
+    X(void, BindBuffer, (gim__GLenum target, gim__GLuint buffer))                                \
+    X(void, BindBufferBase, (gim__GLenum target, gim__GLuint index, gim__GLuint buffer))         \
+    X(void, BindBufferRange, (gim__GLenum target, gim__GLuint index, gim__GLuint buffer,         \
+                              gim__GLintptr offset, gim__GLsizeiptr size))                       \
+    X(void, BindFramebuffer, (gim__GLenum target, gim__GLuint framebuffer))                      \
+    X(void, Viewport, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))     \
+    X(void, Scissor, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))      \
+    X(void, BlendFuncSeparate, (gim__GLenum src_rgb, gim__GLenum dst_rgb, gim__GLenum src_alpha, \
+                                gim__GLenum dst_alpha))                                          \
+    X(void, BlendEquationSeparate, (gim__GLenum mode_rgb, gim__GLenum mode_alpha))               \
+    X(void, DepthFunc, (gim__GLenum func))                                                       \
+    X(void, DepthMask, (gim__GLboolean flag))                                                    \
+    X(void, ColorMask, (gim__GLboolean r, gim__GLboolean g, gim__GLboolean b, gim__GLboolean a)) \
+    X(void, FrontFace, (gim__GLenum mode))                                                       \
+    X(void, CullFace, (gim__GLenum mode))                                                        \
+    X(void, PolygonMode, (gim__GLenum face, gim__GLenum mode))                                   \
+    X(void, ClearColor, (gim__GLfloat r, gim__GLfloat g, gim__GLfloat b, gim__GLfloat a))        \
+    X(void, ClearDepth, (double depth))                                                          \
+    X(void, ActiveTexture, (gim__GLenum texture))                                                \
+    X(void, BindTexture, (gim__GLenum target, gim__GLuint texture))                              \
+    X(void, BindSampler, (gim__GLuint unit, gim__GLuint sampler))                                \
+    X(void, BindImageTexture, (gim__GLuint unit, gim__GLuint texture, gim__GLint level,          \
+                               gim__GLboolean layered, gim__GLint layer, gim__GLenum access,     \
+                               gim__GLenum format))                                              \
+    X(void, PixelStorei, (gim__GLenum pname, gim__GLint param))                                  \
+    X(gim__GLuint, CreateShader, (gim__GLenum type))                                             \
+    X(void, ShaderSource, (gim__GLuint shader, gim__GLsizei count,                               \
+                           const gim__GLchar *const *string, const gim__GLint *length))          \
+    X(void, CompileShader, (gim__GLuint shader))                                                 \
+    X(void, GetShaderiv, (gim__GLuint shader, gim__GLenum pname, gim__GLint *params))            \
+    X(void, GetShaderInfoLog, (gim__GLuint shader, gim__GLsizei size, gim__GLsizei *length,      \
+                               gim__GLchar *log))                                                \
+    X(void, DeleteShader, (gim__GLuint shader))                                                  \
+    X(gim__GLuint, CreateProgram, (void))                                                        \
+    X(void, AttachShader, (gim__GLuint program, gim__GLuint shader))                             \
+    X(void, DetachShader, (gim__GLuint program, gim__GLuint shader))                             \
+    X(void, LinkProgram, (gim__GLuint program))                                                  \
+    X(void, GetProgramiv, (gim__GLuint program, gim__GLenum pname, gim__GLint *params))          \
+    X(void, GetProgramInfoLog, (gim__GLuint program, gim__GLsizei size, gim__GLsizei *length,    \
+                                gim__GLchar *log))                                               \
+    X(void, DeleteProgram, (gim__GLuint program))                                                \
+    X(gim__GLint, GetUniformLocation, (gim__GLuint program, const gim__GLchar *name))            \
+    X(void, Uniform1i, (gim__GLint location, gim__GLint v0))                                     \
+    X(void, Uniform1ui, (gim__GLint location, gim__GLuint v0))                                   \
+    X(void, Uniform1f, (gim__GLint location, gim__GLfloat v0))                                   \
+    X(void, Uniform2ui, (gim__GLint location, gim__GLuint v0, gim__GLuint v1))                   \
+    X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
+    X(void, DeleteBuffers, (gim__GLsizei n, const gim__GLuint *buffers))                         \
+    X(void, BufferData, (gim__GLenum target, gim__GLsizeiptr size, const void *data,             \
+                         gim__GLenum usage))                                                     \
+    X(void, DispatchCompute, (gim__GLuint x, gim__GLuint y, gim__GLuint z))                      \
+    X(void, MemoryBarrier, (gim__GLbitfield barriers))
+
+/* The function table, filled by gim__gl_load. */
+typedef struct gim__gl {
+#define GIM__X(ret, name, args) ret(GIM__APIENTRY *name) args;
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+    int unused_; /* keeps the struct non-empty whatever the list holds */
+} gim__gl;
+
+/* Fill the table; a function the loader does not have is GIM_ERROR_UNSUPPORTED, each one
+   logged by name. With GIMANY_EXTERNAL_GL the host's own gl* functions (from its loader's
+   header, included before the implementation) fill it and get_proc_address is unused. */
+static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(const char *), const gim_env *env) {
+    int missing = 0;
+    const char *first = NULL;
+    memset(gl, 0, sizeof *gl);
+#ifdef GIMANY_EXTERNAL_GL
+    (void)get_proc_address;
+#define GIM__X(ret, name, args) gl->name = (ret(GIM__APIENTRY *) args)gl##name;
+#else
+#define GIM__X(ret, name, args) gl->name = (ret(GIM__APIENTRY *) args)get_proc_address("gl" #name);
+#endif
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+#define GIM__X(ret, name, args)                                                                  \
+    if (!gl->name) {                                                                             \
+        gim__log(env, GIM_LOG_ERROR, "gim_create", "GL function gl%s not found", #name);        \
+        if (!missing++) first = #name;                                                           \
+    }
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+    if (missing)
+        return gim__fail(env, GIM_ERROR_UNSUPPORTED, "gim_create",
+                         "gl%s not found (%d GL function%s missing): gimany needs OpenGL 4.3", first, missing,
+                         missing == 1 ? "" : "s");
+    return GIM_OK;
+}
+
+/* --- GL state save/restore ----------------------------------------------------------------
+   The GL state gimany may touch, in one place. gim__gl_enter saves it on the way into the
+   outermost call that touches GL, gim__gl_leave restores it on the way out; what is not listed
+   here gimany must not change. Units and bindings are those gimany's passes use (within
+   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units). */
+#define GIM__GL_TEXTURE_UNITS 8
+#define GIM__GL_IMAGE_UNITS 8
+#define GIM__GL_SSBO_BINDINGS 8
+#define GIM__GL_UBO_BINDINGS 4
+
+/* glEnable/glDisable capabilities */
+static const gim__GLenum gim__gl_state_caps[] = {
+    GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
+    GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
+    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP};
+#define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
+
+/* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
+   and restored with the VAO. The generic SSBO/UBO bindings come after the indexed ones on
+   restore, because glBindBufferBase/Range also sets them. */
+static const gim__GLenum gim__gl_state_buffers[][2] = {
+    {GIM__GL_ARRAY_BUFFER, GIM__GL_ARRAY_BUFFER_BINDING},
+    {GIM__GL_DISPATCH_INDIRECT_BUFFER, GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING},
+    {GIM__GL_DRAW_INDIRECT_BUFFER, GIM__GL_DRAW_INDIRECT_BUFFER_BINDING},
+    {GIM__GL_PIXEL_PACK_BUFFER, GIM__GL_PIXEL_PACK_BUFFER_BINDING},
+    {GIM__GL_PIXEL_UNPACK_BUFFER, GIM__GL_PIXEL_UNPACK_BUFFER_BINDING},
+    {GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_READ_BUFFER_BINDING},
+    {GIM__GL_COPY_WRITE_BUFFER, GIM__GL_COPY_WRITE_BUFFER_BINDING},
+    {GIM__GL_SHADER_STORAGE_BUFFER, GIM__GL_SHADER_STORAGE_BUFFER_BINDING},
+    {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
+#define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
+
+/* glPixelStorei parameters */
+static const gim__GLenum gim__gl_state_pixel_store[] = {
+    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH};
+#define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
+
+/* One image unit (glBindImageTexture's arguments). */
+typedef struct gim__gl_image_binding {
+    gim__GLint texture, level, layered, layer, access, format;
+} gim__gl_image_binding;
+
+/* One indexed buffer binding; size 0 means the whole buffer (glBindBufferBase). */
+typedef struct gim__gl_indexed_buffer {
+    gim__GLint buffer;
+    gim__GLint64 start, size;
+} gim__gl_indexed_buffer;
+
+typedef struct gim__gl_state {
+    gim__GLint program, vertex_array, element_array_buffer;
+    gim__GLint draw_framebuffer, read_framebuffer;
+    gim__GLint viewport[4], scissor_box[4];
+    gim__GLboolean caps[GIM__GL_STATE_CAPS];
+    gim__GLint buffers[GIM__GL_STATE_BUFFERS];
+    gim__GLint blend_src_rgb, blend_dst_rgb, blend_src_alpha, blend_dst_alpha;
+    gim__GLint blend_equation_rgb, blend_equation_alpha;
+    gim__GLint depth_func;
+    gim__GLboolean depth_mask, color_mask[4];
+    gim__GLint front_face, cull_face_mode, polygon_mode[2];
+    gim__GLfloat color_clear[4], depth_clear;
+    gim__GLint active_texture;
+    gim__GLint texture_2d[GIM__GL_TEXTURE_UNITS], texture_2d_array[GIM__GL_TEXTURE_UNITS];
+    gim__GLint sampler[GIM__GL_TEXTURE_UNITS];
+    gim__gl_image_binding image[GIM__GL_IMAGE_UNITS];
+    gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS], ubo[GIM__GL_UBO_BINDINGS];
+    gim__GLint pixel_store[GIM__GL_STATE_PIXEL_STORE];
+} gim__gl_state;
+
+static void gim__gl_indexed_save(const gim__gl *gl, gim__GLenum binding, gim__GLenum start, gim__GLenum size,
+                                 gim__gl_indexed_buffer *b, unsigned count) {
+    unsigned i;
+    for (i = 0; i < count; ++i) {
+        gl->GetIntegeri_v(binding, i, &b[i].buffer);
+        gl->GetInteger64i_v(start, i, &b[i].start);
+        gl->GetInteger64i_v(size, i, &b[i].size);
+    }
+}
+
+static void gim__gl_indexed_restore(const gim__gl *gl, gim__GLenum target, const gim__gl_indexed_buffer *b,
+                                    unsigned count) {
+    unsigned i;
+    for (i = 0; i < count; ++i) {
+        if (b[i].buffer && b[i].size > 0)
+            gl->BindBufferRange(target, i, (gim__GLuint)b[i].buffer, (gim__GLintptr)b[i].start,
+                                (gim__GLsizeiptr)b[i].size);
+        else
+            gl->BindBufferBase(target, i, (gim__GLuint)b[i].buffer);
+    }
+}
+
+static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
+    unsigned i;
+    memset(s, 0, sizeof *s);
+    gl->GetIntegerv(GIM__GL_CURRENT_PROGRAM, &s->program);
+    gl->GetIntegerv(GIM__GL_VERTEX_ARRAY_BINDING, &s->vertex_array);
+    gl->GetIntegerv(GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING, &s->element_array_buffer);
+    gl->GetIntegerv(GIM__GL_DRAW_FRAMEBUFFER_BINDING, &s->draw_framebuffer);
+    gl->GetIntegerv(GIM__GL_READ_FRAMEBUFFER_BINDING, &s->read_framebuffer);
+    gl->GetIntegerv(GIM__GL_VIEWPORT, s->viewport);
+    gl->GetIntegerv(GIM__GL_SCISSOR_BOX, s->scissor_box);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) s->caps[i] = gl->IsEnabled(gim__gl_state_caps[i]);
+    for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i) gl->GetIntegerv(gim__gl_state_buffers[i][1], &s->buffers[i]);
+    gl->GetIntegerv(GIM__GL_BLEND_SRC_RGB, &s->blend_src_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_DST_RGB, &s->blend_dst_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_SRC_ALPHA, &s->blend_src_alpha);
+    gl->GetIntegerv(GIM__GL_BLEND_DST_ALPHA, &s->blend_dst_alpha);
+    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_RGB, &s->blend_equation_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_ALPHA, &s->blend_equation_alpha);
+    gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
+    gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
+    gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
+    gl->GetIntegerv(GIM__GL_FRONT_FACE, &s->front_face);
+    gl->GetIntegerv(GIM__GL_CULL_FACE_MODE, &s->cull_face_mode);
+    gl->GetIntegerv(GIM__GL_POLYGON_MODE, s->polygon_mode); /* front and back; core has one mode */
+    gl->GetFloatv(GIM__GL_COLOR_CLEAR_VALUE, s->color_clear);
+    gl->GetFloatv(GIM__GL_DEPTH_CLEAR_VALUE, &s->depth_clear);
+    gl->GetIntegerv(GIM__GL_ACTIVE_TEXTURE, &s->active_texture);
+    for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &s->texture_2d[i]);
+        gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D_ARRAY, &s->texture_2d_array[i]);
+        gl->GetIntegerv(GIM__GL_SAMPLER_BINDING, &s->sampler[i]);
+    }
+    gl->ActiveTexture((gim__GLenum)s->active_texture);
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        gim__gl_image_binding *b = &s->image[i];
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_NAME, i, &b->texture);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LEVEL, i, &b->level);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYERED, i, &b->layered);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYER, i, &b->layer);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_ACCESS, i, &b->access);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_FORMAT, i, &b->format);
+    }
+    gim__gl_indexed_save(gl, GIM__GL_SHADER_STORAGE_BUFFER_BINDING, GIM__GL_SHADER_STORAGE_BUFFER_START,
+                         GIM__GL_SHADER_STORAGE_BUFFER_SIZE, s->ssbo, GIM__GL_SSBO_BINDINGS);
+    gim__gl_indexed_save(gl, GIM__GL_UNIFORM_BUFFER_BINDING, GIM__GL_UNIFORM_BUFFER_START,
+                         GIM__GL_UNIFORM_BUFFER_SIZE, s->ubo, GIM__GL_UBO_BINDINGS);
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->GetIntegerv(gim__gl_state_pixel_store[i], &s->pixel_store[i]);
+}
+
+static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+    unsigned i;
+    gl->UseProgram((gim__GLuint)s->program);
+    gl->BindVertexArray((gim__GLuint)s->vertex_array);
+    if (s->vertex_array) gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, (gim__GLuint)s->element_array_buffer);
+    gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);
+    gl->BindFramebuffer(GIM__GL_READ_FRAMEBUFFER, (gim__GLuint)s->read_framebuffer);
+    gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
+    gl->Scissor(s->scissor_box[0], s->scissor_box[1], s->scissor_box[2], s->scissor_box[3]);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) {
+        if (s->caps[i]) gl->Enable(gim__gl_state_caps[i]);
+        else gl->Disable(gim__gl_state_caps[i]);
+    }
+    gl->BlendFuncSeparate((gim__GLenum)s->blend_src_rgb, (gim__GLenum)s->blend_dst_rgb,
+                          (gim__GLenum)s->blend_src_alpha, (gim__GLenum)s->blend_dst_alpha);
+    gl->BlendEquationSeparate((gim__GLenum)s->blend_equation_rgb, (gim__GLenum)s->blend_equation_alpha);
+    gl->DepthFunc((gim__GLenum)s->depth_func);
+    gl->DepthMask(s->depth_mask);
+    gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
+    gl->FrontFace((gim__GLenum)s->front_face);
+    gl->CullFace((gim__GLenum)s->cull_face_mode);
+    gl->PolygonMode(GIM__GL_FRONT_AND_BACK, (gim__GLenum)s->polygon_mode[0]);
+    gl->ClearColor(s->color_clear[0], s->color_clear[1], s->color_clear[2], s->color_clear[3]);
+    gl->ClearDepth(s->depth_clear);
+    for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, (gim__GLuint)s->texture_2d[i]);
+        gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, (gim__GLuint)s->texture_2d_array[i]);
+        gl->BindSampler(i, (gim__GLuint)s->sampler[i]);
+    }
+    gl->ActiveTexture((gim__GLenum)s->active_texture);
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        const gim__gl_image_binding *b = &s->image[i];
+        gl->BindImageTexture(i, (gim__GLuint)b->texture, b->level, (gim__GLboolean)(b->layered != 0), b->layer,
+                             (gim__GLenum)b->access, (gim__GLenum)b->format);
+    }
+    gim__gl_indexed_restore(gl, GIM__GL_SHADER_STORAGE_BUFFER, s->ssbo, GIM__GL_SSBO_BINDINGS);
+    gim__gl_indexed_restore(gl, GIM__GL_UNIFORM_BUFFER, s->ubo, GIM__GL_UBO_BINDINGS);
+    for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i)
+        gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->PixelStorei(gim__gl_state_pixel_store[i], s->pixel_store[i]);
+}
+
+/* --- the context ----------------------------------------------------------------------- */
+
+/* Programs, compiled on first use from shaders_embedded.h. */
+typedef enum gim__program_id {
+    GIM__PROGRAM_SCAN_COLUMNS = 0,   /* eq. 12: block-local vertical sums */
+    GIM__PROGRAM_SCAN_TOTALS,        /* eq. 12: block offsets, horizontal sums of column totals */
+    GIM__PROGRAM_SCAN_OFFSETS,       /* eq. 12: block offsets added to the vertical sums */
+    GIM__PROGRAM_COUNT
+} gim__program_id;
+
+/* Shader files of each program (compute: one file; draw programs: vertex, fragment). */
+static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
+    {"importance_scan_columns.comp", NULL},
+    {"importance_scan_totals.comp", NULL},
+    {"importance_scan_offsets.comp", NULL}};
+
+struct gim_context {
+    gim_env env;
+    gim__gl gl;
+    int gl_major, gl_minor;
+    int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
+    gim__gl_state saved;
+    gim__GLint64 max_ssbo_bytes;  /* GL_MAX_SHADER_STORAGE_BLOCK_SIZE */
+    gim__GLuint programs[GIM__PROGRAM_COUNT];
+    gim__GLuint scan_blocks;      /* eq. 12 scratch: per-block column totals, then offsets */
+    size_t scan_blocks_bytes;
+};
+
+/* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
+   error the host left pending is logged and cleared, so it is not blamed on gimany. */
+static void gim__gl_enter(gim_context *ctx, const char *where) {
+    if (ctx->gl_depth++ != 0) return;
+#ifdef GIMANY_DEBUG
+    {
+        gim__GLenum e;
+        int guard = 0;
+        while ((e = ctx->gl.GetError()) != GIM__GL_NO_ERROR && guard++ < 16)
+            gim__log(&ctx->env, GIM_LOG_WARNING, where, "GL error 0x%04x was pending before the call (left by the host)",
+                     (unsigned)e);
+    }
+#else
+    (void)where;
+#endif
+    gim__gl_state_save(&ctx->gl, &ctx->saved);
+}
+
+/* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
+static gim_result gim__gl_leave(gim_context *ctx, gim_result r) {
+    GIMANY_ASSERT(ctx->gl_depth > 0);
+    if (--ctx->gl_depth == 0) gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    return r;
+}
+
+/* Under GIMANY_DEBUG: GIM_ERROR_GL (logged) when the pass just run raised a GL error. */
+static gim_result gim__gl_check(gim_context *ctx, const char *where) {
+#ifdef GIMANY_DEBUG
+    gim__GLenum e, first = GIM__GL_NO_ERROR;
+    int guard = 0;
+    while ((e = ctx->gl.GetError()) != GIM__GL_NO_ERROR && guard++ < 16) {
+        if (first == GIM__GL_NO_ERROR) first = e;
+        gim__log(&ctx->env, GIM_LOG_ERROR, where, "GL error 0x%04x", (unsigned)e);
+    }
+    if (first != GIM__GL_NO_ERROR) return gim__fail(&ctx->env, GIM_ERROR_GL, where, "GL error 0x%04x", (unsigned)first);
+#else
+    (void)ctx; (void)where;
+#endif
+    return GIM_OK;
+}
+
+/* --- shaders --------------------------------------------------------------------------- */
+
+/* One stage of a program to build: its GL type, a name for the log, its source (no #version). */
+typedef struct gim__shader_stage {
+    gim__GLenum type;
+    const char *name;
+    const char *source;
+} gim__shader_stage;
+
+/* Send an info log through the logger, one message per line (a message holds ~450 chars). */
+static void gim__gl_log_info(const gim_context *ctx, const char *where, const char *log) {
+    while (*log) {
+        const char *end = strchr(log, '\n');
+        int n = end ? (int)(end - log) : (int)strlen(log);
+        if (n > 0) gim__log(&ctx->env, GIM_LOG_ERROR, where, "%.*s", n, log);
+        log += n + (end ? 1 : 0);
+    }
+}
+
+/* Compile and link stages into a program. The runtime prepends "#version 430 core\n", so
+   the compiler's line numbers are one more than the file's. Failure: GIM_ERROR_GL with the
+   info log through the logger, nothing left behind. */
+static gim_result gim__gl_build_program(gim_context *ctx, const char *program_name, const gim__shader_stage *stages,
+                                        int stage_count, gim__GLuint *out) {
+    static const char version[] = "#version 430 core\n";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint shaders[3] = {0, 0, 0}, program = 0;
+    gim__GLint ok = 0;
+    char log[2048];
+    gim_result r = GIM_OK;
+    int i;
+    GIMANY_ASSERT(stage_count >= 1 && stage_count <= 3);
+    for (i = 0; i < stage_count && r == GIM_OK; ++i) {
+        const gim__GLchar *src[2];
+        src[0] = version;
+        src[1] = stages[i].source;
+        shaders[i] = gl->CreateShader(stages[i].type);
+        if (!shaders[i]) {
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "glCreateShader failed for %s", stages[i].name);
+            break;
+        }
+        gl->ShaderSource(shaders[i], 2, src, NULL);
+        gl->CompileShader(shaders[i]);
+        gl->GetShaderiv(shaders[i], GIM__GL_COMPILE_STATUS, &ok);
+        if (!ok) {
+            log[0] = 0;
+            gl->GetShaderInfoLog(shaders[i], (gim__GLsizei)sizeof log, NULL, log);
+            log[sizeof log - 1] = 0;
+            gim__gl_log_info(ctx, stages[i].name, log);
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "%s does not compile (line numbers above are one past the file's)",
+                          stages[i].name);
+        }
+    }
+    if (r == GIM_OK) {
+        program = gl->CreateProgram();
+        if (!program) r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "glCreateProgram failed");
+    }
+    if (r == GIM_OK) {
+        for (i = 0; i < stage_count; ++i) gl->AttachShader(program, shaders[i]);
+        gl->LinkProgram(program);
+        for (i = 0; i < stage_count; ++i) gl->DetachShader(program, shaders[i]);
+        gl->GetProgramiv(program, GIM__GL_LINK_STATUS, &ok);
+        if (!ok) {
+            log[0] = 0;
+            gl->GetProgramInfoLog(program, (gim__GLsizei)sizeof log, NULL, log);
+            log[sizeof log - 1] = 0;
+            gim__gl_log_info(ctx, program_name, log);
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "program does not link");
+        }
+    }
+    for (i = 0; i < stage_count; ++i)
+        if (shaders[i]) gl->DeleteShader(shaders[i]);
+    if (r != GIM_OK) {
+        if (program) gl->DeleteProgram(program);
+        return r;
+    }
+    *out = program;
+    return GIM_OK;
+}
+
+/* Source of an embedded shader file, or NULL. */
+static const char *gim__embedded_source(const char *file) {
+    const gim__embedded_shader *e;
+    for (e = gim__embedded_shaders; e->name; ++e)
+        if (strcmp(e->name, file) == 0) return (const char *)e->source;
+    return NULL;
+}
+
+/* The program id, built on first use (a feature never used costs nothing). */
+static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLuint *out) {
+    gim__shader_stage stages[2];
+    int n = 0, i;
+    gim_result r;
+    GIMANY_ASSERT((unsigned)id < GIM__PROGRAM_COUNT);
+    if (ctx->programs[id]) { *out = ctx->programs[id]; return GIM_OK; }
+    for (i = 0; i < 2 && gim__program_files[id][i]; ++i) {
+        const char *file = gim__program_files[id][i], *dot = strrchr(file, '.');
+        stages[n].name = file;
+        stages[n].source = gim__embedded_source(file);
+        if (!stages[n].source)
+            return gim__fail(&ctx->env, GIM_ERROR_GL, file, "not in shaders_embedded.h (run `make shaders`)");
+        if (dot && strcmp(dot, ".comp") == 0) stages[n].type = GIM__GL_COMPUTE_SHADER;
+        else if (dot && strcmp(dot, ".vert") == 0) stages[n].type = GIM__GL_VERTEX_SHADER;
+        else if (dot && strcmp(dot, ".geom") == 0) stages[n].type = GIM__GL_GEOMETRY_SHADER;
+        else stages[n].type = GIM__GL_FRAGMENT_SHADER;
+        ++n;
+    }
+    r = gim__gl_build_program(ctx, gim__program_files[id][0], stages, n, &ctx->programs[id]);
+    if (r == GIM_OK) *out = ctx->programs[id];
+    return r;
+}
+
+/* --- importance sampling passes (paper 000 sec. 4) ----------------------------------- */
+
+#define GIM__SCAN_BLOCK_ROWS 64u   /* rows per block of the column scan (eq. 12) */
+#define GIM__SCAN_MAX_SIZE 16384u  /* largest RSM side the scan takes */
+
+/* Make the context's scratch buffer at least bytes long (contents undefined). */
+static gim_result gim__gl_scratch(gim_context *ctx, gim__GLuint *buffer, size_t *have, size_t bytes, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    if (*buffer && *have >= bytes) return GIM_OK;
+    if (!*buffer) gl->GenBuffers(1, buffer);
+    if (!*buffer) return gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    gl->BindBuffer(GIM__GL_SHADER_STORAGE_BUFFER, *buffer);
+    gl->BufferData(GIM__GL_SHADER_STORAGE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
+    *have = bytes;
+    return gim__gl_check(ctx, where);
+}
+
+/* eq. 12 on the GPU, the twin of gim_importance_cumsum. map: SSBO of width * height floats
+   (row-major, row 0 first); column: SSBO of width * height doubles, written with
+   column[y * width + x] = sum of map(x, 0..y); row: SSBO of width doubles, written with
+   row[x] = sum of the column totals 0..x. block_rows: rows per block of the first level
+   (0: default 64). Three dispatches, O(width * height) adds, in double (see the shaders). */
+static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__GLuint map, gim__GLuint column,
+                                                        gim__GLuint row, uint32_t width, uint32_t height,
+                                                        uint32_t block_rows) {
+    static const char where[] = "importance cumsum (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint p_columns = 0, p_totals = 0, p_offsets = 0;
+    uint32_t blocks;
+    gim_result r;
+    if (!map || !column || !row) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (block_rows == 0) block_rows = GIM__SCAN_BLOCK_ROWS;
+    blocks = (height + block_rows - 1u) / block_rows;
+    if ((gim__GLint64)width * height * 8 > ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%ux%u doubles exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)width,
+                         (unsigned)height, (long long)ctx->max_ssbo_bytes);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_COLUMNS, &p_columns);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_TOTALS, &p_totals);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_OFFSETS, &p_offsets);
+    if (r == GIM_OK)
+        r = gim__gl_scratch(ctx, &ctx->scan_blocks, &ctx->scan_blocks_bytes, (size_t)blocks * width * 8u, where);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, map);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->scan_blocks);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
+
+    gl->UseProgram(p_columns);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, block_rows);
+    gl->DispatchCompute((width + 63u) / 64u, blocks, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+
+    gl->UseProgram(p_totals);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, block_rows);
+    gl->DispatchCompute(1u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+
+    gl->UseProgram(p_offsets);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, block_rows);
+    gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* --- create / destroy ------------------------------------------------------------------ */
+
+/* "4.6 (Core Profile) Mesa ..." or "OpenGL ES 3.2 ...": the major.minor a legacy context
+   (no GL_MAJOR_VERSION query) reports in its version string. */
+static void gim__gl_parse_version(const char *s, int *major, int *minor) {
+    *major = *minor = 0;
+    if (!s) return;
+    while (*s && (*s < '0' || *s > '9')) ++s;
+    while (*s >= '0' && *s <= '9') *major = *major * 10 + (*s++ - '0');
+    if (*s == '.') ++s;
+    while (*s >= '0' && *s <= '9') *minor = *minor * 10 + (*s++ - '0');
+}
+
+GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
+    gim__gl gl;
+    gim_context *ctx;
+    gim__GLint major = 0, minor = 0;
+    const char *version, *renderer, *vendor, *glsl;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    if (!out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create", "out is NULL");
+#ifndef GIMANY_EXTERNAL_GL
+    if (!desc->get_proc_address)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
+                         "desc.get_proc_address is NULL (pass eglGetProcAddress, glfwGetProcAddress, ...)");
+#endif
+    r = gim__gl_load(&gl, desc->get_proc_address, &desc->env);
+    if (r != GIM_OK) return r;
+
+    version = (const char *)gl.GetString(GIM__GL_VERSION);
+    renderer = (const char *)gl.GetString(GIM__GL_RENDERER);
+    vendor = (const char *)gl.GetString(GIM__GL_VENDOR);
+    if (!version)
+        return gim__fail(&desc->env, GIM_ERROR_UNSUPPORTED, "gim_create", "glGetString(GL_VERSION) is NULL: is a GL context current?");
+    gl.GetIntegerv(GIM__GL_MAJOR_VERSION, &major);
+    gl.GetIntegerv(GIM__GL_MINOR_VERSION, &minor);
+    if (major < 3) { /* before 3.0 the query is GL_INVALID_ENUM: clear it, read the string */
+        int guard = 0;
+        while (gl.GetError() != GIM__GL_NO_ERROR && guard++ < 16) {}
+        gim__gl_parse_version(version, &major, &minor);
+    }
+    if (strncmp(version, "OpenGL ES", 9) == 0 || major < 4 || (major == 4 && minor < 3))
+        return gim__fail(&desc->env, GIM_ERROR_UNSUPPORTED, "gim_create",
+                         "the context is %s %d.%d (\"%s\", %s): gimany needs desktop OpenGL 4.3",
+                         strncmp(version, "OpenGL ES", 9) == 0 ? "OpenGL ES" : "OpenGL", (int)major, (int)minor, version,
+                         renderer ? renderer : "?");
+    glsl = (const char *)gl.GetString(GIM__GL_SHADING_LANGUAGE_VERSION);
+    gim__log(&desc->env, GIM_LOG_INFO, "gim_create", "OpenGL %s; renderer %s; vendor %s; GLSL %s", version,
+             renderer ? renderer : "?", vendor ? vendor : "?", glsl ? glsl : "?");
+
+    ctx = (gim_context *)gim__alloc(&desc->env, sizeof *ctx);
+    if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
+    memset(ctx, 0, sizeof *ctx);
+    ctx->env = desc->env;
+    ctx->gl = gl;
+    ctx->gl_major = (int)major;
+    ctx->gl_minor = (int)minor;
+    gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
+    *out = ctx;
+    return GIM_OK;
+}
+
+GIMANY_DEF void gim_destroy(gim_context *ctx) {
+    gim_env env;
+    int i;
+    if (!ctx) return;
+    for (i = 0; i < GIM__PROGRAM_COUNT; ++i)
+        if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
+    if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
+    env = ctx->env;
+    gim__free(&env, ctx);
+}
+
+#ifdef __cplusplus
+}
+#endif
 #endif /* GIMANY_NO_GL */
 
 #endif /* GIMANY_IMPLEMENTATION_DONE */
