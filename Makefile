@@ -45,6 +45,10 @@ $(B)/asan/%: tests/%.c $(HDRS)
 $(B)/clang/%: tests/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	clang $(CSTD) $(WARN) $(INC) -O2 -g -fsanitize=undefined -fno-sanitize-recover=all -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
+# The same CPU tests without sanitizers, run under valgrind (no leaks, no invalid reads).
+$(B)/plain/%: tests/%.c $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -O1 -g -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
 # GL tests: headless EGL on Mesa llvmpipe, ASan+UBSan.
 $(B)/gl/%: tests/%.c $(HDRS) 
 	@mkdir -p $(@D)
@@ -61,13 +65,14 @@ $(B)/cxx/two_tu_c: tests/two_tu_a.c tests/two_tu_b.c $(HDRS)
 	clang $(CSTD) $(WARN) $(INC) -O1 -DGIMANY_NO_GL tests/two_tu_a.c tests/two_tu_b.c -o $@ -lm
 
 CPU_BINS := $(addprefix $(B)/asan/,$(CPU_TESTS)) $(addprefix $(B)/clang/,$(CPU_TESTS))
+VG_BINS  := $(addprefix $(B)/plain/,$(CPU_TESTS))
 GL_BINS  := $(addprefix $(B)/gl/,$(GL_TESTS))
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c
 
 test: deps check-shaders
-	@$(MAKE) --no-print-directory $(CPU_BINS) $(GL_BINS) $(CXX_BINS)
+	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS)
 	@$(MAKE) --no-print-directory fuzz-short
-	@tools/run-tests.sh $(CPU_BINS) $(GL_BINS) $(CXX_BINS)
+	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS)
 
 # --- benchmarks ---------------------------------------------------------------------------
 $(B)/bench/%: tests/%.c $(HDRS) 

@@ -732,16 +732,30 @@ GIMANY_DEF uint32_t gim_prime(uint32_t dim) {
     return dim < GIM_MAX_HALTON_DIMENSIONS ? gim__primes[dim] : 0u;
 }
 
+/* The digit loop with base as a literal, so the compiler turns / and % into multiplies. */
+#define GIM__RADICAL_INVERSE_LOOP(B)                                                         \
+    while (index) {                                                                          \
+        uint32_t q = index / (B);                                                            \
+        num = num * (B) + (index - q * (B));                                                 \
+        den *= (B);                                                                          \
+        index = q;                                                                           \
+    }
+
 GIMANY_DEF double gim_radical_inverse(uint32_t base, uint32_t index) {
     /* Reverse the digits into an integer numerator over base^digits. For base <= 65535 and
        index < 2^32 both stay below 2^53 (base^digits < base * 2^32 <= 2^48), so the one
        division is correctly rounded: exact, with no drift along the index. */
     uint64_t num = 0, den = 1;
-    if (base < 2u || base > 65535u) return 0.0;
-    while (index) {
-        num = num * base + index % base;
-        den *= base;
-        index /= base;
+    switch (base) {
+    case 2: return gim_van_der_corput(index);
+    case 3: GIM__RADICAL_INVERSE_LOOP(3u) break;
+    case 5: GIM__RADICAL_INVERSE_LOOP(5u) break;
+    case 7: GIM__RADICAL_INVERSE_LOOP(7u) break;
+    case 11: GIM__RADICAL_INVERSE_LOOP(11u) break;
+    case 13: GIM__RADICAL_INVERSE_LOOP(13u) break;
+    default:
+        if (base < 2u || base > 65535u) return 0.0;
+        GIM__RADICAL_INVERSE_LOOP(base)
     }
     return (double)num / (double)den;
 }

@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # Runs each test binary, shows its output, and closes with one line "tests: N passed, N failed".
 # cmocka binaries report "[  PASSED  ] N test(s)." / "[  FAILED  ] N test(s)"; a binary that
-# prints neither counts as one test, passed when it exits 0.
+# prints neither counts as one test, passed when it exits 0. Binaries named in $VALGRIND run
+# under valgrind, whose errors fail them.
 set -u
 pass=0; fail=0; skip=0
 for t in "$@"; do
   echo "== $t"
-  out=$("$t" 2>&1); rc=$?
+  case " ${VALGRIND:-} " in
+    *" $t "*) out=$(valgrind -q --error-exitcode=99 --leak-check=full --errors-for-leak-kinds=definite,indirect "$t" 2>&1); rc=$? ;;
+    *) out=$("$t" 2>&1); rc=$? ;;
+  esac
   echo "$out"
   p=$(echo "$out" | sed -n 's/.*\[  PASSED  \] \([0-9]*\) test.*/\1/p' | tail -1)
   f=$(echo "$out" | sed -n 's/.*\[  FAILED  \] \([0-9]*\) test.*/\1/p' | tail -1)
