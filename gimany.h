@@ -1081,6 +1081,7 @@ enum {
     X(void, Uniform1ui, (gim__GLint location, gim__GLuint v0))                                   \
     X(void, Uniform1f, (gim__GLint location, gim__GLfloat v0))                                   \
     X(void, Uniform2ui, (gim__GLint location, gim__GLuint v0, gim__GLuint v1))                   \
+    X(void, Uniform2d, (gim__GLint location, double v0, double v1))                              \
     X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
     X(void, DeleteBuffers, (gim__GLsizei n, const gim__GLuint *buffers))                         \
     X(void, BufferData, (gim__GLenum target, gim__GLsizeiptr size, const void *data,             \
@@ -1312,17 +1313,21 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
 
 /* Programs, compiled on first use from shaders_embedded.h. */
 typedef enum gim__program_id {
-    GIM__PROGRAM_SCAN_COLUMNS = 0,   /* eq. 12: block-local vertical sums */
+    GIM__PROGRAM_IMPORTANCE_MAP = 0, /* eq. 10-11 */
+    GIM__PROGRAM_SCAN_COLUMNS,       /* eq. 12: block-local vertical sums */
     GIM__PROGRAM_SCAN_TOTALS,        /* eq. 12: block offsets, horizontal sums of column totals */
     GIM__PROGRAM_SCAN_OFFSETS,       /* eq. 12: block offsets added to the vertical sums */
+    GIM__PROGRAM_SELECT,             /* binary-search selection of VALs */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
 /* Shader files of each program (compute: one file; draw programs: vertex, fragment). */
 static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
+    {"importance_map.comp", NULL},
     {"importance_scan_columns.comp", NULL},
     {"importance_scan_totals.comp", NULL},
-    {"importance_scan_offsets.comp", NULL}};
+    {"importance_scan_offsets.comp", NULL},
+    {"importance_select.comp", NULL}};
 
 struct gim_context {
     gim_env env;
@@ -1506,6 +1511,56 @@ static gim_result gim__gl_scratch(gim_context *ctx, gim__GLuint *buffer, size_t 
     return gim__gl_check(ctx, where);
 }
 
+/* eq. 10-11 on the GPU, the twin of gim_importance_map. rsm_position, rsm_normal, rsm_flux:
+   2D float textures of width x height (position.xyz with .w > 0 where the RSM saw a surface,
+   the twin's rsm_valid; normal.xyz; flux.rgb), read with texelFetch on units 0-2.
+   view_samples: SSBO of view_sample_count {vec4 position; vec4 normal} (xyz used). map: SSBO
+   of width * height floats (row-major, row 0 first), written. clamp 0 means 1/64 of scene_scale.
+   Cost: width * height * view_sample_count terms. */
+static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                     gim__GLuint rsm_flux, uint32_t width, uint32_t height,
+                                                     gim__GLuint view_samples, uint32_t view_sample_count,
+                                                     float scene_scale, float clamp, gim__GLuint map) {
+    static const char where[] = "importance map (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3];
+    gim_result r;
+    unsigned i;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !view_samples || !map)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or buffer is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (clamp == 0.0f) clamp = 1.0f / 64.0f;
+    if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    for (i = 0; i < 3; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
+        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
+    }
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, map);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, view_sample_count);
+    gl->Uniform1f(2, (float)(1.0 / (double)scene_scale));
+    gl->Uniform1f(3, clamp * clamp);
+    gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
 /* eq. 12 on the GPU, the twin of gim_importance_cumsum. map: SSBO of width * height floats
    (row-major, row 0 first); column: SSBO of width * height doubles, written with
    column[y * width + x] = sum of map(x, 0..y); row: SSBO of width doubles, written with
@@ -1557,6 +1612,44 @@ static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__G
     gl->Uniform2ui(0, width, height);
     gl->Uniform1ui(1, block_rows);
     gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Selection on the GPU, the twin of gim_importance_select: count VALs from the eq. 12 tables
+   (column, row: SSBOs as gim__gl_importance_cumsum writes them) into out, an SSBO of count
+   gim_selected_val (12 bytes each: x, y, pdf). Same seed, same picks as the twin. An all-zero
+   map selects uniformly (the twin also logs a warning, which the GPU cannot without a read-back);
+   pdf 0 marks a pick from tables that are not cumulative sums (the twin returns an error). */
+static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__GLuint column, gim__GLuint row,
+                                                        uint32_t width, uint32_t height, uint32_t count,
+                                                        uint32_t seed, gim__GLuint out) {
+    static const char where[] = "importance select (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    float off[4];
+    gim_result r;
+    if (!column || !row || !out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "count %u above %u", (unsigned)count, 65535u * 64u);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    /* the twin's 48-bit rotation: two 24-bit offsets per dimension */
+    gim_rotation_offsets(off, 4u, seed);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, out);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, count);
+    gl->Uniform2d(2, (double)off[0] + (double)off[2] * (1.0 / 16777216.0),
+                  (double)off[1] + (double)off[3] * (1.0 / 16777216.0));
+    gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
