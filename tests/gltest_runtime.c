@@ -466,30 +466,76 @@ static void save_restore_covers_list(void **state) {
     GLTEST_END();
 }
 
+/* A small RSM (w x h RGBA32F position with w = 1, normal, flux), view samples and buffers. */
+typedef struct pass_objects {
+    GLuint tex[3], view_samples, map, column, row, selected;
+} pass_objects;
+
+static void make_pass_objects(pass_objects *o, int w, int h) {
+    float *t = (float *)calloc((size_t)w * h * 4, sizeof(float));
+    float vs[4 * 8 * 2];
+    int i, k;
+    glGenTextures(3, o->tex);
+    for (k = 0; k < 3; ++k) {
+        for (i = 0; i < w * h; ++i) {
+            float *p = t + i * 4;
+            if (k == 0) { p[0] = (float)(i % w); p[1] = 0.0f; p[2] = (float)(i / w); p[3] = 1.0f; }
+            else if (k == 1) { p[0] = 0.0f; p[1] = 1.0f; p[2] = 0.0f; p[3] = 0.0f; }
+            else { p[0] = p[1] = p[2] = 1.0f; p[3] = 0.0f; }
+        }
+        glBindTexture(GL_TEXTURE_2D, o->tex[k]);
+        glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, w, h);
+        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_RGBA, GL_FLOAT, t);
+    }
+    glBindTexture(GL_TEXTURE_2D, 0);
+    for (i = 0; i < 8; ++i) { /* view samples above the floor, facing down */
+        float *v = vs + i * 8;
+        v[0] = (float)i; v[1] = 3.0f; v[2] = (float)(i % 3); v[3] = 1.0f;
+        v[4] = 0.0f; v[5] = -1.0f; v[6] = 0.0f; v[7] = 0.0f;
+    }
+    glGenBuffers(1, &o->view_samples);
+    glGenBuffers(1, &o->map);
+    glGenBuffers(1, &o->column);
+    glGenBuffers(1, &o->row);
+    glGenBuffers(1, &o->selected);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, o->view_samples);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof vs, vs, GL_STATIC_DRAW);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, o->map);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)w * h * 4, NULL, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, o->column);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)w * h * 8, NULL, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, o->row);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)w * 8, NULL, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, o->selected);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, 64 * 12, NULL, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    free(t);
+}
+
+static void delete_pass_objects(pass_objects *o) {
+    glDeleteTextures(3, o->tex);
+    glDeleteBuffers(1, &o->view_samples);
+    glDeleteBuffers(1, &o->map);
+    glDeleteBuffers(1, &o->column);
+    glDeleteBuffers(1, &o->row);
+    glDeleteBuffers(1, &o->selected);
+}
+
+/* Every entry point that touches GL (gim_create, the passes with their lazy program builds and
+   scratch buffers, failing calls, gim_destroy) leaves the host's distinctive state as it was. */
 static void state_restored(void **state) {
+    enum { W = 32, H = 20 };
     test_alloc_stats stats;
     test_log log;
     gim_desc d;
     gim_context *ctx = NULL;
     host_objects h;
+    pass_objects o;
     gim__gl_state before, after;
-    GLuint map = 0, column = 0, row = 0;
-    float ones[32 * 20];
     int i;
     (void)state;
     GLTEST_BEGIN();
-    /* gimany's own buffers for the pass, made before the host state is set */
-    for (i = 0; i < 32 * 20; ++i) ones[i] = 1.0f;
-    glGenBuffers(1, &map);
-    glGenBuffers(1, &column);
-    glGenBuffers(1, &row);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, map);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof ones, ones, GL_STATIC_DRAW);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, column);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, 32 * 20 * 8, NULL, GL_DYNAMIC_COPY);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, row);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, 32 * 8, NULL, GL_DYNAMIC_COPY);
-
+    make_pass_objects(&o, W, H); /* gimany's inputs, made before the host state is set */
     set_distinctive_state(&h);
     check_distinctive_state(&h);
     d = make_desc(&stats, &log);
@@ -499,33 +545,50 @@ static void state_restored(void **state) {
     assert_int_equal(gim_create(&d, &ctx), GIM_OK);
     check_distinctive_state(&h);
     gim__gl_state_save(&ctx->gl, &before);
-    /* a pass: programs built lazily, scratch buffer made, SSBOs and program bound */
-    assert_int_equal(gim__gl_importance_cumsum(ctx, map, column, row, 32, 20, 8), GIM_OK);
+    assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], o.tex[2], W, H, o.view_samples, 8, 10.0f, 0.0f, o.map),
+                     GIM_OK);
+    check_distinctive_state(&h);
+    assert_int_equal(gim__gl_importance_cumsum(ctx, o.map, o.column, o.row, W, H, 8), GIM_OK);
+    check_distinctive_state(&h);
+    assert_int_equal(gim__gl_importance_select(ctx, o.column, o.row, W, H, 64, 7, o.selected), GIM_OK);
     check_distinctive_state(&h);
     gim__gl_state_save(&ctx->gl, &after);
     assert_snapshot_equal(&before, &after);
-    /* a failing call restores too */
-    assert_int_equal(gim__gl_importance_cumsum(ctx, map, column, row, 0, 20, 8), GIM_ERROR_OUT_OF_RANGE);
+    /* failing calls restore too (the argument checks come before any GL; a failed program
+       build inside a call is covered by save_restore_covers_list's error path) */
+    assert_int_equal(gim__gl_importance_cumsum(ctx, o.map, o.column, o.row, 0, H, 8), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_importance_select(ctx, o.column, o.row, W, H, 0, 7, o.selected), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], o.tex[2], W, H, o.view_samples, 8, -1.0f, 0.0f, o.map),
+                     GIM_ERROR_INVALID_ARGUMENT);
     check_distinctive_state(&h);
     gim_destroy(ctx);
     check_distinctive_state(&h);
-    assert_int_equal(log.errors, 1);
+    assert_int_equal(log.errors, 3);
     assert_int_equal(stats.live, 0);
 
-    /* the pass ran under that state: its output is right (20 rows of ones) */
+    /* the passes ran under that state and did their work: the floor texels under the view
+       samples are important, every pick has a positive pdf */
     {
-        double col[32 * 20], rw[32];
-        glBindBuffer(GL_COPY_READ_BUFFER, column);
-        glGetBufferSubData(GL_COPY_READ_BUFFER, 0, sizeof col, col);
-        glBindBuffer(GL_COPY_READ_BUFFER, row);
+        float map[W * H];
+        double rw[W];
+        uint32_t sel[64 * 3];
+        glBindBuffer(GL_COPY_READ_BUFFER, o.map);
+        glGetBufferSubData(GL_COPY_READ_BUFFER, 0, sizeof map, map);
+        glBindBuffer(GL_COPY_READ_BUFFER, o.row);
         glGetBufferSubData(GL_COPY_READ_BUFFER, 0, sizeof rw, rw);
-        for (i = 0; i < 32 * 20; ++i) assert_true(col[i] == (double)(i / 32 + 1));
-        for (i = 0; i < 32; ++i) assert_true(rw[i] == 20.0 * (i + 1));
+        glBindBuffer(GL_COPY_READ_BUFFER, o.selected);
+        glGetBufferSubData(GL_COPY_READ_BUFFER, 0, sizeof sel, sel);
+        glBindBuffer(GL_COPY_READ_BUFFER, h.buffers[5]);
+        for (i = 0; i < W * H; ++i) assert_true(map[i] > 0.0f);
+        assert_true(rw[W - 1] > 0.0);
+        for (i = 0; i < 64; ++i) {
+            float pdf;
+            memcpy(&pdf, &sel[i * 3 + 2], sizeof pdf);
+            assert_true(sel[i * 3] < W && sel[i * 3 + 1] < H && pdf > 0.0f && pdf <= 1.0f);
+        }
     }
     delete_host_objects(&h);
-    glDeleteBuffers(1, &map);
-    glDeleteBuffers(1, &column);
-    glDeleteBuffers(1, &row);
+    delete_pass_objects(&o);
     GLTEST_END();
 }
 
