@@ -138,7 +138,7 @@ static void gltest_shutdown(void) {
 }
 
 /* GL errors since the last reset: debug-callback errors plus anything glGetError still holds. */
-static long gltest_errors(void) {
+static GIM__UNUSED long gltest_errors(void) {
     GLenum e;
     int guard = 0;
     while ((e = glGetError()) != GL_NO_ERROR && guard++ < 64) {
@@ -147,7 +147,7 @@ static long gltest_errors(void) {
     }
     return gltest.gl_errors;
 }
-static void gltest_reset_errors(void) {
+static GIM__UNUSED void gltest_reset_errors(void) {
     while (glGetError() != GL_NO_ERROR) {}
     gltest.gl_errors = 0;
     gltest.last_error[0] = 0;
