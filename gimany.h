@@ -1017,6 +1017,9 @@ enum {
     GIM__GL_RGBA = 0x1908,
     GIM__GL_FLOAT = 0x1406,
     GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE = 0x90DE,
+    GIM__GL_BUFFER_SIZE = 0x8764,
+    GIM__GL_TEXTURE_WIDTH = 0x1000,
+    GIM__GL_TEXTURE_HEIGHT = 0x1001,
     GIM__GL_INVALID_ENUM = 0x0500
 };
 
@@ -1083,6 +1086,11 @@ enum {
     X(void, Uniform2ui, (gim__GLint location, gim__GLuint v0, gim__GLuint v1))                   \
     X(void, Uniform2d, (gim__GLint location, double v0, double v1))                              \
     X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
+    X(gim__GLboolean, IsBuffer, (gim__GLuint buffer))                                           \
+    X(void, GetBufferParameteri64v, (gim__GLenum target, gim__GLenum pname, gim__GLint64 *data)) \
+    X(gim__GLboolean, IsTexture, (gim__GLuint texture))                                         \
+    X(void, GetTexLevelParameteriv, (gim__GLenum target, gim__GLint level, gim__GLenum pname,    \
+                                     gim__GLint *params))                                        \
     X(void, DeleteBuffers, (gim__GLsizei n, const gim__GLuint *buffers))                         \
     X(void, BufferData, (gim__GLenum target, gim__GLsizeiptr size, const void *data,             \
                          gim__GLenum usage))                                                     \
@@ -1511,6 +1519,38 @@ static gim_result gim__gl_scratch(gim_context *ctx, gim__GLuint *buffer, size_t 
     return gim__gl_check(ctx, where);
 }
 
+/* A host buffer a pass reads or writes must exist and hold bytes: the shaders index it up to
+   there, and an SSBO access past the end is undefined. Binds it to COPY_WRITE_BUFFER, so call
+   between gim__gl_enter and gim__gl_leave. */
+static gim_result gim__gl_check_buffer(gim_context *ctx, const char *where, const char *what, gim__GLuint buffer,
+                                       uint64_t bytes) {
+    gim__GLint64 size = 0;
+    if (!buffer || !ctx->gl.IsBuffer(buffer))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a buffer object", what, (unsigned)buffer);
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, buffer);
+    ctx->gl.GetBufferParameteri64v(GIM__GL_COPY_WRITE_BUFFER, GIM__GL_BUFFER_SIZE, &size);
+    if (size < 0 || (uint64_t)size < bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s holds %lld bytes, the pass needs %llu", what,
+                         (long long)size, (unsigned long long)bytes);
+    return GIM_OK;
+}
+
+/* A host 2D texture a pass reads must exist and be at least width x height at level 0. Binds
+   it to TEXTURE_2D of the active unit (call between enter and leave). */
+static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, const char *what, gim__GLuint texture,
+                                        uint32_t width, uint32_t height) {
+    gim__GLint w = 0, h = 0;
+    if (!texture || !ctx->gl.IsTexture(texture))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, texture);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_WIDTH, &w);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_HEIGHT, &h);
+    if (w < 0 || h < 0 || (uint32_t)w < width || (uint32_t)h < height)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s is %dx%d, the pass reads %ux%u", what, (int)w,
+                         (int)h, (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
 /* eq. 10-11 on the GPU, the twin of gim_importance_map. rsm_position, rsm_normal, rsm_flux:
    2D float textures of width x height (position.xyz with .w > 0 where the RSM saw a surface,
    the twin's rsm_valid; normal.xyz; flux.rgb), read with texelFetch on units 0-2.
@@ -1539,11 +1579,16 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
     if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
     gim__gl_enter(ctx, where);
-    r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
     textures[0] = rsm_position;
     textures[1] = rsm_normal;
     textures[2] = rsm_flux;
+    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
     for (i = 0; i < 3; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
         gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
@@ -1585,7 +1630,10 @@ static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__G
                          "%ux%u doubles exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)width,
                          (unsigned)height, (long long)ctx->max_ssbo_bytes);
     gim__gl_enter(ctx, where);
-    r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_COLUMNS, &p_columns);
+    r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "column", column, (uint64_t)width * height * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "row", row, (uint64_t)width * 8u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_COLUMNS, &p_columns);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_TOTALS, &p_totals);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_OFFSETS, &p_offsets);
     if (r == GIM_OK)
@@ -1637,7 +1685,10 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
     if (count > 65535u * 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "count %u above %u", (unsigned)count, 65535u * 64u);
     gim__gl_enter(ctx, where);
-    r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
+    r = gim__gl_check_buffer(ctx, where, "column", column, (uint64_t)width * height * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "row", row, (uint64_t)width * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "out", out, (uint64_t)count * 12u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     /* the twin's 48-bit rotation: two 24-bit offsets per dimension */
     gim_rotation_offsets(off, 4u, seed);

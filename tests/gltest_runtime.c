@@ -592,6 +592,58 @@ static void state_restored(void **state) {
     GLTEST_END();
 }
 
+/* Host buffers and textures too small for a pass, or not GL objects at all: an argument error
+   before any dispatch (no SSBO access past the end), no GL error, the state restored. */
+static void pass_objects_checked(void **state) {
+    enum { W = 16, H = 8 };
+    test_alloc_stats stats;
+    test_log log;
+    gim_desc d;
+    gim_context *ctx = NULL;
+    pass_objects o;
+    gim__gl_state before, after;
+    GLuint small = 0, small_tex = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    make_pass_objects(&o, W, H);
+    glGenBuffers(1, &small);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, small);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, W * H * 4 - 4, NULL, GL_DYNAMIC_COPY); /* one float short */
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    glGenTextures(1, &small_tex);
+    glBindTexture(GL_TEXTURE_2D, small_tex);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, W, H - 1);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    d = make_desc(&stats, &log);
+    assert_int_equal(gim_create(&d, &ctx), GIM_OK);
+    gim__gl_state_save(&ctx->gl, &before);
+    /* map one float short; column sized for fewer rows; not a buffer; out too short */
+    assert_int_equal(gim__gl_importance_cumsum(ctx, small, o.column, o.row, W, H, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(log.last, "map"));
+    assert_int_equal(gim__gl_importance_cumsum(ctx, o.map, o.column, o.row, W, H + 1, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_cumsum(ctx, o.map, 987654u, o.row, W, H, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(log.last, "not a buffer"));
+    assert_int_equal(gim__gl_importance_select(ctx, o.column, o.row, W, H, 65, 0, o.selected), GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(log.last, "out"));
+    assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], small_tex, o.tex[2], W, H, o.view_samples, 8, 1.0f, 0.0f, o.map),
+                     GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(log.last, "rsm_normal"));
+    assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], 987654u, W, H, o.view_samples, 8, 1.0f, 0.0f, o.map),
+                     GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(log.last, "not a texture"));
+    assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], o.tex[2], W, H, o.view_samples, 9, 1.0f, 0.0f, o.map),
+                     GIM_ERROR_INVALID_ARGUMENT); /* 8 view samples in the buffer */
+    assert_int_equal(log.errors, 7);
+    gim__gl_state_save(&ctx->gl, &after);
+    assert_memory_equal(&before, &after, sizeof before);
+    gim_destroy(ctx);
+    assert_int_equal(stats.live, 0);
+    glDeleteBuffers(1, &small);
+    glDeleteTextures(1, &small_tex);
+    delete_pass_objects(&o);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(errors_are_seen),
@@ -602,6 +654,7 @@ int main(void) {
         cmocka_unit_test(shader_failures),
         cmocka_unit_test(save_restore_covers_list),
         cmocka_unit_test(state_restored),
+        cmocka_unit_test(pass_objects_checked),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
