@@ -373,10 +373,11 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env
    importance only steers which VALs reach the caches, and the light is gathered at caches
    spaced d_eps = scene_scale / 32 (the cache default), so distances below about d_eps / 2 are
    not resolved by any receiver. A smaller clamp only sharpens the 1/d^2 peak of texels lying
-   next to one of the few hundred view samples: at 1/64 one such pair is worth at most
-   64^2 = 4096, about one typical texel's whole sum over 512 samples; at 1/300 it would be
-   worth ~20 of them, and those few texels would soak up the selections (and flicker as the
-   view samples move) without lighting the caches any better. */
+   next to one of the few hundred view samples: at 1/64 one such pair adds at most
+   64^2 = 4096 to the sum of eq. 10, a few times what a typical texel collects from all 512
+   samples (~512 x 0.3 / 0.1 at a third of the scene away); at 1/300 it would add 90000, and
+   those few texels would soak up the selections (and flicker as the view samples move)
+   without lighting the caches any better. */
 
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
@@ -1041,9 +1042,9 @@ GIMANY_DEF gim_result gim_importance_select(const double *column, const double *
         prev = row[x];
     }
     total = row[width - 1u];
-    /* 48-bit Cranley-Patterson offsets from two 24-bit ones per dimension: the u_i of one seed
-       lie on a lattice, and a coarser one would leave columns narrower than 2^-24 of the total
-       selected with the wrong frequency */
+    /* 48-bit Cranley-Patterson offsets, two 24-bit ones per dimension: over all seeds u_i
+       only takes values on the offsets' lattice, so with 24 bits a column holding less than
+       2^-24 of the total would be picked with the wrong frequency (never, or far too often) */
     gim_rotation_offsets(off, 4u, seed);
     o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
     o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
