@@ -410,7 +410,10 @@ GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float 
    column[y * width + x] = sum over rows 0..y of map(x, .)   (vertical, per column),
    row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals).
    Every map value must be finite and >= 0; otherwise GIM_ERROR_INVALID_ARGUMENT and the
-   tables' contents are unspecified. */
+   tables' contents are unspecified. The only rounding that matters: a texel (a column) below
+   2^-53 of the running sum it joins may add nothing to it; it can then never be picked, which
+   keeps the selection consistent with the pdf, and the mass lost is below
+   (width + height) x 2^-53 of the total. */
 GIMANY_API gim_result gim_importance_cumsum(const float *map, uint32_t width, uint32_t height,
                                             double *column, double *row, gim_env env);
 
@@ -422,16 +425,16 @@ typedef struct gim_selected_val {
 
 /* Pick count texels with probability proportional to the map: sample i takes the point
      u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
-   of the Hammersley set, Cranley-Patterson rotated by the per-seed offsets o (48-bit, from
-   gim_rotation_offsets(seed)); u_i picks the column (first x with row[x] > u_i * total), v_i
+   of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
+   o_d = f[d] + f[d+2] * 2^-24 (f: gim_rotation_offsets(f, 4, seed)); u_i picks the column (first x with row[x] > u_i * total), v_i
    the texel in it (first y with column(x, y) > v_i * column total). Every u_i, v_i alone is
    uniform over the seeds, so every sample is exactly distributed as P, and the u_i are
    stratified: column x gets count * P(column x) samples rounded up or down. pdf is the
    probability the tables realise, from their differences: P = (row[x] - row[x-1]) / total *
    (column(x,y) - column(x,y-1)) / column total, > 0 (a texel of importance 0 is never picked),
    clamped below at FLT_MIN so 1/pdf stays finite. An all-zero (or all-invalid) map selects
-   the texels uniformly (pdf = 1 / (width * height)) and logs a warning: the estimator stays
-   unbiased. Tables with NaN/Inf, negative or decreasing entries are GIM_ERROR_INVALID_ARGUMENT
+   the texels uniformly, (floor(u_i * width), floor(v_i * height)) with pdf = 1 / (width *
+   height), and logs a warning: the estimator stays unbiased. Tables with NaN/Inf, negative or decreasing entries are GIM_ERROR_INVALID_ARGUMENT
    (out may then be partly written). */
 GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
                                             uint32_t width, uint32_t height, uint32_t count,
