@@ -423,19 +423,23 @@ typedef struct gim_selected_val {
     float pdf;                  /* P_VAL = map(x,y) / total; > 0 for every selected texel */
 } gim_selected_val;
 
-/* Pick count texels with probability proportional to the map: sample i takes the point
+/* Pick count texels with probability proportional to the map. Sample i takes the point
      u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
    of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
-   o_d = f[d] + f[d+2] * 2^-24 (f: gim_rotation_offsets(f, 4, seed)); u_i picks the column (first x with row[x] > u_i * total), v_i
-   the texel in it (first y with column(x, y) > v_i * column total). Every u_i, v_i alone is
-   uniform over the seeds, so every sample is exactly distributed as P, and the u_i are
-   stratified: column x gets count * P(column x) samples rounded up or down. pdf is the
-   probability the tables realise, from their differences: P = (row[x] - row[x-1]) / total *
-   (column(x,y) - column(x,y-1)) / column total, > 0 (a texel of importance 0 is never picked),
-   clamped below at FLT_MIN so 1/pdf stays finite. An all-zero (or all-invalid) map selects
-   the texels uniformly, (floor(u_i * width), floor(v_i * height)) with pdf = 1 / (width *
-   height), and logs a warning: the estimator stays unbiased. Tables with NaN/Inf, negative or decreasing entries are GIM_ERROR_INVALID_ARGUMENT
-   (out may then be partly written). */
+   o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
+   column (first x with row[x] > u_i * total), v_i the texel in it (first y with
+   column(x, y) > v_i * column total). Over the seeds every u_i and v_i alone is uniform, so
+   every sample is distributed exactly as P; within one call the u_i are stratified, so
+   column x gets count * P(column x) samples rounded up or down.
+   pdf is the probability the tables realise, from their differences:
+     P = (row[x] - row[x-1]) / total * (column(x, y) - column(x, y-1)) / column total,
+   > 0 (a texel of importance 0 is never picked), clamped below at FLT_MIN so 1/pdf stays
+   finite. An all-zero (or all-invalid) map selects the texels uniformly,
+   (floor(u_i * width), floor(v_i * height)) with pdf = 1 / (width * height), and logs a
+   warning: the estimator stays unbiased. Tables that are not cumulative sums are
+   GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
+   negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
+   positive difference (out is then partly written). */
 GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
                                             uint32_t width, uint32_t height, uint32_t count,
                                             uint32_t seed, gim_selected_val *out, gim_env env);
@@ -1002,17 +1006,23 @@ GIMANY_DEF gim_result gim_importance_cumsum(const float *map, uint32_t width, ui
     return GIM_OK;
 }
 
-/* First index k in [0, n) with a[k * stride] > t, for t < a[(n-1) * stride]. The invariant
-   (a[hi] > t, and lo == 0 or a[lo-1] <= t) makes the difference a[k] - a[k-1] > 0 at the
-   result even for a table that is not monotone, as long as it has no NaN. */
+/* First index k in [0, n) with a[k * stride] > t, for t < a[(n-1) * stride] (so k < n). Branch
+   free (the compare becomes a select), so independent searches overlap in the pipeline.
+   When k > 0, a[k-1] <= t was seen, so a[k] - a[k-1] > 0 for a monotone table; a NaN met on
+   the way shows up as a NaN difference, which the caller rejects. */
 static uint32_t gim__first_above(const double *a, size_t stride, uint32_t n, double t) {
-    uint32_t lo = 0, hi = n - 1u;
-    while (lo < hi) {
-        uint32_t mid = lo + (hi - lo) / 2u;
-        if (a[(size_t)mid * stride] > t) hi = mid;
-        else lo = mid + 1u;
+    uint32_t base = 0;
+    while (n > 1u) {
+        uint32_t half = n / 2u;
+#if defined(__GNUC__) || defined(__clang__)
+        /* both possible next probes: large strided tables are bound by memory latency */
+        __builtin_prefetch(a + (size_t)(base + (n - half) / 2u) * stride);
+        __builtin_prefetch(a + (size_t)(base + half + (n - half) / 2u) * stride);
+#endif
+        base = a[(size_t)(base + half) * stride] <= t ? base + half : base;
+        n -= half;
     }
-    return lo;
+    return base + (a[(size_t)base * stride] <= t ? 1u : 0u);
 }
 
 /* The largest double below total, for u * total rounding up to total. */
