@@ -406,6 +406,42 @@ static void huge_count(void **state) {
     free(map); free(obs); free(sel);
 }
 
+/* The documented scheme, recomputed by linear scans: the spec a GPU twin must match. */
+static void documented_scheme(void **state) {
+    const uint32_t w = 16, h = 8, count = 100;
+    float map[128], f[4];
+    gim_selected_val sel[100];
+    double col[128], row[16], o0, o1, total = 0.0;
+    uint32_t i, x, y, seed;
+    (void)state;
+    for (i = 0; i < w * h; ++i) { map[i] = (i % 7 == 2) ? 0.0f : (float)test_rand01(); }
+    for (x = 0; x < w; ++x) /* the tables by their definition, column by column */
+        for (y = 0; y < h; ++y) col[y * w + x] = map[y * w + x] + (y ? col[(y - 1) * w + x] : 0.0);
+    for (x = 0; x < w; ++x) { total += col[(h - 1) * w + x]; row[x] = total; }
+    {
+        double c2[128], r2[16];
+        assert_int_equal(gim_importance_cumsum(map, w, h, c2, r2, test_env(NULL, NULL)), GIM_OK);
+        assert_memory_equal(c2, col, sizeof col);
+        assert_memory_equal(r2, row, sizeof row);
+    }
+    for (seed = 0; seed < 4; ++seed) {
+        gim_rotation_offsets(f, 4, seed);
+        o0 = (double)f[0] + (double)f[2] / 16777216.0;
+        o1 = (double)f[1] + (double)f[3] / 16777216.0;
+        assert_int_equal(gim_importance_select(col, row, w, h, count, seed, sel, test_env(NULL, NULL)), GIM_OK);
+        for (i = 0; i < count; ++i) {
+            double u = fmod((double)i / count + o0, 1.0), v = fmod(gim_radical_inverse(2, i) + o1, 1.0), ct, p;
+            for (x = 0; !(row[x] > u * total); ++x) {}
+            ct = col[(h - 1) * w + x];
+            for (y = 0; !(col[y * w + x] > v * ct); ++y) {}
+            p = (row[x] - (x ? row[x - 1] : 0.0)) / total * (col[y * w + x] - (y ? col[(y - 1) * w + x] : 0.0)) / ct;
+            assert_int_equal(sel[i].x, x);
+            assert_int_equal(sel[i].y, y);
+            assert_true(sel[i].pdf == (float)p);
+        }
+    }
+}
+
 /* Width or height 1: the scans and searches degenerate to one dimension. */
 static void width_or_height_one(void **state) {
     float map[37];
@@ -691,6 +727,7 @@ int main(void) {
         cmocka_unit_test(chi_square_frequencies),
         cmocka_unit_test(count_one),
         cmocka_unit_test(huge_count),
+        cmocka_unit_test(documented_scheme),
         cmocka_unit_test(width_or_height_one),
         cmocka_unit_test(all_zero_map),
         cmocka_unit_test(reproducible),
