@@ -949,7 +949,7 @@ GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float 
         o[3] = s.normal.x / len; o[4] = s.normal.y / len; o[5] = s.normal.z / len;
     }
     if (unusable)
-        gim__log(env, GIM_LOG_WARNING, fn, "%u of %u view samples have a NaN/Inf or zero normal; they see nothing",
+        gim__log(env, GIM_LOG_WARNING, fn, "%u of %u view samples are NaN/Inf or have a zero normal; they see nothing",
                  (unsigned)unusable, (unsigned)desc->view_sample_count);
     for (i = 0; i < texels; ++i) {
         if (desc->rsm_valid && !(desc->rsm_valid[i] > 0.0f)) { out[i] = 0.0f; continue; }
