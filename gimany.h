@@ -360,7 +360,24 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env
 /* Bidirectional importance sampling of the RSM (paper 000 sec. 4, after Ritschel 2011).
    Every RSM texel is a VAL; its importance is its flux luminance times a geometry term
    averaged over view samples (eq. 10), with the squared distance clamped below at
-   (clamp * scene_scale)^2 (eq. 11 made unit-free). */
+   (clamp * scene_scale)^2 (eq. 11 made unit-free). Three steps, each the CPU twin of a GPU
+   pass with the same structure:
+     gim_importance_map     one independent value per texel (a compute thread per texel)
+     gim_importance_cumsum  a scan down every column, then a scan along the column totals
+     gim_importance_select  one independent binary search per selected VAL
+   Distances are measured in scene scales, so the map is in units of flux and the same scene
+   in millimetres or kilometres gives the same map (bit for bit for power-of-two scalings).
+
+   Default clamp, 1/64 of the scene scale: the paper clamps at 1 world unit in an urban scene a
+   few hundred metres across (about 1/300 of its diagonal), which is a unit, not a choice. The
+   importance only steers which VALs reach the caches, and the light is gathered at caches
+   spaced d_eps = scene_scale / 32 (the cache default), so distances below about d_eps / 2 are
+   not resolved by any receiver. A smaller clamp only sharpens the 1/d^2 peak of texels lying
+   next to one of the few hundred view samples: at 1/64 one such pair adds at most
+   64^2 = 4096 to the sum of eq. 10, a few times what a typical texel collects from all 512
+   samples (~512 x 0.3 / 0.1 at a third of the scene away); at 1/300 it would add 90000, and
+   those few texels would soak up the selections (and flicker as the view samples move)
+   without lighting the caches any better. */
 
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
@@ -371,23 +388,32 @@ typedef struct gim_view_sample {
 /* Input of gim_importance_map. The RSM arrays are width * height, row-major, row 0 first. */
 typedef struct gim_importance_desc {
     const float *rsm_position;  /* width * height * 3: world position of each texel */
-    const float *rsm_normal;    /* width * height * 3: unit normal */
+    const float *rsm_normal;    /* width * height * 3: unit normal (renormalised; zero: no importance) */
     const float *rsm_flux;      /* width * height * 3: reflected flux, rgb */
-    const float *rsm_valid;     /* width * height, or NULL: 0 where the RSM saw nothing */
+    const float *rsm_valid;     /* width * height, or NULL: a texel counts only where > 0 */
     uint32_t width, height;
-    const gim_view_sample *view_samples;
+    const gim_view_sample *view_samples; /* a NaN/Inf or zero-normal sample sees nothing (warning) */
     uint32_t view_sample_count;
     float scene_scale;          /* > 0 */
-    float clamp;                /* eq. 11 clamp distance in scene scales; default 1/64 */
+    float clamp;                /* eq. 11 clamp distance in scene scales; default 1/64 (see above) */
     gim_env env;
 } gim_importance_desc;
 
-/* eq. 10-11: importance of every texel into out[width * height]. */
+/* eq. 10-11: importance of every texel into out[width * height]:
+     I = lum(Phi)+ / N_VS * sum_j (n_l . d)+ (n_VS . -d)+ / max(|l|^2 / scene_scale^2, clamp^2)
+   with l = VS_j - VAL, d = l / |l|. An invalid texel (rsm_valid <= 0, a NaN/Inf in its
+   position, normal or flux, a zero normal) gets 0, so does a view sample at the texel itself;
+   every output is finite and >= 0 (clamped at FLT_MAX). */
 GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float *out);
 
 /* The two tables of eq. 12, built in double so P stays exact at 4096^2:
    column[y * width + x] = sum over rows 0..y of map(x, .)   (vertical, per column),
-   row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals). */
+   row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals).
+   Every map value must be finite and >= 0; otherwise GIM_ERROR_INVALID_ARGUMENT and the
+   tables' contents are unspecified. The only rounding that matters: a texel (a column) below
+   2^-53 of the running sum it joins may add nothing to it; it can then never be picked, which
+   keeps the selection consistent with the pdf, and the mass lost is below
+   (width + height) x 2^-53 of the total. */
 GIMANY_API gim_result gim_importance_cumsum(const float *map, uint32_t width, uint32_t height,
                                             double *column, double *row, gim_env env);
 
@@ -397,10 +423,23 @@ typedef struct gim_selected_val {
     float pdf;                  /* P_VAL = map(x,y) / total; > 0 for every selected texel */
 } gim_selected_val;
 
-/* Pick count texels with probability proportional to the map by binary search in the
-   cumulative sums, one stratified sample each: u_i = (i + xi) / count with xi the Halton
-   sequence rotated by seed. An all-zero (or all-invalid) map selects the texels uniformly
-   (pdf = 1 / (width * height)) and logs a warning: the estimator stays unbiased. */
+/* Pick count texels with probability proportional to the map. Sample i takes the point
+     u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
+   of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
+   o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
+   column (first x with row[x] > u_i * total), v_i the texel in it (first y with
+   column(x, y) > v_i * column total). Over the seeds every u_i and v_i alone is uniform, so
+   every sample is distributed exactly as P; within one call the u_i are stratified, so
+   column x gets count * P(column x) samples rounded up or down.
+   pdf is the probability the tables realise, from their differences:
+     P = (row[x] - row[x-1]) / total * (column(x, y) - column(x, y-1)) / column total,
+   > 0 (a texel of importance 0 is never picked), clamped below at FLT_MIN so 1/pdf stays
+   finite. An all-zero (or all-invalid) map selects the texels uniformly,
+   (floor(u_i * width), floor(v_i * height)) with pdf = 1 / (width * height), and logs a
+   warning: the estimator stays unbiased. Tables that are not cumulative sums are
+   GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
+   negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
+   positive difference (out is then partly written). */
 GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
                                             uint32_t width, uint32_t height, uint32_t count,
                                             uint32_t seed, gim_selected_val *out, gim_env env);
@@ -876,6 +915,230 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 /* blobs: versioned, checksummed serialisation */
 
 /* @impl importance ======================================================================== */
+
+#define GIM__IMPORTANCE_DEFAULT_CLAMP (1.0f / 64.0f)
+
+/* eq. 10-11 for one texel; vs holds 6 doubles per view sample: position / scene_scale and a
+   unit normal (zero for a sample that sees nothing). Per texel independent: a GPU thread. */
+static float gim__importance_texel(const float *p, const float *nrm, const float *flux,
+                                   const double *vs, uint32_t vs_count, double inv_scale, double clamp2) {
+    double nx, ny, nz, len, px, py, pz, phi, sum = 0.0, r;
+    uint32_t j;
+    if (!gim__all_finite(p, 3) || !gim__all_finite(nrm, 3) || !gim__all_finite(flux, 3)) return 0.0f;
+    phi = gim_v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
+    if (!(phi > 0.0)) return 0.0f;                 /* black, or negative (non-physical) flux */
+    if (phi > FLT_MAX) phi = FLT_MAX;              /* the float luminance of huge rgb overflowed */
+    len = sqrt((double)nrm[0] * nrm[0] + (double)nrm[1] * nrm[1] + (double)nrm[2] * nrm[2]);
+    if (!(len > 0.0)) return 0.0f;
+    nx = nrm[0] / len; ny = nrm[1] / len; nz = nrm[2] / len;
+    px = p[0] * inv_scale; py = p[1] * inv_scale; pz = p[2] * inv_scale;
+    for (j = 0; j < vs_count; ++j) {
+        const double *s = vs + (size_t)j * 6u;
+        double mx = s[0] - px, my = s[1] - py, mz = s[2] - pz;   /* l in scene scales */
+        double d2 = mx * mx + my * my + mz * mz;
+        double cl = nx * mx + ny * my + nz * mz;                 /* (n_l . d)+ |l| */
+        double cv = -(s[3] * mx + s[4] * my + s[5] * mz);        /* (n_VS . -d)+ |l| */
+        cl = cl > 0.0 ? cl : 0.0;
+        cv = cv > 0.0 ? cv : 0.0;
+        /* cos cos / max(d2, clamp^2) = cl cv / (d2 max(d2, clamp^2)); cl cv <= d2, so a sample
+           at the texel itself (d2 = 0, cl = cv = 0) gives 0 through the DBL_MIN guard */
+        sum += cl * cv / ((d2 > clamp2 ? d2 : clamp2) * (d2 > DBL_MIN ? d2 : DBL_MIN));
+    }
+    r = phi * sum / (double)vs_count;
+    return r < FLT_MAX ? (float)r : FLT_MAX;
+}
+
+GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float *out) {
+    static const char fn[] = "gim_importance_map";
+    const gim_env *env;
+    size_t texels, i;
+    uint32_t j, unusable = 0;
+    double *vs, inv_scale, clamp;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    env = &desc->env;
+    if (!out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
+    if (!desc->rsm_position || !desc->rsm_normal || !desc->rsm_flux)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm_position, rsm_normal and rsm_flux are required");
+    if (desc->width == 0 || desc->height == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM size %ux%u is empty",
+                         (unsigned)desc->width, (unsigned)desc->height);
+    texels = gim__array_size(desc->width, desc->height);
+    if (texels == 0 || gim__array_size(texels, 3u * sizeof(float)) == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM size %ux%u overflows size_t",
+                         (unsigned)desc->width, (unsigned)desc->height);
+    if (!desc->view_samples || desc->view_sample_count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no view samples");
+    if (!(desc->scene_scale > 0.0f) || !gim__isfinitef(desc->scene_scale))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and > 0",
+                         (double)desc->scene_scale);
+    clamp = desc->clamp == 0.0f ? GIM__IMPORTANCE_DEFAULT_CLAMP : desc->clamp;
+    if (!(clamp > 0.0) || !gim__isfinitef((float)clamp))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "clamp %g must be finite and > 0 (0: default)",
+                         (double)desc->clamp);
+    vs = (double *)gim__alloc_array(env, desc->view_sample_count, 6u * sizeof(double));
+    if (!vs) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u view samples", (unsigned)desc->view_sample_count);
+    /* view samples once: scaled positions, unit normals; unusable ones see nothing */
+    inv_scale = 1.0 / (double)desc->scene_scale;
+    for (j = 0; j < desc->view_sample_count; ++j) {
+        gim_view_sample s = desc->view_samples[j];
+        double *o = vs + (size_t)j * 6u;
+        double len = sqrt((double)s.normal.x * s.normal.x + (double)s.normal.y * s.normal.y +
+                          (double)s.normal.z * s.normal.z);
+        if (!gim_v3_isfinite(s.position) || !gim_v3_isfinite(s.normal) || !(len > 0.0) || len > DBL_MAX) {
+            o[0] = o[1] = o[2] = o[3] = o[4] = o[5] = 0.0;
+            ++unusable;
+            continue;
+        }
+        o[0] = s.position.x * inv_scale; o[1] = s.position.y * inv_scale; o[2] = s.position.z * inv_scale;
+        o[3] = s.normal.x / len; o[4] = s.normal.y / len; o[5] = s.normal.z / len;
+    }
+    if (unusable)
+        gim__log(env, GIM_LOG_WARNING, fn, "%u of %u view samples are NaN/Inf or have a zero normal; they see nothing",
+                 (unsigned)unusable, (unsigned)desc->view_sample_count);
+    for (i = 0; i < texels; ++i) {
+        if (desc->rsm_valid && !(desc->rsm_valid[i] > 0.0f)) { out[i] = 0.0f; continue; }
+        out[i] = gim__importance_texel(desc->rsm_position + i * 3u, desc->rsm_normal + i * 3u,
+                                       desc->rsm_flux + i * 3u, vs, desc->view_sample_count,
+                                       inv_scale, clamp * clamp);
+    }
+    gim__free(env, vs);
+    return GIM_OK;
+}
+
+/* Table size checks shared by cumsum and select. */
+static gim_result gim__importance_tables_check(const gim_env *env, const char *fn, uint32_t width, uint32_t height) {
+    size_t texels;
+    if (width == 0 || height == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "map size %ux%u is empty", (unsigned)width, (unsigned)height);
+    texels = gim__array_size(width, height);
+    if (texels == 0 || gim__array_size(texels, sizeof(double)) == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "map size %ux%u overflows size_t",
+                         (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_importance_cumsum(const float *map, uint32_t width, uint32_t height,
+                                            double *column, double *row, gim_env env) {
+    static const char fn[] = "gim_importance_cumsum";
+    uint32_t x, y;
+    double acc;
+    gim_result r;
+    if (!map || !column || !row) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map, column and row are required");
+    r = gim__importance_tables_check(&env, fn, width, height);
+    if (r != GIM_OK) return r;
+    /* eq. 12, vertical: every column an independent sequential scan from row 0 down (one GPU
+       thread or scan per column; y outer here only for the cache). Doubles: a column of 4096
+       floats sums with a relative error near 4096 * 2^-53 instead of 4096 * 2^-24. */
+    for (y = 0; y < height; ++y) {
+        const float *m = map + (size_t)y * width;
+        double *c = column + (size_t)y * width;
+        const double *above = y ? c - width : NULL;
+        for (x = 0; x < width; ++x) {
+            float v = m[x];
+            if (!(v >= 0.0f && v <= FLT_MAX))
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map(%u, %u) = %g is not finite and >= 0",
+                                 (unsigned)x, (unsigned)y, (double)v);
+            c[x] = above ? above[x] + (double)v : (double)v;
+        }
+    }
+    /* eq. 12, horizontal: one scan along the column totals (the last row) */
+    acc = 0.0;
+    for (x = 0; x < width; ++x) {
+        acc += column[(size_t)(height - 1u) * width + x];
+        row[x] = acc;
+    }
+    return GIM_OK;
+}
+
+/* First index k in [0, n) with a[k * stride] > t, for t < a[(n-1) * stride] (so k < n). Branch
+   free (the compare becomes a select), so independent searches overlap in the pipeline.
+   When k > 0, a[k-1] <= t was seen, so a[k] - a[k-1] > 0 for a monotone table; a NaN met on
+   the way shows up as a NaN difference, which the caller rejects. */
+static uint32_t gim__first_above(const double *a, size_t stride, uint32_t n, double t) {
+    uint32_t base = 0;
+    while (n > 1u) {
+        uint32_t half = n / 2u;
+#if defined(__GNUC__) || defined(__clang__)
+        /* both possible next probes: large strided tables are bound by memory latency */
+        __builtin_prefetch(a + (size_t)(base + (n - half) / 2u) * stride);
+        __builtin_prefetch(a + (size_t)(base + half + (n - half) / 2u) * stride);
+#endif
+        base = a[(size_t)(base + half) * stride] <= t ? base + half : base;
+        n -= half;
+    }
+    return base + (a[(size_t)base * stride] <= t ? 1u : 0u);
+}
+
+/* The largest double below total, for u * total rounding up to total. */
+static double gim__below(double t, double total) {
+    return t < total ? t : nextafter(total, 0.0);
+}
+
+GIMANY_DEF gim_result gim_importance_select(const double *column, const double *row,
+                                            uint32_t width, uint32_t height, uint32_t count,
+                                            uint32_t seed, gim_selected_val *out, gim_env env) {
+    static const char fn[] = "gim_importance_select";
+    const double *totals; /* the last row of column: per-column totals */
+    double total, prev, o0, o1;
+    float off[4];
+    uint32_t i, x;
+    gim_result r;
+    if (!column || !row || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row and out are required");
+    if (count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
+    r = gim__importance_tables_check(&env, fn, width, height);
+    if (r != GIM_OK) return r;
+    totals = column + (size_t)(height - 1u) * width;
+    /* O(width) check of what every search relies on; the interior of the columns is checked
+       per sample (a NaN there shows as a non-positive difference) */
+    for (x = 0, prev = 0.0; x < width; ++x) {
+        if (!(row[x] >= prev && row[x] <= DBL_MAX) || !(totals[x] >= 0.0 && totals[x] <= DBL_MAX) ||
+            (row[x] > prev && !(totals[x] > 0.0)))
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "tables are not cumulative sums at column %u (row %g, column total %g)",
+                             (unsigned)x, row[x], totals[x]);
+        prev = row[x];
+    }
+    total = row[width - 1u];
+    /* 48-bit Cranley-Patterson offsets, two 24-bit ones per dimension: over all seeds u_i
+       only takes values on the offsets' lattice, so with 24 bits a column holding less than
+       2^-24 of the total would be picked with the wrong frequency (never, or far too often) */
+    gim_rotation_offsets(off, 4u, seed);
+    o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
+    o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
+    if (!(total > 0.0))
+        gim__log(&env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
+                 (unsigned)count);
+    for (i = 0; i < count; ++i) {
+        double u = (double)i / (double)count + o0, v = gim_van_der_corput(i) + o1;
+        uint32_t sx, sy;
+        u = u < 1.0 ? u : u - 1.0;
+        v = v < 1.0 ? v : v - 1.0;
+        if (!(total > 0.0)) { /* documented fallback: uniform, pdf 1 / texels */
+            sx = (uint32_t)(u * width); sy = (uint32_t)(v * height);
+            out[i].x = sx < width ? sx : width - 1u;
+            out[i].y = sy < height ? sy : height - 1u;
+            out[i].pdf = (float)(1.0 / ((double)width * (double)height));
+            continue;
+        }
+        {
+            double col_total, p_col, p_row, p;
+            sx = gim__first_above(row, 1u, width, gim__below(u * total, total));
+            col_total = totals[sx];
+            sy = gim__first_above(column + sx, width, height, gim__below(v * col_total, col_total));
+            p_col = (row[sx] - (sx ? row[sx - 1u] : 0.0)) / total;
+            p_row = (column[(size_t)sy * width + sx] - (sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0)) / col_total;
+            p = p_col * p_row;
+            if (!(p > 0.0 && p <= 1.0))
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                                 "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
+                                 (unsigned)sx, (unsigned)sy, p);
+            out[i].x = sx;
+            out[i].y = sy;
+            out[i].pdf = p > FLT_MIN ? (float)p : FLT_MIN;
+        }
+    }
+    return GIM_OK;
+}
 
 /* @impl twins ============================================================================= */
 
