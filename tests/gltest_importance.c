@@ -233,6 +233,21 @@ static void map_matches_twin(void **state) {
     free(vs);
     free_rsm(&r);
 
+    /* the same box in millimetres and in kilometres: the twin's map, so the same map */
+    {
+        static const float scales[2] = {1e-3f, 1e3f};
+        int k;
+        for (k = 0; k < 2; ++k) {
+            float L = 4.0f * scales[k];
+            make_rsm(&r, 24, 24, L, zero, 0);
+            vs = make_view_samples(16, L, zero);
+            e = compare_map(&f, &r, vs, 16, L * 1.7320508f, 0.0f, NULL);
+            assert_true(e < 1e-4);
+            free(vs);
+            free_rsm(&r);
+        }
+    }
+
     /* the same box 3e4 units from the origin (unit 1 m, box 50 m): float positions, same map */
     make_rsm(&r, 32, 32, 50.0f, far_away, 0);
     vs = make_view_samples(16, 50.0f, far_away);
