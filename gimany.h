@@ -1767,7 +1767,6 @@ static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLu
 
 /* --- importance sampling passes (paper 000 sec. 4) ----------------------------------- */
 
-#define GIM__SCAN_BLOCK_ROWS 64u   /* rows per block of the column scan (eq. 12) */
 #define GIM__SCAN_MAX_SIZE 16384u  /* largest RSM side the scan takes */
 
 /* Make the context's scratch buffer at least bytes long (contents undefined). */
@@ -1873,12 +1872,13 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
    (row-major, row 0 first); column: SSBO of width * height doubles, written with
    column[y * width + x] = sum of map(x, 0..y); row: SSBO of width doubles, written with
    row[x] = sum of the column totals 0..x. block_rows: rows per block of the first level
-   (0: default 64). Three dispatches, O(width * height) adds, in double like the twin: a float
+   (0: chosen from the size). Three dispatches, O(width * height) adds, in double like the twin: a float
    table at 1024^2 of uniform random importance already gives 0.1% of the texels a selection
    frequency more than 1% away from their P (tests/bench_gl.c), a bias the 1/P weights do not
    undo. The cost is memory, not arithmetic: 8 bytes per texel (128 MB at 4096^2, checked
    against GL_MAX_SHADER_STORAGE_BLOCK_SIZE); consumer GPUs' slow fp64 is ~3 adds per texel.
-   On llvmpipe the double scan took 0.8-1.3x the time of the same shaders in float. */
+   On llvmpipe (2 shared, loaded cores) the double scan took 0.8-3x the time of the same
+   shaders in float over several runs; a real GPU is bound by the memory traffic. */
 static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__GLuint map, gim__GLuint column,
                                                         gim__GLuint row, uint32_t width, uint32_t height,
                                                         uint32_t block_rows) {
@@ -1891,7 +1891,13 @@ static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__G
     if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
                          (unsigned)height, GIM__SCAN_MAX_SIZE);
-    if (block_rows == 0) block_rows = GIM__SCAN_BLOCK_ROWS;
+    if (block_rows == 0) {
+        /* ~64k (column, block) invocations in the first level, enough to fill a GPU; the second
+           level then runs ~64k / 256 serial steps per invocation whatever the size */
+        uint32_t want = (65536u + width - 1u) / width;
+        block_rows = (height + want - 1u) / want;
+        if (block_rows < 16u) block_rows = 16u;
+    }
     blocks = (height + block_rows - 1u) / block_rows;
     if ((gim__GLint64)width * height * 8 > ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
@@ -1924,10 +1930,12 @@ static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__G
     gl->DispatchCompute(1u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
 
-    gl->UseProgram(p_offsets);
-    gl->Uniform2ui(0, width, height);
-    gl->Uniform1ui(1, block_rows);
-    gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    if (blocks > 1u) { /* one block: its offsets are 0 */
+        gl->UseProgram(p_offsets);
+        gl->Uniform2ui(0, width, height);
+        gl->Uniform1ui(1, block_rows);
+        gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }

@@ -296,9 +296,9 @@ static double compare_cumsum(fixture *f, const float *map, uint32_t w, uint32_t 
    exclusive scan, a column/row mix-up, or a thread's run of columns added twice. */
 static void cumsum_matches_twin(void **state) {
     static const uint32_t sizes[][3] = {
-        {64, 64, 16},  /* 4 blocks */
-        {64, 64, 0},   /* default block of 64 rows: one block */
-        {300, 70, 0},  /* 2 blocks, the last partial; 300 columns: 2 per thread, uneven */
+        {64, 64, 64},  /* one block: no offsets pass */
+        {64, 64, 0},   /* default: 16 rows, 4 blocks */
+        {300, 70, 0},  /* 5 blocks of 16, the last partial; 300 columns: 2 per thread, uneven */
         {1, 1, 0}, {1, 130, 7}, {700, 3, 1}};
     fixture f;
     size_t k, i;
