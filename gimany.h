@@ -1765,7 +1765,13 @@ static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLu
     return r;
 }
 
-/* --- importance sampling passes (paper 000 sec. 4) ----------------------------------- */
+/* --- importance sampling passes (paper 000 sec. 4) -----------------------------------
+   The shape of every pass: argument checks (no GL) -> gim__gl_enter -> the host objects it
+   reads or writes checked (gim__gl_check_buffer/_texture) -> gim__gl_program (built on first
+   use) -> bindings on the units/bindings of the state list only -> dispatch -> barrier for how
+   the output is read next -> gim__gl_leave(ctx, gim__gl_check(ctx, where)). Every return after
+   the enter goes through the leave. A new binding point or state item goes into the state list
+   first (and into tests/gltest_runtime.c's distinctive state). */
 
 #define GIM__SCAN_MAX_SIZE 16384u  /* largest RSM side the scan takes */
 
@@ -1797,14 +1803,24 @@ static gim_result gim__gl_check_buffer(gim_context *ctx, const char *where, cons
     return GIM_OK;
 }
 
-/* A host 2D texture a pass reads must exist and be at least width x height at level 0. Binds
-   it to TEXTURE_2D of the active unit (call between enter and leave). */
+/* A host 2D texture a pass reads must exist, be 2D and be at least width x height at level 0.
+   Binds it to TEXTURE_2D of the active unit (call between enter and leave). A texture of
+   another target raises GL_INVALID_OPERATION in the bind; under GIMANY_DEBUG it is cleared,
+   otherwise the host will see it. */
 static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, const char *what, gim__GLuint texture,
                                         uint32_t width, uint32_t height) {
     gim__GLint w = 0, h = 0;
     if (!texture || !ctx->gl.IsTexture(texture))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, texture);
+    ctx->gl.GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &w);
+    if ((gim__GLuint)w != texture) { /* GL 4.3 cannot ask a texture's target: the bind failed */
+#ifdef GIMANY_DEBUG
+        ctx->gl.GetError(); /* that GL_INVALID_OPERATION is ours (enter cleared the host's) */
+#endif
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture", what,
+                         (unsigned)texture);
+    }
     ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_WIDTH, &w);
     ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_HEIGHT, &h);
     if (w < 0 || h < 0 || (uint32_t)w < width || (uint32_t)h < height)

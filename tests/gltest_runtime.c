@@ -633,7 +633,28 @@ static void pass_objects_checked(void **state) {
     assert_non_null(strstr(log.last, "not a texture"));
     assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], o.tex[2], W, H, o.view_samples, 9, 1.0f, 0.0f, o.map),
                      GIM_ERROR_INVALID_ARGUMENT); /* 8 view samples in the buffer */
-    assert_int_equal(log.errors, 7);
+    {   /* a 2D array texture is no 2D texture: its failed bind is the one GL error */
+        GLuint array_tex = 0;
+        glGenTextures(1, &array_tex);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, array_tex);
+        glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_RGBA32F, W, H, 2);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+        gim__gl_state_save(&ctx->gl, &before);
+        gltest.quiet = 1;
+        assert_int_equal(gim__gl_importance_map(ctx, o.tex[0], o.tex[1], array_tex, W, H, o.view_samples, 8, 1.0f, 0.0f,
+                                                o.map),
+                         GIM_ERROR_INVALID_ARGUMENT);
+        gltest.quiet = 0;
+        assert_non_null(strstr(log.last, "not a 2D texture"));
+#ifdef GIMANY_DEBUG
+        assert_int_equal(gltest_errors(), 1); /* seen by the callback, cleared by gimany */
+#else
+        assert_int_equal(gltest_errors(), 2); /* seen by the callback, and still pending */
+#endif
+        gltest_reset_errors();
+        glDeleteTextures(1, &array_tex);
+    }
+    assert_int_equal(log.errors, 8);
     gim__gl_state_save(&ctx->gl, &after);
     assert_memory_equal(&before, &after, sizeof before);
     gim_destroy(ctx);
