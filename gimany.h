@@ -877,23 +877,28 @@ static uint32_t gim__kmeans_assign(gim__kmeans *k) {
     for (i = 0; i < k->n; ++i) {
         const double *x = k->p + (size_t)i * 3, *nx = k->nrm + (size_t)i * 3;
         uint32_t cur = k->assign[i], arg = cur;
-        double bd = HUGE_VAL, bd2 = HUGE_VAL;
+        const double x0 = x[0], x1 = x[1], x2 = x[2], wx_s = k->wx_s;
+        double bd = HUGE_VAL, r2 = HUGE_VAL; /* best distance; squared distance of sure losers */
         if (cur != GIM__KMEANS_NONE) {
             const double *c = k->cen + (size_t)cur * 3, *cn = k->cnrm + (size_t)cur * 3;
-            double dx = x[0] - c[0], dy = x[1] - c[1], dz = x[2] - c[2];
-            bd = k->wx_s * sqrt(dx * dx + dy * dy + dz * dz) +
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            bd = wx_s * sqrt(dx * dx + dy * dy + dz * dz) +
                  gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
-            bd2 = bd * bd * (1.0 + 1e-9); /* squared bound with margin: skips only sure losers */
+            if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9); /* margin: skip only sure losers */
         }
         for (j = 0; j < k->m; ++j) {
-            const double *c = k->cen + (size_t)j * 3, *cn = k->cnrm + (size_t)j * 3;
-            double dx = x[0] - c[0], dy = x[1] - c[1], dz = x[2] - c[2];
-            double d2 = (dx * dx + dy * dy + dz * dz) * k->wx_s * k->wx_s, pos, d;
-            if (j == cur || d2 > bd2) continue;
-            pos = k->wx_s * sqrt(dx * dx + dy * dy + dz * dz);
+            const double *c = k->cen + (size_t)j * 3, *cn;
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            double d2 = dx * dx + dy * dy + dz * dz, pos, d;
+            if (d2 > r2 || j == cur) continue;
+            pos = wx_s * sqrt(d2);
             if (!(pos < bd)) continue;
+            cn = k->cnrm + (size_t)j * 3;
             d = pos + gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
-            if (d < bd) { bd = d; bd2 = bd * bd * (1.0 + 1e-9); arg = j; }
+            if (d < bd) {
+                bd = d; arg = j;
+                if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9);
+            }
         }
         if (arg != cur) ++moved;
         k->assign[i] = arg;
