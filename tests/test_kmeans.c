@@ -431,7 +431,8 @@ static void empty_clusters_repaired(void **state) {
     }
     km_out_free(&o);
 
-    /* wide blob (radius 2) at x = 0, tight blob (radius 0.1) at x = 10, centre 2 far away */
+    /* tight blob (radius 0.1) at x = 10, wide blob (radius 2) at x = 0, centre 2 far away;
+       the tight one comes first so that "lowest index" would pick it as the donor */
     memset(pos, 0, sizeof pos);
     for (i = 0; i < 200; ++i) {
         float r = (i & 1) ? 2.0f : 0.1f, x0 = (i & 1) ? 0.0f : 10.0f;
@@ -439,7 +440,7 @@ static void empty_clusters_repaired(void **state) {
         pos[i * 3 + 2] = r * (float)(test_rand01() * 2 - 1);
         nrm[i * 3] = 0; nrm[i * 3 + 1] = 1; nrm[i * 3 + 2] = 0;
     }
-    cen[0] = 0; cen[1] = 0; cen[2] = 0; cen[3] = 10; cen[4] = 0; cen[5] = 0; cen[6] = 5; cen[7] = 40; cen[8] = 0;
+    cen[0] = 10; cen[1] = 0; cen[2] = 0; cen[3] = 0; cen[4] = 0; cen[5] = 0; cen[6] = 5; cen[7] = 40; cen[8] = 0;
     for (j = 0; j < 3; ++j) { cn[j * 3] = 0; cn[j * 3 + 1] = 1; cn[j * 3 + 2] = 0; }
     d.positions = pos; d.normals = nrm; d.vpl_count = 200; d.cluster_count = 3;
     d.scene_scale = 10.0f;
@@ -452,6 +453,20 @@ static void empty_clusters_repaired(void **state) {
         for (i = 1; i < 200; i += 2) assert_int_not_equal(o.assignment[i], tight);
         assert_int_equal(o.counts[tight], 100);
         assert_true(o.centres[2 * 3] < 2.5f); /* the far centre moved into the wide blob */
+    }
+    /* one step: the re-seeded cluster holds exactly the wide blob's farthest VPL from its centre */
+    d.max_iterations = 1;
+    km_run(&d, &o);
+    {
+        uint32_t far = 0;
+        double fd = -1;
+        for (i = 1; i < 200; i += 2) {
+            double dd = (double)pos[i * 3] * pos[i * 3] + (double)pos[i * 3 + 2] * pos[i * 3 + 2];
+            if (dd > fd) { fd = dd; far = i; }
+        }
+        assert_int_equal(o.counts[2], 1);
+        assert_int_equal(o.assignment[far], 2);
+        assert_true(o.centres[6] == pos[far * 3] && o.centres[8] == pos[far * 3 + 2]);
     }
     km_out_free(&o);
 }
@@ -550,7 +565,7 @@ static void zero_flux(void **state) {
     {
         /* two blobs: lit one (flux 1 at x = 0, flux 3 at x = 4), dark one at x = 100, 101, 105 */
         float pos[5 * 3] = {0, 0, 0, 4, 0, 0, 100, 0, 0, 101, 0, 0, 105, 0, 0};
-        float nrm[5 * 3] = {0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0};
+        float nrm[5 * 3] = {0, 1, 0, 0.6f, 0.8f, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0};
         float flux[5 * 3] = {1, 1, 1, 3, 3, 3, 0, 0, 0, 0, 0, 0, 0, 0, 0};
         memset(&d, 0, sizeof d);
         d.positions = pos; d.normals = nrm; d.flux = flux; d.vpl_count = 5; d.cluster_count = 2;
@@ -562,6 +577,8 @@ static void zero_flux(void **state) {
         assert_true(fabsf(a.centres[3] - 102.0f) < 1e-5f);  /* plain mean of 100, 101, 105 */
         assert_true(fabsf(a.sigma[3] - sqrtf(14.0f / 3.0f)) < 1e-5f);
         assert_true(a.flux[0] == 4.0f && a.flux[3] == 0.0f);
+        /* flux-weighted normal: 1 * (0, 1, 0) + 3 * (0.6, 0.8, 0) = (1.8, 3.4, 0) */
+        assert_true(fabs(a.normals[0] - 1.8 / sqrt(1.8 * 1.8 + 3.4 * 3.4)) < 1e-6);
         km_out_free(&a);
     }
 }
@@ -796,6 +813,48 @@ static void argument_errors(void **state) {
     }
 }
 
+/* Hostile but valid input: random mixes of denormal and huge coordinates, tiny normals,
+   duplicates, zero and huge flux, both metrics and inits, odd weights and scales: every result
+   keeps the invariants km_run checks (finite, unit normals, counts >= 1 consistent). */
+static void extreme_values(void **state) {
+    enum { NMAX = 97 };
+    static const float mags[6] = {1e-38f, 1e-20f, 1.0f, 1e6f, 1e12f, 4e18f};
+    float pos[NMAX * 3], nrm[NMAX * 3], flux[NMAX * 3], cen[NMAX * 3], cn[NMAX * 3];
+    uint32_t round, i;
+    (void)state;
+    test_rng_state = 555;
+    for (round = 0; round < 300; ++round) {
+        gim_kmeans_desc d;
+        km_out o;
+        uint32_t n = 1 + (uint32_t)(test_rand01() * NMAX), m = 1 + (uint32_t)(test_rand01() * n);
+        float mag = mags[(int)(test_rand01() * 6)];
+        if (m > n) m = n;
+        for (i = 0; i < n * 3; ++i) {
+            double u = test_rand01();
+            pos[i] = u < 0.2 && i >= 3 ? pos[i - 3] : (float)((test_rand01() - 0.5) * mag); /* duplicates */
+            nrm[i] = (float)((test_rand01() - 0.5) * (u < 0.5 ? 1e-30 : 1.0));
+            flux[i] = u < 0.3 ? 0.0f : (float)(test_rand01() * (u > 0.95 ? 1e36 : 1.0));
+            cen[i] = (float)((test_rand01() - 0.5) * mag * 3.0);
+            cn[i] = (float)(test_rand01() - 0.5);
+        }
+        for (i = 0; i < n; ++i) if (nrm[i * 3] == 0.0f && nrm[i * 3 + 1] == 0.0f && nrm[i * 3 + 2] == 0.0f) nrm[i * 3] = 1e-40f;
+        for (i = 0; i < m; ++i) if (cn[i * 3] == 0.0f && cn[i * 3 + 1] == 0.0f && cn[i * 3 + 2] == 0.0f) cn[i * 3] = 1.0f;
+        memset(&d, 0, sizeof d);
+        d.positions = pos; d.normals = nrm; d.flux = (round & 1) ? flux : NULL;
+        d.vpl_count = n; d.cluster_count = m;
+        d.metric = (gim_kmeans_metric)(round % 3);
+        d.init = (round & 2) ? GIM_KMEANS_INIT_WARM : GIM_KMEANS_INIT_FIXED;
+        d.init_centres = cen; d.init_normals = cn;
+        d.w_x = (round % 5 == 0) ? 0.0f : (float)test_rand01();
+        d.w_a = (round % 7 == 0) ? 0.0f : (float)test_rand01();
+        d.scene_scale = (round % 4 == 0) ? 0.0f : mag * (float)test_rand01() * 1e-3f + 1e-45f;
+        d.max_iterations = 1 + round % 20;
+        km_out_init(&o, n, m);
+        km_run(&d, &o);
+        km_out_free(&o);
+    }
+}
+
 /* Allocation: nothing leaks, every allocation failing returns OUT_OF_MEMORY cleanly. */
 static void allocation(void **state) {
     km_scene s;
@@ -849,6 +908,7 @@ int main(void) {
         cmocka_unit_test(sigma_of_grid),
         cmocka_unit_test(scale_invariance),
         cmocka_unit_test(argument_errors),
+        cmocka_unit_test(extreme_values),
         cmocka_unit_test(allocation),
     };
     return cmocka_run_group_tests_name("kmeans", tests, NULL, NULL);
