@@ -990,14 +990,14 @@ static int gim__kmeans_cmp2(const void *a, const void *b) {
 }
 
 /* Area of the smallest rectangle enclosing the n 2D points pts (sorted in place): convex hull
-   (monotone chain) into hull[4 * (n + 1)], then one rectangle per hull edge, since the
-   smallest one has a side on a hull edge (Freeman and Shapira 1975); O(n log n + h^2). */
+   (monotone chain) into hull[4 * (n + 1)], then rotating calipers over the hull edges, since
+   the smallest rectangle has a side on a hull edge (Freeman and Shapira 1975); O(n log n). */
 static double gim__min_area_rect(double *pts, uint32_t n, double *hull) {
-    uint32_t i, e, h = 0, lower;
+    uint32_t i, e, h = 0, lower, a, b, c;
     double best = HUGE_VAL;
     if (n < 3) return 0.0;
     qsort(pts, n, 2 * sizeof(double), gim__kmeans_cmp2);
-#define GIM__CROSS(o, a, b) (((a)[0] - (o)[0]) * ((b)[1] - (o)[1]) - ((a)[1] - (o)[1]) * ((b)[0] - (o)[0]))
+#define GIM__CROSS(o, p, q) (((p)[0] - (o)[0]) * ((q)[1] - (o)[1]) - ((p)[1] - (o)[1]) * ((q)[0] - (o)[0]))
     for (i = 0; i < n; ++i) {
         while (h >= 2 && GIM__CROSS(hull + 2 * (h - 2), hull + 2 * (h - 1), pts + 2 * i) <= 0.0) --h;
         hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
@@ -1008,22 +1008,28 @@ static double gim__min_area_rect(double *pts, uint32_t n, double *hull) {
         hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
     }
 #undef GIM__CROSS
-    --h; /* the last point repeats the first */
+    --h; /* the last point repeats the first; the hull is counter-clockwise, no collinear points */
     if (h < 3) return 0.0; /* all points on a line (or one point): no area */
+    /* for edge e with direction u and inward normal v: b is the point farthest along u, a the
+       farthest along v, c the farthest along -u; all three only move forward as e turns */
+    b = 1; a = 1; c = 1;
     for (e = 0; e < h; ++e) {
         const double *p0 = hull + 2 * e, *p1 = hull + 2 * ((e + 1) % h);
-        double ux = p1[0] - p0[0], uy = p1[1] - p0[1], len = sqrt(ux * ux + uy * uy);
-        double umin = 0.0, umax = 0.0, vmax = 0.0, area;
+        double ux = p1[0] - p0[0], uy = p1[1] - p0[1], len = sqrt(ux * ux + uy * uy), area;
+        uint32_t steps;
+#define GIM__U(k) ((hull[2 * ((k) % h)] - p0[0]) * ux + (hull[2 * ((k) % h) + 1] - p0[1]) * uy)
+#define GIM__V(k) ((hull[2 * ((k) % h) + 1] - p0[1]) * ux - (hull[2 * ((k) % h)] - p0[0]) * uy)
         if (!(len > 0.0)) continue;
         ux /= len; uy /= len;
-        for (i = 0; i < h; ++i) {
-            double dx = hull[2 * i] - p0[0], dy = hull[2 * i + 1] - p0[1];
-            double u = dx * ux + dy * uy, v = dy * ux - dx * uy; /* v: inward for a CCW hull */
-            if (u < umin) umin = u;
-            if (u > umax) umax = u;
-            if (v > vmax) vmax = v;
-        }
-        area = (umax - umin) * vmax;
+        if (e == 0 || b == e) b = (e + 1) % h;
+        for (steps = 0; steps < h && GIM__U(b + 1) > GIM__U(b); ++steps) b = (b + 1) % h;
+        if (e == 0 || a == e || a == (e + 1) % h) a = b; /* guards rounding on near-flat hulls */
+        for (steps = 0; steps < h && GIM__V(a + 1) > GIM__V(a); ++steps) a = (a + 1) % h;
+        if (e == 0) c = a;
+        for (steps = 0; steps < h && GIM__U(c + 1) < GIM__U(c); ++steps) c = (c + 1) % h;
+        area = (GIM__U(b) - GIM__U(c)) * GIM__V(a);
+#undef GIM__U
+#undef GIM__V
         if (area < best) best = area;
     }
     return best < HUGE_VAL ? best : 0.0;

@@ -620,14 +620,17 @@ static void area_of_rectangle(void **state) {
         }
         km_out_free(&o);
     }
-    /* random points on the plane vs brute force */
+    /* random points on the plane vs brute force; the last sets lie on circles (every point on
+       the hull: the rotating calipers turn all the way round) */
     test_rng_state = 44;
-    for (k = 0; k < 5; ++k) {
-        enum { R = 40 };
+    for (k = 0; k < 8; ++k) {
+        enum { R = 160 };
         double s2[R][2], best = 1e300;
         uint32_t p, q, r;
         for (i = 0; i < R; ++i) {
+            double ang = 6.283185307179586 * test_rand01();
             float su = (float)(test_rand01() * 2 - 1), sv = (float)(test_rand01() * 2 - 1) * (float)(k + 1) * 0.3f;
+            if (k >= 5) { su = (float)cos(ang); sv = (float)sin(ang) * (k == 7 ? 0.25f : 1.0f); }
             gim_vec3 pp = gim_v3_add(gim_v3(1, 2, 3), gim_v3_add(gim_v3_scale(t, su), gim_v3_scale(b, sv)));
             pos[i * 3] = pp.x; pos[i * 3 + 1] = pp.y; pos[i * 3 + 2] = pp.z;
             nrm[i * 3] = n.x; nrm[i * 3 + 1] = n.y; nrm[i * 3 + 2] = n.z;
