@@ -265,7 +265,8 @@ typedef struct gim_kmeans_result {
     uint32_t *counts;      /* M: VPLs per cluster (>= 1), or NULL */
     uint32_t *assignment;  /* N: cluster of each VPL, or NULL */
     float *area;           /* M: area of the smallest rectangle bounding the cluster's VPLs projected
-                              on the plane of its normal (Dong 6; rotation-invariant), or NULL */
+                              on the plane of its normal (Dong 6; rotation-invariant); VPLs of zero
+                              flux emit nothing and count only in a cluster without flux; or NULL */
     float *sigma;          /* M * 3: weighted positional standard deviation per world axis, or NULL */
     uint32_t iterations;   /* written: assignment steps run (below the cap, the last changed nothing) */
     uint32_t empty_repaired; /* written: clusters re-seeded because they went empty */
@@ -1224,10 +1225,14 @@ GIMANY_DEF gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result 
     if (result->counts) memcpy(result->counts, k.count, (size_t)m * sizeof(uint32_t));
     if (result->assignment) memcpy(result->assignment, k.assign, (size_t)n * sizeof(uint32_t));
     if (want_area) {
-        /* counting sort of the VPLs by cluster, then each cluster's points in the plane of its normal */
-        start[0] = 0;
-        for (j = 0; j < m; ++j) start[j + 1] = start[j] + k.count[j];
-        for (i = 0; i < n; ++i) order[start[k.assign[i]]++] = i;
+        /* counting sort of the VPLs that emit (all of a cluster's when it has no flux) by
+           cluster, then each cluster's points in the plane of its normal */
+#define GIM__EMITS(i) (k.w[i] > 0.0 || !(k.acc[(size_t)k.assign[i] * GIM__KMEANS_ACC] > 0.0))
+        for (j = 0; j <= m; ++j) start[j] = 0;
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) start[k.assign[i] + 1]++;
+        for (j = 0; j < m; ++j) start[j + 1] += start[j];
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) order[start[k.assign[i]]++] = i;
+#undef GIM__EMITS
         for (j = m; j > 0; --j) start[j] = start[j - 1];
         start[0] = 0;
         for (j = 0; j < m; ++j) {

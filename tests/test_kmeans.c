@@ -588,7 +588,7 @@ static void zero_flux(void **state) {
    match a brute-force search over all point-pair directions. */
 static void area_of_rectangle(void **state) {
     enum { G = 21, N = G * G };
-    float pos[N * 3], nrm[N * 3];
+    float pos[(N + 2) * 3], nrm[(N + 2) * 3];
     gim_vec3 n = gim_v3_normalize(gim_v3(0.3f, 0.8f, -0.5f)), t, b;
     gim_kmeans_desc d;
     km_out o;
@@ -617,6 +617,25 @@ static void area_of_rectangle(void **state) {
             double su2 = (W / (G - 1)) * (W / (G - 1)) * (G * G - 1) / 12.0, sv2 = (H / (G - 1)) * (H / (G - 1)) * (G * G - 1) / 12.0;
             double ex = sqrt(u.x * u.x * su2 + v.x * v.x * sv2), ey = sqrt(u.y * u.y * su2 + v.y * v.y * sv2);
             assert_true(fabs(o.sigma[0] - ex) < 1e-5 && fabs(o.sigma[1] - ey) < 1e-5);
+        }
+        km_out_free(&o);
+        /* with flux, two more VPLs of zero flux outside the rectangle: they emit nothing and
+           leave the VAL as it was; without flux they widen it */
+        {
+            static float flux[(N + 2) * 3];
+            gim_vec3 q0 = gim_v3_add(gim_v3(5, -2, 9), gim_v3_scale(u, (float)W)), q1 = gim_v3_sub(gim_v3(5, -2, 9), gim_v3_scale(v, (float)H));
+            for (i = 0; i < (N + 2) * 3; ++i) flux[i] = i < N * 3 ? 0.25f : 0.0f;
+            pos[N * 3] = q0.x; pos[N * 3 + 1] = q0.y; pos[N * 3 + 2] = q0.z;
+            pos[N * 3 + 3] = q1.x; pos[N * 3 + 4] = q1.y; pos[N * 3 + 5] = q1.z;
+            for (i = N; i < N + 2; ++i) { nrm[i * 3] = n.x; nrm[i * 3 + 1] = n.y; nrm[i * 3 + 2] = n.z; }
+            d.vpl_count = N + 2; d.flux = flux;
+            km_out_init(&o, N + 2, 1);
+            km_run(&d, &o);
+            assert_true(fabs(o.area[0] - W * H) < 1e-5 * W * H);
+            d.flux = NULL;
+            km_run(&d, &o);
+            assert_true(o.area[0] > 1.5 * W * H);
+            d.vpl_count = N; d.flux = NULL;
         }
         km_out_free(&o);
     }
