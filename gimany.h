@@ -210,8 +210,9 @@ GIMANY_API gim_vec3 gim_square_to_cosine_hemisphere(float u, float v);
    index order. A VPL changes cluster only for a strictly smaller distance (ties keep it; with
    no previous cluster the lowest index wins), so coincident points settle.
    Means: a VPL weighs its mean rgb flux (r+g+b)/3 (all 1 when flux is NULL); centre, normal
-     and sigma of a cluster are weighted means, and a cluster whose VPLs all have zero flux
-     falls back to the plain mean (weights 1). The normal is the normalised weighted mean
+     and sigma of a cluster are weighted means, so a VAL sits where its light comes from and
+     unlit VPLs do not drag it (Dong averages unweighted); a cluster whose VPLs all have zero
+     flux falls back to the plain mean (weights 1). The normal is the normalised weighted mean
      normal; where the normals cancel (|sum| <= 1e-9 * sum of weights) it keeps its previous
      normal. Positions are taken relative to the centre of the VPL bounds, in double, so a
      scene far from the origin loses no precision.
@@ -222,8 +223,12 @@ GIMANY_API gim_vec3 gim_square_to_cosine_hemisphere(float u, float v);
    Convergence: stops when an assignment step changes no VPL, or after max_iterations steps.
      The outputs are always consistent: centres, normals, flux, counts, area and sigma are
      those of the returned assignment.
+   Area (Dong 6): the smallest rectangle, over all in-plane rotations, bounding the cluster's
+     VPLs projected on the plane of its normal; a rectangle aligned to some tangent frame would
+     jump whenever the frame flips, and the soft shadows with it.
    M > N is an error (GIM_ERROR_INVALID_ARGUMENT): every cluster needs a VPL; M == N gives one
-     VPL per cluster (when their positions/normals differ). */
+     VPL per cluster (when their positions/normals differ). Summed flux beyond FLT_MAX or VPL
+     bounds wider than 1.8e19 (areas beyond FLT_MAX) give GIM_ERROR_OUT_OF_RANGE. */
 
 /* Distance between a VPL and a cluster centre; s is the scene scale. */
 typedef enum gim_kmeans_metric {
@@ -264,9 +269,8 @@ typedef struct gim_kmeans_result {
     float *flux;           /* M * 3: summed flux (zero when the desc's flux is NULL), or NULL */
     uint32_t *counts;      /* M: VPLs per cluster (>= 1), or NULL */
     uint32_t *assignment;  /* N: cluster of each VPL, or NULL */
-    float *area;           /* M: area of the smallest rectangle bounding the cluster's VPLs projected
-                              on the plane of its normal (Dong 6; rotation-invariant); VPLs of zero
-                              flux emit nothing and count only in a cluster without flux; or NULL */
+    float *area;           /* M: area of the VAL's rectangle (see above); VPLs of zero flux emit
+                              nothing and count only in a cluster without flux; or NULL */
     float *sigma;          /* M * 3: weighted positional standard deviation per world axis, or NULL */
     uint32_t iterations;   /* written: assignment steps run (below the cap, the last changed nothing) */
     uint32_t empty_repaired; /* written: clusters re-seeded because they went empty */
