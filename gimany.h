@@ -203,49 +203,76 @@ GIMANY_API gim_vec3 gim_square_to_cosine_hemisphere(float u, float v);
 
 /* @section kmeans ========================================================================= */
 /* k-means of VPLs (position, normal, flux) into clusters, each standing for a virtual area
-   light (Dong et al. sec. 5; SSVP sec. 3). Deterministic: same input, same output. */
+   light (Dong et al. sec. 5; SSVP sec. 3). Deterministic: same input, same output, bit for bit.
 
-/* Distance between a VPL and a cluster centre. */
+   Structure (the CPU twin of a GPU pass): each iteration is an assignment step, an independent
+   argmin over the M centres per VPL, then an update step, per-cluster sums in double in VPL
+   index order. A VPL changes cluster only for a strictly smaller distance (ties keep it; with
+   no previous cluster the lowest index wins), so coincident points settle.
+   Means: a VPL weighs its mean rgb flux (r+g+b)/3 (all 1 when flux is NULL); centre, normal
+     and sigma of a cluster are weighted means, so a VAL sits where its light comes from and
+     unlit VPLs do not drag it (Dong averages unweighted); a cluster whose VPLs all have zero
+     flux falls back to the plain mean (weights 1). The normal is the normalised weighted mean
+     normal; where the normals cancel (|sum| <= 1e-9 * sum of weights) it keeps its previous
+     normal. Positions are taken relative to the centre of the VPL bounds, in double, so a
+     scene far from the origin loses no precision.
+   Empty clusters are repaired, never lost: for each empty cluster (index order) the cluster
+     with the largest error (sum of its VPLs' distances; ties: more VPLs, then lower index)
+     among those with two or more VPLs gives up its farthest VPL (ties: lowest index), which
+     seeds the empty cluster. Every returned cluster has count >= 1.
+   Convergence: stops when an assignment step changes no VPL, or after max_iterations steps.
+     The outputs are always consistent: centres, normals, flux, counts, area and sigma are
+     those of the returned assignment.
+   Area (Dong 6): the smallest rectangle, over all in-plane rotations, bounding the cluster's
+     VPLs projected on the plane of its normal; a rectangle aligned to some tangent frame would
+     jump whenever the frame flips, and the soft shadows with it.
+   M > N is an error (GIM_ERROR_INVALID_ARGUMENT): every cluster needs a VPL; M == N gives one
+     VPL per cluster (when their positions/normals differ). Summed flux beyond FLT_MAX or VPL
+     bounds wider than 1.8e19 (areas beyond FLT_MAX) give GIM_ERROR_OUT_OF_RANGE. */
+
+/* Distance between a VPL and a cluster centre; s is the scene scale. */
 typedef enum gim_kmeans_metric {
     GIM_KMEANS_METRIC_DEFAULT = 0,  /* = DONG */
-    GIM_KMEANS_METRIC_DONG,         /* w_x * |x_i - c_j| / scene_scale + w_a * acos(n_i . n_j) / pi */
-    GIM_KMEANS_METRIC_SSVP          /* w_x * |x_i - c_j|^2 / scene_scale^2 + w_a * (1 - n_i . n_j): SSVP eq. 2 with its slip corrected */
+    GIM_KMEANS_METRIC_DONG,         /* Dong 5.1: w_x * |x_i - c_j| / s + w_a * acos(n_i . n_j) / pi; default w 0.7 / 0.3 */
+    GIM_KMEANS_METRIC_SSVP          /* SSVP eq. 2, its sign slip corrected: w_x * |x_i - c_j| / s + w_a * (1 - max(n_i . n_j, 0));
+                                       default w 0.6 / 0.4 (the paper's) */
 } gim_kmeans_metric;
 
 /* Where the iteration starts. */
 typedef enum gim_kmeans_init {
     GIM_KMEANS_INIT_DEFAULT = 0,    /* = FIXED */
-    GIM_KMEANS_INIT_FIXED,          /* cluster k seeded by VPL floor(k * N / M): the same every frame (Dong 5.2) */
-    GIM_KMEANS_INIT_WARM            /* start from init_centres/init_normals (the previous frame's) */
+    GIM_KMEANS_INIT_FIXED,          /* cluster k seeded by VPL floor(k * N / M): the same every frame (Dong 5.2, 6) */
+    GIM_KMEANS_INIT_WARM            /* start from init_centres/init_normals (the previous frame's; SSVP 3.B) */
 } gim_kmeans_init;
 
 /* Input of gim_kmeans; zero means default. Arrays are float3 per VPL. */
 typedef struct gim_kmeans_desc {
-    const float *positions;     /* vpl_count * 3 */
-    const float *normals;       /* vpl_count * 3, unit length (renormalised internally) */
-    const float *flux;          /* vpl_count * 3, rgb, >= 0; NULL: every VPL weighs 1 */
+    const float *positions;     /* vpl_count * 3, finite */
+    const float *normals;       /* vpl_count * 3, non-zero (renormalised internally) */
+    const float *flux;          /* vpl_count * 3, rgb, finite, >= 0; NULL: every VPL weighs 1 */
     uint32_t vpl_count;         /* N > 0 */
-    uint32_t cluster_count;     /* M > 0; M > N gives N non-empty clusters and M - N empty ones */
+    uint32_t cluster_count;     /* M, 0 < M <= N */
     gim_kmeans_metric metric;
     gim_kmeans_init init;
     const float *init_centres;  /* WARM: cluster_count * 3 */
-    const float *init_normals;  /* WARM: cluster_count * 3 */
-    float w_x, w_a;             /* metric weights, default 0.7 / 0.3 */
-    float scene_scale;          /* length unit of the position term; default: diagonal of the VPL bounds */
-    uint32_t max_iterations;    /* default 16 */
+    const float *init_normals;  /* WARM: cluster_count * 3, non-zero */
+    float w_x, w_a;             /* metric weights >= 0; both 0: the metric's defaults (one may be 0) */
+    float scene_scale;          /* length unit of the position term; 0: diagonal of the VPL bounds */
+    uint32_t max_iterations;    /* cap on assignment steps, <= 4096; 0: 16 */
     gim_env env;
 } gim_kmeans_desc;
 
-/* Output of gim_kmeans: caller-owned arrays sized by the desc's counts. */
+/* Output of gim_kmeans: caller-owned arrays sized by the desc's counts; untouched on error. */
 typedef struct gim_kmeans_result {
-    float *centres;        /* M * 3: flux-weighted mean position (required) */
-    float *normals;        /* M * 3: normalised flux-weighted mean normal (required) */
-    float *flux;           /* M * 3: summed flux, or NULL */
-    uint32_t *counts;      /* M: VPLs per cluster, or NULL */
+    float *centres;        /* M * 3: weighted mean position (required) */
+    float *normals;        /* M * 3: normalised weighted mean normal (required) */
+    float *flux;           /* M * 3: summed flux (zero when the desc's flux is NULL), or NULL */
+    uint32_t *counts;      /* M: VPLs per cluster (>= 1), or NULL */
     uint32_t *assignment;  /* N: cluster of each VPL, or NULL */
-    float *area;           /* M: area of the 2D bounding rectangle in the plane of the mean normal, or NULL */
-    float *sigma;          /* M * 3: positional standard deviation per world axis, or NULL */
-    uint32_t iterations;   /* written: iterations run */
+    float *area;           /* M: area of the VAL's rectangle (see above); VPLs of zero flux emit
+                              nothing and count only in a cluster without flux; or NULL */
+    float *sigma;          /* M * 3: weighted positional standard deviation per world axis, or NULL */
+    uint32_t iterations;   /* written: assignment steps run (below the cap, the last changed nothing) */
     uint32_t empty_repaired; /* written: clusters re-seeded because they went empty */
 } gim_kmeans_result;
 
@@ -906,6 +933,417 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 }
 
 /* @impl kmeans ============================================================================ */
+
+#define GIM__KMEANS_NONE 0xffffffffu
+
+/* Working state of one gim_kmeans call; positions relative to the anchor (bounds centre). */
+typedef struct gim__kmeans {
+    uint32_t n, m;
+    int dong;              /* 1: Dong's angle term, 0: SSVP's (1 - max(cos, 0)) */
+    double wx_s, wa;       /* w_x / scene_scale; w_a (/ pi for Dong) */
+    double *p, *nrm, *w;   /* n*3, n*3 unit, n weights */
+    double *best;          /* n: distance of each VPL to its cluster, from the last assignment */
+    double *cen, *cnrm;    /* m*3 centres (relative), m*3 unit normals */
+    double *acc;           /* m * GIM__KMEANS_ACC sums of the update step */
+    uint32_t *assign, *count;
+} gim__kmeans;
+
+enum { GIM__KMEANS_ACC = 14 }; /* W, sum w p[3], sum w n[3], sum p[3], sum n[3], error */
+
+/* The direction term of the metric for cos = n_i . n_j. */
+static double gim__kmeans_dir(const gim__kmeans *k, double c) {
+    if (k->dong) return k->wa * acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c)); /* Dong 5.1: angle */
+    return k->wa * (1.0 - (c > 0.0 ? c : 0.0));                            /* SSVP eq. 2, slip fixed */
+}
+
+/* Assignment step: for each VPL independently, the centre at the smallest distance; it leaves
+   its current cluster only for a strictly smaller one. Returns the number of VPLs that moved.
+   The position term alone bounds the distance from below (the direction term is >= 0), so a
+   centre whose position term already reaches the best is skipped without changing the result. */
+static uint32_t gim__kmeans_assign(gim__kmeans *k) {
+    uint32_t i, j, moved = 0;
+    for (i = 0; i < k->n; ++i) {
+        const double *x = k->p + (size_t)i * 3, *nx = k->nrm + (size_t)i * 3;
+        uint32_t cur = k->assign[i], arg = cur;
+        const double x0 = x[0], x1 = x[1], x2 = x[2], wx_s = k->wx_s;
+        double bd = HUGE_VAL, r2 = HUGE_VAL; /* best distance; squared distance of sure losers */
+        if (cur != GIM__KMEANS_NONE) {
+            const double *c = k->cen + (size_t)cur * 3, *cn = k->cnrm + (size_t)cur * 3;
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            bd = wx_s * sqrt(dx * dx + dy * dy + dz * dz) +
+                 gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
+            if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9); /* margin: skip only sure losers */
+        }
+        for (j = 0; j < k->m; ++j) {
+            const double *c = k->cen + (size_t)j * 3, *cn;
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            double d2 = dx * dx + dy * dy + dz * dz, pos, d;
+            if (d2 > r2 || j == cur) continue;
+            pos = wx_s * sqrt(d2);
+            if (!(pos < bd)) continue;
+            cn = k->cnrm + (size_t)j * 3;
+            d = pos + gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
+            if (d < bd) {
+                bd = d; arg = j;
+                if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9);
+            }
+        }
+        if (arg != cur) ++moved;
+        k->assign[i] = arg;
+        k->best[i] = bd;
+    }
+    return moved;
+}
+
+/* Counts and errors per cluster, then the repair of empty clusters (see the header).
+   Returns the number of clusters re-seeded. */
+static uint32_t gim__kmeans_repair(gim__kmeans *k) {
+    uint32_t i, j, c, repaired = 0;
+    double *err = k->acc; /* column 13 of acc holds the error */
+    for (j = 0; j < k->m; ++j) { k->count[j] = 0; err[(size_t)j * GIM__KMEANS_ACC + 13] = 0.0; }
+    for (i = 0; i < k->n; ++i) {
+        k->count[k->assign[i]]++;
+        err[(size_t)k->assign[i] * GIM__KMEANS_ACC + 13] += k->best[i];
+    }
+    for (j = 0; j < k->m; ++j) {
+        uint32_t donor = GIM__KMEANS_NONE, far = GIM__KMEANS_NONE;
+        double de = -1.0, fd = -1.0;
+        if (k->count[j] != 0) continue;
+        for (c = 0; c < k->m; ++c) {
+            double e = err[(size_t)c * GIM__KMEANS_ACC + 13];
+            if (k->count[c] < 2) continue;
+            if (donor == GIM__KMEANS_NONE || e > de || (e == de && k->count[c] > k->count[donor])) {
+                donor = c; de = e;
+            }
+        }
+        GIMANY_ASSERT(donor != GIM__KMEANS_NONE); /* M <= N: some cluster has two VPLs */
+        if (donor == GIM__KMEANS_NONE) break;
+        for (i = 0; i < k->n; ++i)
+            if (k->assign[i] == donor && k->best[i] > fd) { fd = k->best[i]; far = i; }
+        k->assign[far] = j;
+        k->count[donor]--; k->count[j] = 1;
+        de -= fd;
+        err[(size_t)donor * GIM__KMEANS_ACC + 13] = de > 0.0 ? de : 0.0;
+        /* it seeds the cluster: the centre moves onto it in the update step */
+        k->best[far] = 0.0;
+        ++repaired;
+    }
+    return repaired;
+}
+
+/* Update step: per-cluster sums in VPL index order, then weighted means (sec. "Means"). */
+static void gim__kmeans_update(gim__kmeans *k) {
+    uint32_t i, j;
+    int a;
+    for (j = 0; j < k->m; ++j) {
+        double *s = k->acc + (size_t)j * GIM__KMEANS_ACC;
+        for (a = 0; a < 13; ++a) s[a] = 0.0;
+    }
+    for (i = 0; i < k->n; ++i) {
+        double *s = k->acc + (size_t)k->assign[i] * GIM__KMEANS_ACC;
+        const double *x = k->p + (size_t)i * 3, *nx = k->nrm + (size_t)i * 3;
+        double w = k->w[i];
+        s[0] += w;
+        for (a = 0; a < 3; ++a) {
+            s[1 + a] += w * x[a]; s[4 + a] += w * nx[a];
+            s[7 + a] += x[a];     s[10 + a] += nx[a];
+        }
+    }
+    for (j = 0; j < k->m; ++j) {
+        const double *s = k->acc + (size_t)j * GIM__KMEANS_ACC;
+        double *c = k->cen + (size_t)j * 3, *cn = k->cnrm + (size_t)j * 3;
+        int plain = !(s[0] > 0.0); /* all-zero flux: plain mean */
+        double wsum = plain ? (double)k->count[j] : s[0], len;
+        const double *sp = plain ? s + 7 : s + 1, *sn = plain ? s + 10 : s + 4;
+        if (k->count[j] == 0) continue; /* cannot happen after the repair; keep the old centre */
+        for (a = 0; a < 3; ++a) c[a] = sp[a] / wsum;
+        len = sqrt(sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2]);
+        if (len > 1e-9 * wsum)
+            for (a = 0; a < 3; ++a) cn[a] = sn[a] / len;
+        /* else the normals cancel: keep the previous normal */
+    }
+}
+
+/* A VPL's weight in the means: its mean rgb flux. */
+static double gim__kmeans_weight(const float *flux, uint32_t i) {
+    if (!flux) return 1.0;
+    return ((double)flux[(size_t)i * 3] + flux[(size_t)i * 3 + 1] + flux[(size_t)i * 3 + 2]) / 3.0;
+}
+
+static int gim__kmeans_cmp2(const void *a, const void *b) {
+    const double *u = (const double *)a, *v = (const double *)b;
+    if (u[0] != v[0]) return u[0] < v[0] ? -1 : 1;
+    if (u[1] != v[1]) return u[1] < v[1] ? -1 : 1;
+    return 0;
+}
+
+/* Area of the smallest rectangle enclosing the n 2D points pts (sorted in place): convex hull
+   (monotone chain) into hull[4 * (n + 1)], then rotating calipers over the hull edges, since
+   the smallest rectangle has a side on a hull edge (Freeman and Shapira 1975); O(n log n). */
+static double gim__min_area_rect(double *pts, uint32_t n, double *hull) {
+    uint32_t i, e, h = 0, lower, a, b, c;
+    double best = HUGE_VAL;
+    if (n < 3) return 0.0;
+    qsort(pts, n, 2 * sizeof(double), gim__kmeans_cmp2);
+#define GIM__CROSS(o, p, q) (((p)[0] - (o)[0]) * ((q)[1] - (o)[1]) - ((p)[1] - (o)[1]) * ((q)[0] - (o)[0]))
+    for (i = 0; i < n; ++i) {
+        while (h >= 2 && GIM__CROSS(hull + 2 * (h - 2), hull + 2 * (h - 1), pts + 2 * i) <= 0.0) --h;
+        hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
+    }
+    lower = h + 1;
+    for (i = n - 1; i-- > 0;) {
+        while (h >= lower && GIM__CROSS(hull + 2 * (h - 2), hull + 2 * (h - 1), pts + 2 * i) <= 0.0) --h;
+        hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
+    }
+#undef GIM__CROSS
+    --h; /* the last point repeats the first; the hull is counter-clockwise, no collinear points */
+    if (h < 3) return 0.0; /* all points on a line (or one point): no area */
+    /* for edge e with direction u and inward normal v: b is the point farthest along u, a the
+       farthest along v, c the farthest along -u; all three only move forward as e turns */
+    b = 1; a = 1; c = 1;
+    for (e = 0; e < h; ++e) {
+        const double *p0 = hull + 2 * e, *p1 = hull + 2 * ((e + 1) % h);
+        double ux = p1[0] - p0[0], uy = p1[1] - p0[1], len = sqrt(ux * ux + uy * uy), area;
+        uint32_t steps;
+#define GIM__U(k) ((hull[2 * ((k) % h)] - p0[0]) * ux + (hull[2 * ((k) % h) + 1] - p0[1]) * uy)
+#define GIM__V(k) ((hull[2 * ((k) % h) + 1] - p0[1]) * ux - (hull[2 * ((k) % h)] - p0[0]) * uy)
+        if (!(len > 0.0)) continue;
+        ux /= len; uy /= len;
+        if (e == 0 || b == e) b = (e + 1) % h;
+        for (steps = 0; steps < h && GIM__U(b + 1) > GIM__U(b); ++steps) b = (b + 1) % h;
+        if (e == 0 || a == e || a == (e + 1) % h) a = b; /* guards rounding on near-flat hulls */
+        for (steps = 0; steps < h && GIM__V(a + 1) > GIM__V(a); ++steps) a = (a + 1) % h;
+        if (e == 0) c = a;
+        for (steps = 0; steps < h && GIM__U(c + 1) < GIM__U(c); ++steps) c = (c + 1) % h;
+        area = (GIM__U(b) - GIM__U(c)) * GIM__V(a);
+#undef GIM__U
+#undef GIM__V
+        if (area < best) best = area;
+    }
+    return best < HUGE_VAL ? best : 0.0;
+}
+
+/* Validate, allocate, iterate, write the outputs. */
+GIMANY_DEF gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result *result) {
+    static const char *fn = "gim_kmeans";
+    const gim_env *env = desc ? &desc->env : NULL;
+    gim__kmeans k;
+    uint32_t n, m, i, j, it, max_it, repaired = 0;
+    double lo[3], hi[3], anchor[3], diag, scale, wx, wa, fsum[3] = {0.0, 0.0, 0.0};
+    int a, warm, want_area;
+    size_t off[12], total = 0, sz[12];
+    unsigned char *mem;
+    double *pts = NULL, *hull = NULL;
+    uint32_t *order = NULL, *start = NULL;
+
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    if (!result) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "result is NULL");
+    if (!result->centres || !result->normals)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "result->centres and result->normals are required");
+    if (!desc->positions || !desc->normals)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "positions and normals are required");
+    n = desc->vpl_count; m = desc->cluster_count;
+    if (n == 0 || m == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpl_count (%u) and cluster_count (%u) must be > 0", n, m);
+    if (m > n) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cluster_count %u > vpl_count %u: every cluster needs a VPL", m, n);
+    if ((unsigned)desc->metric > (unsigned)GIM_KMEANS_METRIC_SSVP)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown metric %d", (int)desc->metric);
+    if ((unsigned)desc->init > (unsigned)GIM_KMEANS_INIT_WARM)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown init %d", (int)desc->init);
+    warm = desc->init == GIM_KMEANS_INIT_WARM;
+    if (warm && (!desc->init_centres || !desc->init_normals))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "warm start needs init_centres and init_normals");
+    if (!gim__isfinitef(desc->w_x) || !gim__isfinitef(desc->w_a) || desc->w_x < 0.0f || desc->w_a < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "weights w_x %g, w_a %g must be finite and >= 0", (double)desc->w_x, (double)desc->w_a);
+    if (!gim__isfinitef(desc->scene_scale) || desc->scene_scale < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and >= 0", (double)desc->scene_scale);
+    if (desc->max_iterations > 4096)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "max_iterations %u > 4096", desc->max_iterations);
+    max_it = desc->max_iterations ? desc->max_iterations : 16;
+
+    for (a = 0; a < 3; ++a) { lo[a] = HUGE_VAL; hi[a] = -HUGE_VAL; }
+    for (i = 0; i < n; ++i) {
+        const float *x = desc->positions + (size_t)i * 3, *nx = desc->normals + (size_t)i * 3;
+        if (!gim__all_finite(x, 3)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "position of VPL %u is not finite", i);
+        if (!gim__all_finite(nx, 3)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal of VPL %u is not finite", i);
+        if (nx[0] == 0.0f && nx[1] == 0.0f && nx[2] == 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal of VPL %u is zero", i);
+        for (a = 0; a < 3; ++a) {
+            if (x[a] < lo[a]) lo[a] = x[a];
+            if (x[a] > hi[a]) hi[a] = x[a];
+        }
+        if (desc->flux) {
+            const float *f = desc->flux + (size_t)i * 3;
+            if (!gim__all_finite(f, 3) || f[0] < 0.0f || f[1] < 0.0f || f[2] < 0.0f)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "flux of VPL %u must be finite and >= 0", i);
+            for (a = 0; a < 3; ++a) fsum[a] += f[a];
+        }
+    }
+    if (fsum[0] > FLT_MAX || fsum[1] > FLT_MAX || fsum[2] > FLT_MAX)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "the summed flux exceeds the float range");
+    diag = 0.0;
+    for (a = 0; a < 3; ++a) { anchor[a] = 0.5 * (lo[a] + hi[a]); diag += (hi[a] - lo[a]) * (hi[a] - lo[a]); }
+    diag = sqrt(diag);
+    if (diag * diag > FLT_MAX) /* areas must fit in a float */
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "VPL bounds diagonal %g exceeds 1.8e19", diag);
+    if (warm)
+        for (j = 0; j < m; ++j) {
+            const float *nx = desc->init_normals + (size_t)j * 3;
+            if (!gim__all_finite(desc->init_centres + (size_t)j * 3, 3) || !gim__all_finite(nx, 3))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "init centre or normal %u is not finite", j);
+            if (nx[0] == 0.0f && nx[1] == 0.0f && nx[2] == 0.0f)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "init normal %u is zero", j);
+        }
+    /* all VPLs at one point: any unit will do, the position term is zero for them */
+    scale = desc->scene_scale > 0.0f ? (double)desc->scene_scale : (diag > 0.0 ? diag : 1.0);
+    wx = desc->w_x; wa = desc->w_a;
+    if (wx == 0.0 && wa == 0.0) {
+        int ssvp = desc->metric == GIM_KMEANS_METRIC_SSVP;
+        wx = ssvp ? 0.6 : 0.7; wa = ssvp ? 0.4 : 0.3;
+    }
+
+    /* one block: doubles first, then uint32 arrays */
+    want_area = result->area != NULL;
+    sz[0] = gim__array_size(n, 3 * sizeof(double));            /* p */
+    sz[1] = sz[0];                                             /* nrm */
+    sz[2] = gim__array_size(n, sizeof(double));                /* w */
+    sz[3] = sz[2];                                             /* best */
+    sz[4] = gim__array_size(m, 3 * sizeof(double));            /* cen */
+    sz[5] = sz[4];                                             /* cnrm */
+    sz[6] = gim__array_size(m, GIM__KMEANS_ACC * sizeof(double)); /* acc */
+    sz[7] = want_area ? gim__array_size((size_t)n + 1, 6 * sizeof(double)) : 0; /* pts, hull (2n+2 points) */
+    sz[8] = gim__array_size(n, sizeof(uint32_t));              /* assign */
+    sz[9] = gim__array_size((size_t)m + 1, sizeof(uint32_t));  /* count */
+    sz[10] = want_area ? sz[8] : 0;                            /* order */
+    sz[11] = want_area ? sz[9] : 0;                            /* start */
+    for (j = 0; j < 12; ++j) {
+        if ((sz[j] == 0 && j != 7 && j < 10) || total > (size_t)-1 - sz[j] - 16)
+            return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "size overflow for %u VPLs", n);
+        off[j] = total;
+        total += (sz[j] + 7) & ~(size_t)7;
+    }
+    mem = (unsigned char *)gim__alloc(env, total);
+    if (!mem) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%lu bytes for %u VPLs", (unsigned long)total, n);
+    k.n = n; k.m = m;
+    k.dong = desc->metric != GIM_KMEANS_METRIC_SSVP;
+    k.wx_s = wx / scale;
+    k.wa = k.dong ? wa / 3.14159265358979323846 : wa;
+    k.p = (double *)(void *)(mem + off[0]);
+    k.nrm = (double *)(void *)(mem + off[1]);
+    k.w = (double *)(void *)(mem + off[2]);
+    k.best = (double *)(void *)(mem + off[3]);
+    k.cen = (double *)(void *)(mem + off[4]);
+    k.cnrm = (double *)(void *)(mem + off[5]);
+    k.acc = (double *)(void *)(mem + off[6]);
+    k.assign = (uint32_t *)(void *)(mem + off[8]);
+    k.count = (uint32_t *)(void *)(mem + off[9]);
+    if (want_area) {
+        pts = (double *)(void *)(mem + off[7]);
+        hull = pts + 2 * ((size_t)n + 1);
+        order = (uint32_t *)(void *)(mem + off[10]);
+        start = (uint32_t *)(void *)(mem + off[11]);
+    }
+
+    /* VPLs relative to the anchor, unit normals, weights; zero flux everywhere -> weights 1 */
+    for (i = 0; i < n; ++i) {
+        const float *x = desc->positions + (size_t)i * 3, *nx = desc->normals + (size_t)i * 3;
+        double len = sqrt((double)nx[0] * nx[0] + (double)nx[1] * nx[1] + (double)nx[2] * nx[2]);
+        for (a = 0; a < 3; ++a) {
+            k.p[(size_t)i * 3 + a] = (double)x[a] - anchor[a];
+            k.nrm[(size_t)i * 3 + a] = nx[a] / len;
+        }
+        k.w[i] = gim__kmeans_weight(desc->flux, i);
+        k.assign[i] = GIM__KMEANS_NONE;
+    }
+    /* seeds: Dong 6 (VPL k*N/M is cluster k's first centre) or the previous frame's centres */
+    for (j = 0; j < m; ++j) {
+        if (warm) {
+            const float *c = desc->init_centres + (size_t)j * 3, *cn = desc->init_normals + (size_t)j * 3;
+            double len = sqrt((double)cn[0] * cn[0] + (double)cn[1] * cn[1] + (double)cn[2] * cn[2]);
+            for (a = 0; a < 3; ++a) {
+                k.cen[(size_t)j * 3 + a] = (double)c[a] - anchor[a];
+                k.cnrm[(size_t)j * 3 + a] = cn[a] / len;
+            }
+        } else {
+            size_t s = (size_t)((uint64_t)j * n / m);
+            for (a = 0; a < 3; ++a) {
+                k.cen[(size_t)j * 3 + a] = k.p[s * 3 + a];
+                k.cnrm[(size_t)j * 3 + a] = k.nrm[s * 3 + a];
+            }
+        }
+    }
+
+    /* Lloyd iteration: assign, repair, update; converged when an assignment moves no VPL */
+    for (it = 1;; ++it) {
+        uint32_t moved = gim__kmeans_assign(&k);
+        if (it > 1 && moved == 0) break;
+        repaired += gim__kmeans_repair(&k);
+        gim__kmeans_update(&k);
+        if (it >= max_it) break;
+    }
+
+    /* outputs: flux, sigma (two-pass, about the final centres), then area; nothing can fail now */
+    for (j = 0; j < m; ++j) {
+        double *s = k.acc + (size_t)j * GIM__KMEANS_ACC;
+        for (a = 0; a < 13; ++a) s[a] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        uint32_t c = k.assign[i];
+        double *s = k.acc + (size_t)c * GIM__KMEANS_ACC;
+        double w = k.w[i];
+        s[0] += w;
+        for (a = 0; a < 3; ++a) {
+            double d = k.p[(size_t)i * 3 + a] - k.cen[(size_t)c * 3 + a];
+            s[1 + a] += w * d * d;
+            s[4 + a] += d * d;
+            if (desc->flux) s[7 + a] += desc->flux[(size_t)i * 3 + a];
+        }
+    }
+    for (j = 0; j < m; ++j) {
+        const double *s = k.acc + (size_t)j * GIM__KMEANS_ACC;
+        int plain = !(s[0] > 0.0);
+        double wsum = plain ? (double)k.count[j] : s[0];
+        for (a = 0; a < 3; ++a) {
+            result->centres[(size_t)j * 3 + a] = (float)(k.cen[(size_t)j * 3 + a] + anchor[a]);
+            result->normals[(size_t)j * 3 + a] = (float)k.cnrm[(size_t)j * 3 + a];
+            if (result->flux) result->flux[(size_t)j * 3 + a] = (float)s[7 + a];
+            if (result->sigma) result->sigma[(size_t)j * 3 + a] = (float)sqrt((plain ? s[4 + a] : s[1 + a]) / wsum);
+        }
+    }
+    if (result->counts) memcpy(result->counts, k.count, (size_t)m * sizeof(uint32_t));
+    if (result->assignment) memcpy(result->assignment, k.assign, (size_t)n * sizeof(uint32_t));
+    if (want_area) {
+        /* counting sort of the VPLs that emit (all of a cluster's when it has no flux) by
+           cluster, then each cluster's points in the plane of its normal */
+#define GIM__EMITS(i) (k.w[i] > 0.0 || !(k.acc[(size_t)k.assign[i] * GIM__KMEANS_ACC] > 0.0))
+        for (j = 0; j <= m; ++j) start[j] = 0;
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) start[k.assign[i] + 1]++;
+        for (j = 0; j < m; ++j) start[j + 1] += start[j];
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) order[start[k.assign[i]]++] = i;
+#undef GIM__EMITS
+        for (j = m; j > 0; --j) start[j] = start[j - 1];
+        start[0] = 0;
+        for (j = 0; j < m; ++j) {
+            const double *c = k.cen + (size_t)j * 3, *cn = k.cnrm + (size_t)j * 3;
+            /* tangent frame (Duff et al. 2017); the rectangle does not depend on its rotation */
+            double sg = cn[2] >= 0.0 ? 1.0 : -1.0, q = -1.0 / (sg + cn[2]), r = cn[0] * cn[1] * q;
+            double t[3], b[3];
+            uint32_t cnt = start[j + 1] - start[j], e;
+            t[0] = 1.0 + sg * cn[0] * cn[0] * q; t[1] = sg * r; t[2] = -sg * cn[0];
+            b[0] = r; b[1] = sg + cn[1] * cn[1] * q; b[2] = -cn[1];
+            for (e = 0; e < cnt; ++e) {
+                const double *x = k.p + (size_t)order[start[j] + e] * 3;
+                double d0 = x[0] - c[0], d1 = x[1] - c[1], d2 = x[2] - c[2];
+                pts[2 * e] = d0 * t[0] + d1 * t[1] + d2 * t[2];
+                pts[2 * e + 1] = d0 * b[0] + d1 * b[1] + d2 * b[2];
+            }
+            result->area[j] = (float)gim__min_area_rect(pts, cnt, hull);
+        }
+    }
+    result->iterations = it;
+    result->empty_repaired = repaired;
+    gim__free(env, mem);
+    return GIM_OK;
+}
 
 /* @impl caches ============================================================================ */
 /* generator: voxels, normal bins, averaging, snapping, merging, area partition */
