@@ -16,6 +16,8 @@
 
    CONFIG MACROS (define before the include that has GIMANY_IMPLEMENTATION)
      GIMANY_NO_GL          drop the GL runtime: only the CPU parts, no GL header needed
+     GIMANY_EXTERNAL_GL    the host has its own GL loader: gimany calls its gl* functions
+                           instead of loading them from gim_desc.get_proc_address
      GIMANY_STATIC         make every function static (private to one translation unit)
      GIMANY_API            linkage of public functions (default: extern)
      GIMANY_MALLOC(sz,u) / GIMANY_FREE(p,u)
@@ -30,7 +32,7 @@
      Nothing in gimany calls exit() or abort(); outputs are left untouched on error unless a
      function says otherwise.
 
-   UNITS (see DESIGN.md sec. 4)
+   UNITS
      Linear radiometry in float. Lengths are in the host's unit; every length threshold is
      relative to a scene scale (the diagonal of the scene bounds unless given), so the same
      scene in millimetres or kilometres gives the same numbers.
@@ -45,6 +47,15 @@
          gim_kmeans_result kr;                                caller-owned arrays, sized by counts
          ...
          if (gim_kmeans(&kd, &kr) != GIM_OK) { ... }
+
+   EXAMPLE (GL runtime; a GL 4.3 context current on this thread)
+         gim_desc d = {0};
+         d.get_proc_address = (gim_gl_proc (*)(const char *))glfwGetProcAddress;
+         d.env.logger.func = gim_log_stderr;
+         gim_context *ctx;
+         if (gim_create(&d, &ctx) != GIM_OK) { ... }         too old a context: GIM_ERROR_UNSUPPORTED
+         ...
+         gim_destroy(ctx);
 
    METHODS (each one setting of the same runtime)
      RSM gather          fixed RSM samples per pixel, no visibility (Dachsbacher 2005; baseline)
