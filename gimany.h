@@ -910,15 +910,15 @@ static double gim__cg_angle(const double *a, const double *b) {
     return acos(d > 1.0 ? 1.0 : (d < -1.0 ? -1.0 : d));
 }
 
-/* Grow an array by doubling (the env allocator has no realloc): the array to use from now
-   on, or NULL (the old one still valid) when memory ran out. */
+/* Grow an array by half (the env allocator has no realloc): the array to use from now on,
+   or NULL (the old one still valid) when memory ran out. */
 static void *gim__cg_grow(const gim_env *env, void *arr, size_t *cap, size_t need, size_t elem) {
     size_t ncap = *cap ? *cap : 1024u;
     void *n;
     if (need <= *cap) return arr;
     while (ncap < need) {
         if (ncap > ((size_t)-1 / 2u) / elem) return NULL;
-        ncap *= 2u;
+        ncap += ncap / 2u;
     }
     n = gim__alloc_array(env, ncap, elem);
     if (!n) return NULL;
@@ -1121,16 +1121,16 @@ static uint32_t gim__cg_bin(const float *n, uint32_t bins) {
 
 static double gim__cg_fdot(const float *n, const double *m) { return n[0] * m[0] + n[1] * m[1] + n[2] * m[2]; }
 
-/* Steps 2-3 for one voxel (fragments first..first+k-1): normal bins, then repeatedly the bin
+/* Steps 2-3 for one voxel (the k fragments listed in frag): normal bins, then repeatedly the bin
    of the largest surface, its normal refined to the mean of the surface within theta_eps
    (a few mean-shift steps, so every member stays within theta_eps of the cache normal), the
    cache at the area-weighted mean position, that surface removed. */
-static int gim__cg_voxel(gim__cg *g, size_t first, size_t k, uint32_t bins, double *bin_area,
+static int gim__cg_voxel(gim__cg *g, const gim__cg_pair *frag, size_t k, uint32_t bins, double *bin_area,
                          uint32_t *touched, uint32_t *rem, uint32_t *rem_bin, uint32_t *frag_cache) {
     size_t nrem = k, i;
     for (i = 0; i < k; ++i) {
-        rem[i] = (uint32_t)(first + i);
-        rem_bin[i] = gim__cg_bin(g->frags[first + i].n, bins);
+        rem[i] = frag[i].idx;
+        rem_bin[i] = gim__cg_bin(g->frags[frag[i].idx].n, bins);
     }
     while (nrem > 0) {
         size_t ntouched = 0, j, kept;
@@ -1224,7 +1224,7 @@ static int gim__cg_voxel(gim__cg *g, size_t first, size_t k, uint32_t bins, doub
         c->rho_area = rho_area;
         c->radius = radius;
         c->spread = acos(min_dot > 1.0 ? 1.0 : (min_dot < -1.0 ? -1.0 : min_dot));
-        c->key = g->frags[first].key;
+        c->key = frag[0].key;
         c->parent = cid;
     }
     return 1;
@@ -1561,7 +1561,10 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         goto fail;
     }
 
-    /* step 1: voxelize */
+    /* step 1: voxelize (at least one piece per used triangle) */
+    g.frag_cap = (size_t)rep.triangles_used + rep.triangles_used / 4u + 64u;
+    g.frags = (gim__cg_frag *)gim__alloc_array(env, g.frag_cap, sizeof(gim__cg_frag));
+    if (!g.frags) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
     for (t = 0; t < tris; ++t) {
         gim__cg_tri tri;
         double e1[3], e2[3];
@@ -1593,7 +1596,8 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
     gim__free(env, status);
     status = NULL;
 
-    /* group the pieces by voxel: stable radix sort of the keys, then the pieces permuted in place */
+    /* group the pieces by voxel: a stable radix sort of (key, piece) keeps triangle order
+       within a voxel; the pieces stay where they are (a permutation costs more than it saves) */
     if (g.frag_count > 0) {
         size_t n = g.frag_count;
         pairs = (gim__cg_pair *)gim__alloc_array(env, n, sizeof *pairs);
@@ -1603,21 +1607,6 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         gim__cg_radix(pairs, ptmp, n, g.dim[0] * g.dim[1] * g.dim[2] - 1u);
         gim__free(env, ptmp);
         ptmp = NULL;
-        for (i = 0; i < n; ++i) {
-            gim__cg_frag tmp;
-            size_t at = i, from;
-            if (pairs[i].idx == (uint32_t)i || pairs[i].idx == 0xffffffffu) continue;
-            tmp = g.frags[i];
-            for (;;) {
-                from = pairs[at].idx;
-                pairs[at].idx = 0xffffffffu;
-                if (from == i) { g.frags[at] = tmp; break; }
-                g.frags[at] = g.frags[from];
-                at = from;
-            }
-        }
-        gim__free(env, pairs);
-        pairs = NULL;
     }
 
     /* steps 2-3: normal bins and averaging, voxel by voxel */
@@ -1625,7 +1614,7 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
     if (bins < 2u) bins = 2u;
     if (bins > 64u) bins = 64u;
     for (i = 0; i < g.frag_count; i = j) {
-        for (j = i + 1u; j < g.frag_count && g.frags[j].key == g.frags[i].key; ++j) {}
+        for (j = i + 1u; j < g.frag_count && pairs[j].key == pairs[i].key; ++j) {}
         if (j - i > max_run) max_run = j - i;
         rep.voxels++;
     }
@@ -1639,8 +1628,8 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         memset(frag_cache, 0xff, g.frag_count * sizeof(uint32_t)); /* no cache yet */
         for (i = 0; i < (size_t)6u * bins * bins; ++i) bin_area[i] = 0.0;
         for (i = 0; i < g.frag_count; i = j) {
-            for (j = i + 1u; j < g.frag_count && g.frags[j].key == g.frags[i].key; ++j) {}
-            if (!gim__cg_voxel(&g, i, j - i, bins, bin_area, touched, rem, rem_bin, frag_cache)) {
+            for (j = i + 1u; j < g.frag_count && pairs[j].key == pairs[i].key; ++j) {}
+            if (!gim__cg_voxel(&g, pairs + i, j - i, bins, bin_area, touched, rem, rem_bin, frag_cache)) {
                 res = GIM_ERROR_OUT_OF_MEMORY;
                 goto fail;
             }
@@ -1649,6 +1638,7 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         gim__free(env, touched); touched = NULL;
         gim__free(env, rem); rem = NULL;
         gim__free(env, rem_bin); rem_bin = NULL;
+        gim__free(env, pairs); pairs = NULL;
     }
     rep.caches_before_merge = (uint32_t)g.cache_count;
 
