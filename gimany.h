@@ -291,9 +291,10 @@ typedef struct gim_cache {
 /* What the generator skipped or did, for the host's log. */
 typedef struct gim_cache_report {
     uint32_t triangles_used;
-    uint32_t triangles_degenerate;   /* zero area or collinear */
+    uint32_t triangles_degenerate;   /* zero area or collinear (area < 1e-7 x longest edge^2 / 2) */
     uint32_t triangles_nonfinite;    /* a NaN/Inf coordinate */
-    uint32_t triangles_duplicate;    /* same three vertex positions as an earlier triangle */
+    uint32_t triangles_duplicate;    /* same three vertex positions as an earlier triangle, same
+                                        winding (the reversed one is the other face of a wall) */
     uint32_t voxels;                 /* occupied voxels */
     uint32_t caches_before_merge;
     uint32_t caches_snapped;         /* floating caches moved onto the nearest triangle */
@@ -304,7 +305,7 @@ typedef struct gim_cache_report {
 typedef struct gim_cache_desc {
     gim_mesh_data mesh;
     float d_eps;          /* max cache-to-surface distance; default scene_scale / 32 */
-    float theta_eps;      /* max normal deviation in radians; default 30 degrees */
+    float theta_eps;      /* max normal deviation in radians, (0, pi/2]; default 30 degrees */
     float scene_scale;    /* default: diagonal of the mesh bounds */
     int no_snap;          /* 1: keep floating caches where averaging put them */
     int no_merge;         /* 1: skip joining similar caches of neighbouring voxels */
@@ -320,7 +321,12 @@ typedef struct gim_cache_set {
     gim_env env;             /* allocator that owns caches */
 } gim_cache_set;
 
-/* Generate caches for one mesh; out is written only on GIM_OK. */
+/* Generate caches for one mesh; out is written only on GIM_OK. Every surface point lies within
+   d_eps of a cache whose normal is within theta_eps of its own; the cache areas partition the
+   used surface; degenerate, non-finite and duplicate triangles are skipped and counted, an
+   out-of-range index or material is GIM_ERROR_INVALID_ARGUMENT, a d_eps too small for the
+   mesh extent GIM_ERROR_OUT_OF_RANGE. Deterministic; single-threaded; memory linear in the
+   voxel pieces (about one per triangle, plus one per voxel a large triangle crosses). */
 GIMANY_API gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_set *out);
 /* Free what gim_cache_generate or gim_cache_blob_read allocated; NULL or zeroed is fine. */
 GIMANY_API void gim_cache_set_free(gim_cache_set *set);

@@ -219,8 +219,14 @@ static uint32_t coverage_failures(const gim_mesh_data *md, const gim_cache_set *
     *worst = 0.0;
     for (t = 0; t < md->index_count / 3; ++t) {
         double a[3], b[3], cc[3], n[3];
-        if (!(tri_area_normal(md, t, n) > 0)) continue;
+        double area = tri_area_normal(md, t, n), lmax = 0;
         tri_vertex(md, t, 0, a); tri_vertex(md, t, 1, b); tri_vertex(md, t, 2, cc);
+        for (k = 0; k < 3; ++k) {
+            const double *p = k == 0 ? a : (k == 1 ? b : cc), *q = k == 0 ? b : (k == 1 ? cc : a);
+            double l = (p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]);
+            if (l > lmax) lmax = l;
+        }
+        if (!(2.0 * area > 1e-7 * lmax)) continue; /* the generator skips it as degenerate */
         for (k = 0; k < samples + 6; ++k) {
             double u, v, p[3], best = 1e300;
             long c[3], x, y, z;
@@ -371,6 +377,11 @@ static void cube_normals(void **state) {
         gim_cache_set_free(&s);
         tm_free(&m);
     }
+    /* the paper's two RGBA32F texels: position + area, normal + reflection coefficient */
+    assert_int_equal(sizeof(gim_cache), 32);
+    assert_int_equal(offsetof(gim_cache, area), 12);
+    assert_int_equal(offsetof(gim_cache, normal), 16);
+    assert_int_equal(offsetof(gim_cache, reflectance), 28);
 }
 
 static void coverage_case(tmesh *m, float d_eps, int no_merge, int no_snap, const float *normals) {
