@@ -1446,12 +1446,12 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
     gim_cache_report rep;
     gim_result res = GIM_OK;
     uint8_t *status = NULL;
-    uint32_t *table = NULL, *frag_cache = NULL, *rem = NULL, *rem_bin = NULL, *touched = NULL;
+    uint32_t *frag_cache = NULL, *rem = NULL, *rem_bin = NULL, *touched = NULL;
     uint32_t *order = NULL, *start = NULL, *remap = NULL;
     double *bin_area = NULL;
     gim__cg_pair *pairs = NULL, *ptmp = NULL;
     gim_cache *result = NULL;
-    size_t tris, t, i, j, table_mask = 0, final_count = 0, max_run = 0;
+    size_t tris, t, i, j, final_count = 0, max_run = 0;
     double lo[3], hi[3], scale, d_eps, ext[3], cells, area_total = 0.0, est = 0.0;
     uint32_t bins, snapped = 0;
     int k, any = 0;
@@ -1522,19 +1522,14 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         goto fail;
     }
 
-    /* degenerate and duplicate triangles; an estimate of the voxel pieces guards the work */
-    {
-        size_t cap = 16;
-        while (cap < tris * 2u) cap *= 2u;
-        table = (uint32_t *)gim__alloc_array(env, cap, sizeof(uint32_t));
-        if (!table) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
-        memset(table, 0, cap * sizeof(uint32_t));
-        table_mask = cap - 1u;
-    }
-    for (t = 0; t < tris; ++t) {
-        double v[3][3], e1[3], e2[3], e3[3], cr[3], l1, l2, l3, lmax, a2;
-        float key[9], other[9];
-        size_t slot;
+    /* degenerate triangles; the rest hashed by their positions and sorted by hash (stable, so
+       equal hashes keep triangle order and the first of a set of duplicates stays) */
+    pairs = (gim__cg_pair *)gim__alloc_array(env, tris, sizeof *pairs);
+    ptmp = (gim__cg_pair *)gim__alloc_array(env, tris, sizeof *ptmp);
+    if (!pairs || !ptmp) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+    for (t = 0, j = 0; t < tris; ++t) {
+        double v[3][3], e1[3], e2[3], e3[3], cr[3], l1, l2, l3, lmax;
+        float key[9];
         if (status[t] != GIM__CG_USED) continue;
         for (k = 0; k < 3; ++k) gim__cg_vertex(&g, gim__cg_index(m, t * 3u + (size_t)k), v[k]);
         for (k = 0; k < 3; ++k) { e1[k] = v[1][k] - v[0][k]; e2[k] = v[2][k] - v[0][k]; e3[k] = v[2][k] - v[1][k]; }
@@ -1542,24 +1537,45 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
         l1 = gim__cg_dot(e1, e1); l2 = gim__cg_dot(e2, e2); l3 = gim__cg_dot(e3, e3);
         lmax = l1 > l2 ? l1 : l2;
         if (l3 > lmax) lmax = l3;
-        a2 = sqrt(gim__cg_dot(cr, cr));
         /* zero area, or thinner than float precision across its longest edge */
-        if (!(a2 > 1e-7 * lmax)) { status[t] = GIM__CG_DEGENERATE; rep.triangles_degenerate++; continue; }
+        if (!(sqrt(gim__cg_dot(cr, cr)) > 1e-7 * lmax)) { status[t] = GIM__CG_DEGENERATE; rep.triangles_degenerate++; continue; }
         gim__cg_canonical(m, (uint32_t)t, key);
-        slot = gim__cg_hash9(key) & table_mask;
-        for (;;) {
-            if (table[slot] == 0) { table[slot] = (uint32_t)t + 1u; break; }
-            gim__cg_canonical(m, table[slot] - 1u, other);
-            if (memcmp(key, other, sizeof key) == 0) { status[t] = GIM__CG_DUPLICATE; break; }
-            slot = (slot + 1u) & table_mask;
+        pairs[j].key = gim__cg_hash9(key);
+        pairs[j].idx = (uint32_t)t;
+        ++j;
+    }
+    gim__cg_radix(pairs, ptmp, j, 0xffffffffu);
+    gim__free(env, ptmp);
+    ptmp = NULL;
+    for (i = 0; i < j;) { /* duplicates: same canonical positions within a run of one hash */
+        size_t e = i + 1u, x, y;
+        while (e < j && pairs[e].key == pairs[i].key) ++e;
+        for (x = i + 1u; x < e; ++x) {
+            float key[9], other[9];
+            gim__cg_canonical(m, pairs[x].idx, key);
+            for (y = i; y < x; ++y) {
+                if (status[pairs[y].idx] != GIM__CG_USED) continue;
+                gim__cg_canonical(m, pairs[y].idx, other);
+                if (memcmp(key, other, sizeof key) == 0) { status[pairs[x].idx] = GIM__CG_DUPLICATE; break; }
+            }
         }
-        if (status[t] != GIM__CG_USED) { rep.triangles_duplicate++; continue; }
+        i = e;
+    }
+    gim__free(env, pairs);
+    pairs = NULL;
+    /* the used surface; an estimate of the voxel pieces guards the work */
+    for (t = 0; t < tris; ++t) {
+        double v[3][3], e1[3], e2[3], e3[3], cr[3], a2;
+        if (status[t] == GIM__CG_DUPLICATE) rep.triangles_duplicate++;
+        if (status[t] != GIM__CG_USED) continue;
+        for (k = 0; k < 3; ++k) gim__cg_vertex(&g, gim__cg_index(m, t * 3u + (size_t)k), v[k]);
+        for (k = 0; k < 3; ++k) { e1[k] = v[1][k] - v[0][k]; e2[k] = v[2][k] - v[0][k]; e3[k] = v[2][k] - v[1][k]; }
+        gim__cg_cross(e1, e2, cr);
+        a2 = sqrt(gim__cg_dot(cr, cr));
         rep.triangles_used++;
         area_total += 0.5 * a2;
-        est += 0.5 * a2 * 3.0 + 2.0 * (sqrt(l1) + sqrt(l2) + sqrt(l3)) + 1.0;
+        est += 0.5 * a2 * 3.0 + 2.0 * (sqrt(gim__cg_dot(e1, e1)) + sqrt(gim__cg_dot(e2, e2)) + sqrt(gim__cg_dot(e3, e3))) + 1.0;
     }
-    gim__free(env, table);
-    table = NULL;
     rep.surface_area = area_total * g.h * g.h;
     if (est > 1.0e9) {
         res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "d_eps %g is too small for this mesh: about %.3g voxel pieces",
@@ -1723,7 +1739,6 @@ GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_s
 fail:
     if (res == GIM_ERROR_OUT_OF_MEMORY) gim__fail(env, res, fn, "allocation failed");
     gim__free(env, status);
-    gim__free(env, table);
     gim__free(env, pairs);
     gim__free(env, ptmp);
     gim__free(env, bin_area);
