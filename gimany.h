@@ -840,9 +840,9 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 /* One piece of a used triangle clipped to one voxel. */
 typedef struct gim__cg_frag {
     uint64_t key;       /* voxel: (ix * ny + iy) * nz + iz */
+    double area;        /* double: a triangle may be 1e-30 of a voxel face and still count */
     float c[3];         /* centroid */
     float n[3];         /* unit surface normal at the centroid */
-    float area;
     float radius;       /* every point of the piece lies within radius of c */
     float rho;          /* reflection coefficient of its material */
     uint32_t tri;       /* the triangle it was cut from (snapping) */
@@ -904,10 +904,15 @@ static double gim__cg_dist(const double *a, const double *b) {
     d[0] = a[0] - b[0]; d[1] = a[1] - b[1]; d[2] = a[2] - b[2];
     return sqrt(gim__cg_dot(d, d));
 }
-/* Normalise in place; 0 when the vector has no direction. */
+/* Normalise in place (scaled first: area-weighted sums of tiny pieces reach 1e-160); 0 when
+   the vector has no direction. */
 static int gim__cg_normalize(double *v) {
-    double l = sqrt(gim__cg_dot(v, v));
-    if (!(l > 0.0) || l > DBL_MAX) return 0;
+    double m = fabs(v[0]), l;
+    if (fabs(v[1]) > m) m = fabs(v[1]);
+    if (fabs(v[2]) > m) m = fabs(v[2]);
+    if (!(m > 0.0) || m > DBL_MAX) return 0;
+    v[0] /= m; v[1] /= m; v[2] /= m;
+    l = sqrt(gim__cg_dot(v, v));
     v[0] /= l; v[1] /= l; v[2] /= l;
     return 1;
 }
@@ -1026,7 +1031,7 @@ static int gim__cg_emit(gim__cg *g, const gim__cg_tri *t, const double (*poly)[3
     f = &g->frags[g->frag_count++];
     f->key = (ix * g->dim[1] + iy) * g->dim[2] + iz;
     for (k = 0; k < 3; ++k) { f->c[k] = (float)c[k]; f->n[k] = (float)nrm[k]; }
-    f->area = (float)area;
+    f->area = area;
     f->radius = (float)(r * (1.0 + 1e-6)); /* rounded up: the bound survives float */
     f->rho = t->rho;
     f->tri = t->tri;
