@@ -853,6 +853,57 @@ static void merging(void **state) {
     tm_free(&sp);
 }
 
+/* Interleaved position + normal (stride 24); a NaN and a zero vertex normal fall back to the
+   face normal. */
+static void interleaved_normals(void **state) {
+    tmesh p = tm_plane(0, 0, 0, 2, 2, 4);
+    float *buf = (float *)malloc(sizeof(float) * 6 * p.nv);
+    gim_cache_desc d;
+    gim_cache_set s;
+    uint32_t i;
+    (void)state;
+    for (i = 0; i < p.nv; ++i) {
+        memcpy(&buf[i * 6], &p.pos[i * 3], 12);
+        buf[i * 6 + 3] = 0; buf[i * 6 + 4] = 0; buf[i * 6 + 5] = 1;
+    }
+    buf[3 * 6 + 3] = NAN;
+    buf[7 * 6 + 5] = 0;
+    d = tm_desc(&p, 1.0f);
+    d.mesh.positions = buf;
+    d.mesh.position_stride = 24;
+    d.mesh.normals = buf + 3;
+    d.mesh.normal_stride = 24;
+    assert_int_equal(gim_cache_generate(&d, &s), GIM_OK);
+    assert_int_equal(s.count, 16);
+    for (i = 0; i < s.count; ++i) assert_true(s.caches[i].normal[2] == 1.0f && s.caches[i].position[2] == 0.0f);
+    assert_true(fabs(cache_area(&s) - 4.0) < 1e-5);
+    gim_cache_set_free(&s);
+    free(buf);
+    tm_free(&p);
+}
+
+/* theta_eps controls the normal spread: a tighter one gives more caches on a sphere, and
+   coverage holds for each. */
+static void theta_controls(void **state) {
+    const float c0[3] = {0, 0, 0};
+    tmesh sp = tm_sphere(c0, 1.0f, 3);
+    gim_cache_desc d = tm_desc(&sp, 0.6f);
+    gim_cache_set s1, s2;
+    double worst;
+    (void)state;
+    d.theta_eps = 0.15f;
+    assert_int_equal(gim_cache_generate(&d, &s1), GIM_OK);
+    assert_true(fabsf(s1.theta_eps - 0.15f) < 1e-7f);
+    assert_int_equal(coverage_failures(&d.mesh, &s1, 4, &worst), 0);
+    d.theta_eps = 0.6f;
+    assert_int_equal(gim_cache_generate(&d, &s2), GIM_OK);
+    assert_int_equal(coverage_failures(&d.mesh, &s2, 4, &worst), 0);
+    assert_true(s1.count > 2 * s2.count);
+    gim_cache_set_free(&s1);
+    gim_cache_set_free(&s2);
+    tm_free(&sp);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(density_plane),
@@ -869,6 +920,8 @@ int main(void) {
         cmocka_unit_test(out_of_memory),
         cmocka_unit_test(determinism),
         cmocka_unit_test(merging),
+        cmocka_unit_test(interleaved_normals),
+        cmocka_unit_test(theta_controls),
     };
     return cmocka_run_group_tests_name("caches", tests, NULL, NULL);
 }
