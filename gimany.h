@@ -330,30 +330,42 @@ GIMANY_API void gim_cache_set_free(gim_cache_set *set);
 
 /* Input of gim_cache_neighbours: for every vertex, the n nearest caches whose normal is within
    theta_eps (default: the set's) of the vertex normal, and d_c,max, the largest of their
-   distances, for the weights of eq. 8. */
+   distances, for the weights of eq. 8.
+   - compatible: n_v . n_c >= cos(theta_eps), both normalised (theta_eps = pi: every cache);
+   - order: Euclidean distance, ties by cache index; the result is exactly the O(V x C) one;
+   - fewer than n compatible caches anywhere: count < n, the rest of the row UINT32_MAX;
+   - a vertex normal that is zero or not finite (or, with normals NULL, a vertex on no
+     non-degenerate triangle): the n nearest caches of any normal; a vertex position that is
+     not finite: count 0, d_cmax 0. Both are counted in one warning, neither is an error.
+   The set's caches must have finite positions and non-zero finite normals. */
 typedef struct gim_neighbour_desc {
     gim_mesh_data mesh;          /* positions and normals (normals NULL: area-weighted face normals) */
     const gim_cache_set *caches;
     uint32_t n;                  /* 1..GIM_MAX_NEIGHBOUR_CACHES, default 16 */
-    float theta_eps;             /* default: caches->theta_eps */
+    float theta_eps;             /* (0, pi]; default: caches->theta_eps, or 30 degrees if that is 0 */
     gim_env env;
 } gim_neighbour_desc;
 
-/* Caller-owned output of gim_cache_neighbours, sized by the mesh's vertex count. */
+/* Caller-owned output of gim_cache_neighbours, sized by the mesh's vertex count; all three
+   required. Row v of index is index[v * n .. v * n + n - 1] (n after its default). */
 typedef struct gim_neighbour_result {
     uint32_t *index;   /* vertex_count * n cache indices, nearest first; UINT32_MAX pads */
     uint32_t *count;   /* vertex_count: how many of the n were found (compatible caches may be fewer) */
     float *d_cmax;     /* vertex_count: distance of the farthest found cache (0 when none) */
 } gim_neighbour_result;
 
-/* Per-vertex neighbour caches through a spatial grid (not O(V x C)). */
+/* Per-vertex neighbour caches through a spatial grid (not O(V x C)): cells sized from the
+   caches' bounds and count, rings of cells grown until no unvisited cell can hold a nearer one. */
 GIMANY_API gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out);
 
-/* Versioned, checksummed byte blob of a cache set (little-endian), to precompute once. */
+/* Versioned, checksummed byte blob of a cache set (little-endian, CRC-32; layout at @impl
+   caches "blobs"), to precompute once: 92 + 32 * count bytes; 0 for NULL. */
 GIMANY_API size_t gim_cache_blob_size(const gim_cache_set *set);
-/* Write the blob into out (capacity bytes, at least gim_cache_blob_size). */
+/* Write the blob into out (capacity bytes, at least gim_cache_blob_size). A set the reader
+   would reject (NaN, negative area, non-unit normal, reflectance outside [0,1]) is refused. */
 GIMANY_API gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity);
-/* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. */
+/* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. On GIM_OK out
+   owns caches allocated through env (free with gim_cache_set_free); else out is untouched. */
 GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out);
 
 /* @section importance ===================================================================== */
@@ -828,8 +840,644 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 /* generator: voxels, normal bins, averaging, snapping, merging, area partition */
 
 /* neighbours: spatial grid, per-vertex nearest compatible caches */
+/* Compatibility: cache c may light vertex v when n_v . n_c >= cos(theta_eps), both normals
+   normalised, the dot product in double (eq. 8 weighs a cache by sqrt((n_x . n_c)^+), and a
+   cache only stands for surface within theta_eps of its normal). A vertex whose normal is
+   zero or not finite takes the nearest caches whatever their normal; a vertex whose position
+   is not finite gets none (count 0); both are counted in one warning. Order: squared distance
+   in double from the input floats, then cache index, so the grid answers exactly what the
+   O(V x C) loop would. */
+
+/* Direction bins: the 6 cube-map faces split 3 x 3, 54 bins, one bit each in a uint64_t. A
+   cell keeps the bits of its caches and a vertex the bits that can hold compatible normals,
+   so most incompatible caches (the far side of a thin wall) are skipped without a test. */
+#define GIM__NB_BINS 54u      /* also the vertex "bin" of a zero normal: every bin a candidate */
+
+static uint32_t gim__nb_bin(gim_vec3 d) {
+    float ax = fabsf(d.x), ay = fabsf(d.y), az = fabsf(d.z), m, u, v, s;
+    uint32_t face, iu, iv;
+    if (ax >= ay && ax >= az) { face = 0; m = ax; s = d.x; u = d.y; v = d.z; }
+    else if (ay >= az) { face = 2; m = ay; s = d.y; u = d.z; v = d.x; }
+    else { face = 4; m = az; s = d.z; u = d.x; v = d.y; }
+    if (s < 0.0f) face += 1;
+    u = (u / m + 1.0f) * 1.5f;
+    v = (v / m + 1.0f) * 1.5f;
+    iu = u >= 2.0f ? 2u : (u >= 1.0f ? 1u : 0u);
+    iv = v >= 2.0f ? 2u : (v >= 1.0f ? 1u : 0u);
+    return face * 9u + iv * 3u + iu;
+}
+
+/* Direction of cube-face point (u, v) in [-1,1]^2 of a bin's face, in double. */
+static void gim__nb_face_dir(uint32_t face, double u, double v, double *out) {
+    double s = (face & 1u) ? -1.0 : 1.0, l;
+    uint32_t a = face >> 1;
+    out[a] = s;
+    out[(a + 1u) % 3u] = u;
+    out[(a + 2u) % 3u] = v;
+    l = sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
+    out[0] /= l; out[1] /= l; out[2] /= l;
+}
+
+static double gim__nb_angle(const double *a, const double *b) {
+    double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    return acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c));
+}
+
+/* masks[b]: bins that may hold a normal within theta of a normal in bin b. By the triangle
+   inequality on the sphere, bin j qualifies when angle(centre_b, centre_j) <= theta + r_b + r_j,
+   r the largest angle from a bin's centre to its corners (the farthest point of a small convex
+   spherical quad). masks[GIM__NB_BINS] is every bin. */
+static void gim__nb_bin_masks(double theta, uint64_t *masks) {
+    double centre[GIM__NB_BINS][3], radius[GIM__NB_BINS];
+    uint32_t b, j, k;
+    for (b = 0; b < GIM__NB_BINS; ++b) {
+        uint32_t face = b / 9u, iu = b % 3u, iv = (b / 3u) % 3u;
+        double u0 = -1.0 + iu * (2.0 / 3.0), v0 = -1.0 + iv * (2.0 / 3.0), corner[3];
+        gim__nb_face_dir(face, u0 + 1.0 / 3.0, v0 + 1.0 / 3.0, centre[b]);
+        radius[b] = 0.0;
+        for (k = 0; k < 4u; ++k) {
+            double a;
+            gim__nb_face_dir(face, u0 + (k & 1u) * (2.0 / 3.0), v0 + (k >> 1) * (2.0 / 3.0), corner);
+            a = gim__nb_angle(centre[b], corner);
+            if (a > radius[b]) radius[b] = a;
+        }
+    }
+    for (b = 0; b < GIM__NB_BINS; ++b) {
+        masks[b] = 0;
+        for (j = 0; j < GIM__NB_BINS; ++j)
+            if (gim__nb_angle(centre[b], centre[j]) <= theta + radius[b] + radius[j] + 1e-6)
+                masks[b] |= (uint64_t)1 << j;
+    }
+    masks[GIM__NB_BINS] = ((uint64_t)1 << GIM__NB_BINS) - 1u;
+}
+
+/* The three floats at base + i * stride, without alignment assumptions. */
+static gim_vec3 gim__nb_load3(const float *base, uint32_t stride, uint32_t i) {
+    float f[3];
+    memcpy(f, (const unsigned char *)base + (size_t)i * stride, sizeof f);
+    return gim_v3(f[0], f[1], f[2]);
+}
+
+static uint32_t gim__nb_index(const gim_mesh_data *m, uint32_t k) {
+    if (m->index_type == GIM_INDEX_U16) {
+        uint16_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 2u, 2);
+        return s;
+    } else {
+        uint32_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 4u, 4);
+        return s;
+    }
+}
+
+/* Keep the n best (squared distance, index) pairs sorted ascending. */
+static void gim__nb_insert(double *bd, uint32_t *bi, uint32_t *found, uint32_t n, double d2, uint32_t idx) {
+    uint32_t k = *found;
+    if (k == n) {
+        if (d2 > bd[n - 1] || (d2 == bd[n - 1] && idx > bi[n - 1])) return;
+        k = n - 1;
+    } else {
+        *found = k + 1;
+    }
+    while (k > 0 && (bd[k - 1] > d2 || (bd[k - 1] == d2 && bi[k - 1] > idx))) {
+        bd[k] = bd[k - 1];
+        bi[k] = bi[k - 1];
+        --k;
+    }
+    bd[k] = d2;
+    bi[k] = idx;
+}
+
+/* A cache as the search reads it: 32 bytes, one cache line holds two. */
+typedef struct gim__nb_slot {
+    float pos[3], nrm[3];        /* position, normalised normal */
+    uint32_t id;                 /* index in the set */
+    uint32_t bin;                /* direction bin of nrm */
+} gim__nb_slot;
+
+/* The uniform grid over the caches' bounds: cells of edge h, positions relative to the
+   bounds' minimum (in double) so a scene far from the origin keeps its precision. */
+typedef struct gim__nb_grid {
+    double min[3], h;
+    int64_t dim[3];
+    uint32_t *cell_start;        /* ncells + 1 */
+    uint64_t *cell_bins;         /* ncells: union of the caches' bin bits */
+    gim__nb_slot *slot;          /* the caches sorted by cell, by index within a cell */
+} gim__nb_grid;
+
+/* Cell edge adapted to the cache density: prod_a max(ext_a / h, 1) = C / 2 (about two caches
+   per cell over the bounds' volume, a plane's or a line's area or length when flat), solved by
+   bisection in log h. Only ratios of the bounds enter: no absolute unit. */
+static double gim__nb_cell_size(const double *ext, uint32_t count) {
+    double emax = ext[0] > ext[1] ? ext[0] : ext[1], target = count > 2u ? count / 2.0 : 1.0, lo, hi;
+    int it, a;
+    if (ext[2] > emax) emax = ext[2];
+    if (!(emax > 0.0)) return 1.0; /* every cache at one point: any h gives one cell */
+    lo = emax / target; hi = emax;
+    for (it = 0; it < 64; ++it) {
+        double mid = sqrt(lo * hi), g = 1.0;
+        for (a = 0; a < 3; ++a) g *= ext[a] / mid > 1.0 ? ext[a] / mid : 1.0;
+        if (g > target) lo = mid; else hi = mid;
+    }
+    return hi;
+}
+
+/* Gap in cells between relative coordinate f and cell k along one axis, less 1e-6 cells for
+   the rounding of f (so it never exceeds the true gap); 0 inside. */
+static double gim__nb_gap(double f, int64_t k) {
+    double gap = f < (double)k ? (double)k - f : (f > (double)(k + 1) ? f - (double)(k + 1) : 0.0);
+    return gap > 1e-6 ? gap - 1e-6 : 0.0;
+}
+
+/* Cell coordinate along axis a of relative coordinate f, clamped to [lo, hi]. */
+static int64_t gim__nb_cellc(double f, int64_t lo, int64_t hi) {
+    if (!(f >= (double)lo)) return lo;
+    if (f >= (double)hi) return hi;
+    return (int64_t)floor(f);
+}
+
+static void gim__nb_grid_free(const gim_env *env, gim__nb_grid *g) {
+    gim__free(env, g->cell_start); gim__free(env, g->cell_bins); gim__free(env, g->slot);
+}
+
+/* Build the grid; nrm holds the normalised cache normals. */
+static gim_result gim__nb_grid_build(const gim_env *env, const gim_cache_set *set, const float *unit_nrm, gim__nb_grid *g) {
+    static const char *where = "gim_cache_neighbours";
+    double mx[3], ext[3];
+    uint32_t c, C = set->count, *cellof = NULL;
+    size_t ncells, k;
+    int a;
+    memset(g, 0, sizeof *g);
+    for (a = 0; a < 3; ++a) { g->min[a] = set->caches[0].position[a]; mx[a] = g->min[a]; }
+    for (c = 1; c < C; ++c)
+        for (a = 0; a < 3; ++a) {
+            double p = set->caches[c].position[a];
+            if (p < g->min[a]) g->min[a] = p;
+            if (p > mx[a]) mx[a] = p;
+        }
+    for (a = 0; a < 3; ++a) ext[a] = mx[a] - g->min[a];
+    g->h = gim__nb_cell_size(ext, C);
+    for (;;) { /* dims = floor(ext / h) + 1 holds the maximum; at most ~8x the target cells */
+        double total = 1.0;
+        for (a = 0; a < 3; ++a) {
+            double d = floor(ext[a] / g->h) + 1.0;
+            g->dim[a] = d < 4294967295.0 ? (int64_t)d : 4294967295;
+            total *= (double)g->dim[a];
+        }
+        if (total <= 8.0 * C + 64.0) break;
+        g->h *= 1.25;
+    }
+    if ((uint64_t)g->dim[0] * (uint64_t)g->dim[1] * (uint64_t)g->dim[2] >= 0xffffffffu)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "%u caches need more grid cells than 32-bit offsets hold", C);
+    ncells = (size_t)((uint64_t)g->dim[0] * (uint64_t)g->dim[1] * (uint64_t)g->dim[2]);
+    g->cell_start = (uint32_t *)gim__alloc_array(env, ncells + 1u, sizeof(uint32_t));
+    g->cell_bins = (uint64_t *)gim__alloc_array(env, ncells, sizeof(uint64_t));
+    g->slot = (gim__nb_slot *)gim__alloc_array(env, C, sizeof(gim__nb_slot));
+    cellof = (uint32_t *)gim__alloc_array(env, C, sizeof(uint32_t));
+    if (!g->cell_start || !g->cell_bins || !g->slot || !cellof) {
+        gim__free(env, cellof);
+        gim__nb_grid_free(env, g);
+        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "grid of %u caches", C);
+    }
+    memset(g->cell_start, 0, (ncells + 1u) * sizeof(uint32_t));
+    memset(g->cell_bins, 0, ncells * sizeof(uint64_t));
+    for (c = 0; c < C; ++c) { /* counting sort by cell; stable, so a cell lists its caches by index */
+        int64_t q[3];
+        for (a = 0; a < 3; ++a)
+            q[a] = gim__nb_cellc(((double)set->caches[c].position[a] - g->min[a]) / g->h, 0, g->dim[a] - 1);
+        cellof[c] = (uint32_t)((q[2] * g->dim[1] + q[1]) * g->dim[0] + q[0]);
+        g->cell_start[cellof[c] + 1u]++;
+    }
+    for (k = 0; k < ncells; ++k) g->cell_start[k + 1u] += g->cell_start[k];
+    for (c = 0; c < C; ++c) {
+        gim__nb_slot *sl = &g->slot[g->cell_start[cellof[c]]++];
+        const float *n = unit_nrm + (size_t)c * 3u;
+        memcpy(sl->pos, set->caches[c].position, 3u * sizeof(float));
+        memcpy(sl->nrm, n, 3u * sizeof(float));
+        sl->id = c;
+        sl->bin = gim__nb_bin(gim_v3(n[0], n[1], n[2]));
+        g->cell_bins[cellof[c]] |= (uint64_t)1 << sl->bin;
+    }
+    for (k = ncells; k > 0; --k) g->cell_start[k] = g->cell_start[k - 1u];
+    g->cell_start[0] = 0;
+    gim__free(env, cellof);
+    return GIM_OK;
+}
+
+/* Per-vertex normals: the given ones normalised, or the area-weighted sum of the adjacent
+   triangles' normals (cross products of the edges, in double). Zero where undefined. */
+static gim_result gim__nb_vertex_normals(const gim_mesh_data *m, const gim_env *env, float *out) {
+    uint32_t v, t, pstride = m->position_stride ? m->position_stride : 12u;
+    if (m->normals) {
+        uint32_t nstride = m->normal_stride ? m->normal_stride : 12u;
+        for (v = 0; v < m->vertex_count; ++v) {
+            gim_vec3 n = gim_v3_normalize(gim__nb_load3(m->normals, nstride, v));
+            out[(size_t)v * 3u] = n.x; out[(size_t)v * 3u + 1u] = n.y; out[(size_t)v * 3u + 2u] = n.z;
+        }
+        return GIM_OK;
+    } else {
+        double *acc = (double *)gim__alloc_array(env, m->vertex_count, 3u * sizeof(double));
+        if (!acc) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, "gim_cache_neighbours", "face normals of %u vertices", m->vertex_count);
+        memset(acc, 0, (size_t)m->vertex_count * 3u * sizeof(double));
+        for (t = 0; t + 3u <= m->index_count; t += 3u) {
+            uint32_t i[3], k;
+            gim_vec3 p[3];
+            double e1[3], e2[3], c[3];
+            for (k = 0; k < 3u; ++k) { i[k] = gim__nb_index(m, t + k); p[k] = gim__nb_load3(m->positions, pstride, i[k]); }
+            if (!gim_v3_isfinite(p[0]) || !gim_v3_isfinite(p[1]) || !gim_v3_isfinite(p[2])) continue;
+            e1[0] = (double)p[1].x - p[0].x; e1[1] = (double)p[1].y - p[0].y; e1[2] = (double)p[1].z - p[0].z;
+            e2[0] = (double)p[2].x - p[0].x; e2[1] = (double)p[2].y - p[0].y; e2[2] = (double)p[2].z - p[0].z;
+            c[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            c[1] = e1[2] * e2[0] - e1[0] * e2[2];
+            c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            for (k = 0; k < 3u; ++k) {
+                acc[(size_t)i[k] * 3u] += c[0]; acc[(size_t)i[k] * 3u + 1u] += c[1]; acc[(size_t)i[k] * 3u + 2u] += c[2];
+            }
+        }
+        for (v = 0; v < m->vertex_count; ++v) {
+            double *a = acc + (size_t)v * 3u, s = fabs(a[0]), l;
+            if (fabs(a[1]) > s) s = fabs(a[1]);
+            if (fabs(a[2]) > s) s = fabs(a[2]);
+            out[(size_t)v * 3u] = out[(size_t)v * 3u + 1u] = out[(size_t)v * 3u + 2u] = 0.0f;
+            if (!(s > 0.0) || s > DBL_MAX) continue;
+            l = sqrt((a[0] / s) * (a[0] / s) + (a[1] / s) * (a[1] / s) + (a[2] / s) * (a[2] / s));
+            out[(size_t)v * 3u] = (float)(a[0] / s / l);
+            out[(size_t)v * 3u + 1u] = (float)(a[1] / s / l);
+            out[(size_t)v * 3u + 2u] = (float)(a[2] / s / l);
+        }
+        gim__free(env, acc);
+        return GIM_OK;
+    }
+}
+
+GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out) {
+    static const char *where = "gim_cache_neighbours";
+    const gim_env *env;
+    const gim_mesh_data *m;
+    const gim_cache_set *set;
+    uint32_t n, v, c, pstride, nstride, no_normal = 0, no_position = 0;
+    uint64_t masks[GIM__NB_BINS + 1u];
+    uint32_t cand_total[GIM__NB_BINS + 1u], bin_count[GIM__NB_BINS];
+    double theta, cos_theta;
+    float *vn = NULL, *cn = NULL;
+    gim__nb_grid g;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    m = &desc->mesh;
+    set = desc->caches;
+    if (!out || !out->index || !out->count || !out->d_cmax)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "result or one of its arrays (index, count, d_cmax) is NULL");
+    n = desc->n ? desc->n : GIM_MAX_NEIGHBOUR_CACHES;
+    if (n > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "n = %u, not in 1..%d", n, GIM_MAX_NEIGHBOUR_CACHES);
+    if (!set || !set->caches || set->count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no caches");
+    if (!m->positions || m->vertex_count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no vertex positions");
+    pstride = m->position_stride ? m->position_stride : 12u;
+    nstride = m->normal_stride ? m->normal_stride : 12u;
+    if (pstride < 12u || nstride < 12u)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "stride below 12 bytes");
+    if (!m->normals) {
+        uint32_t k;
+        if (!m->indices || m->index_count == 0 || m->index_count % 3u)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no normals and no whole triangles to take face normals from");
+        if (m->index_type != GIM_INDEX_DEFAULT && m->index_type != GIM_INDEX_U32 && m->index_type != GIM_INDEX_U16)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown index type %d", (int)m->index_type);
+        for (k = 0; k < m->index_count; ++k)
+            if (gim__nb_index(m, k) >= m->vertex_count)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "index %u (at %u) >= vertex count %u",
+                                 gim__nb_index(m, k), k, m->vertex_count);
+    }
+    /* theta_eps: the desc's, else the set's, else the generator's default of 30 degrees */
+    theta = desc->theta_eps != 0.0f ? desc->theta_eps : (set->theta_eps != 0.0f ? set->theta_eps : 0.52359877559829887);
+    if (!(theta > 0.0 && theta <= (double)3.14159265358979324f)) /* pi rounded to float is a little above pi */
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "theta_eps %g not in (0, pi]", theta);
+    /* theta_eps = pi (float pi is slightly above) admits every normal, opposite ones included */
+    cos_theta = theta >= 3.14159265358979 ? -2.0 : cos(theta);
+    /* the caches: finite positions, normals that normalise */
+    cn = (float *)gim__alloc_array(env, set->count, 3u * sizeof(float));
+    if (!cn) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u caches", set->count);
+    for (c = 0; c < set->count; ++c) {
+        const gim_cache *k = &set->caches[c];
+        gim_vec3 nn = gim_v3_normalize(gim_v3(k->normal[0], k->normal[1], k->normal[2]));
+        if (!gim__all_finite(k->position, 3) || !gim__all_finite(k->normal, 3) || (nn.x == 0.0f && nn.y == 0.0f && nn.z == 0.0f)) {
+            gim__free(env, cn);
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u has a non-finite position or an unusable normal", c);
+        }
+        cn[(size_t)c * 3u] = nn.x; cn[(size_t)c * 3u + 1u] = nn.y; cn[(size_t)c * 3u + 2u] = nn.z;
+    }
+    vn = (float *)gim__alloc_array(env, m->vertex_count, 3u * sizeof(float));
+    if (!vn) { gim__free(env, cn); return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u vertices", m->vertex_count); }
+    r = gim__nb_vertex_normals(m, env, vn);
+    if (r == GIM_OK) r = gim__nb_grid_build(env, set, cn, &g);
+    gim__free(env, cn);
+    if (r != GIM_OK) { gim__free(env, vn); return r; }
+
+    gim__nb_bin_masks(theta, masks);
+    memset(bin_count, 0, sizeof bin_count);
+    for (c = 0; c < set->count; ++c) bin_count[g.slot[c].bin]++;
+    for (v = 0; v <= GIM__NB_BINS; ++v) { /* how many caches a vertex of bin v may have to look at */
+        uint32_t j;
+        cand_total[v] = 0;
+        for (j = 0; j < GIM__NB_BINS; ++j)
+            if ((masks[v] >> j) & 1u) cand_total[v] += bin_count[j];
+    }
+
+    for (v = 0; v < m->vertex_count; ++v) {
+        double bd[GIM_MAX_NEIGHBOUR_CACHES], fx[3], pd[3];
+        uint32_t bi[GIM_MAX_NEIGHBOUR_CACHES], found = 0, seen = 0, vb, total, k;
+        uint64_t vmask;
+        int64_t q[3], r0 = 0, rr;
+        gim_vec3 p = gim__nb_load3(m->positions, pstride, v), nv;
+        int a, any_normal;
+        uint32_t *oi = out->index + (size_t)v * n;
+        if (!gim_v3_isfinite(p)) {
+            ++no_position;
+            for (k = 0; k < n; ++k) oi[k] = UINT32_MAX;
+            out->count[v] = 0;
+            out->d_cmax[v] = 0.0f;
+            continue;
+        }
+        nv = gim_v3(vn[(size_t)v * 3u], vn[(size_t)v * 3u + 1u], vn[(size_t)v * 3u + 2u]);
+        any_normal = nv.x == 0.0f && nv.y == 0.0f && nv.z == 0.0f;
+        if (any_normal) ++no_normal;
+        vb = any_normal ? GIM__NB_BINS : gim__nb_bin(nv);
+        vmask = masks[vb];
+        total = cand_total[vb];
+        pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
+        for (a = 0; a < 3; ++a) {
+            fx[a] = (pd[a] - g.min[a]) / g.h;
+            q[a] = gim__nb_cellc(fx[a], -1, g.dim[a]);
+            /* rings nearer than the grid are empty: start at the Chebyshev distance to it */
+            if (q[a] < 0 && -q[a] > r0) r0 = -q[a];
+            if (q[a] >= g.dim[a] && q[a] - g.dim[a] + 1 > r0) r0 = q[a] - g.dim[a] + 1;
+        }
+        for (rr = r0; total > 0; ++rr) {
+            int64_t z0 = q[2] - rr > 0 ? q[2] - rr : 0, z1 = q[2] + rr < g.dim[2] - 1 ? q[2] + rr : g.dim[2] - 1;
+            int64_t y0 = q[1] - rr > 0 ? q[1] - rr : 0, y1 = q[1] + rr < g.dim[1] - 1 ? q[1] + rr : g.dim[1] - 1;
+            int64_t z, y, lb_cells = -1;
+            double lb = -1.0;
+            for (z = z0; z <= z1; ++z)
+                for (y = y0; y <= y1; ++y) {
+                    int shell = (z == q[2] - rr || z == q[2] + rr || y == q[1] - rr || y == q[1] + rr);
+                    double gz = gim__nb_gap(fx[2], z), gy = gim__nb_gap(fx[1], y), gzy = gz * gz + gy * gy;
+                    /* on the ring's shell every x of the row, inside it only its two ends */
+                    int64_t x, xa = q[0] - rr, xb = q[0] + rr, step = rr > 0 ? 2 * rr : 1;
+                    if (shell) { xa = xa > 0 ? xa : 0; xb = xb < g.dim[0] - 1 ? xb : g.dim[0] - 1; step = 1; }
+                    for (x = xa; x <= xb; x += step) {
+                        size_t cell;
+                        uint32_t s, s1;
+                        if (x < 0 || x >= g.dim[0]) continue;
+                        cell = (size_t)((z * g.dim[1] + y) * g.dim[0] + x);
+                        if (!(g.cell_bins[cell] & vmask)) continue;
+                        s1 = g.cell_start[cell + 1u];
+                        if (found == n) { /* a cell wholly beyond the n-th best cannot improve it (seen
+                                             only matters while fewer than n are found) */
+                            double gx = gim__nb_gap(fx[0], x);
+                            if ((gzy + gx * gx) * g.h * g.h > bd[n - 1]) continue;
+                        }
+                        for (s = g.cell_start[cell]; s < s1; ++s) {
+                            const gim__nb_slot *sl = &g.slot[s];
+                            double dx, dy, dz, d2;
+                            if (!((vmask >> sl->bin) & 1u)) continue;
+                            ++seen;
+                            dx = pd[0] - sl->pos[0]; dy = pd[1] - sl->pos[1]; dz = pd[2] - sl->pos[2];
+                            d2 = dx * dx + dy * dy + dz * dz;
+                            if (found == n && d2 > bd[n - 1]) continue;
+                            if (!any_normal && (double)nv.x * sl->nrm[0] + (double)nv.y * sl->nrm[1] + (double)nv.z * sl->nrm[2] < cos_theta) continue;
+                            gim__nb_insert(bd, bi, &found, n, d2, sl->id);
+                        }
+                    }
+                }
+            if (seen == total) break; /* every candidate cache has been looked at */
+            /* lower bound (in cells) on the distance to any cell outside the visited box */
+            for (a = 0; a < 3; ++a) {
+                if (q[a] - rr > 0) { double gap = fx[a] - (double)(q[a] - rr); if (lb < 0.0 || gap < lb) lb = gap; lb_cells = 1; }
+                if (q[a] + rr < g.dim[a] - 1) { double gap = (double)(q[a] + rr + 1) - fx[a]; if (lb < 0.0 || gap < lb) lb = gap; lb_cells = 1; }
+            }
+            if (lb_cells < 0) break; /* the whole grid is visited */
+            /* 1e-6 cells absorbs the rounding of fx; stop only when no unvisited cache can be nearer or tie */
+            lb -= 1e-6;
+            if (found == n && lb > 0.0 && bd[n - 1] < (lb * g.h) * (lb * g.h)) break;
+        }
+        for (k = 0; k < found; ++k) oi[k] = bi[k];
+        for (; k < n; ++k) oi[k] = UINT32_MAX;
+        out->count[v] = found;
+        out->d_cmax[v] = found ? (float)sqrt(bd[found - 1]) : 0.0f;
+    }
+    if (no_normal || no_position)
+        gim__log(env, GIM_LOG_WARNING, where, "%u vertices without a usable normal took the nearest caches of any normal; "
+                 "%u vertices with a non-finite position got none", no_normal, no_position);
+    gim__nb_grid_free(env, &g);
+    gim__free(env, vn);
+    return GIM_OK;
+}
 
 /* blobs: versioned, checksummed serialisation */
+/* Layout, version 1, every field little-endian, floats as their IEEE-754 bits:
+     offset  size  field
+          0     8  magic "GIMCACHE"
+          8     4  version (1)
+         12     4  header size (88)
+         16     4  record size (32)
+         20     4  count
+         24     8  payload size (count * 32)
+         32     4  d_eps (f32)          36  4  theta_eps (f32)
+         40    28  report: triangles_used, _degenerate, _nonfinite, _duplicate, voxels,
+                   caches_before_merge, caches_snapped (u32 each)
+         68     4  reserved (0)
+         72     8  report.surface_area (f64)
+         80     8  reserved (0)
+         88  32 * count  caches: position xyz, area, normal xyz, reflectance (f32 each)
+    88 + payload  4  CRC-32 (IEEE 802.3, as zlib's crc32) of every byte before it
+   Bytes are packed one by one: no struct is dumped, nothing assumes alignment or host order. */
+#define GIM__BLOB_VERSION 1u
+#define GIM__BLOB_HEADER 88u
+#define GIM__BLOB_RECORD 32u
+#define GIM__BLOB_TAIL 4u
+
+static void gim__put32(unsigned char *p, uint32_t v) {
+    p[0] = (unsigned char)v; p[1] = (unsigned char)(v >> 8); p[2] = (unsigned char)(v >> 16); p[3] = (unsigned char)(v >> 24);
+}
+static void gim__put64(unsigned char *p, uint64_t v) { gim__put32(p, (uint32_t)v); gim__put32(p + 4, (uint32_t)(v >> 32)); }
+static uint32_t gim__get32(const unsigned char *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static uint64_t gim__get64(const unsigned char *p) { return (uint64_t)gim__get32(p) | (uint64_t)gim__get32(p + 4) << 32; }
+static void gim__putf(unsigned char *p, float f) { uint32_t u; memcpy(&u, &f, 4); gim__put32(p, u); }
+static float gim__getf(const unsigned char *p) { uint32_t u = gim__get32(p); float f; memcpy(&f, &u, 4); return f; }
+
+/* CRC-32, reflected polynomial 0xEDB88320: detects every error burst up to 32 bits, so every
+   single-byte corruption. The table lives on the stack (no global state). */
+static GIM__UNUSED uint32_t gim__crc32(const unsigned char *p, size_t size) {
+    uint32_t table[256], crc = 0xffffffffu, k, b;
+    size_t i;
+    for (k = 0; k < 256u; ++k) {
+        uint32_t c = k;
+        for (b = 0; b < 8u; ++b) c = (c & 1u) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+        table[k] = c;
+    }
+    for (i = 0; i < size; ++i) crc = table[(crc ^ p[i]) & 0xffu] ^ (crc >> 8);
+    return crc ^ 0xffffffffu;
+}
+
+/* What a stored set may hold; the writer refuses what the reader would reject. NULL: valid. */
+static const char *gim__blob_check_set(float d_eps, float theta_eps, double surface_area) {
+    if (!(gim__isfinitef(d_eps) && d_eps >= 0.0f)) return "d_eps is negative or not finite";
+    if (!(gim__isfinitef(theta_eps) && theta_eps >= 0.0f && theta_eps <= 3.14159265358979324f)) return "theta_eps is not in [0, pi]";
+    if (!(surface_area >= 0.0 && surface_area <= DBL_MAX)) return "surface area is negative or not finite";
+    return NULL;
+}
+static const char *gim__blob_check_cache(const gim_cache *c) {
+    double l2;
+    if (!gim__all_finite(c->position, 3)) return "position not finite";
+    if (!(gim__isfinitef(c->area) && c->area >= 0.0f)) return "area negative or not finite";
+    if (!gim__all_finite(c->normal, 3)) return "normal not finite";
+    l2 = (double)c->normal[0] * c->normal[0] + (double)c->normal[1] * c->normal[1] + (double)c->normal[2] * c->normal[2];
+    if (!(fabs(sqrt(l2) - 1.0) <= 1e-3)) return "normal not of unit length";
+    if (!(c->reflectance >= 0.0f && c->reflectance <= 1.0f)) return "reflectance not in [0, 1]";
+    return NULL;
+}
+
+/* Free a set's caches with its own allocator and zero it (gim_cache_set_free's body). */
+static GIM__UNUSED void gim__cache_set_release(gim_cache_set *set) {
+    gim_env env;
+    if (!set) return;
+    env = set->env;
+    gim__free(&env, set->caches);
+    memset(set, 0, sizeof *set);
+}
+
+GIMANY_DEF size_t gim_cache_blob_size(const gim_cache_set *set) {
+    uint64_t total;
+    if (!set) return 0;
+    total = GIM__BLOB_HEADER + (uint64_t)set->count * GIM__BLOB_RECORD + GIM__BLOB_TAIL;
+    if (total > (uint64_t)(size_t)-1) return 0;
+    return (size_t)total;
+}
+
+GIMANY_DEF gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity) {
+    static const char *where = "gim_cache_blob_write";
+    unsigned char *p = (unsigned char *)out;
+    const char *why;
+    size_t size;
+    uint32_t i;
+    if (!set) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!out) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "output is NULL");
+    if (set->count && !set->caches) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "%u caches but no array", set->count);
+    size = gim_cache_blob_size(set);
+    if (size == 0) return gim__fail(&set->env, GIM_ERROR_OUT_OF_RANGE, where, "%u caches do not fit in size_t bytes", set->count);
+    if (capacity < size) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "capacity %zu < blob size %zu", capacity, size);
+    why = gim__blob_check_set(set->d_eps, set->theta_eps, set->report.surface_area);
+    if (why) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s", why);
+    for (i = 0; i < set->count; ++i)
+        if ((why = gim__blob_check_cache(&set->caches[i])) != NULL)
+            return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u: %s", i, why);
+    memset(p, 0, GIM__BLOB_HEADER);
+    memcpy(p, "GIMCACHE", 8);
+    gim__put32(p + 8, GIM__BLOB_VERSION);
+    gim__put32(p + 12, GIM__BLOB_HEADER);
+    gim__put32(p + 16, GIM__BLOB_RECORD);
+    gim__put32(p + 20, set->count);
+    gim__put64(p + 24, (uint64_t)set->count * GIM__BLOB_RECORD);
+    gim__putf(p + 32, set->d_eps);
+    gim__putf(p + 36, set->theta_eps);
+    gim__put32(p + 40, set->report.triangles_used);
+    gim__put32(p + 44, set->report.triangles_degenerate);
+    gim__put32(p + 48, set->report.triangles_nonfinite);
+    gim__put32(p + 52, set->report.triangles_duplicate);
+    gim__put32(p + 56, set->report.voxels);
+    gim__put32(p + 60, set->report.caches_before_merge);
+    gim__put32(p + 64, set->report.caches_snapped);
+    {
+        uint64_t u;
+        memcpy(&u, &set->report.surface_area, 8);
+        gim__put64(p + 72, u);
+    }
+    for (i = 0; i < set->count; ++i) {
+        unsigned char *r = p + GIM__BLOB_HEADER + (size_t)i * GIM__BLOB_RECORD;
+        const gim_cache *c = &set->caches[i];
+        gim__putf(r, c->position[0]); gim__putf(r + 4, c->position[1]); gim__putf(r + 8, c->position[2]);
+        gim__putf(r + 12, c->area);
+        gim__putf(r + 16, c->normal[0]); gim__putf(r + 20, c->normal[1]); gim__putf(r + 24, c->normal[2]);
+        gim__putf(r + 28, c->reflectance);
+    }
+    gim__put32(p + size - GIM__BLOB_TAIL, gim__crc32(p, size - GIM__BLOB_TAIL));
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out) {
+    static const char *where = "gim_cache_blob_read";
+    const unsigned char *p = (const unsigned char *)blob;
+    uint32_t version, count, i;
+    uint64_t payload, expected;
+    gim_cache_set set;
+    const char *why;
+    if (!blob || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "blob or out is NULL");
+    if (size < GIM__BLOB_HEADER + GIM__BLOB_TAIL)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "truncated: %zu bytes, less than the %u of header and checksum",
+                         size, GIM__BLOB_HEADER + GIM__BLOB_TAIL);
+    if (memcmp(p, "GIMCACHE", 8) != 0) return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "not a gimany cache blob (magic)");
+    version = gim__get32(p + 8);
+    if (version != GIM__BLOB_VERSION)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "unknown version %u (this reader knows %u)", version, GIM__BLOB_VERSION);
+    if (gim__get32(p + 12) != GIM__BLOB_HEADER || gim__get32(p + 16) != GIM__BLOB_RECORD)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "header size %u or record size %u is not version 1's",
+                         gim__get32(p + 12), gim__get32(p + 16));
+    count = gim__get32(p + 20);
+    payload = gim__get64(p + 24);
+    if (payload != (uint64_t)count * GIM__BLOB_RECORD)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "payload size %llu does not match %u caches",
+                         (unsigned long long)payload, count);
+    expected = GIM__BLOB_HEADER + payload + GIM__BLOB_TAIL;
+    if ((uint64_t)size < expected)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "truncated: %zu bytes of %llu", size, (unsigned long long)expected);
+    if ((uint64_t)size > expected)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "size mismatch: %zu bytes, %u caches need %llu",
+                         size, count, (unsigned long long)expected);
+    if (gim__crc32(p, size - GIM__BLOB_TAIL) != gim__get32(p + size - GIM__BLOB_TAIL))
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "checksum mismatch");
+    if (gim__get32(p + 68) != 0 || gim__get64(p + 80) != 0)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "reserved fields are not zero");
+    memset(&set, 0, sizeof set);
+    set.env = env;
+    set.count = count;
+    set.d_eps = gim__getf(p + 32);
+    set.theta_eps = gim__getf(p + 36);
+    set.report.triangles_used = gim__get32(p + 40);
+    set.report.triangles_degenerate = gim__get32(p + 44);
+    set.report.triangles_nonfinite = gim__get32(p + 48);
+    set.report.triangles_duplicate = gim__get32(p + 52);
+    set.report.voxels = gim__get32(p + 56);
+    set.report.caches_before_merge = gim__get32(p + 60);
+    set.report.caches_snapped = gim__get32(p + 64);
+    {
+        uint64_t u = gim__get64(p + 72);
+        memcpy(&set.report.surface_area, &u, 8);
+    }
+    why = gim__blob_check_set(set.d_eps, set.theta_eps, set.report.surface_area);
+    if (why) return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "%s", why);
+    if (count) {
+        set.caches = (gim_cache *)gim__alloc_array(&env, count, sizeof(gim_cache));
+        if (!set.caches) return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", count);
+    }
+    for (i = 0; i < count; ++i) {
+        const unsigned char *r = p + GIM__BLOB_HEADER + (size_t)i * GIM__BLOB_RECORD;
+        gim_cache *c = &set.caches[i];
+        c->position[0] = gim__getf(r); c->position[1] = gim__getf(r + 4); c->position[2] = gim__getf(r + 8);
+        c->area = gim__getf(r + 12);
+        c->normal[0] = gim__getf(r + 16); c->normal[1] = gim__getf(r + 20); c->normal[2] = gim__getf(r + 24);
+        c->reflectance = gim__getf(r + 28);
+        if ((why = gim__blob_check_cache(c)) != NULL) {
+            gim__cache_set_release(&set);
+            return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "cache %u: %s", i, why);
+        }
+    }
+    *out = set;
+    return GIM_OK;
+}
 
 /* @impl importance ======================================================================== */
 
