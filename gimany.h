@@ -329,8 +329,8 @@ GIMANY_API void gim_cache_set_free(gim_cache_set *set);
 #define GIM_MAX_NEIGHBOUR_CACHES 16
 
 /* Input of gim_cache_neighbours: for every vertex, the n nearest caches whose normal is within
-   theta_eps (default: the set's) of the vertex normal, and d_c,max, the largest of their
-   distances, for the weights of eq. 8.
+   theta_eps of the vertex normal, and d_c,max, the largest of their distances, for the
+   weights of eq. 8.
    - compatible: n_v . n_c >= cos(theta_eps), both normalised (theta_eps = pi: every cache);
    - order: Euclidean distance, ties by cache index; the result is exactly the O(V x C) one;
    - fewer than n compatible caches anywhere: count < n, the rest of the row UINT32_MAX;
@@ -342,7 +342,8 @@ typedef struct gim_neighbour_desc {
     gim_mesh_data mesh;          /* positions and normals (normals NULL: area-weighted face normals) */
     const gim_cache_set *caches;
     uint32_t n;                  /* 1..GIM_MAX_NEIGHBOUR_CACHES, default 16 */
-    float theta_eps;             /* (0, pi]; default: caches->theta_eps, or 30 degrees if that is 0 */
+    float theta_eps;             /* (0, pi]; default: 2 x caches->theta_eps (30 degrees if 0), at most 90
+                                    degrees, so smooth-shaded edges and corners find caches */
     gim_env env;
 } gim_neighbour_desc;
 
@@ -354,8 +355,9 @@ typedef struct gim_neighbour_result {
     float *d_cmax;     /* vertex_count: distance of the farthest found cache (0 when none) */
 } gim_neighbour_result;
 
-/* Per-vertex neighbour caches through a spatial grid (not O(V x C)): cells sized from the
-   caches' bounds and count, rings of cells grown until no unvisited cell can hold a nearer one. */
+/* Per-vertex neighbour caches through a k-d tree over the caches (not O(V x C)): median splits
+   adapt to any density with no unit; nodes farther than the n-th best found, or whose normal
+   bounds admit no compatible normal, are skipped. Exact: the O(V x C) answer, bit for bit. */
 GIMANY_API gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out);
 
 /* Versioned, checksummed byte blob of a cache set (little-endian, CRC-32; layout at @impl
@@ -840,94 +842,141 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 /* generator: voxels, normal bins, averaging, snapping, merging, area partition */
 
 /* neighbours: spatial grid, per-vertex nearest compatible caches */
+
 /* Compatibility: cache c may light vertex v when n_v . n_c >= cos(theta_eps), both normals
    normalised, the dot product in double (eq. 8 weighs a cache by sqrt((n_x . n_c)^+), and a
    cache only stands for surface within theta_eps of its normal). A vertex whose normal is
    zero or not finite takes the nearest caches whatever their normal; a vertex whose position
    is not finite gets none (count 0); both are counted in one warning. Order: squared distance
-   in double from the input floats, then cache index, so the grid answers exactly what the
-   O(V x C) loop would. */
+   in double from the input floats, then cache index, so the search answers exactly what the
+   O(V x C) loop would.
+   Search: a k-d tree over the cache positions (median splits, so it adapts to any density and
+   needs no unit), each node also bounding its caches' normals. Depth first, nearer child
+   first; a node is skipped when its box is farther than the n-th best found, or when no
+   normal in its bounds can be compatible. So the faces of a thin wall, and a flipped mesh
+   whose only compatible caches are across the room, cost a few nodes, not a scan. */
 
-/* Direction bins: the 6 cube-map faces split 3 x 3, 54 bins, one bit each in a uint64_t. A
-   cell keeps the bits of its caches and a vertex the bits that can hold compatible normals,
-   so most incompatible caches (the far side of a thin wall) are skipped without a test. */
-#define GIM__NB_BINS 54u      /* also the vertex "bin" of a zero normal: every bin a candidate */
+/* A cache as the search reads it: 32 bytes, two per cache line. */
+typedef struct gim__nb_slot {
+    float pos[3], nrm[3];        /* position, normalised normal */
+    uint32_t id;                 /* index in the set */
+    uint32_t pad;
+} gim__nb_slot;
 
-static uint32_t gim__nb_bin(gim_vec3 d) {
-    float ax = fabsf(d.x), ay = fabsf(d.y), az = fabsf(d.z), m, u, v, s;
-    uint32_t face, iu, iv;
-    if (ax >= ay && ax >= az) { face = 0; m = ax; s = d.x; u = d.y; v = d.z; }
-    else if (ay >= az) { face = 2; m = ay; s = d.y; u = d.z; v = d.x; }
-    else { face = 4; m = az; s = d.z; u = d.x; v = d.y; }
-    if (s < 0.0f) face += 1;
-    u = (u / m + 1.0f) * 1.5f;
-    v = (v / m + 1.0f) * 1.5f;
-    iu = u >= 2.0f ? 2u : (u >= 1.0f ? 1u : 0u);
-    iv = v >= 2.0f ? 2u : (v >= 1.0f ? 1u : 0u);
-    return face * 9u + iv * 3u + iu;
-}
+typedef struct gim__nb_node {
+    float plo[3], phi[3];        /* bounds of the positions below */
+    float nlo[3], nhi[3];        /* bounds of the normals below */
+    uint32_t begin, end;         /* range of slots */
+    uint32_t left;               /* first of two children; 0 for a leaf */
+} gim__nb_node;
 
-/* Direction of cube-face point (u, v) in [-1,1]^2 of a bin's face, in double. */
-static void gim__nb_face_dir(uint32_t face, double u, double v, double *out) {
-    double s = (face & 1u) ? -1.0 : 1.0, l;
-    uint32_t a = face >> 1;
-    out[a] = s;
-    out[(a + 1u) % 3u] = u;
-    out[(a + 2u) % 3u] = v;
-    l = sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
-    out[0] /= l; out[1] /= l; out[2] /= l;
-}
+typedef struct gim__nb_tree {
+    gim__nb_node *node;
+    gim__nb_slot *slot;          /* the caches in node order */
+} gim__nb_tree;
 
-static double gim__nb_angle(const double *a, const double *b) {
-    double c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    return acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c));
-}
+#define GIM__NB_LEAF 8u
+#define GIM__NB_STACK 160u
 
-/* masks[b]: bins that may hold a normal within theta of a normal in bin b. By the triangle
-   inequality on the sphere, bin j qualifies when angle(centre_b, centre_j) <= theta + r_b + r_j,
-   r the largest angle from a bin's centre to its corners (the farthest point of a small convex
-   spherical quad). masks[GIM__NB_BINS] is every bin. */
-static void gim__nb_bin_masks(double theta, uint64_t *masks) {
-    double centre[GIM__NB_BINS][3], radius[GIM__NB_BINS];
-    uint32_t b, j, k;
-    for (b = 0; b < GIM__NB_BINS; ++b) {
-        uint32_t face = b / 9u, iu = b % 3u, iv = (b / 3u) % 3u;
-        double u0 = -1.0 + iu * (2.0 / 3.0), v0 = -1.0 + iv * (2.0 / 3.0), corner[3];
-        gim__nb_face_dir(face, u0 + 1.0 / 3.0, v0 + 1.0 / 3.0, centre[b]);
-        radius[b] = 0.0;
-        for (k = 0; k < 4u; ++k) {
-            double a;
-            gim__nb_face_dir(face, u0 + (k & 1u) * (2.0 / 3.0), v0 + (k >> 1) * (2.0 / 3.0), corner);
-            a = gim__nb_angle(centre[b], corner);
-            if (a > radius[b]) radius[b] = a;
+/* Quickselect: put the k-th smallest of keys key[perm[i] * 3 + axis], i in [lo, hi), at k,
+   smaller or equal ones before it, greater or equal after. */
+static void gim__nb_select(const float *key, uint32_t *perm, uint32_t lo, uint32_t hi, uint32_t k, int axis) {
+    while (hi - lo > 1u) {
+        uint32_t i = lo, j = hi - 1u, t;
+        float pivot = key[(size_t)perm[lo + (hi - lo) / 2u] * 3u + (uint32_t)axis];
+        while (i <= j) {
+            while (key[(size_t)perm[i] * 3u + (uint32_t)axis] < pivot) ++i;
+            while (key[(size_t)perm[j] * 3u + (uint32_t)axis] > pivot) --j;
+            if (i <= j) {
+                t = perm[i]; perm[i] = perm[j]; perm[j] = t;
+                ++i;
+                if (j == 0) break;
+                --j;
+            }
         }
+        /* now [lo, j] <= pivot <= [i, hi), and what lies between equals the pivot */
+        if (k <= j && j + 1u > lo) hi = j + 1u;
+        else if (k >= i) lo = i;
+        else return;
     }
-    for (b = 0; b < GIM__NB_BINS; ++b) {
-        masks[b] = 0;
-        for (j = 0; j < GIM__NB_BINS; ++j)
-            if (gim__nb_angle(centre[b], centre[j]) <= theta + radius[b] + radius[j] + 1e-6)
-                masks[b] |= (uint64_t)1 << j;
-    }
-    masks[GIM__NB_BINS] = ((uint64_t)1 << GIM__NB_BINS) - 1u;
 }
 
-/* The three floats at base + i * stride, without alignment assumptions. */
-static gim_vec3 gim__nb_load3(const float *base, uint32_t stride, uint32_t i) {
-    float f[3];
-    memcpy(f, (const unsigned char *)base + (size_t)i * stride, sizeof f);
-    return gim_v3(f[0], f[1], f[2]);
+/* Build over the caches; unit_nrm holds their normalised normals. */
+static gim_result gim__nb_tree_build(const gim_env *env, const gim_cache_set *set, const float *unit_nrm, gim__nb_tree *t) {
+    uint32_t C = set->count, *perm, stack[GIM__NB_STACK], top = 0, count = 1, c;
+    float *key;
+    t->node = (gim__nb_node *)gim__alloc_array(env, 2u * (size_t)C, sizeof(gim__nb_node));
+    t->slot = (gim__nb_slot *)gim__alloc_array(env, C, sizeof(gim__nb_slot));
+    perm = (uint32_t *)gim__alloc_array(env, C, sizeof(uint32_t));
+    key = (float *)gim__alloc_array(env, C, 3u * sizeof(float));
+    if (!t->node || !t->slot || !perm || !key) {
+        gim__free(env, t->node); gim__free(env, t->slot); gim__free(env, perm); gim__free(env, key);
+        t->node = NULL; t->slot = NULL;
+        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, "gim_cache_neighbours", "search tree of %u caches", C);
+    }
+    for (c = 0; c < C; ++c) { perm[c] = c; memcpy(key + (size_t)c * 3u, set->caches[c].position, 3u * sizeof(float)); }
+    t->node[0].begin = 0; t->node[0].end = C;
+    stack[top++] = 0;
+    while (top) { /* median splits: depth <= log2(C) + 1, the stack holds at most 2 per level */
+        gim__nb_node *nd = &t->node[stack[--top]];
+        uint32_t i, a, axis = 0, mid;
+        for (a = 0; a < 3u; ++a) { nd->plo[a] = FLT_MAX; nd->phi[a] = -FLT_MAX; nd->nlo[a] = 2.0f; nd->nhi[a] = -2.0f; }
+        for (i = nd->begin; i < nd->end; ++i)
+            for (a = 0; a < 3u; ++a) {
+                float p = key[(size_t)perm[i] * 3u + a], q = unit_nrm[(size_t)perm[i] * 3u + a];
+                if (p < nd->plo[a]) nd->plo[a] = p;
+                if (p > nd->phi[a]) nd->phi[a] = p;
+                if (q < nd->nlo[a]) nd->nlo[a] = q;
+                if (q > nd->nhi[a]) nd->nhi[a] = q;
+            }
+        /* widest axis, its extent in double (a float difference can overflow) */
+        for (a = 1; a < 3u; ++a)
+            if ((double)nd->phi[a] - nd->plo[a] > (double)nd->phi[axis] - nd->plo[axis]) axis = a;
+        nd->left = 0;
+        if (nd->end - nd->begin <= GIM__NB_LEAF || !(nd->phi[axis] > nd->plo[axis]) || top + 2u > GIM__NB_STACK - 2u)
+            continue; /* leaf: few caches, all at one point, or (never with median splits) too deep */
+        mid = nd->begin + (nd->end - nd->begin) / 2u;
+        gim__nb_select(key, perm, nd->begin, nd->end, mid, (int)axis);
+        nd->left = count;
+        t->node[count].begin = nd->begin; t->node[count].end = mid;
+        t->node[count + 1u].begin = mid; t->node[count + 1u].end = nd->end;
+        stack[top++] = count; stack[top++] = count + 1u;
+        count += 2u;
+    }
+    for (c = 0; c < C; ++c) {
+        gim__nb_slot *sl = &t->slot[c];
+        memcpy(sl->pos, set->caches[perm[c]].position, 3u * sizeof(float));
+        memcpy(sl->nrm, unit_nrm + (size_t)perm[c] * 3u, 3u * sizeof(float));
+        sl->id = perm[c];
+        sl->pad = 0;
+    }
+    gim__free(env, perm);
+    gim__free(env, key);
+    return GIM_OK;
 }
 
-static uint32_t gim__nb_index(const gim_mesh_data *m, uint32_t k) {
-    if (m->index_type == GIM_INDEX_U16) {
-        uint16_t s;
-        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 2u, 2);
-        return s;
-    } else {
-        uint32_t s;
-        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 4u, 4);
-        return s;
+/* Squared distance from p to a node's box, shrunk by a relative 1e-9 so that rounding never
+   lifts it above the distance of a cache inside: a lower bound. */
+static double gim__nb_box_d2(const double *p, const gim__nb_node *nd) {
+    double d2 = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        double g = p[a] < nd->plo[a] ? (double)nd->plo[a] - p[a] : (p[a] > nd->phi[a] ? p[a] - (double)nd->phi[a] : 0.0);
+        d2 += g * g;
     }
+    return d2 * (1.0 - 1e-9);
+}
+
+/* 1 when no normal inside the node's bounds can pass nv . m >= cos_theta: the interval
+   bound of the dot product, with 1e-9 to spare for the rounding of the exact test. */
+static int gim__nb_normals_out(const double *nv, const gim__nb_node *nd, double cos_theta) {
+    double dmax = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        double p = nv[a] * nd->nlo[a], q = nv[a] * nd->nhi[a];
+        dmax += p > q ? p : q;
+    }
+    return dmax < cos_theta - 1e-9;
 }
 
 /* Keep the n best (squared distance, index) pairs sorted ascending. */
@@ -948,120 +997,57 @@ static void gim__nb_insert(double *bd, uint32_t *bi, uint32_t *found, uint32_t n
     bi[k] = idx;
 }
 
-/* A cache as the search reads it: 32 bytes, one cache line holds two. */
-typedef struct gim__nb_slot {
-    float pos[3], nrm[3];        /* position, normalised normal */
-    uint32_t id;                 /* index in the set */
-    uint32_t bin;                /* direction bin of nrm */
-} gim__nb_slot;
-
-/* The uniform grid over the caches' bounds: cells of edge h, positions relative to the
-   bounds' minimum (in double) so a scene far from the origin keeps its precision. */
-typedef struct gim__nb_grid {
-    double min[3], h;
-    int64_t dim[3];
-    uint32_t *cell_start;        /* ncells + 1 */
-    uint64_t *cell_bins;         /* ncells: union of the caches' bin bits */
-    gim__nb_slot *slot;          /* the caches sorted by cell, by index within a cell */
-} gim__nb_grid;
-
-/* Cell edge adapted to the cache density: prod_a max(ext_a / h, 1) = C / 2 (about two caches
-   per cell over the bounds' volume, a plane's or a line's area or length when flat), solved by
-   bisection in log h. Only ratios of the bounds enter: no absolute unit. */
-static double gim__nb_cell_size(const double *ext, uint32_t count) {
-    double emax = ext[0] > ext[1] ? ext[0] : ext[1], target = count > 2u ? count / 2.0 : 1.0, lo, hi;
-    int it, a;
-    if (ext[2] > emax) emax = ext[2];
-    if (!(emax > 0.0)) return 1.0; /* every cache at one point: any h gives one cell */
-    lo = emax / target; hi = emax;
-    for (it = 0; it < 64; ++it) {
-        double mid = sqrt(lo * hi), g = 1.0;
-        for (a = 0; a < 3; ++a) g *= ext[a] / mid > 1.0 ? ext[a] / mid : 1.0;
-        if (g > target) lo = mid; else hi = mid;
-    }
-    return hi;
-}
-
-/* Gap in cells between relative coordinate f and cell k along one axis, less 1e-6 cells for
-   the rounding of f (so it never exceeds the true gap); 0 inside. */
-static double gim__nb_gap(double f, int64_t k) {
-    double gap = f < (double)k ? (double)k - f : (f > (double)(k + 1) ? f - (double)(k + 1) : 0.0);
-    return gap > 1e-6 ? gap - 1e-6 : 0.0;
-}
-
-/* Cell coordinate along axis a of relative coordinate f, clamped to [lo, hi]. */
-static int64_t gim__nb_cellc(double f, int64_t lo, int64_t hi) {
-    if (!(f >= (double)lo)) return lo;
-    if (f >= (double)hi) return hi;
-    return (int64_t)floor(f);
-}
-
-static void gim__nb_grid_free(const gim_env *env, gim__nb_grid *g) {
-    gim__free(env, g->cell_start); gim__free(env, g->cell_bins); gim__free(env, g->slot);
-}
-
-/* Build the grid; nrm holds the normalised cache normals. */
-static gim_result gim__nb_grid_build(const gim_env *env, const gim_cache_set *set, const float *unit_nrm, gim__nb_grid *g) {
-    static const char *where = "gim_cache_neighbours";
-    double mx[3], ext[3];
-    uint32_t c, C = set->count, *cellof = NULL;
-    size_t ncells, k;
-    int a;
-    memset(g, 0, sizeof *g);
-    for (a = 0; a < 3; ++a) { g->min[a] = set->caches[0].position[a]; mx[a] = g->min[a]; }
-    for (c = 1; c < C; ++c)
-        for (a = 0; a < 3; ++a) {
-            double p = set->caches[c].position[a];
-            if (p < g->min[a]) g->min[a] = p;
-            if (p > mx[a]) mx[a] = p;
+/* The n nearest compatible caches of one vertex into bd/bi; returns how many. any: every
+   normal is compatible. */
+static uint32_t gim__nb_query(const gim__nb_tree *t, const double *p, const double *nv, int any, double cos_theta,
+                              uint32_t n, double *bd, uint32_t *bi) {
+    uint32_t stack[GIM__NB_STACK], top = 0, found = 0;
+    double sd[GIM__NB_STACK];
+    stack[top] = 0; sd[top++] = 0.0;
+    while (top) {
+        const gim__nb_node *nd;
+        double d = sd[--top];
+        nd = &t->node[stack[top]];
+        if (found == n && d > bd[n - 1]) continue; /* ties with a smaller index stay in */
+        if (!any && gim__nb_normals_out(nv, nd, cos_theta)) continue;
+        if (nd->left) {
+            const gim__nb_node *l = &t->node[nd->left], *r = l + 1;
+            double dl = gim__nb_box_d2(p, l), dr = gim__nb_box_d2(p, r);
+            /* the nearer child is popped first */
+            if (dl <= dr) { stack[top] = nd->left + 1u; sd[top++] = dr; stack[top] = nd->left; sd[top++] = dl; }
+            else { stack[top] = nd->left; sd[top++] = dl; stack[top] = nd->left + 1u; sd[top++] = dr; }
+        } else {
+            uint32_t s;
+            for (s = nd->begin; s < nd->end; ++s) {
+                const gim__nb_slot *sl = &t->slot[s];
+                double dx = p[0] - sl->pos[0], dy = p[1] - sl->pos[1], dz = p[2] - sl->pos[2];
+                double d2 = dx * dx + dy * dy + dz * dz;
+                if (found == n && d2 > bd[n - 1]) continue;
+                if (!any && nv[0] * sl->nrm[0] + nv[1] * sl->nrm[1] + nv[2] * sl->nrm[2] < cos_theta) continue;
+                gim__nb_insert(bd, bi, &found, n, d2, sl->id);
+            }
         }
-    for (a = 0; a < 3; ++a) ext[a] = mx[a] - g->min[a];
-    g->h = gim__nb_cell_size(ext, C);
-    for (;;) { /* dims = floor(ext / h) + 1 holds the maximum; at most ~8x the target cells */
-        double total = 1.0;
-        for (a = 0; a < 3; ++a) {
-            double d = floor(ext[a] / g->h) + 1.0;
-            g->dim[a] = d < 4294967295.0 ? (int64_t)d : 4294967295;
-            total *= (double)g->dim[a];
-        }
-        if (total <= 8.0 * C + 64.0) break;
-        g->h *= 1.25;
     }
-    if ((uint64_t)g->dim[0] * (uint64_t)g->dim[1] * (uint64_t)g->dim[2] >= 0xffffffffu)
-        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "%u caches need more grid cells than 32-bit offsets hold", C);
-    ncells = (size_t)((uint64_t)g->dim[0] * (uint64_t)g->dim[1] * (uint64_t)g->dim[2]);
-    g->cell_start = (uint32_t *)gim__alloc_array(env, ncells + 1u, sizeof(uint32_t));
-    g->cell_bins = (uint64_t *)gim__alloc_array(env, ncells, sizeof(uint64_t));
-    g->slot = (gim__nb_slot *)gim__alloc_array(env, C, sizeof(gim__nb_slot));
-    cellof = (uint32_t *)gim__alloc_array(env, C, sizeof(uint32_t));
-    if (!g->cell_start || !g->cell_bins || !g->slot || !cellof) {
-        gim__free(env, cellof);
-        gim__nb_grid_free(env, g);
-        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "grid of %u caches", C);
+    return found;
+}
+
+/* The three floats at base + i * stride, without alignment assumptions. */
+static gim_vec3 gim__nb_load3(const float *base, uint32_t stride, uint32_t i) {
+    float f[3];
+    memcpy(f, (const unsigned char *)base + (size_t)i * stride, sizeof f);
+    return gim_v3(f[0], f[1], f[2]);
+}
+
+static uint32_t gim__nb_index(const gim_mesh_data *m, uint32_t k) {
+    if (m->index_type == GIM_INDEX_U16) {
+        uint16_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 2u, 2);
+        return s;
+    } else {
+        uint32_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 4u, 4);
+        return s;
     }
-    memset(g->cell_start, 0, (ncells + 1u) * sizeof(uint32_t));
-    memset(g->cell_bins, 0, ncells * sizeof(uint64_t));
-    for (c = 0; c < C; ++c) { /* counting sort by cell; stable, so a cell lists its caches by index */
-        int64_t q[3];
-        for (a = 0; a < 3; ++a)
-            q[a] = gim__nb_cellc(((double)set->caches[c].position[a] - g->min[a]) / g->h, 0, g->dim[a] - 1);
-        cellof[c] = (uint32_t)((q[2] * g->dim[1] + q[1]) * g->dim[0] + q[0]);
-        g->cell_start[cellof[c] + 1u]++;
-    }
-    for (k = 0; k < ncells; ++k) g->cell_start[k + 1u] += g->cell_start[k];
-    for (c = 0; c < C; ++c) {
-        gim__nb_slot *sl = &g->slot[g->cell_start[cellof[c]]++];
-        const float *n = unit_nrm + (size_t)c * 3u;
-        memcpy(sl->pos, set->caches[c].position, 3u * sizeof(float));
-        memcpy(sl->nrm, n, 3u * sizeof(float));
-        sl->id = c;
-        sl->bin = gim__nb_bin(gim_v3(n[0], n[1], n[2]));
-        g->cell_bins[cellof[c]] |= (uint64_t)1 << sl->bin;
-    }
-    for (k = ncells; k > 0; --k) g->cell_start[k] = g->cell_start[k - 1u];
-    g->cell_start[0] = 0;
-    gim__free(env, cellof);
-    return GIM_OK;
 }
 
 /* Per-vertex normals: the given ones normalised, or the area-weighted sum of the adjacent
@@ -1116,11 +1102,9 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
     const gim_mesh_data *m;
     const gim_cache_set *set;
     uint32_t n, v, c, pstride, nstride, no_normal = 0, no_position = 0;
-    uint64_t masks[GIM__NB_BINS + 1u];
-    uint32_t cand_total[GIM__NB_BINS + 1u], bin_count[GIM__NB_BINS];
+    gim__nb_tree tree;
     double theta, cos_theta;
     float *vn = NULL, *cn = NULL;
-    gim__nb_grid g;
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
     env = &desc->env;
@@ -1150,10 +1134,16 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
                 return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "index %u (at %u) >= vertex count %u",
                                  gim__nb_index(m, k), k, m->vertex_count);
     }
-    /* theta_eps: the desc's, else the set's, else the generator's default of 30 degrees */
+    /* theta_eps: the desc's; by default the set's (0: the generator's 30 degrees) doubled, up to
+       90 degrees. A cache stands for normals within theta_eps of its own, but a smooth-shaded
+       vertex averages the faces around it: 45 degrees off either face on a box edge, 54.7 at a
+       corner, where theta_eps itself would find no cache at all and leave the vertex unlit.
+       Below 90 degrees the far side of a thin wall, and every cache eq. 8 weighs zero, stay out. */
     theta = desc->theta_eps != 0.0f ? desc->theta_eps : (set->theta_eps != 0.0f ? set->theta_eps : 0.52359877559829887);
     if (!(theta > 0.0 && theta <= (double)3.14159265358979324f)) /* pi rounded to float is a little above pi */
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "theta_eps %g not in (0, pi]", theta);
+    if (desc->theta_eps == 0.0f && theta < 1.57079632679489662)
+        theta = 2.0 * theta < 1.57079632679489662 ? 2.0 * theta : 1.57079632679489662;
     /* theta_eps = pi (float pi is slightly above) admits every normal, opposite ones included */
     cos_theta = theta >= 3.14159265358979 ? -2.0 : cos(theta);
     /* the caches: finite positions, normals that normalise */
@@ -1170,97 +1160,26 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
     }
     vn = (float *)gim__alloc_array(env, m->vertex_count, 3u * sizeof(float));
     if (!vn) { gim__free(env, cn); return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u vertices", m->vertex_count); }
+    tree.node = NULL; tree.slot = NULL;
     r = gim__nb_vertex_normals(m, env, vn);
-    if (r == GIM_OK) r = gim__nb_grid_build(env, set, cn, &g);
+    if (r == GIM_OK) r = gim__nb_tree_build(env, set, cn, &tree);
     gim__free(env, cn);
     if (r != GIM_OK) { gim__free(env, vn); return r; }
 
-    gim__nb_bin_masks(theta, masks);
-    memset(bin_count, 0, sizeof bin_count);
-    for (c = 0; c < set->count; ++c) bin_count[g.slot[c].bin]++;
-    for (v = 0; v <= GIM__NB_BINS; ++v) { /* how many caches a vertex of bin v may have to look at */
-        uint32_t j;
-        cand_total[v] = 0;
-        for (j = 0; j < GIM__NB_BINS; ++j)
-            if ((masks[v] >> j) & 1u) cand_total[v] += bin_count[j];
-    }
-
     for (v = 0; v < m->vertex_count; ++v) {
-        double bd[GIM_MAX_NEIGHBOUR_CACHES], fx[3], pd[3];
-        uint32_t bi[GIM_MAX_NEIGHBOUR_CACHES], found = 0, seen = 0, vb, total, k;
-        uint64_t vmask;
-        int64_t q[3], r0 = 0, rr;
-        gim_vec3 p = gim__nb_load3(m->positions, pstride, v), nv;
-        int a, any_normal;
+        double bd[GIM_MAX_NEIGHBOUR_CACHES], pd[3], nd[3];
+        uint32_t bi[GIM_MAX_NEIGHBOUR_CACHES], found = 0, k;
+        gim_vec3 p = gim__nb_load3(m->positions, pstride, v);
         uint32_t *oi = out->index + (size_t)v * n;
-        if (!gim_v3_isfinite(p)) {
+        int any;
+        if (gim_v3_isfinite(p)) {
+            pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
+            nd[0] = vn[(size_t)v * 3u]; nd[1] = vn[(size_t)v * 3u + 1u]; nd[2] = vn[(size_t)v * 3u + 2u];
+            any = nd[0] == 0.0 && nd[1] == 0.0 && nd[2] == 0.0;
+            no_normal += (uint32_t)any;
+            found = gim__nb_query(&tree, pd, nd, any, cos_theta, n, bd, bi);
+        } else {
             ++no_position;
-            for (k = 0; k < n; ++k) oi[k] = UINT32_MAX;
-            out->count[v] = 0;
-            out->d_cmax[v] = 0.0f;
-            continue;
-        }
-        nv = gim_v3(vn[(size_t)v * 3u], vn[(size_t)v * 3u + 1u], vn[(size_t)v * 3u + 2u]);
-        any_normal = nv.x == 0.0f && nv.y == 0.0f && nv.z == 0.0f;
-        if (any_normal) ++no_normal;
-        vb = any_normal ? GIM__NB_BINS : gim__nb_bin(nv);
-        vmask = masks[vb];
-        total = cand_total[vb];
-        pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
-        for (a = 0; a < 3; ++a) {
-            fx[a] = (pd[a] - g.min[a]) / g.h;
-            q[a] = gim__nb_cellc(fx[a], -1, g.dim[a]);
-            /* rings nearer than the grid are empty: start at the Chebyshev distance to it */
-            if (q[a] < 0 && -q[a] > r0) r0 = -q[a];
-            if (q[a] >= g.dim[a] && q[a] - g.dim[a] + 1 > r0) r0 = q[a] - g.dim[a] + 1;
-        }
-        for (rr = r0; total > 0; ++rr) {
-            int64_t z0 = q[2] - rr > 0 ? q[2] - rr : 0, z1 = q[2] + rr < g.dim[2] - 1 ? q[2] + rr : g.dim[2] - 1;
-            int64_t y0 = q[1] - rr > 0 ? q[1] - rr : 0, y1 = q[1] + rr < g.dim[1] - 1 ? q[1] + rr : g.dim[1] - 1;
-            int64_t z, y, lb_cells = -1;
-            double lb = -1.0;
-            for (z = z0; z <= z1; ++z)
-                for (y = y0; y <= y1; ++y) {
-                    int shell = (z == q[2] - rr || z == q[2] + rr || y == q[1] - rr || y == q[1] + rr);
-                    double gz = gim__nb_gap(fx[2], z), gy = gim__nb_gap(fx[1], y), gzy = gz * gz + gy * gy;
-                    /* on the ring's shell every x of the row, inside it only its two ends */
-                    int64_t x, xa = q[0] - rr, xb = q[0] + rr, step = rr > 0 ? 2 * rr : 1;
-                    if (shell) { xa = xa > 0 ? xa : 0; xb = xb < g.dim[0] - 1 ? xb : g.dim[0] - 1; step = 1; }
-                    for (x = xa; x <= xb; x += step) {
-                        size_t cell;
-                        uint32_t s, s1;
-                        if (x < 0 || x >= g.dim[0]) continue;
-                        cell = (size_t)((z * g.dim[1] + y) * g.dim[0] + x);
-                        if (!(g.cell_bins[cell] & vmask)) continue;
-                        s1 = g.cell_start[cell + 1u];
-                        if (found == n) { /* a cell wholly beyond the n-th best cannot improve it (seen
-                                             only matters while fewer than n are found) */
-                            double gx = gim__nb_gap(fx[0], x);
-                            if ((gzy + gx * gx) * g.h * g.h > bd[n - 1]) continue;
-                        }
-                        for (s = g.cell_start[cell]; s < s1; ++s) {
-                            const gim__nb_slot *sl = &g.slot[s];
-                            double dx, dy, dz, d2;
-                            if (!((vmask >> sl->bin) & 1u)) continue;
-                            ++seen;
-                            dx = pd[0] - sl->pos[0]; dy = pd[1] - sl->pos[1]; dz = pd[2] - sl->pos[2];
-                            d2 = dx * dx + dy * dy + dz * dz;
-                            if (found == n && d2 > bd[n - 1]) continue;
-                            if (!any_normal && (double)nv.x * sl->nrm[0] + (double)nv.y * sl->nrm[1] + (double)nv.z * sl->nrm[2] < cos_theta) continue;
-                            gim__nb_insert(bd, bi, &found, n, d2, sl->id);
-                        }
-                    }
-                }
-            if (seen == total) break; /* every candidate cache has been looked at */
-            /* lower bound (in cells) on the distance to any cell outside the visited box */
-            for (a = 0; a < 3; ++a) {
-                if (q[a] - rr > 0) { double gap = fx[a] - (double)(q[a] - rr); if (lb < 0.0 || gap < lb) lb = gap; lb_cells = 1; }
-                if (q[a] + rr < g.dim[a] - 1) { double gap = (double)(q[a] + rr + 1) - fx[a]; if (lb < 0.0 || gap < lb) lb = gap; lb_cells = 1; }
-            }
-            if (lb_cells < 0) break; /* the whole grid is visited */
-            /* 1e-6 cells absorbs the rounding of fx; stop only when no unvisited cache can be nearer or tie */
-            lb -= 1e-6;
-            if (found == n && lb > 0.0 && bd[n - 1] < (lb * g.h) * (lb * g.h)) break;
         }
         for (k = 0; k < found; ++k) oi[k] = bi[k];
         for (; k < n; ++k) oi[k] = UINT32_MAX;
@@ -1270,7 +1189,8 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
     if (no_normal || no_position)
         gim__log(env, GIM_LOG_WARNING, where, "%u vertices without a usable normal took the nearest caches of any normal; "
                  "%u vertices with a non-finite position got none", no_normal, no_position);
-    gim__nb_grid_free(env, &g);
+    gim__free(env, tree.node);
+    gim__free(env, tree.slot);
     gim__free(env, vn);
     return GIM_OK;
 }

@@ -148,7 +148,9 @@ static void compare_scene(uint32_t C, uint32_t V, uint32_t n, float theta, float
     d.mesh.positions = pos; d.mesh.normals = nrm; d.mesh.vertex_count = V;
     d.caches = &set; d.n = n; d.theta_eps = theta; d.env = env;
     assert_int_equal(gim_cache_neighbours(&d, &got.r), GIM_OK);
-    brute_force(pos, nrm, V, set.caches, C, n, theta > 0.0f ? theta : set.theta_eps, want.index, want.count, want.dmax);
+    /* the default: twice the set's theta_eps, at most 90 degrees */
+    brute_force(pos, nrm, V, set.caches, C, n, theta > 0.0f ? theta : fmin(2.0 * set.theta_eps, 1.57079632679489662),
+                want.index, want.count, want.dmax);
     expect_equal(&got, &want, V, n);
     for (v = 0; v < V; ++v) {
         assert_true(isfinite(got.dmax[v]) && got.dmax[v] >= 0.0f);
@@ -265,6 +267,53 @@ static void thin_wall(void **state) {
     nb_out_free(&o);
 }
 
+/* A smooth-shaded box: the vertex on an edge has a normal 45 degrees off both faces, the
+   corner 54.7 degrees off all three. The default compatibility (2 x theta_eps = 60 degrees)
+   finds caches on the adjacent faces; theta_eps itself (30 degrees) would find none. */
+static void smooth_shaded_edges_and_corners(void **state) {
+    enum { G = 8, C = 3 * G * G, N = 16 };
+    gim_cache caches[C];
+    float s3 = 0.57735027f, s2 = 0.70710678f;
+    float pos[2 * 3] = {1.0f, 0.5f, 1.0f, 1.0f, 1.0f, 1.0f};
+    float nrm[2 * 3];
+    gim_cache_set set;
+    gim_neighbour_desc d;
+    nb_out o;
+    uint32_t i, k, face_seen[2][3] = {{0, 0, 0}, {0, 0, 0}};
+    (void)state;
+    nrm[0] = s2; nrm[1] = 0.0f; nrm[2] = s2;
+    nrm[3] = s3; nrm[4] = s3; nrm[5] = s3;
+    for (i = 0; i < C; ++i) { /* G x G caches on each of the +x, +y, +z faces of the unit cube */
+        uint32_t a = i / (G * G), c = i % (G * G);
+        float q[3];
+        q[a] = 1.0f;
+        q[(a + 1) % 3] = ((float)(c % G) + 0.5f) / G;
+        q[(a + 2) % 3] = ((float)(c / G) + 0.5f) / G;
+        memcpy(caches[i].position, q, sizeof q);
+        caches[i].normal[0] = caches[i].normal[1] = caches[i].normal[2] = 0.0f;
+        caches[i].normal[a] = 1.0f;
+        caches[i].area = 1.0f / (G * G); caches[i].reflectance = 1.0f;
+    }
+    memset(&set, 0, sizeof set);
+    set.caches = caches; set.count = C; set.theta_eps = 0.5235988f;
+    memset(&d, 0, sizeof d);
+    d.mesh.positions = pos; d.mesh.normals = nrm; d.mesh.vertex_count = 2; d.caches = &set;
+    nb_out_alloc(&o, 2, N);
+    assert_int_equal(gim_cache_neighbours(&d, &o.r), GIM_OK);
+    for (i = 0; i < 2; ++i) {
+        assert_int_equal(o.count[i], N);
+        for (k = 0; k < N; ++k) face_seen[i][o.index[i * N + k] / (G * G)]++;
+    }
+    assert_true(face_seen[0][0] > 0 && face_seen[0][2] > 0 && face_seen[0][1] == 0); /* edge: +x and +z */
+    assert_true(face_seen[1][0] > 0 && face_seen[1][1] > 0 && face_seen[1][2] > 0);  /* corner: all three */
+    d.theta_eps = set.theta_eps; /* explicitly 30 degrees: nothing is compatible */
+    assert_int_equal(gim_cache_neighbours(&d, &o.r), GIM_OK);
+    assert_int_equal(o.count[0], 0); assert_int_equal(o.count[1], 0);
+    assert_int_equal(o.index[0], UINT32_MAX);
+    assert_true(o.dmax[0] == 0.0f);
+    nb_out_free(&o);
+}
+
 /* Fewer compatible caches than n: count says how many, the rest is UINT32_MAX, d_c,max is
    the farthest found; ties are ordered by index. */
 static void fewer_than_n_and_ties(void **state) {
@@ -309,6 +358,36 @@ static void fewer_than_n_and_ties(void **state) {
             if (o.index[i * N + k] == 53) assert_int_equal(o.index[i * N + k + 1], 103);
     }
     nb_out_free(&o);
+}
+
+/* Exact ties beyond n: 40 caches at one point (indices scattered over the set, so over the
+   tree's leaves), vertices at that point and near it: the 16 smallest indices, ascending. */
+static void ties_beyond_n(void **state) {
+    enum { C = 1000, N = 16 };
+    gim_cache *caches = box_caches(C, 0.0f, 1.0f, NULL);
+    float pos[2 * 3] = {0.25f, 0.5f, 0.0f, 0.25f, 0.5f, 0.001f}, nrm[2 * 3] = {0, 0, 1, 0, 0, 1};
+    uint32_t i, k, dup[40];
+    gim_cache_set set;
+    gim_neighbour_desc d;
+    nb_out o;
+    (void)state;
+    for (i = 0; i < 40; ++i) {
+        dup[i] = 7 + i * 24;
+        caches[dup[i]].position[0] = 0.25f; caches[dup[i]].position[1] = 0.5f; caches[dup[i]].position[2] = 0.0f;
+        caches[dup[i]].normal[0] = 0.0f; caches[dup[i]].normal[1] = 0.0f; caches[dup[i]].normal[2] = 1.0f;
+    }
+    memset(&set, 0, sizeof set);
+    set.caches = caches; set.count = C; set.theta_eps = 0.3f;
+    memset(&d, 0, sizeof d);
+    d.mesh.positions = pos; d.mesh.normals = nrm; d.mesh.vertex_count = 2; d.caches = &set;
+    nb_out_alloc(&o, 2, N);
+    assert_int_equal(gim_cache_neighbours(&d, &o.r), GIM_OK);
+    for (i = 0; i < 2; ++i) {
+        for (k = 0; k < N; ++k) assert_int_equal(o.index[i * N + k], dup[k]);
+        assert_true(o.dmax[i] == (i ? 0.001f : 0.0f));
+    }
+    nb_out_free(&o);
+    free(caches);
 }
 
 /* n = 1 gives each vertex its nearest compatible cache; a zero or NaN normal takes the nearest
@@ -375,7 +454,7 @@ static void face_normals_and_strides(void **state) {
     memset(&d, 0, sizeof d);
     d.mesh.positions = inter; d.mesh.position_stride = 24; d.mesh.vertex_count = V;
     d.mesh.indices = idx; d.mesh.index_count = T * 3; d.mesh.index_type = GIM_INDEX_U16;
-    d.caches = &set; d.n = N;
+    d.caches = &set; d.n = N; d.theta_eps = 0.4f;
     nb_out_alloc(&a, V, N); nb_out_alloc(&b, V, N);
     assert_int_equal(gim_cache_neighbours(&d, &a.r), GIM_OK);
     d.mesh.normals = nrm;
@@ -492,15 +571,110 @@ static void allocations_and_oom(void **state) {
     free(caches);
 }
 
+/* The search tree: quickselect puts the k-th key at k; every cache lies in its nodes' position
+   and normal bounds; the leaves hold every cache once; median splits keep it shallow. */
+static void search_tree_invariants(void **state) {
+    enum { M = 3000 };
+    float *key = (float *)malloc(sizeof(float) * 3 * M), *un = (float *)malloc(sizeof(float) * 3 * M);
+    uint32_t perm[M], i, k, trial, *seen = (uint32_t *)calloc(M, sizeof(uint32_t));
+    uint32_t stack[64], depth[64], top = 0, maxdepth = 0;
+    gim_cache_set set;
+    gim__nb_tree t;
+    (void)state;
+    for (trial = 0; trial < 20; ++trial) {
+        uint32_t lo = trial * 7, hi = M - trial * 11;
+        for (i = 0; i < 3 * M; ++i) key[i] = trial % 3 == 0 ? (float)(int)(test_rand01() * 5) : (float)test_rand01();
+        for (i = 0; i < M; ++i) perm[i] = i;
+        k = lo + (uint32_t)(test_rand01() * (hi - lo));
+        gim__nb_select(key, perm, lo, hi, k, (int)(trial % 3));
+        for (i = lo; i < hi; ++i) {
+            float a = key[perm[i] * 3 + trial % 3], b = key[perm[k] * 3 + trial % 3];
+            if (i < k) assert_true(a <= b);
+            if (i > k) assert_true(a >= b);
+        }
+    }
+    memset(&set, 0, sizeof set);
+    set.caches = box_caches(M, 5.0f, 2.0f, NULL);
+    set.count = M;
+    for (i = 0; i < 30; ++i) set.caches[i] = set.caches[100]; /* duplicates */
+    for (i = 0; i < M; ++i) {
+        gim_vec3 n = gim_v3_normalize(gim_v3(set.caches[i].normal[0], set.caches[i].normal[1], set.caches[i].normal[2]));
+        un[i * 3] = n.x; un[i * 3 + 1] = n.y; un[i * 3 + 2] = n.z;
+    }
+    assert_int_equal(gim__nb_tree_build(NULL, &set, un, &t), GIM_OK);
+    stack[top] = 0; depth[top++] = 1;
+    while (top) {
+        const gim__nb_node *nd = &t.node[stack[--top]];
+        uint32_t d = depth[top], s, a;
+        if (d > maxdepth) maxdepth = d;
+        for (s = nd->begin; s < nd->end; ++s)
+            for (a = 0; a < 3; ++a) {
+                assert_true(t.slot[s].pos[a] >= nd->plo[a] && t.slot[s].pos[a] <= nd->phi[a]);
+                assert_true(t.slot[s].nrm[a] >= nd->nlo[a] && t.slot[s].nrm[a] <= nd->nhi[a]);
+            }
+        if (nd->left) {
+            assert_int_equal(t.node[nd->left].begin, nd->begin);
+            assert_int_equal(t.node[nd->left].end, t.node[nd->left + 1].begin);
+            assert_int_equal(t.node[nd->left + 1].end, nd->end);
+            stack[top] = nd->left; depth[top++] = d + 1;
+            stack[top] = nd->left + 1; depth[top++] = d + 1;
+        } else {
+            for (s = nd->begin; s < nd->end; ++s) seen[t.slot[s].id]++;
+        }
+    }
+    for (i = 0; i < M; ++i) assert_int_equal(seen[i], 1);
+    assert_true(maxdepth <= 12); /* ceil(log2(3000 / 8)) + 1 = 10 */
+    free(t.node); free(t.slot); free(set.caches); free(key); free(un); free(seen);
+}
+
+/* Flipped vertex normals: no cache is compatible anywhere; every vertex gets count 0. */
+static void flipped_normals_find_nothing(void **state) {
+    enum { C = 2000, V = 500, N = 16 };
+    gim_cache *caches = box_caches(C, 0.0f, 1.0f, NULL);
+    float pos[V * 3], nrm[V * 3];
+    gim_cache_set set;
+    gim_neighbour_desc d;
+    nb_out o;
+    uint32_t i;
+    (void)state;
+    for (i = 0; i < C; ++i) { /* only axis-aligned face caches, then vertices facing inwards */
+        gim_vec3 nn = gim_v3_normalize(gim_v3(caches[i].normal[0], caches[i].normal[1], caches[i].normal[2]));
+        float ax = fabsf(nn.x), ay = fabsf(nn.y), az = fabsf(nn.z);
+        caches[i].normal[0] = ax >= ay && ax >= az ? (nn.x > 0 ? 1.0f : -1.0f) : 0.0f;
+        caches[i].normal[1] = !(ax >= ay && ax >= az) && ay >= az ? (nn.y > 0 ? 1.0f : -1.0f) : 0.0f;
+        caches[i].normal[2] = !(ax >= ay && ax >= az) && !(ay >= az) ? (nn.z > 0 ? 1.0f : -1.0f) : 0.0f;
+    }
+    for (i = 0; i < V; ++i) { /* vertices on the faces, normal (1,1,1) or (-1,-1,-1): 54.7 degrees off every face */
+        pos[i * 3] = urand(0, 1); pos[i * 3 + 1] = urand(0, 1); pos[i * 3 + 2] = (float)(i & 1);
+        nrm[i * 3] = nrm[i * 3 + 1] = nrm[i * 3 + 2] = (i & 2) ? 1.0f : -1.0f;
+    }
+    memset(&set, 0, sizeof set);
+    set.caches = caches; set.count = C; set.theta_eps = 0.5f;
+    memset(&d, 0, sizeof d);
+    d.mesh.positions = pos; d.mesh.normals = nrm; d.mesh.vertex_count = V; d.caches = &set; d.theta_eps = 0.9f;
+    nb_out_alloc(&o, V, N);
+    assert_int_equal(gim_cache_neighbours(&d, &o.r), GIM_OK);
+    for (i = 0; i < V; ++i) { assert_int_equal(o.count[i], 0); assert_true(o.dmax[i] == 0.0f); }
+    d.theta_eps = 1.0f; /* 57 degrees: now every vertex finds caches of the three faces */
+    assert_int_equal(gim_cache_neighbours(&d, &o.r), GIM_OK);
+    for (i = 0; i < V; ++i) assert_int_equal(o.count[i], N);
+    nb_out_free(&o);
+    free(caches);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(equals_brute_force),
         cmocka_unit_test(equals_brute_force_far_and_scaled),
         cmocka_unit_test(unit_free),
         cmocka_unit_test(thin_wall),
+        cmocka_unit_test(smooth_shaded_edges_and_corners),
         cmocka_unit_test(fewer_than_n_and_ties),
+        cmocka_unit_test(ties_beyond_n),
         cmocka_unit_test(n1_and_degenerate_vertices),
         cmocka_unit_test(face_normals_and_strides),
+        cmocka_unit_test(search_tree_invariants),
+        cmocka_unit_test(flipped_normals_find_nothing),
         cmocka_unit_test(errors),
         cmocka_unit_test(allocations_and_oom),
     };
