@@ -998,9 +998,10 @@ static void gim__nb_insert(double *bd, uint32_t *bi, uint32_t *found, uint32_t n
 }
 
 /* The n nearest compatible caches of one vertex into bd/bi; returns how many. any: every
-   normal is compatible. */
+   normal is compatible. bound: a squared distance the n-th nearest is known not to exceed
+   (from n compatible caches that near), or HUGE_VAL. */
 static uint32_t gim__nb_query(const gim__nb_tree *t, const double *p, const double *nv, int any, double cos_theta,
-                              uint32_t n, double *bd, uint32_t *bi) {
+                              uint32_t n, double bound, double *bd, uint32_t *bi) {
     uint32_t stack[GIM__NB_STACK], top = 0, found = 0;
     double sd[GIM__NB_STACK];
     stack[top] = 0; sd[top++] = 0.0;
@@ -1008,7 +1009,7 @@ static uint32_t gim__nb_query(const gim__nb_tree *t, const double *p, const doub
         const gim__nb_node *nd;
         double d = sd[--top];
         nd = &t->node[stack[top]];
-        if (found == n && d > bd[n - 1]) continue; /* ties with a smaller index stay in */
+        if (d > bound) continue; /* ties with a smaller index stay in */
         if (!any && gim__nb_normals_out(nv, nd, cos_theta)) continue;
         if (nd->left) {
             const gim__nb_node *l = &t->node[nd->left], *r = l + 1;
@@ -1022,9 +1023,10 @@ static uint32_t gim__nb_query(const gim__nb_tree *t, const double *p, const doub
                 const gim__nb_slot *sl = &t->slot[s];
                 double dx = p[0] - sl->pos[0], dy = p[1] - sl->pos[1], dz = p[2] - sl->pos[2];
                 double d2 = dx * dx + dy * dy + dz * dz;
-                if (found == n && d2 > bd[n - 1]) continue;
+                if (d2 > bound) continue;
                 if (!any && nv[0] * sl->nrm[0] + nv[1] * sl->nrm[1] + nv[2] * sl->nrm[2] < cos_theta) continue;
                 gim__nb_insert(bd, bi, &found, n, d2, sl->id);
+                if (found == n && bd[n - 1] < bound) bound = bd[n - 1];
             }
         }
     }
@@ -1163,8 +1165,7 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
     tree.node = NULL; tree.slot = NULL;
     r = gim__nb_vertex_normals(m, env, vn);
     if (r == GIM_OK) r = gim__nb_tree_build(env, set, cn, &tree);
-    gim__free(env, cn);
-    if (r != GIM_OK) { gim__free(env, vn); return r; }
+    if (r != GIM_OK) { gim__free(env, cn); gim__free(env, vn); return r; }
 
     for (v = 0; v < m->vertex_count; ++v) {
         double bd[GIM_MAX_NEIGHBOUR_CACHES], pd[3], nd[3];
@@ -1173,11 +1174,26 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
         uint32_t *oi = out->index + (size_t)v * n;
         int any;
         if (gim_v3_isfinite(p)) {
+            double bound = HUGE_VAL;
             pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
             nd[0] = vn[(size_t)v * 3u]; nd[1] = vn[(size_t)v * 3u + 1u]; nd[2] = vn[(size_t)v * 3u + 2u];
             any = nd[0] == 0.0 && nd[1] == 0.0 && nd[2] == 0.0;
             no_normal += (uint32_t)any;
-            found = gim__nb_query(&tree, pd, nd, any, cos_theta, n, bd, bi);
+            /* Neighbouring vertices share caches: if the previous vertex's n caches are all
+               compatible here too, the farthest of them bounds the search from the start. The
+               bound only prunes, so the answer stays exact. */
+            if (v > 0 && out->count[v - 1] == n) {
+                const uint32_t *prev = out->index + (size_t)(v - 1) * n;
+                for (k = 0; k < n; ++k) {
+                    const float *cp = set->caches[prev[k]].position, *cq = cn + (size_t)prev[k] * 3u;
+                    double dx = pd[0] - cp[0], dy = pd[1] - cp[1], dz = pd[2] - cp[2];
+                    double d2 = dx * dx + dy * dy + dz * dz;
+                    if (!any && nd[0] * cq[0] + nd[1] * cq[1] + nd[2] * cq[2] < cos_theta) break;
+                    if (k == 0 || d2 > bound) bound = d2;
+                }
+                if (k < n) bound = HUGE_VAL;
+            }
+            found = gim__nb_query(&tree, pd, nd, any, cos_theta, n, bound, bd, bi);
         } else {
             ++no_position;
         }
@@ -1191,6 +1207,7 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
                  "%u vertices with a non-finite position got none", no_normal, no_position);
     gim__free(env, tree.node);
     gim__free(env, tree.slot);
+    gim__free(env, cn);
     gim__free(env, vn);
     return GIM_OK;
 }
