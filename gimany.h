@@ -2749,15 +2749,6 @@ static const char *gim__blob_check_cache(const gim_cache *c) {
     return NULL;
 }
 
-/* Free a set's caches with its own allocator and zero it (gim_cache_set_free's body). */
-static GIM__UNUSED void gim__cache_set_release(gim_cache_set *set) {
-    gim_env env;
-    if (!set) return;
-    env = set->env;
-    gim__free(&env, set->caches);
-    memset(set, 0, sizeof *set);
-}
-
 GIMANY_DEF size_t gim_cache_blob_size(const gim_cache_set *set) {
     uint64_t total;
     if (!set) return 0;
@@ -2879,7 +2870,7 @@ GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env
         c->normal[0] = gim__getf(r + 16); c->normal[1] = gim__getf(r + 20); c->normal[2] = gim__getf(r + 24);
         c->reflectance = gim__getf(r + 28);
         if ((why = gim__blob_check_cache(c)) != NULL) {
-            gim__cache_set_release(&set);
+            gim_cache_set_free(&set);
             return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "cache %u: %s", i, why);
         }
     }

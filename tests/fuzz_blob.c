@@ -32,7 +32,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             if (gim__blob_check_cache(&set.caches[i])) abort();
         if (gim_cache_blob_write(&set, again, n) != GIM_OK || memcmp(again, in, n) != 0) abort();
         free(again);
-        gim__cache_set_release(&set);
+        gim_cache_set_free(&set);
     } else if (r != GIM_ERROR_CORRUPT_DATA && r != GIM_ERROR_OUT_OF_MEMORY) {
         abort();
     }

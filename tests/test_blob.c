@@ -60,7 +60,7 @@ static void round_trip_bit_exact(void **state) {
     /* written again: the same bytes */
     assert_int_equal(gim_cache_blob_write(&back, blob2, size), GIM_OK);
     assert_memory_equal(blob, blob2, size);
-    gim__cache_set_release(&back);
+    gim_cache_set_free(&back);
     assert_int_equal(st.live, 0);
     assert_null(back.caches);
     assert_int_equal(back.count, 0);
@@ -120,7 +120,7 @@ static void every_corruption_and_truncation(void **state) {
     }
     assert_int_equal(st.live, 0);
     assert_int_equal(gim_cache_blob_read(blob, sizeof blob, env, &back), GIM_OK);
-    gim__cache_set_release(&back);
+    gim_cache_set_free(&back);
     assert_int_equal(st.live, 0);
 }
 
@@ -218,8 +218,8 @@ static void writer_and_argument_errors(void **state) {
     k = st.allocs;
     assert_int_equal(gim_cache_blob_read(blob, S, set.env, &back), GIM_OK);
     assert_int_equal(st.allocs - k, 1);
-    gim__cache_set_release(&back);
-    gim__cache_set_release(NULL);
+    gim_cache_set_free(&back);
+    gim_cache_set_free(NULL);
     assert_int_equal(st.live, 0);
 }
 
