@@ -1,28 +1,15 @@
 /* GL pass timings (medians, wall time around glFinish) on whatever EGL gives: llvmpipe in CI,
    where only ratios within one run mean anything. Also the case for the double scan of eq. 12:
    the same three shaders with double replaced by float, timed, and the error they make. */
-#define _POSIX_C_SOURCE 199309L
+#include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include <time.h>
 
 #define RUNS 7
 
-static double now_ms(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
-}
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 
-static double median(double *v, int n) {
-    qsort(v, (size_t)n, sizeof *v, cmp_double);
-    return v[n / 2];
-}
 
 static GLuint ssbo(size_t bytes, const void *data) {
     GLuint b = 0;

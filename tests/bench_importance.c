@@ -1,7 +1,7 @@
 /* Importance sampling benchmarks (medians): the eq. 10-11 map at 256^2 x 256 view samples,
    and selecting 8192 VALs from a 2048^2 map (eq. 12 tables and the binary searches timed
    separately). CPU only. */
-#define _POSIX_C_SOURCE 199309L
+#include "benchutil.h"
 #ifndef GIMANY_NO_GL
 #define GIMANY_NO_GL
 #endif
@@ -11,19 +11,6 @@
 #include <stdlib.h>
 #include <time.h>
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-static double median(double *t, int n) {
-    qsort(t, (size_t)n, sizeof(double), cmp_double);
-    return t[n / 2];
-}
 static uint64_t rng = 0x9e3779b97f4a7c15ull;
 static double rand01(void) { /* splitmix64 */
     uint64_t z = (rng += 0x9e3779b97f4a7c15ull);

@@ -4,7 +4,7 @@
    The timed frame is the next one: the spot moved by 1% of the room, the same Halton points
    (as Dong and SSVP keep them) slid by 0.5% across each surface. "warm" starts from the
    previous frame's converged centres, "fixed" from the fixed seeds. */
-#define _POSIX_C_SOURCE 199309L
+#include "benchutil.h"
 #define GIMANY_NO_GL
 #define GIMANY_IMPLEMENTATION
 #include "gimany.h"
@@ -15,16 +15,7 @@
 
 enum { N = 8192, M = 32, RUNS = 15 };
 
-static double now_ms(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
-}
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 
 /* One frame of VPLs: spot centre (sx, sy) in each plane's (u, v); the points slide by slide. */
 static void make_vpls(float *pos, float *nrm, float *flux, float sx, float sy, float slide) {

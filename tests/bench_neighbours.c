@@ -1,23 +1,12 @@
 /* Benchmark: neighbour caches (n = 16) for 1M vertices x 10k caches on the faces of a box
    (a room), the same with flipped vertex normals (a hard case: the nearest compatible caches
    are on the opposite wall), and blob write/read of the 10k caches. Prints medians. */
-#define _POSIX_C_SOURCE 199309L
+#include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gimany.h"
 #include <stdio.h>
 #include <stdlib.h>
 #include <time.h>
-
-static double now_s(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
-static double median(double *v, int n) { qsort(v, (size_t)n, sizeof *v, cmp_double); return v[n / 2]; }
 
 static uint32_t rng = 12345u;
 static float rnd(void) { rng = rng * 1664525u + 1013904223u; return (float)(rng >> 8) * (1.0f / 16777216.0f); }

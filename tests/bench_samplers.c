@@ -1,5 +1,5 @@
 /* Benchmark: Halton and Hammersley throughput (points per second, median of runs). */
-#define _POSIX_C_SOURCE 200809L /* clock_gettime under -std=c99 */
+#include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #define GIMANY_NO_GL
 #include "gimany.h"
@@ -7,15 +7,6 @@
 #include <stdlib.h>
 #include <time.h>
 
-static double now_s(void) {
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
 
 enum { RUNS = 11, N = 1 << 20 };
 
