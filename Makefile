@@ -15,6 +15,7 @@ CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
 GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
 BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c)))
 FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
+FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of examples/scene.cpp, rule in 'ground truth'
 SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
 FUZZ_SECONDS ?= 300
 FUZZ_SHORT  ?= 15
@@ -97,6 +98,10 @@ $(B)/gimany-reference: $(B)/ref/scene.o $(B)/ref/reference.o $(B)/ref/main.o
 $(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o $(B)/gimany-reference $(REF_HDRS)
 	gcc $(CSTD) $(WARN) -fsyntax-only -Iexamples -x c examples/scene.h tools/reference/reference.h
 	$(REF_CXX) -O1 -g $(SAN) -DREF_BIN='"$(B)/gimany-reference"' $< $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o -o $@ -lcmocka -lembree3 -pthread
+
+$(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h
+	@mkdir -p $(@D)
+	clang++ -std=c++11 -Iexamples -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< examples/scene.cpp -o $@
 
 reference:
 	@$(DEPS) build examples reference

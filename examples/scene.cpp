@@ -189,18 +189,11 @@ void finish(builder &b, scene *out) {
     scene s;
     std::memset(&s, 0, sizeof s);
     try {
-        std::vector<scene_mesh> ms;
-        for (auto &m : b.meshes) {
-            if (m.idx.empty()) continue;
-            scene_mesh sm;
-            std::memset(&sm, 0, sizeof sm);
-            sm.vertex_count = (uint32_t)(m.pos.size() / 3);
-            sm.triangle_count = (uint32_t)(m.idx.size() / 3);
-            ms.push_back(sm);
-            s.meshes = nullptr;
-        }
-        s.mesh_count = (uint32_t)ms.size();
-        s.meshes = static_cast<scene_mesh *>(std::calloc(ms.size() ? ms.size() : 1, sizeof(scene_mesh)));
+        uint32_t count = 0;
+        for (auto &m : b.meshes)
+            if (!m.idx.empty()) ++count;
+        s.mesh_count = count;
+        s.meshes = static_cast<scene_mesh *>(std::calloc(count ? count : 1, sizeof(scene_mesh)));
         if (!s.meshes) fail("out of memory");
         size_t k = 0;
         for (auto &m : b.meshes) {
@@ -222,6 +215,10 @@ void finish(builder &b, scene *out) {
         throw;
     }
     s.camera = b.camera;
+    if (!s.camera.width || !s.camera.height) { /* the options' default; scene_load sets --size */
+        s.camera.width = 640;
+        s.camera.height = 360;
+    }
     s.warning_count = b.warnings;
     std::snprintf(s.warning, sizeof s.warning, "%s", b.first_warning.c_str());
     std::snprintf(s.name, sizeof s.name, "%s", b.name.c_str());
@@ -518,12 +515,15 @@ std::vector<double> read_accessor(const gl::Model &m, int index, int ncomp, cons
     size_t count = a.count, elem = cs * (size_t)ncomp;
     if (count > ((size_t)1 << 31)) fail("%s: accessor %d has too many elements (%zu)", what, index, count);
     std::vector<double> out;
-    out.assign(count * (size_t)ncomp, 0.0);
+    if (a.bufferView < 0 && count > ((size_t)1 << 24))
+        fail("%s: accessor %d has %zu elements and no buffer view", what, index, count);
     if (a.bufferView >= 0) {
-        view_span v = checked_view(m, a.bufferView, a.byteOffset, count, elem, what);
+        view_span v = checked_view(m, a.bufferView, a.byteOffset, count, elem, what); /* before allocating */
+        out.assign(count * (size_t)ncomp, 0.0);
         for (size_t i = 0; i < count; ++i)
             for (int c = 0; c < ncomp; ++c) out[i * ncomp + c] = read_component(v.base + i * v.stride + c * cs, a.componentType);
-    }
+    } else
+        out.assign(count * (size_t)ncomp, 0.0);
     if (a.sparse.isSparse) {
         size_t n = (size_t)std::max(a.sparse.count, 0);
         int ict = a.sparse.indices.componentType;
@@ -823,7 +823,10 @@ struct gltf_loader {
         for (int r : roots) node(r, identity(), 0);
         size_t tris = 0;
         for (auto &m : b.meshes) tris += m.idx.size() / 3;
-        if (tris == 0) fail("the file has no triangles in its scene");
+        if (tris == 0) {
+            if (skipped_primitives) fail("the file has no triangles in its scene (%u primitives of points or lines skipped)", skipped_primitives);
+            fail("the file has no triangles in its scene");
+        }
         if (tris > 0xffffffffu) fail("too many triangles");
         vec3 lo, hi;
         builder_bounds(b, lo, hi);
@@ -960,7 +963,9 @@ void run_file(void *p, builder &b) {
 void run_builtin(void *p, builder &b) {
     const char *name = static_cast<const char *>(p);
     if (std::strcmp(name, "cornell") == 0) build_cornell(b);
-    else fail("unknown built-in scene '%s' (cornell, street)", name);
+    else if (std::strcmp(name, "street") == 0)
+        fail("the street scene is not built in yet (it waits for tests/street.h); use --scene cornell or a glTF file");
+    else fail("unknown built-in scene '%s' (cornell, street, or a .gltf/.glb path)", name);
 }
 
 /* ---- argument parsing ----------------------------------------------------------------------- */

@@ -614,6 +614,11 @@ void options_apply(void **) {
     double px = (c[0] / c[3] * 0.5 + 0.5) * 20, py = (0.5 - c[1] / c[3] * 0.5) * 10;
     assert_true(std::fabs(px - 0.5) < 1e-3 && std::fabs(py - 0.5) < 1e-3);
     scene_free(&s);
+    /* loaders alone give the options' default size */
+    assert_int_equal(scene_builtin("cornell", &s, err, sizeof err), 0);
+    assert_int_equal(s.camera.width, 640);
+    assert_int_equal(s.camera.height, 360);
+    scene_free(&s);
     assert_int_equal(parse({"--scene", "nosuch"}, 0, &o, err), SCENE_ARGS_OK);
     assert_int_not_equal(scene_load(&o, &s, err, sizeof err), 0);
     assert_non_null(std::strstr(err, "nosuch"));
