@@ -13,7 +13,7 @@ DEPS    := tools/install-deps.sh
 HDRS        := gimany.h shaders_embedded.h $(wildcard tests/*.h)
 CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
 GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
-BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c)))
+BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c tests/bench_*.cpp)))
 FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
 FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of examples/scene.cpp, rule in 'ground truth'
 SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
@@ -112,7 +112,12 @@ $(B)/bench/%: tests/%.c $(HDRS)
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O2 -march=native -DNDEBUG $< -o $@ -lEGL -lGL -lm
 
+$(B)/bench/%: tests/%.cpp $(HDRS) 
+	@mkdir -p $(@D)
+	g++ -std=c++11 -O2 -march=native -DNDEBUG $(INC) -I/usr/include/stb $< -o $@ -lm
+
 bench: deps
+	@$(DEPS) examples
 	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES))
 	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
 

@@ -16,6 +16,8 @@
 
    CONFIG MACROS (define before the include that has GIMANY_IMPLEMENTATION)
      GIMANY_NO_GL          drop the GL runtime: only the CPU parts, no GL header needed
+     GIMANY_EXTERNAL_GL    the host has its own GL loader: gimany calls its gl* functions
+                           instead of loading them from gim_desc.get_proc_address
      GIMANY_STATIC         make every function static (private to one translation unit)
      GIMANY_API            linkage of public functions (default: extern)
      GIMANY_MALLOC(sz,u) / GIMANY_FREE(p,u)
@@ -30,7 +32,7 @@
      Nothing in gimany calls exit() or abort(); outputs are left untouched on error unless a
      function says otherwise.
 
-   UNITS (see DESIGN.md sec. 4)
+   UNITS
      Linear radiometry in float. Lengths are in the host's unit; every length threshold is
      relative to a scene scale (the diagonal of the scene bounds unless given), so the same
      scene in millimetres or kilometres gives the same numbers.
@@ -45,6 +47,15 @@
          gim_kmeans_result kr;                                caller-owned arrays, sized by counts
          ...
          if (gim_kmeans(&kd, &kr) != GIM_OK) { ... }
+
+   EXAMPLE (GL runtime; a GL 4.3 context current on this thread)
+         gim_desc d = {0};
+         d.get_proc_address = (gim_gl_proc (*)(const char *))glfwGetProcAddress;
+         d.env.logger.func = gim_log_stderr;
+         gim_context *ctx;
+         if (gim_create(&d, &ctx) != GIM_OK) { ... }         too old a context: GIM_ERROR_UNSUPPORTED
+         ...
+         gim_destroy(ctx);
 
    METHODS (each one setting of the same runtime)
      RSM gather          fixed RSM samples per pixel, no visibility (Dachsbacher 2005; baseline)
@@ -203,49 +214,76 @@ GIMANY_API gim_vec3 gim_square_to_cosine_hemisphere(float u, float v);
 
 /* @section kmeans ========================================================================= */
 /* k-means of VPLs (position, normal, flux) into clusters, each standing for a virtual area
-   light (Dong et al. sec. 5; SSVP sec. 3). Deterministic: same input, same output. */
+   light (Dong et al. sec. 5; SSVP sec. 3). Deterministic: same input, same output, bit for bit.
 
-/* Distance between a VPL and a cluster centre. */
+   Structure (the CPU twin of a GPU pass): each iteration is an assignment step, an independent
+   argmin over the M centres per VPL, then an update step, per-cluster sums in double in VPL
+   index order. A VPL changes cluster only for a strictly smaller distance (ties keep it; with
+   no previous cluster the lowest index wins), so coincident points settle.
+   Means: a VPL weighs its mean rgb flux (r+g+b)/3 (all 1 when flux is NULL); centre, normal
+     and sigma of a cluster are weighted means, so a VAL sits where its light comes from and
+     unlit VPLs do not drag it (Dong averages unweighted); a cluster whose VPLs all have zero
+     flux falls back to the plain mean (weights 1). The normal is the normalised weighted mean
+     normal; where the normals cancel (|sum| <= 1e-9 * sum of weights) it keeps its previous
+     normal. Positions are taken relative to the centre of the VPL bounds, in double, so a
+     scene far from the origin loses no precision.
+   Empty clusters are repaired, never lost: for each empty cluster (index order) the cluster
+     with the largest error (sum of its VPLs' distances; ties: more VPLs, then lower index)
+     among those with two or more VPLs gives up its farthest VPL (ties: lowest index), which
+     seeds the empty cluster. Every returned cluster has count >= 1.
+   Convergence: stops when an assignment step changes no VPL, or after max_iterations steps.
+     The outputs are always consistent: centres, normals, flux, counts, area and sigma are
+     those of the returned assignment.
+   Area (Dong 6): the smallest rectangle, over all in-plane rotations, bounding the cluster's
+     VPLs projected on the plane of its normal; a rectangle aligned to some tangent frame would
+     jump whenever the frame flips, and the soft shadows with it.
+   M > N is an error (GIM_ERROR_INVALID_ARGUMENT): every cluster needs a VPL; M == N gives one
+     VPL per cluster (when their positions/normals differ). Summed flux beyond FLT_MAX or VPL
+     bounds wider than 1.8e19 (areas beyond FLT_MAX) give GIM_ERROR_OUT_OF_RANGE. */
+
+/* Distance between a VPL and a cluster centre; s is the scene scale. */
 typedef enum gim_kmeans_metric {
     GIM_KMEANS_METRIC_DEFAULT = 0,  /* = DONG */
-    GIM_KMEANS_METRIC_DONG,         /* w_x * |x_i - c_j| / scene_scale + w_a * acos(n_i . n_j) / pi */
-    GIM_KMEANS_METRIC_SSVP          /* w_x * |x_i - c_j|^2 / scene_scale^2 + w_a * (1 - n_i . n_j): SSVP eq. 2 with its slip corrected */
+    GIM_KMEANS_METRIC_DONG,         /* Dong 5.1: w_x * |x_i - c_j| / s + w_a * acos(n_i . n_j) / pi; default w 0.7 / 0.3 */
+    GIM_KMEANS_METRIC_SSVP          /* SSVP eq. 2, its sign slip corrected: w_x * |x_i - c_j| / s + w_a * (1 - max(n_i . n_j, 0));
+                                       default w 0.6 / 0.4 (the paper's) */
 } gim_kmeans_metric;
 
 /* Where the iteration starts. */
 typedef enum gim_kmeans_init {
     GIM_KMEANS_INIT_DEFAULT = 0,    /* = FIXED */
-    GIM_KMEANS_INIT_FIXED,          /* cluster k seeded by VPL floor(k * N / M): the same every frame (Dong 5.2) */
-    GIM_KMEANS_INIT_WARM            /* start from init_centres/init_normals (the previous frame's) */
+    GIM_KMEANS_INIT_FIXED,          /* cluster k seeded by VPL floor(k * N / M): the same every frame (Dong 5.2, 6) */
+    GIM_KMEANS_INIT_WARM            /* start from init_centres/init_normals (the previous frame's; SSVP 3.B) */
 } gim_kmeans_init;
 
 /* Input of gim_kmeans; zero means default. Arrays are float3 per VPL. */
 typedef struct gim_kmeans_desc {
-    const float *positions;     /* vpl_count * 3 */
-    const float *normals;       /* vpl_count * 3, unit length (renormalised internally) */
-    const float *flux;          /* vpl_count * 3, rgb, >= 0; NULL: every VPL weighs 1 */
+    const float *positions;     /* vpl_count * 3, finite */
+    const float *normals;       /* vpl_count * 3, non-zero (renormalised internally) */
+    const float *flux;          /* vpl_count * 3, rgb, finite, >= 0; NULL: every VPL weighs 1 */
     uint32_t vpl_count;         /* N > 0 */
-    uint32_t cluster_count;     /* M > 0; M > N gives N non-empty clusters and M - N empty ones */
+    uint32_t cluster_count;     /* M, 0 < M <= N */
     gim_kmeans_metric metric;
     gim_kmeans_init init;
     const float *init_centres;  /* WARM: cluster_count * 3 */
-    const float *init_normals;  /* WARM: cluster_count * 3 */
-    float w_x, w_a;             /* metric weights, default 0.7 / 0.3 */
-    float scene_scale;          /* length unit of the position term; default: diagonal of the VPL bounds */
-    uint32_t max_iterations;    /* default 16 */
+    const float *init_normals;  /* WARM: cluster_count * 3, non-zero */
+    float w_x, w_a;             /* metric weights >= 0; both 0: the metric's defaults (one may be 0) */
+    float scene_scale;          /* length unit of the position term; 0: diagonal of the VPL bounds */
+    uint32_t max_iterations;    /* cap on assignment steps, <= 4096; 0: 16 */
     gim_env env;
 } gim_kmeans_desc;
 
-/* Output of gim_kmeans: caller-owned arrays sized by the desc's counts. */
+/* Output of gim_kmeans: caller-owned arrays sized by the desc's counts; untouched on error. */
 typedef struct gim_kmeans_result {
-    float *centres;        /* M * 3: flux-weighted mean position (required) */
-    float *normals;        /* M * 3: normalised flux-weighted mean normal (required) */
-    float *flux;           /* M * 3: summed flux, or NULL */
-    uint32_t *counts;      /* M: VPLs per cluster, or NULL */
+    float *centres;        /* M * 3: weighted mean position (required) */
+    float *normals;        /* M * 3: normalised weighted mean normal (required) */
+    float *flux;           /* M * 3: summed flux (zero when the desc's flux is NULL), or NULL */
+    uint32_t *counts;      /* M: VPLs per cluster (>= 1), or NULL */
     uint32_t *assignment;  /* N: cluster of each VPL, or NULL */
-    float *area;           /* M: area of the 2D bounding rectangle in the plane of the mean normal, or NULL */
-    float *sigma;          /* M * 3: positional standard deviation per world axis, or NULL */
-    uint32_t iterations;   /* written: iterations run */
+    float *area;           /* M: area of the VAL's rectangle (see above); VPLs of zero flux emit
+                              nothing and count only in a cluster without flux; or NULL */
+    float *sigma;          /* M * 3: weighted positional standard deviation per world axis, or NULL */
+    uint32_t iterations;   /* written: assignment steps run (below the cap, the last changed nothing) */
     uint32_t empty_repaired; /* written: clusters re-seeded because they went empty */
 } gim_kmeans_result;
 
@@ -291,9 +329,10 @@ typedef struct gim_cache {
 /* What the generator skipped or did, for the host's log. */
 typedef struct gim_cache_report {
     uint32_t triangles_used;
-    uint32_t triangles_degenerate;   /* zero area or collinear */
+    uint32_t triangles_degenerate;   /* zero area or collinear (area < 1e-7 x longest edge^2 / 2) */
     uint32_t triangles_nonfinite;    /* a NaN/Inf coordinate */
-    uint32_t triangles_duplicate;    /* same three vertex positions as an earlier triangle */
+    uint32_t triangles_duplicate;    /* same three vertex positions as an earlier triangle, same
+                                        winding (the reversed one is the other face of a wall) */
     uint32_t voxels;                 /* occupied voxels */
     uint32_t caches_before_merge;
     uint32_t caches_snapped;         /* floating caches moved onto the nearest triangle */
@@ -304,7 +343,7 @@ typedef struct gim_cache_report {
 typedef struct gim_cache_desc {
     gim_mesh_data mesh;
     float d_eps;          /* max cache-to-surface distance; default scene_scale / 32 */
-    float theta_eps;      /* max normal deviation in radians; default 30 degrees */
+    float theta_eps;      /* max normal deviation in radians, (0, pi/2]; default 30 degrees */
     float scene_scale;    /* default: diagonal of the mesh bounds */
     int no_snap;          /* 1: keep floating caches where averaging put them */
     int no_merge;         /* 1: skip joining similar caches of neighbouring voxels */
@@ -320,7 +359,12 @@ typedef struct gim_cache_set {
     gim_env env;             /* allocator that owns caches */
 } gim_cache_set;
 
-/* Generate caches for one mesh; out is written only on GIM_OK. */
+/* Generate caches for one mesh; out is written only on GIM_OK. Every surface point lies within
+   d_eps of a cache whose normal is within theta_eps of its own; the cache areas partition the
+   used surface; degenerate, non-finite and duplicate triangles are skipped and counted, an
+   out-of-range index or material is GIM_ERROR_INVALID_ARGUMENT, a d_eps too small for the
+   mesh extent GIM_ERROR_OUT_OF_RANGE. Deterministic; single-threaded; memory linear in the
+   voxel pieces (about one per triangle, plus one per voxel a large triangle crosses). */
 GIMANY_API gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_set *out);
 /* Free what gim_cache_generate or gim_cache_blob_read allocated; NULL or zeroed is fine. */
 GIMANY_API void gim_cache_set_free(gim_cache_set *set);
@@ -360,7 +404,24 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env
 /* Bidirectional importance sampling of the RSM (paper 000 sec. 4, after Ritschel 2011).
    Every RSM texel is a VAL; its importance is its flux luminance times a geometry term
    averaged over view samples (eq. 10), with the squared distance clamped below at
-   (clamp * scene_scale)^2 (eq. 11 made unit-free). */
+   (clamp * scene_scale)^2 (eq. 11 made unit-free). Three steps, each the CPU twin of a GPU
+   pass with the same structure:
+     gim_importance_map     one independent value per texel (a compute thread per texel)
+     gim_importance_cumsum  a scan down every column, then a scan along the column totals
+     gim_importance_select  one independent binary search per selected VAL
+   Distances are measured in scene scales, so the map is in units of flux and the same scene
+   in millimetres or kilometres gives the same map (bit for bit for power-of-two scalings).
+
+   Default clamp, 1/64 of the scene scale: the paper clamps at 1 world unit in an urban scene a
+   few hundred metres across (about 1/300 of its diagonal), which is a unit, not a choice. The
+   importance only steers which VALs reach the caches, and the light is gathered at caches
+   spaced d_eps = scene_scale / 32 (the cache default), so distances below about d_eps / 2 are
+   not resolved by any receiver. A smaller clamp only sharpens the 1/d^2 peak of texels lying
+   next to one of the few hundred view samples: at 1/64 one such pair adds at most
+   64^2 = 4096 to the sum of eq. 10, a few times what a typical texel collects from all 512
+   samples (~512 x 0.3 / 0.1 at a third of the scene away); at 1/300 it would add 90000, and
+   those few texels would soak up the selections (and flicker as the view samples move)
+   without lighting the caches any better. */
 
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
@@ -371,23 +432,32 @@ typedef struct gim_view_sample {
 /* Input of gim_importance_map. The RSM arrays are width * height, row-major, row 0 first. */
 typedef struct gim_importance_desc {
     const float *rsm_position;  /* width * height * 3: world position of each texel */
-    const float *rsm_normal;    /* width * height * 3: unit normal */
+    const float *rsm_normal;    /* width * height * 3: unit normal (renormalised; zero: no importance) */
     const float *rsm_flux;      /* width * height * 3: reflected flux, rgb */
-    const float *rsm_valid;     /* width * height, or NULL: 0 where the RSM saw nothing */
+    const float *rsm_valid;     /* width * height, or NULL: a texel counts only where > 0 */
     uint32_t width, height;
-    const gim_view_sample *view_samples;
+    const gim_view_sample *view_samples; /* a NaN/Inf or zero-normal sample sees nothing (warning) */
     uint32_t view_sample_count;
     float scene_scale;          /* > 0 */
-    float clamp;                /* eq. 11 clamp distance in scene scales; default 1/64 */
+    float clamp;                /* eq. 11 clamp distance in scene scales; default 1/64 (see above) */
     gim_env env;
 } gim_importance_desc;
 
-/* eq. 10-11: importance of every texel into out[width * height]. */
+/* eq. 10-11: importance of every texel into out[width * height]:
+     I = lum(Phi)+ / N_VS * sum_j (n_l . d)+ (n_VS . -d)+ / max(|l|^2 / scene_scale^2, clamp^2)
+   with l = VS_j - VAL, d = l / |l|. An invalid texel (rsm_valid <= 0, a NaN/Inf in its
+   position, normal or flux, a zero normal) gets 0, so does a view sample at the texel itself;
+   every output is finite and >= 0 (clamped at FLT_MAX). */
 GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float *out);
 
 /* The two tables of eq. 12, built in double so P stays exact at 4096^2:
    column[y * width + x] = sum over rows 0..y of map(x, .)   (vertical, per column),
-   row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals). */
+   row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals).
+   Every map value must be finite and >= 0; otherwise GIM_ERROR_INVALID_ARGUMENT and the
+   tables' contents are unspecified. The only rounding that matters: a texel (a column) below
+   2^-53 of the running sum it joins may add nothing to it; it can then never be picked, which
+   keeps the selection consistent with the pdf, and the mass lost is below
+   (width + height) x 2^-53 of the total. */
 GIMANY_API gim_result gim_importance_cumsum(const float *map, uint32_t width, uint32_t height,
                                             double *column, double *row, gim_env env);
 
@@ -397,10 +467,23 @@ typedef struct gim_selected_val {
     float pdf;                  /* P_VAL = map(x,y) / total; > 0 for every selected texel */
 } gim_selected_val;
 
-/* Pick count texels with probability proportional to the map by binary search in the
-   cumulative sums, one stratified sample each: u_i = (i + xi) / count with xi the Halton
-   sequence rotated by seed. An all-zero (or all-invalid) map selects the texels uniformly
-   (pdf = 1 / (width * height)) and logs a warning: the estimator stays unbiased. */
+/* Pick count texels with probability proportional to the map. Sample i takes the point
+     u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
+   of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
+   o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
+   column (first x with row[x] > u_i * total), v_i the texel in it (first y with
+   column(x, y) > v_i * column total). Over the seeds every u_i and v_i alone is uniform, so
+   every sample is distributed exactly as P; within one call the u_i are stratified, so
+   column x gets count * P(column x) samples rounded up or down.
+   pdf is the probability the tables realise, from their differences:
+     P = (row[x] - row[x-1]) / total * (column(x, y) - column(x, y-1)) / column total,
+   > 0 (a texel of importance 0 is never picked), clamped below at FLT_MIN so 1/pdf stays
+   finite. An all-zero (or all-invalid) map selects the texels uniformly,
+   (floor(u_i * width), floor(v_i * height)) with pdf = 1 / (width * height), and logs a
+   warning: the estimator stays unbiased. Tables that are not cumulative sums are
+   GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
+   negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
+   positive difference (out is then partly written). */
 GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
                                             uint32_t width, uint32_t height, uint32_t count,
                                             uint32_t seed, gim_selected_val *out, gim_env env);
@@ -412,7 +495,37 @@ GIMANY_API gim_result gim_importance_select(const double *column, const double *
 #endif
 
 /* @section gl ============================================================================= */
+/* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
+   host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
+   the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
+   every call below. Every call that touches GL leaves the GL state as it found it. */
 #ifndef GIMANY_NO_GL
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
+typedef void (*gim_gl_proc)(void);
+
+/* Input of gim_create; zero means default. */
+typedef struct gim_desc {
+    gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
+    gim_env env;                                        /* allocator and log of the context */
+} gim_desc;
+
+/* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
+typedef struct gim_context gim_context;
+
+/* Create a context for the current GL context: loads the GL functions, checks for GL 4.3
+   (GIM_ERROR_UNSUPPORTED, with what is missing logged), logs the renderer. Shaders are
+   compiled lazily on first use. *out is written only on GIM_OK. */
+GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
+/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine. */
+GIMANY_API void gim_destroy(gim_context *ctx);
+
+#ifdef __cplusplus
+}
+#endif
 #endif /* GIMANY_NO_GL */
 
 #endif /* GIMANY_H */
@@ -838,14 +951,1582 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 
 /* @impl kmeans ============================================================================ */
 
+#define GIM__KMEANS_NONE 0xffffffffu
+
+/* Working state of one gim_kmeans call; positions relative to the anchor (bounds centre). */
+typedef struct gim__kmeans {
+    uint32_t n, m;
+    int dong;              /* 1: Dong's angle term, 0: SSVP's (1 - max(cos, 0)) */
+    double wx_s, wa;       /* w_x / scene_scale; w_a (/ pi for Dong) */
+    double *p, *nrm, *w;   /* n*3, n*3 unit, n weights */
+    double *best;          /* n: distance of each VPL to its cluster, from the last assignment */
+    double *cen, *cnrm;    /* m*3 centres (relative), m*3 unit normals */
+    double *acc;           /* m * GIM__KMEANS_ACC sums of the update step */
+    uint32_t *assign, *count;
+} gim__kmeans;
+
+enum { GIM__KMEANS_ACC = 14 }; /* W, sum w p[3], sum w n[3], sum p[3], sum n[3], error */
+
+/* The direction term of the metric for cos = n_i . n_j. */
+static double gim__kmeans_dir(const gim__kmeans *k, double c) {
+    if (k->dong) return k->wa * acos(c > 1.0 ? 1.0 : (c < -1.0 ? -1.0 : c)); /* Dong 5.1: angle */
+    return k->wa * (1.0 - (c > 0.0 ? c : 0.0));                            /* SSVP eq. 2, slip fixed */
+}
+
+/* Assignment step: for each VPL independently, the centre at the smallest distance; it leaves
+   its current cluster only for a strictly smaller one. Returns the number of VPLs that moved.
+   The position term alone bounds the distance from below (the direction term is >= 0), so a
+   centre whose position term already reaches the best is skipped without changing the result. */
+static uint32_t gim__kmeans_assign(gim__kmeans *k) {
+    uint32_t i, j, moved = 0;
+    for (i = 0; i < k->n; ++i) {
+        const double *x = k->p + (size_t)i * 3, *nx = k->nrm + (size_t)i * 3;
+        uint32_t cur = k->assign[i], arg = cur;
+        const double x0 = x[0], x1 = x[1], x2 = x[2], wx_s = k->wx_s;
+        double bd = HUGE_VAL, r2 = HUGE_VAL; /* best distance; squared distance of sure losers */
+        if (cur != GIM__KMEANS_NONE) {
+            const double *c = k->cen + (size_t)cur * 3, *cn = k->cnrm + (size_t)cur * 3;
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            bd = wx_s * sqrt(dx * dx + dy * dy + dz * dz) +
+                 gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
+            if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9); /* margin: skip only sure losers */
+        }
+        for (j = 0; j < k->m; ++j) {
+            const double *c = k->cen + (size_t)j * 3, *cn;
+            double dx = x0 - c[0], dy = x1 - c[1], dz = x2 - c[2];
+            double d2 = dx * dx + dy * dy + dz * dz, pos, d;
+            if (d2 > r2 || j == cur) continue;
+            pos = wx_s * sqrt(d2);
+            if (!(pos < bd)) continue;
+            cn = k->cnrm + (size_t)j * 3;
+            d = pos + gim__kmeans_dir(k, nx[0] * cn[0] + nx[1] * cn[1] + nx[2] * cn[2]);
+            if (d < bd) {
+                bd = d; arg = j;
+                if (wx_s > 0.0) r2 = (bd / wx_s) * (bd / wx_s) * (1.0 + 1e-9);
+            }
+        }
+        if (arg != cur) ++moved;
+        k->assign[i] = arg;
+        k->best[i] = bd;
+    }
+    return moved;
+}
+
+/* Counts and errors per cluster, then the repair of empty clusters (see the header).
+   Returns the number of clusters re-seeded. */
+static uint32_t gim__kmeans_repair(gim__kmeans *k) {
+    uint32_t i, j, c, repaired = 0;
+    double *err = k->acc; /* column 13 of acc holds the error */
+    for (j = 0; j < k->m; ++j) { k->count[j] = 0; err[(size_t)j * GIM__KMEANS_ACC + 13] = 0.0; }
+    for (i = 0; i < k->n; ++i) {
+        k->count[k->assign[i]]++;
+        err[(size_t)k->assign[i] * GIM__KMEANS_ACC + 13] += k->best[i];
+    }
+    for (j = 0; j < k->m; ++j) {
+        uint32_t donor = GIM__KMEANS_NONE, far = GIM__KMEANS_NONE;
+        double de = -1.0, fd = -1.0;
+        if (k->count[j] != 0) continue;
+        for (c = 0; c < k->m; ++c) {
+            double e = err[(size_t)c * GIM__KMEANS_ACC + 13];
+            if (k->count[c] < 2) continue;
+            if (donor == GIM__KMEANS_NONE || e > de || (e == de && k->count[c] > k->count[donor])) {
+                donor = c; de = e;
+            }
+        }
+        GIMANY_ASSERT(donor != GIM__KMEANS_NONE); /* M <= N: some cluster has two VPLs */
+        if (donor == GIM__KMEANS_NONE) break;
+        for (i = 0; i < k->n; ++i)
+            if (k->assign[i] == donor && k->best[i] > fd) { fd = k->best[i]; far = i; }
+        k->assign[far] = j;
+        k->count[donor]--; k->count[j] = 1;
+        de -= fd;
+        err[(size_t)donor * GIM__KMEANS_ACC + 13] = de > 0.0 ? de : 0.0;
+        /* it seeds the cluster: the centre moves onto it in the update step */
+        k->best[far] = 0.0;
+        ++repaired;
+    }
+    return repaired;
+}
+
+/* Update step: per-cluster sums in VPL index order, then weighted means (sec. "Means"). */
+static void gim__kmeans_update(gim__kmeans *k) {
+    uint32_t i, j;
+    int a;
+    for (j = 0; j < k->m; ++j) {
+        double *s = k->acc + (size_t)j * GIM__KMEANS_ACC;
+        for (a = 0; a < 13; ++a) s[a] = 0.0;
+    }
+    for (i = 0; i < k->n; ++i) {
+        double *s = k->acc + (size_t)k->assign[i] * GIM__KMEANS_ACC;
+        const double *x = k->p + (size_t)i * 3, *nx = k->nrm + (size_t)i * 3;
+        double w = k->w[i];
+        s[0] += w;
+        for (a = 0; a < 3; ++a) {
+            s[1 + a] += w * x[a]; s[4 + a] += w * nx[a];
+            s[7 + a] += x[a];     s[10 + a] += nx[a];
+        }
+    }
+    for (j = 0; j < k->m; ++j) {
+        const double *s = k->acc + (size_t)j * GIM__KMEANS_ACC;
+        double *c = k->cen + (size_t)j * 3, *cn = k->cnrm + (size_t)j * 3;
+        int plain = !(s[0] > 0.0); /* all-zero flux: plain mean */
+        double wsum = plain ? (double)k->count[j] : s[0], len;
+        const double *sp = plain ? s + 7 : s + 1, *sn = plain ? s + 10 : s + 4;
+        if (k->count[j] == 0) continue; /* cannot happen after the repair; keep the old centre */
+        for (a = 0; a < 3; ++a) c[a] = sp[a] / wsum;
+        len = sqrt(sn[0] * sn[0] + sn[1] * sn[1] + sn[2] * sn[2]);
+        if (len > 1e-9 * wsum)
+            for (a = 0; a < 3; ++a) cn[a] = sn[a] / len;
+        /* else the normals cancel: keep the previous normal */
+    }
+}
+
+/* A VPL's weight in the means: its mean rgb flux. */
+static double gim__kmeans_weight(const float *flux, uint32_t i) {
+    if (!flux) return 1.0;
+    return ((double)flux[(size_t)i * 3] + flux[(size_t)i * 3 + 1] + flux[(size_t)i * 3 + 2]) / 3.0;
+}
+
+static int gim__kmeans_cmp2(const void *a, const void *b) {
+    const double *u = (const double *)a, *v = (const double *)b;
+    if (u[0] != v[0]) return u[0] < v[0] ? -1 : 1;
+    if (u[1] != v[1]) return u[1] < v[1] ? -1 : 1;
+    return 0;
+}
+
+/* Area of the smallest rectangle enclosing the n 2D points pts (sorted in place): convex hull
+   (monotone chain) into hull[4 * (n + 1)], then rotating calipers over the hull edges, since
+   the smallest rectangle has a side on a hull edge (Freeman and Shapira 1975); O(n log n). */
+static double gim__min_area_rect(double *pts, uint32_t n, double *hull) {
+    uint32_t i, e, h = 0, lower, a, b, c;
+    double best = HUGE_VAL;
+    if (n < 3) return 0.0;
+    qsort(pts, n, 2 * sizeof(double), gim__kmeans_cmp2);
+#define GIM__CROSS(o, p, q) (((p)[0] - (o)[0]) * ((q)[1] - (o)[1]) - ((p)[1] - (o)[1]) * ((q)[0] - (o)[0]))
+    for (i = 0; i < n; ++i) {
+        while (h >= 2 && GIM__CROSS(hull + 2 * (h - 2), hull + 2 * (h - 1), pts + 2 * i) <= 0.0) --h;
+        hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
+    }
+    lower = h + 1;
+    for (i = n - 1; i-- > 0;) {
+        while (h >= lower && GIM__CROSS(hull + 2 * (h - 2), hull + 2 * (h - 1), pts + 2 * i) <= 0.0) --h;
+        hull[2 * h] = pts[2 * i]; hull[2 * h + 1] = pts[2 * i + 1]; ++h;
+    }
+#undef GIM__CROSS
+    --h; /* the last point repeats the first; the hull is counter-clockwise, no collinear points */
+    if (h < 3) return 0.0; /* all points on a line (or one point): no area */
+    /* for edge e with direction u and inward normal v: b is the point farthest along u, a the
+       farthest along v, c the farthest along -u; all three only move forward as e turns */
+    b = 1; a = 1; c = 1;
+    for (e = 0; e < h; ++e) {
+        const double *p0 = hull + 2 * e, *p1 = hull + 2 * ((e + 1) % h);
+        double ux = p1[0] - p0[0], uy = p1[1] - p0[1], len = sqrt(ux * ux + uy * uy), area;
+        uint32_t steps;
+#define GIM__U(k) ((hull[2 * ((k) % h)] - p0[0]) * ux + (hull[2 * ((k) % h) + 1] - p0[1]) * uy)
+#define GIM__V(k) ((hull[2 * ((k) % h) + 1] - p0[1]) * ux - (hull[2 * ((k) % h)] - p0[0]) * uy)
+        if (!(len > 0.0)) continue;
+        ux /= len; uy /= len;
+        if (e == 0 || b == e) b = (e + 1) % h;
+        for (steps = 0; steps < h && GIM__U(b + 1) > GIM__U(b); ++steps) b = (b + 1) % h;
+        if (e == 0 || a == e || a == (e + 1) % h) a = b; /* guards rounding on near-flat hulls */
+        for (steps = 0; steps < h && GIM__V(a + 1) > GIM__V(a); ++steps) a = (a + 1) % h;
+        if (e == 0) c = a;
+        for (steps = 0; steps < h && GIM__U(c + 1) < GIM__U(c); ++steps) c = (c + 1) % h;
+        area = (GIM__U(b) - GIM__U(c)) * GIM__V(a);
+#undef GIM__U
+#undef GIM__V
+        if (area < best) best = area;
+    }
+    return best < HUGE_VAL ? best : 0.0;
+}
+
+/* Validate, allocate, iterate, write the outputs. */
+GIMANY_DEF gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result *result) {
+    static const char *fn = "gim_kmeans";
+    const gim_env *env = desc ? &desc->env : NULL;
+    gim__kmeans k;
+    uint32_t n, m, i, j, it, max_it, repaired = 0;
+    double lo[3], hi[3], anchor[3], diag, scale, wx, wa, fsum[3] = {0.0, 0.0, 0.0};
+    int a, warm, want_area;
+    size_t off[12], total = 0, sz[12];
+    unsigned char *mem;
+    double *pts = NULL, *hull = NULL;
+    uint32_t *order = NULL, *start = NULL;
+
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    if (!result) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "result is NULL");
+    if (!result->centres || !result->normals)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "result->centres and result->normals are required");
+    if (!desc->positions || !desc->normals)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "positions and normals are required");
+    n = desc->vpl_count; m = desc->cluster_count;
+    if (n == 0 || m == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpl_count (%u) and cluster_count (%u) must be > 0", n, m);
+    if (m > n) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cluster_count %u > vpl_count %u: every cluster needs a VPL", m, n);
+    if ((unsigned)desc->metric > (unsigned)GIM_KMEANS_METRIC_SSVP)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown metric %d", (int)desc->metric);
+    if ((unsigned)desc->init > (unsigned)GIM_KMEANS_INIT_WARM)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown init %d", (int)desc->init);
+    warm = desc->init == GIM_KMEANS_INIT_WARM;
+    if (warm && (!desc->init_centres || !desc->init_normals))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "warm start needs init_centres and init_normals");
+    if (!gim__isfinitef(desc->w_x) || !gim__isfinitef(desc->w_a) || desc->w_x < 0.0f || desc->w_a < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "weights w_x %g, w_a %g must be finite and >= 0", (double)desc->w_x, (double)desc->w_a);
+    if (!gim__isfinitef(desc->scene_scale) || desc->scene_scale < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and >= 0", (double)desc->scene_scale);
+    if (desc->max_iterations > 4096)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "max_iterations %u > 4096", desc->max_iterations);
+    max_it = desc->max_iterations ? desc->max_iterations : 16;
+
+    for (a = 0; a < 3; ++a) { lo[a] = HUGE_VAL; hi[a] = -HUGE_VAL; }
+    for (i = 0; i < n; ++i) {
+        const float *x = desc->positions + (size_t)i * 3, *nx = desc->normals + (size_t)i * 3;
+        if (!gim__all_finite(x, 3)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "position of VPL %u is not finite", i);
+        if (!gim__all_finite(nx, 3)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal of VPL %u is not finite", i);
+        if (nx[0] == 0.0f && nx[1] == 0.0f && nx[2] == 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal of VPL %u is zero", i);
+        for (a = 0; a < 3; ++a) {
+            if (x[a] < lo[a]) lo[a] = x[a];
+            if (x[a] > hi[a]) hi[a] = x[a];
+        }
+        if (desc->flux) {
+            const float *f = desc->flux + (size_t)i * 3;
+            if (!gim__all_finite(f, 3) || f[0] < 0.0f || f[1] < 0.0f || f[2] < 0.0f)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "flux of VPL %u must be finite and >= 0", i);
+            for (a = 0; a < 3; ++a) fsum[a] += f[a];
+        }
+    }
+    if (fsum[0] > FLT_MAX || fsum[1] > FLT_MAX || fsum[2] > FLT_MAX)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "the summed flux exceeds the float range");
+    diag = 0.0;
+    for (a = 0; a < 3; ++a) { anchor[a] = 0.5 * (lo[a] + hi[a]); diag += (hi[a] - lo[a]) * (hi[a] - lo[a]); }
+    diag = sqrt(diag);
+    if (diag * diag > FLT_MAX) /* areas must fit in a float */
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "VPL bounds diagonal %g exceeds 1.8e19", diag);
+    if (warm)
+        for (j = 0; j < m; ++j) {
+            const float *nx = desc->init_normals + (size_t)j * 3;
+            if (!gim__all_finite(desc->init_centres + (size_t)j * 3, 3) || !gim__all_finite(nx, 3))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "init centre or normal %u is not finite", j);
+            if (nx[0] == 0.0f && nx[1] == 0.0f && nx[2] == 0.0f)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "init normal %u is zero", j);
+        }
+    /* all VPLs at one point: any unit will do, the position term is zero for them */
+    scale = desc->scene_scale > 0.0f ? (double)desc->scene_scale : (diag > 0.0 ? diag : 1.0);
+    wx = desc->w_x; wa = desc->w_a;
+    if (wx == 0.0 && wa == 0.0) {
+        int ssvp = desc->metric == GIM_KMEANS_METRIC_SSVP;
+        wx = ssvp ? 0.6 : 0.7; wa = ssvp ? 0.4 : 0.3;
+    }
+
+    /* one block: doubles first, then uint32 arrays */
+    want_area = result->area != NULL;
+    sz[0] = gim__array_size(n, 3 * sizeof(double));            /* p */
+    sz[1] = sz[0];                                             /* nrm */
+    sz[2] = gim__array_size(n, sizeof(double));                /* w */
+    sz[3] = sz[2];                                             /* best */
+    sz[4] = gim__array_size(m, 3 * sizeof(double));            /* cen */
+    sz[5] = sz[4];                                             /* cnrm */
+    sz[6] = gim__array_size(m, GIM__KMEANS_ACC * sizeof(double)); /* acc */
+    sz[7] = want_area ? gim__array_size((size_t)n + 1, 6 * sizeof(double)) : 0; /* pts, hull (2n+2 points) */
+    sz[8] = gim__array_size(n, sizeof(uint32_t));              /* assign */
+    sz[9] = gim__array_size((size_t)m + 1, sizeof(uint32_t));  /* count */
+    sz[10] = want_area ? sz[8] : 0;                            /* order */
+    sz[11] = want_area ? sz[9] : 0;                            /* start */
+    for (j = 0; j < 12; ++j) {
+        if ((sz[j] == 0 && j != 7 && j < 10) || total > (size_t)-1 - sz[j] - 16)
+            return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "size overflow for %u VPLs", n);
+        off[j] = total;
+        total += (sz[j] + 7) & ~(size_t)7;
+    }
+    mem = (unsigned char *)gim__alloc(env, total);
+    if (!mem) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%lu bytes for %u VPLs", (unsigned long)total, n);
+    k.n = n; k.m = m;
+    k.dong = desc->metric != GIM_KMEANS_METRIC_SSVP;
+    k.wx_s = wx / scale;
+    k.wa = k.dong ? wa / 3.14159265358979323846 : wa;
+    k.p = (double *)(void *)(mem + off[0]);
+    k.nrm = (double *)(void *)(mem + off[1]);
+    k.w = (double *)(void *)(mem + off[2]);
+    k.best = (double *)(void *)(mem + off[3]);
+    k.cen = (double *)(void *)(mem + off[4]);
+    k.cnrm = (double *)(void *)(mem + off[5]);
+    k.acc = (double *)(void *)(mem + off[6]);
+    k.assign = (uint32_t *)(void *)(mem + off[8]);
+    k.count = (uint32_t *)(void *)(mem + off[9]);
+    if (want_area) {
+        pts = (double *)(void *)(mem + off[7]);
+        hull = pts + 2 * ((size_t)n + 1);
+        order = (uint32_t *)(void *)(mem + off[10]);
+        start = (uint32_t *)(void *)(mem + off[11]);
+    }
+
+    /* VPLs relative to the anchor, unit normals, weights; zero flux everywhere -> weights 1 */
+    for (i = 0; i < n; ++i) {
+        const float *x = desc->positions + (size_t)i * 3, *nx = desc->normals + (size_t)i * 3;
+        double len = sqrt((double)nx[0] * nx[0] + (double)nx[1] * nx[1] + (double)nx[2] * nx[2]);
+        for (a = 0; a < 3; ++a) {
+            k.p[(size_t)i * 3 + a] = (double)x[a] - anchor[a];
+            k.nrm[(size_t)i * 3 + a] = nx[a] / len;
+        }
+        k.w[i] = gim__kmeans_weight(desc->flux, i);
+        k.assign[i] = GIM__KMEANS_NONE;
+    }
+    /* seeds: Dong 6 (VPL k*N/M is cluster k's first centre) or the previous frame's centres */
+    for (j = 0; j < m; ++j) {
+        if (warm) {
+            const float *c = desc->init_centres + (size_t)j * 3, *cn = desc->init_normals + (size_t)j * 3;
+            double len = sqrt((double)cn[0] * cn[0] + (double)cn[1] * cn[1] + (double)cn[2] * cn[2]);
+            for (a = 0; a < 3; ++a) {
+                k.cen[(size_t)j * 3 + a] = (double)c[a] - anchor[a];
+                k.cnrm[(size_t)j * 3 + a] = cn[a] / len;
+            }
+        } else {
+            size_t s = (size_t)((uint64_t)j * n / m);
+            for (a = 0; a < 3; ++a) {
+                k.cen[(size_t)j * 3 + a] = k.p[s * 3 + a];
+                k.cnrm[(size_t)j * 3 + a] = k.nrm[s * 3 + a];
+            }
+        }
+    }
+
+    /* Lloyd iteration: assign, repair, update; converged when an assignment moves no VPL */
+    for (it = 1;; ++it) {
+        uint32_t moved = gim__kmeans_assign(&k);
+        if (it > 1 && moved == 0) break;
+        repaired += gim__kmeans_repair(&k);
+        gim__kmeans_update(&k);
+        if (it >= max_it) break;
+    }
+
+    /* outputs: flux, sigma (two-pass, about the final centres), then area; nothing can fail now */
+    for (j = 0; j < m; ++j) {
+        double *s = k.acc + (size_t)j * GIM__KMEANS_ACC;
+        for (a = 0; a < 13; ++a) s[a] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        uint32_t c = k.assign[i];
+        double *s = k.acc + (size_t)c * GIM__KMEANS_ACC;
+        double w = k.w[i];
+        s[0] += w;
+        for (a = 0; a < 3; ++a) {
+            double d = k.p[(size_t)i * 3 + a] - k.cen[(size_t)c * 3 + a];
+            s[1 + a] += w * d * d;
+            s[4 + a] += d * d;
+            if (desc->flux) s[7 + a] += desc->flux[(size_t)i * 3 + a];
+        }
+    }
+    for (j = 0; j < m; ++j) {
+        const double *s = k.acc + (size_t)j * GIM__KMEANS_ACC;
+        int plain = !(s[0] > 0.0);
+        double wsum = plain ? (double)k.count[j] : s[0];
+        for (a = 0; a < 3; ++a) {
+            result->centres[(size_t)j * 3 + a] = (float)(k.cen[(size_t)j * 3 + a] + anchor[a]);
+            result->normals[(size_t)j * 3 + a] = (float)k.cnrm[(size_t)j * 3 + a];
+            if (result->flux) result->flux[(size_t)j * 3 + a] = (float)s[7 + a];
+            if (result->sigma) result->sigma[(size_t)j * 3 + a] = (float)sqrt((plain ? s[4 + a] : s[1 + a]) / wsum);
+        }
+    }
+    if (result->counts) memcpy(result->counts, k.count, (size_t)m * sizeof(uint32_t));
+    if (result->assignment) memcpy(result->assignment, k.assign, (size_t)n * sizeof(uint32_t));
+    if (want_area) {
+        /* counting sort of the VPLs that emit (all of a cluster's when it has no flux) by
+           cluster, then each cluster's points in the plane of its normal */
+#define GIM__EMITS(i) (k.w[i] > 0.0 || !(k.acc[(size_t)k.assign[i] * GIM__KMEANS_ACC] > 0.0))
+        for (j = 0; j <= m; ++j) start[j] = 0;
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) start[k.assign[i] + 1]++;
+        for (j = 0; j < m; ++j) start[j + 1] += start[j];
+        for (i = 0; i < n; ++i) if (GIM__EMITS(i)) order[start[k.assign[i]]++] = i;
+#undef GIM__EMITS
+        for (j = m; j > 0; --j) start[j] = start[j - 1];
+        start[0] = 0;
+        for (j = 0; j < m; ++j) {
+            const double *c = k.cen + (size_t)j * 3, *cn = k.cnrm + (size_t)j * 3;
+            /* tangent frame (Duff et al. 2017); the rectangle does not depend on its rotation */
+            double sg = cn[2] >= 0.0 ? 1.0 : -1.0, q = -1.0 / (sg + cn[2]), r = cn[0] * cn[1] * q;
+            double t[3], b[3];
+            uint32_t cnt = start[j + 1] - start[j], e;
+            t[0] = 1.0 + sg * cn[0] * cn[0] * q; t[1] = sg * r; t[2] = -sg * cn[0];
+            b[0] = r; b[1] = sg + cn[1] * cn[1] * q; b[2] = -cn[1];
+            for (e = 0; e < cnt; ++e) {
+                const double *x = k.p + (size_t)order[start[j] + e] * 3;
+                double d0 = x[0] - c[0], d1 = x[1] - c[1], d2 = x[2] - c[2];
+                pts[2 * e] = d0 * t[0] + d1 * t[1] + d2 * t[2];
+                pts[2 * e + 1] = d0 * b[0] + d1 * b[1] + d2 * b[2];
+            }
+            result->area[j] = (float)gim__min_area_rect(pts, cnt, hull);
+        }
+    }
+    result->iterations = it;
+    result->empty_repaired = repaired;
+    gim__free(env, mem);
+    return GIM_OK;
+}
+
 /* @impl caches ============================================================================ */
 /* generator: voxels, normal bins, averaging, snapping, merging, area partition */
+
+/* The generator works in voxel units: lengths divided by the voxel edge h = d_eps/2 and
+   measured from the minimum of the mesh bounds (in double), so nothing depends on where the
+   mesh sits or on its unit of length; only the final positions and areas are scaled back. */
+
+/* One piece of a used triangle clipped to one voxel. */
+typedef struct gim__cg_frag {
+    uint64_t key;       /* voxel: (ix * ny + iy) * nz + iz */
+    double area;        /* double: a triangle may be 1e-30 of a voxel face and still count */
+    float c[3];         /* centroid */
+    float n[3];         /* unit surface normal at the centroid */
+    float radius;       /* every point of the piece lies within radius of c */
+    float rho;          /* reflection coefficient of its material */
+    uint32_t tri;       /* the triangle it was cut from (snapping) */
+} gim__cg_frag;
+
+/* A cache while it is built; the bounds radius and spread keep the coverage guarantee
+   through merging: every represented point lies within radius of p, every represented
+   normal within spread (radians) of n. */
+typedef struct gim__cg_cache {
+    double p[3], n[3];
+    double area, rho_area;
+    double radius, spread;
+    uint64_t key;
+    uint32_t parent;    /* itself while alive; the cache that absorbed it after a merge */
+} gim__cg_cache;
+
+typedef struct gim__cg_pair { uint64_t key; uint32_t idx; } gim__cg_pair;
+
+/* Generator state shared by the steps. */
+typedef struct gim__cg {
+    const gim_mesh_data *mesh;
+    const gim_env *env;
+    double origin[3];       /* minimum of the bounds of the finite triangles */
+    double h, inv_h;        /* voxel edge d_eps/2 */
+    uint64_t dim[3];        /* voxels per axis */
+    double theta, cos_theta;
+    double limit;           /* largest joint radius of a merged or snapped cache: d_eps (2 voxel
+                               units) less the float rounding of the output positions */
+    gim__cg_frag *frags;
+    size_t frag_count, frag_cap;
+    gim__cg_cache *caches;
+    size_t cache_count, cache_cap;
+} gim__cg;
+
+static uint32_t gim__cg_index(const gim_mesh_data *m, size_t i) {
+    if (m->index_type == GIM_INDEX_U16) return ((const uint16_t *)m->indices)[i];
+    return ((const uint32_t *)m->indices)[i];
+}
+static const float *gim__cg_position(const gim_mesh_data *m, uint32_t v) {
+    return (const float *)((const char *)m->positions + (size_t)v * (m->position_stride ? m->position_stride : 12u));
+}
+static const float *gim__cg_normal(const gim_mesh_data *m, uint32_t v) {
+    return (const float *)((const char *)m->normals + (size_t)v * (m->normal_stride ? m->normal_stride : 12u));
+}
+/* A vertex in voxel units. */
+static void gim__cg_vertex(const gim__cg *g, uint32_t v, double *out) {
+    const float *p = gim__cg_position(g->mesh, v);
+    int k;
+    for (k = 0; k < 3; ++k) out[k] = ((double)p[k] - g->origin[k]) * g->inv_h;
+}
+static double gim__cg_dot(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static void gim__cg_cross(const double *a, const double *b, double *r) {
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+}
+static double gim__cg_dist(const double *a, const double *b) {
+    double d[3];
+    d[0] = a[0] - b[0]; d[1] = a[1] - b[1]; d[2] = a[2] - b[2];
+    return sqrt(gim__cg_dot(d, d));
+}
+/* Normalise in place (scaled first: area-weighted sums of tiny pieces reach 1e-160); 0 when
+   the vector has no direction. */
+static int gim__cg_normalize(double *v) {
+    double m = fabs(v[0]), l;
+    if (fabs(v[1]) > m) m = fabs(v[1]);
+    if (fabs(v[2]) > m) m = fabs(v[2]);
+    if (!(m > 0.0) || m > DBL_MAX) return 0;
+    v[0] /= m; v[1] /= m; v[2] /= m;
+    l = sqrt(gim__cg_dot(v, v));
+    v[0] /= l; v[1] /= l; v[2] /= l;
+    return 1;
+}
+static double gim__cg_angle(const double *a, const double *b) {
+    double d = gim__cg_dot(a, b);
+    return acos(d > 1.0 ? 1.0 : (d < -1.0 ? -1.0 : d));
+}
+
+/* Grow an array by half (the env allocator has no realloc): the array to use from now on,
+   or NULL (the old one still valid) when memory ran out. */
+static void *gim__cg_grow(const gim_env *env, void *arr, size_t *cap, size_t need, size_t elem) {
+    size_t ncap = *cap ? *cap : 1024u;
+    void *n;
+    if (need <= *cap) return arr;
+    while (ncap < need) {
+        if (ncap > ((size_t)-1 / 2u) / elem) return NULL;
+        ncap += ncap / 2u;
+    }
+    n = gim__alloc_array(env, ncap, elem);
+    if (!n) return NULL;
+    if (arr) memcpy(n, arr, *cap * elem);
+    gim__free(env, arr);
+    *cap = ncap;
+    return n;
+}
+
+/* Voxel coordinate of a voxel-unit coordinate along axis k, inside the grid. */
+static uint64_t gim__cg_cell(const gim__cg *g, double q, int k) {
+    double f = floor(q);
+    if (!(f > 0.0)) return 0;
+    if (f >= (double)(g->dim[k] - 1u)) return g->dim[k] - 1u;
+    return (uint64_t)f;
+}
+
+/* Split a convex polygon (n points, xyz) by the plane x[axis] = plane into the part below
+   and the part above; points on the plane go to both. At most n + 1 points each. */
+#define GIM__CG_MAXPOLY 16
+static void gim__cg_split(const double (*in)[3], int n, int axis, double plane,
+                          double (*lo)[3], int *nlo, double (*hi)[3], int *nhi) {
+    int i, a = 0, b = 0;
+    for (i = 0; i < n; ++i) {
+        const double *p = in[i], *q = in[(i + 1) % n];
+        double dp = p[axis] - plane, dq = q[axis] - plane;
+        if (dp <= 0.0 && a < GIM__CG_MAXPOLY) { memcpy(lo[a++], p, sizeof lo[0]); }
+        if (dp >= 0.0 && b < GIM__CG_MAXPOLY) { memcpy(hi[b++], p, sizeof hi[0]); }
+        if ((dp < 0.0 && dq > 0.0) || (dp > 0.0 && dq < 0.0)) {
+            double t = dp / (dp - dq), x[3];
+            int k;
+            for (k = 0; k < 3; ++k) x[k] = p[k] + t * (q[k] - p[k]);
+            x[axis] = plane; /* exactly on the voxel face */
+            if (a < GIM__CG_MAXPOLY) memcpy(lo[a++], x, sizeof x);
+            if (b < GIM__CG_MAXPOLY) memcpy(hi[b++], x, sizeof x);
+        }
+    }
+    *nlo = a;
+    *nhi = b;
+}
+
+/* Per-triangle data the clipper hands to each piece. */
+typedef struct gim__cg_tri {
+    double v[3][3];     /* vertices, voxel units */
+    double face_n[3];   /* unit face normal */
+    double area;        /* voxel units^2 */
+    float rho;
+    uint32_t tri;
+    int smooth;         /* vertex normals usable */
+    double vn[3][3];
+} gim__cg_tri;
+
+/* Emit one convex piece (already inside voxel ix, iy, iz). 0 on out of memory. */
+static int gim__cg_emit(gim__cg *g, const gim__cg_tri *t, const double (*poly)[3], int n,
+                        uint64_t ix, uint64_t iy, uint64_t iz) {
+    double area = 0.0, c[3] = {0.0, 0.0, 0.0}, r = 0.0, nrm[3];
+    gim__cg_frag *f;
+    int i, k;
+    if (n < 3) return 1;
+    for (i = 1; i + 1 < n; ++i) {
+        double e1[3], e2[3], cr[3], a;
+        for (k = 0; k < 3; ++k) { e1[k] = poly[i][k] - poly[0][k]; e2[k] = poly[i + 1][k] - poly[0][k]; }
+        gim__cg_cross(e1, e2, cr);
+        a = 0.5 * sqrt(gim__cg_dot(cr, cr));
+        area += a;
+        for (k = 0; k < 3; ++k) c[k] += a * (poly[0][k] + poly[i][k] + poly[i + 1][k]) * (1.0 / 3.0);
+    }
+    /* slivers of rounding on a voxel face carry no surface */
+    if (!(area > 1e-9 * t->area)) return 1;
+    for (k = 0; k < 3; ++k) c[k] = (double)(float)(c[k] / area); /* the centroid as stored */
+    for (i = 0; i < n; ++i) {
+        double d = gim__cg_dist(poly[i], c);
+        if (d > r) r = d;
+    }
+    memcpy(nrm, t->face_n, sizeof nrm);
+    if (t->smooth) {
+        /* vertex normals interpolated at the centroid (barycentric) */
+        double e0[3], e1[3], e2[3], d00, d01, d11, d20, d21, den, bv, bw, bu, s[3];
+        for (k = 0; k < 3; ++k) {
+            e0[k] = t->v[1][k] - t->v[0][k]; e1[k] = t->v[2][k] - t->v[0][k]; e2[k] = c[k] - t->v[0][k];
+        }
+        d00 = gim__cg_dot(e0, e0); d01 = gim__cg_dot(e0, e1); d11 = gim__cg_dot(e1, e1);
+        d20 = gim__cg_dot(e2, e0); d21 = gim__cg_dot(e2, e1);
+        den = d00 * d11 - d01 * d01;
+        if (den > 0.0) {
+            bv = (d11 * d20 - d01 * d21) / den;
+            bw = (d00 * d21 - d01 * d20) / den;
+            bu = 1.0 - bv - bw;
+            for (k = 0; k < 3; ++k) s[k] = bu * t->vn[0][k] + bv * t->vn[1][k] + bw * t->vn[2][k];
+            if (gim__cg_normalize(s)) memcpy(nrm, s, sizeof nrm);
+        }
+    }
+    if (g->frag_count >= 0xffffffffu) return 0;
+    {
+        void *grown = gim__cg_grow(g->env, g->frags, &g->frag_cap, g->frag_count + 1u, sizeof(gim__cg_frag));
+        if (!grown) return 0;
+        g->frags = (gim__cg_frag *)grown;
+    }
+    f = &g->frags[g->frag_count++];
+    f->key = (ix * g->dim[1] + iy) * g->dim[2] + iz;
+    for (k = 0; k < 3; ++k) { f->c[k] = (float)c[k]; f->n[k] = (float)nrm[k]; }
+    f->area = area;
+    f->radius = (float)(r * (1.0 + 1e-6)); /* rounded up: the bound survives float */
+    f->rho = t->rho;
+    f->tri = t->tri;
+    return 1;
+}
+
+/* Step 1: clip a triangle into the voxels it passes through (slabs in x, then y, then z). */
+static int gim__cg_clip(gim__cg *g, const gim__cg_tri *t) {
+    double lo[3], hi[3];
+    uint64_t c0[3], c1[3], ix, iy, iz;
+    double slab[GIM__CG_MAXPOLY][3], restx[GIM__CG_MAXPOLY][3], row[GIM__CG_MAXPOLY][3];
+    double resty[GIM__CG_MAXPOLY][3], cell[GIM__CG_MAXPOLY][3], restz[GIM__CG_MAXPOLY][3];
+    double tmp[GIM__CG_MAXPOLY][3];
+    int k, nx, ny, nz, nslab, nrow, ncell, ntmp;
+    for (k = 0; k < 3; ++k) {
+        lo[k] = hi[k] = t->v[0][k];
+        if (t->v[1][k] < lo[k]) lo[k] = t->v[1][k];
+        if (t->v[1][k] > hi[k]) hi[k] = t->v[1][k];
+        if (t->v[2][k] < lo[k]) lo[k] = t->v[2][k];
+        if (t->v[2][k] > hi[k]) hi[k] = t->v[2][k];
+        c0[k] = gim__cg_cell(g, lo[k], k);
+        c1[k] = gim__cg_cell(g, hi[k], k);
+    }
+    if (c0[0] == c1[0] && c0[1] == c1[1] && c0[2] == c1[2])
+        return gim__cg_emit(g, t, (const double (*)[3])t->v, 3, c0[0], c0[1], c0[2]);
+    memcpy(restx, t->v, sizeof t->v);
+    nx = 3;
+    for (ix = c0[0]; ix <= c1[0] && nx >= 3; ++ix) {
+        if (ix < c1[0]) {
+            gim__cg_split((const double (*)[3])restx, nx, 0, (double)(ix + 1u), slab, &nslab, tmp, &ntmp);
+            memcpy(restx, tmp, sizeof tmp);
+            nx = ntmp;
+        } else {
+            memcpy(slab, restx, sizeof restx);
+            nslab = nx;
+        }
+        if (nslab < 3) continue;
+        memcpy(resty, slab, sizeof slab);
+        ny = nslab;
+        for (iy = c0[1]; iy <= c1[1] && ny >= 3; ++iy) {
+            if (iy < c1[1]) {
+                gim__cg_split((const double (*)[3])resty, ny, 1, (double)(iy + 1u), row, &nrow, tmp, &ntmp);
+                memcpy(resty, tmp, sizeof tmp);
+                ny = ntmp;
+            } else {
+                memcpy(row, resty, sizeof resty);
+                nrow = ny;
+            }
+            if (nrow < 3) continue;
+            memcpy(restz, row, sizeof row);
+            nz = nrow;
+            for (iz = c0[2]; iz <= c1[2] && nz >= 3; ++iz) {
+                if (iz < c1[2]) {
+                    gim__cg_split((const double (*)[3])restz, nz, 2, (double)(iz + 1u), cell, &ncell, tmp, &ntmp);
+                    memcpy(restz, tmp, sizeof tmp);
+                    nz = ntmp;
+                } else {
+                    memcpy(cell, restz, sizeof restz);
+                    ncell = nz;
+                }
+                if (!gim__cg_emit(g, t, (const double (*)[3])cell, ncell, ix, iy, iz)) return 0;
+            }
+        }
+    }
+    return 1;
+}
+
+/* Stable LSD radix sort of (key, index) pairs, 11 bits a pass over the bits keys use. */
+static void gim__cg_radix(gim__cg_pair *a, gim__cg_pair *tmp, size_t n, uint64_t max_key) {
+    size_t count[2048];
+    gim__cg_pair *src = a, *dst = tmp, *t;
+    int shift;
+    for (shift = 0; shift < 64 && (shift == 0 || (max_key >> shift) != 0); shift += 11) {
+        size_t i, sum = 0;
+        memset(count, 0, sizeof count);
+        for (i = 0; i < n; ++i) count[(src[i].key >> shift) & 2047u]++;
+        for (i = 0; i < 2048; ++i) { size_t c = count[i]; count[i] = sum; sum += c; }
+        for (i = 0; i < n; ++i) dst[count[(src[i].key >> shift) & 2047u]++] = src[i];
+        t = src; src = dst; dst = t;
+    }
+    if (src != a) memcpy(a, src, n * sizeof *a);
+}
+
+/* Cube-map normal bin: face of the major axis, then a bins x bins grid on it. */
+static uint32_t gim__cg_bin(const float *n, uint32_t bins) {
+    float ax = fabsf(n[0]), ay = fabsf(n[1]), az = fabsf(n[2]), m, u, v;
+    uint32_t face, iu, iv;
+    if (ax >= ay && ax >= az) { face = n[0] >= 0.0f ? 0u : 1u; m = ax; u = n[1]; v = n[2]; }
+    else if (ay >= az) { face = n[1] >= 0.0f ? 2u : 3u; m = ay; u = n[0]; v = n[2]; }
+    else { face = n[2] >= 0.0f ? 4u : 5u; m = az; u = n[0]; v = n[1]; }
+    if (!(m > 0.0f)) return 0;
+    u = (u / m + 1.0f) * 0.5f * (float)bins;
+    v = (v / m + 1.0f) * 0.5f * (float)bins;
+    iu = u >= (float)bins ? bins - 1u : (u > 0.0f ? (uint32_t)u : 0u);
+    iv = v >= (float)bins ? bins - 1u : (v > 0.0f ? (uint32_t)v : 0u);
+    return (face * bins + iu) * bins + iv;
+}
+
+static double gim__cg_fdot(const float *n, const double *m) { return n[0] * m[0] + n[1] * m[1] + n[2] * m[2]; }
+
+/* Steps 2-3 for one voxel (the k fragments listed in frag): normal bins, then repeatedly the bin
+   of the largest surface, its normal refined to the mean of the surface within theta_eps
+   (a few mean-shift steps, so every member stays within theta_eps of the cache normal), the
+   cache at the area-weighted mean position, that surface removed. */
+static int gim__cg_voxel(gim__cg *g, const gim__cg_pair *frag, size_t k, uint32_t bins, double *bin_area,
+                         uint32_t *touched, uint32_t *rem, uint32_t *rem_bin, uint32_t *frag_cache) {
+    size_t nrem = k, i;
+    for (i = 0; i < k; ++i) {
+        rem[i] = frag[i].idx;
+        rem_bin[i] = gim__cg_bin(g->frags[frag[i].idx].n, bins);
+    }
+    while (nrem > 0) {
+        size_t ntouched = 0, j, kept;
+        uint32_t best = 0;
+        double best_area = -1.0, m[3] = {0.0, 0.0, 0.0}, sum[3], p[3] = {0.0, 0.0, 0.0};
+        double area = 0.0, rho_area = 0.0, radius = 0.0, min_dot = 1.0;
+        int it, have = 0;
+        gim__cg_cache *c;
+        uint32_t cid;
+        for (j = 0; j < nrem; ++j) {
+            uint32_t b = rem_bin[j];
+            if (bin_area[b] == 0.0) touched[ntouched++] = b;
+            bin_area[b] += (double)g->frags[rem[j]].area + 1e-300; /* touched even at zero area */
+        }
+        for (j = 0; j < ntouched; ++j) {
+            if (bin_area[touched[j]] > best_area) { best_area = bin_area[touched[j]]; best = touched[j]; }
+        }
+        for (j = 0; j < ntouched; ++j) bin_area[touched[j]] = 0.0;
+        /* the bin's centre normal: the mean normal of its surface */
+        for (j = 0; j < nrem; ++j)
+            if (rem_bin[j] == best) {
+                const gim__cg_frag *f = &g->frags[rem[j]];
+                m[0] += (double)f->area * f->n[0]; m[1] += (double)f->area * f->n[1]; m[2] += (double)f->area * f->n[2];
+            }
+        have = gim__cg_normalize(m);
+        for (it = 0; have && it < 4; ++it) {
+            sum[0] = sum[1] = sum[2] = 0.0;
+            for (j = 0; j < nrem; ++j) {
+                const gim__cg_frag *f = &g->frags[rem[j]];
+                if (gim__cg_fdot(f->n, m) >= g->cos_theta) {
+                    sum[0] += (double)f->area * f->n[0]; sum[1] += (double)f->area * f->n[1]; sum[2] += (double)f->area * f->n[2];
+                }
+            }
+            if (!gim__cg_normalize(sum)) break;
+            if (sum[0] == m[0] && sum[1] == m[1] && sum[2] == m[2]) break;
+            memcpy(m, sum, sizeof m);
+        }
+        /* the selection must hold the largest fragment's direction at least: fall back to it */
+        {
+            int any = 0;
+            if (have)
+                for (j = 0; j < nrem && !any; ++j) any = gim__cg_fdot(g->frags[rem[j]].n, m) >= g->cos_theta;
+            if (!any) {
+                size_t big = 0;
+                for (j = 1; j < nrem; ++j) if (g->frags[rem[j]].area > g->frags[rem[big]].area) big = j;
+                m[0] = g->frags[rem[big]].n[0]; m[1] = g->frags[rem[big]].n[1]; m[2] = g->frags[rem[big]].n[2];
+                if (!gim__cg_normalize(m)) { m[0] = 0.0; m[1] = 0.0; m[2] = 1.0; }
+                rem_bin[big] = 0xffffffffu; /* marks it as selected whatever the rounding */
+            }
+        }
+        if (g->cache_count >= 0xfffffffeu) return 0;
+        {
+            void *grown = gim__cg_grow(g->env, g->caches, &g->cache_cap, g->cache_count + 1u, sizeof(gim__cg_cache));
+            if (!grown) return 0;
+            g->caches = (gim__cg_cache *)grown;
+        }
+        cid = (uint32_t)g->cache_count;
+        for (j = 0; j < nrem; ++j) {
+            const gim__cg_frag *f = &g->frags[rem[j]];
+            double d = gim__cg_fdot(f->n, m);
+            if (d >= g->cos_theta || rem_bin[j] == 0xffffffffu) {
+                area += f->area;
+                rho_area += (double)f->area * f->rho;
+                p[0] += (double)f->area * f->c[0]; p[1] += (double)f->area * f->c[1]; p[2] += (double)f->area * f->c[2];
+                if (d < min_dot) min_dot = d;
+                frag_cache[rem[j]] = cid;
+            }
+        }
+        if (area > 0.0) { p[0] /= area; p[1] /= area; p[2] /= area; }
+        else { const gim__cg_frag *f = &g->frags[rem[0]]; p[0] = f->c[0]; p[1] = f->c[1]; p[2] = f->c[2]; }
+        kept = 0;
+        for (j = 0; j < nrem; ++j) {
+            const gim__cg_frag *f = &g->frags[rem[j]];
+            if (frag_cache[rem[j]] == cid) {
+                double c3[3], d;
+                c3[0] = f->c[0]; c3[1] = f->c[1]; c3[2] = f->c[2];
+                d = gim__cg_dist(p, c3) + f->radius;
+                if (d > radius) radius = d;
+            } else {
+                rem[kept] = rem[j];
+                rem_bin[kept] = rem_bin[j];
+                ++kept;
+            }
+        }
+        nrem = kept;
+        c = &g->caches[cid];
+        g->cache_count++;
+        memcpy(c->p, p, sizeof p);
+        memcpy(c->n, m, sizeof m);
+        c->area = area;
+        c->rho_area = rho_area;
+        c->radius = radius;
+        c->spread = acos(min_dot > 1.0 ? 1.0 : (min_dot < -1.0 ? -1.0 : min_dot));
+        c->key = frag[0].key;
+        c->parent = cid;
+    }
+    return 1;
+}
+
+/* Step 5: join similar caches of neighbouring voxels. Similar: close (under half a voxel
+   apart) or one of them small (under a quarter of a voxel face); joined only when the joint
+   cache keeps every represented point within d_eps (g->limit) and every represented
+   normal within theta_eps, so merging never breaks coverage, and opposite faces of a thin
+   wall never join. Greedy in voxel order: deterministic. */
+static void gim__cg_merge(gim__cg *g) {
+    size_t i, n = g->cache_count;
+    gim__cg_cache *cs = g->caches;
+    for (i = 0; i < n; ++i) {
+        gim__cg_cache *a = &cs[i];
+        uint64_t v[3], key = a->key;
+        int dx, dy, dz;
+        if (a->parent != (uint32_t)i) continue;
+        v[2] = key % g->dim[2];
+        v[1] = (key / g->dim[2]) % g->dim[1];
+        v[0] = key / g->dim[2] / g->dim[1];
+        for (dx = -1; dx <= 1; ++dx)
+            for (dy = -1; dy <= 1; ++dy)
+                for (dz = -1; dz <= 1; ++dz) {
+                    uint64_t nk;
+                    size_t lo = 0, hi = n, j;
+                    if ((dx < 0 && v[0] == 0) || (dx > 0 && v[0] + 1u >= g->dim[0])) continue;
+                    if ((dy < 0 && v[1] == 0) || (dy > 0 && v[1] + 1u >= g->dim[1])) continue;
+                    if ((dz < 0 && v[2] == 0) || (dz > 0 && v[2] + 1u >= g->dim[2])) continue;
+                    nk = ((v[0] + (uint64_t)(int64_t)dx) * g->dim[1] + (v[1] + (uint64_t)(int64_t)dy)) * g->dim[2] +
+                         (v[2] + (uint64_t)(int64_t)dz);
+                    if (nk < key) continue; /* caches of earlier voxels had their turn */
+                    while (lo < hi) { /* first cache of voxel nk */
+                        size_t mid = lo + (hi - lo) / 2u;
+                        if (cs[mid].key < nk) lo = mid + 1u; else hi = mid;
+                    }
+                    for (j = lo > i ? lo : i + 1u; j < n && cs[j].key == nk; ++j) {
+                        gim__cg_cache *b = &cs[j];
+                        double d, m[3], p[3], w, spread, radius;
+                        int k;
+                        if (b->parent != (uint32_t)j) continue;
+                        d = gim__cg_dist(a->p, b->p);
+                        if (!(d < 0.5 || (a->area < b->area ? a->area : b->area) < 0.25)) continue;
+                        if (gim__cg_dot(a->n, b->n) <= 0.0) continue;
+                        for (k = 0; k < 3; ++k) m[k] = a->area * a->n[k] + b->area * b->n[k];
+                        if (!gim__cg_normalize(m)) continue;
+                        spread = gim__cg_angle(m, a->n) + a->spread;
+                        w = gim__cg_angle(m, b->n) + b->spread;
+                        if (w > spread) spread = w;
+                        if (spread > g->theta) continue;
+                        w = a->area + b->area;
+                        if (!(w > 0.0)) continue;
+                        for (k = 0; k < 3; ++k) p[k] = (a->area * a->p[k] + b->area * b->p[k]) / w;
+                        radius = gim__cg_dist(p, a->p) + a->radius;
+                        w = gim__cg_dist(p, b->p) + b->radius;
+                        if (w > radius) radius = w;
+                        if (radius > g->limit) continue;
+                        memcpy(a->p, p, sizeof p);
+                        memcpy(a->n, m, sizeof m);
+                        a->area += b->area;
+                        a->rho_area += b->rho_area;
+                        a->radius = radius;
+                        a->spread = spread;
+                        b->parent = (uint32_t)i;
+                    }
+                }
+    }
+}
+
+/* Closest point on triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5). */
+static void gim__cg_closest(const double *p, const double *a, const double *b, const double *c, double *out) {
+    double ab[3], ac[3], ap[3], bp[3], cp[3], d1, d2, d3, d4, d5, d6, va, vb, vc, v, w, den;
+    int k;
+    for (k = 0; k < 3; ++k) { ab[k] = b[k] - a[k]; ac[k] = c[k] - a[k]; ap[k] = p[k] - a[k]; }
+    d1 = gim__cg_dot(ab, ap); d2 = gim__cg_dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) { memcpy(out, a, 3 * sizeof(double)); return; }
+    for (k = 0; k < 3; ++k) bp[k] = p[k] - b[k];
+    d3 = gim__cg_dot(ab, bp); d4 = gim__cg_dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) { memcpy(out, b, 3 * sizeof(double)); return; }
+    vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        v = d1 / (d1 - d3);
+        for (k = 0; k < 3; ++k) out[k] = a[k] + v * ab[k];
+        return;
+    }
+    for (k = 0; k < 3; ++k) cp[k] = p[k] - c[k];
+    d5 = gim__cg_dot(ab, cp); d6 = gim__cg_dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) { memcpy(out, c, 3 * sizeof(double)); return; }
+    vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        w = d2 / (d2 - d6);
+        for (k = 0; k < 3; ++k) out[k] = a[k] + w * ac[k];
+        return;
+    }
+    va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        for (k = 0; k < 3; ++k) out[k] = b[k] + w * (c[k] - b[k]);
+        return;
+    }
+    den = 1.0 / (va + vb + vc);
+    v = vb * den;
+    w = vc * den;
+    for (k = 0; k < 3; ++k) out[k] = a[k] + ab[k] * v + ac[k] * w;
+}
+
+/* Step 4: a cache farther than a thousandth of a voxel from every triangle it represents
+   floats (averaging a bent surface puts it inside the bend); move it to the nearest point
+   of those triangles when every represented point stays within d_eps of it. */
+static void gim__cg_snap(gim__cg *g, const uint32_t *order, const uint32_t *start, size_t count, uint32_t *snapped) {
+    size_t c, j;
+    *snapped = 0;
+    for (c = 0; c < count; ++c) {
+        gim__cg_cache *cc = &g->caches[c];
+        double best[3], best_d = DBL_MAX, q[3];
+        uint32_t last_tri = 0xffffffffu;
+        int ok = 1;
+        for (j = start[c]; j < start[c + 1]; ++j) {
+            const gim__cg_frag *f = &g->frags[order[j]];
+            double v[3][3], d;
+            if (f->tri == last_tri) continue;
+            last_tri = f->tri;
+            gim__cg_vertex(g, gim__cg_index(g->mesh, (size_t)f->tri * 3u), v[0]);
+            gim__cg_vertex(g, gim__cg_index(g->mesh, (size_t)f->tri * 3u + 1u), v[1]);
+            gim__cg_vertex(g, gim__cg_index(g->mesh, (size_t)f->tri * 3u + 2u), v[2]);
+            gim__cg_closest(cc->p, v[0], v[1], v[2], q);
+            d = gim__cg_dist(q, cc->p);
+            if (d < best_d) { best_d = d; memcpy(best, q, sizeof q); }
+        }
+        if (!(best_d > 1e-3) || best_d == DBL_MAX) continue;
+        for (j = start[c]; j < start[c + 1] && ok; ++j) {
+            const gim__cg_frag *f = &g->frags[order[j]];
+            double fc[3];
+            fc[0] = f->c[0]; fc[1] = f->c[1]; fc[2] = f->c[2];
+            ok = gim__cg_dist(best, fc) + f->radius <= g->limit;
+        }
+        if (!ok) continue;
+        memcpy(cc->p, best, sizeof best);
+        ++*snapped;
+    }
+}
+
+/* Duplicate test key: the triangle's positions rotated to start at the smallest vertex
+   (same winding only: the reversed triangle is the other face of a zero-thickness wall). */
+static void gim__cg_canonical(const gim_mesh_data *m, uint32_t t, float out[9]) {
+    float p[3][3];
+    int i, k, s = 0;
+    for (i = 0; i < 3; ++i) {
+        const float *v = gim__cg_position(m, gim__cg_index(m, (size_t)t * 3u + (size_t)i));
+        for (k = 0; k < 3; ++k) p[i][k] = v[k] + 0.0f; /* -0 and +0 are one point */
+    }
+    for (i = 1; i < 3; ++i) {
+        for (k = 0; k < 3 && p[i][k] == p[s][k]; ++k) {}
+        if (k < 3 && p[i][k] < p[s][k]) s = i;
+    }
+    for (i = 0; i < 3; ++i)
+        for (k = 0; k < 3; ++k) out[i * 3 + k] = p[(s + i) % 3][k];
+}
+static uint32_t gim__cg_hash9(const float v[9]) {
+    uint32_t h = 0x811c9dc5u, b;
+    int i;
+    for (i = 0; i < 9; ++i) {
+        memcpy(&b, &v[i], sizeof b);
+        h = gim__hash32(h ^ b) + 0x9e3779b9u;
+    }
+    return h;
+}
+
+/* Triangle status during generation. */
+enum { GIM__CG_USED = 0, GIM__CG_NONFINITE, GIM__CG_DEGENERATE, GIM__CG_DUPLICATE };
+
+static gim_result gim__cg_check(const gim_cache_desc *d) {
+    const gim_mesh_data *m = &d->mesh;
+    const gim_env *env = &d->env;
+    const char *fn = "gim_cache_generate";
+    size_t t, tris, i;
+    if (!m->positions || m->vertex_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no positions");
+    if (!m->indices || m->index_count == 0 || m->index_count % 3u != 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "index_count must be a positive multiple of 3 (got %u)", m->index_count);
+    if (m->index_type != GIM_INDEX_DEFAULT && m->index_type != GIM_INDEX_U32 && m->index_type != GIM_INDEX_U16)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown index_type %d", (int)m->index_type);
+    if ((m->position_stride && (m->position_stride < 12u || m->position_stride % 4u)) ||
+        (m->normal_stride && (m->normal_stride < 12u || m->normal_stride % 4u)))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "strides must be 0 or a multiple of 4 of at least 12");
+    if (!(d->d_eps >= 0.0f) || !gim__isfinitef(d->d_eps) || !(d->scene_scale >= 0.0f) || !gim__isfinitef(d->scene_scale))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "d_eps and scene_scale must be finite and >= 0 (0 = default)");
+    if (!(d->theta_eps >= 0.0f && d->theta_eps <= 1.5707964f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "theta_eps must be in (0, pi/2] (0 = default)");
+    tris = m->index_count / 3u;
+    if (m->material_reflectance) {
+        if (m->material_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "material_reflectance without material_count");
+        for (i = 0; i < m->material_count; ++i)
+            if (!(m->material_reflectance[i] >= 0.0f && m->material_reflectance[i] <= 1.0f))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "material %u: reflectance must be in [0,1]", (unsigned)i);
+        if (m->triangle_material)
+            for (t = 0; t < tris; ++t)
+                if (m->triangle_material[t] >= m->material_count)
+                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "triangle %u: material %u out of range (%u materials)",
+                                     (unsigned)t, m->triangle_material[t], m->material_count);
+    }
+    for (i = 0; i < m->index_count; ++i)
+        if (gim__cg_index(m, i) >= m->vertex_count)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "index %u (triangle %u) is %u, past vertex_count %u",
+                             (unsigned)i, (unsigned)(i / 3u), gim__cg_index(m, i), m->vertex_count);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_set *out) {
+    const char *fn = "gim_cache_generate";
+    const gim_env *env;
+    const gim_mesh_data *m;
+    gim__cg g;
+    gim_cache_report rep;
+    gim_result res = GIM_OK;
+    uint8_t *status = NULL;
+    uint32_t *frag_cache = NULL, *rem = NULL, *rem_bin = NULL, *touched = NULL;
+    uint32_t *order = NULL, *start = NULL, *remap = NULL;
+    double *bin_area = NULL;
+    gim__cg_pair *pairs = NULL, *ptmp = NULL;
+    gim_cache *result = NULL;
+    size_t tris, t, i, j, final_count = 0, max_run = 0;
+    double lo[3], hi[3], scale, d_eps, ext[3], cells, area_total = 0.0, est = 0.0;
+    uint32_t bins, snapped = 0;
+    int k, any = 0;
+
+    if (!desc || !out) return gim__fail(desc ? &desc->env : NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc and out must not be NULL");
+    env = &desc->env;
+    m = &desc->mesh;
+    res = gim__cg_check(desc);
+    if (res != GIM_OK) return res;
+    memset(&g, 0, sizeof g);
+    memset(&rep, 0, sizeof rep);
+    g.mesh = m;
+    g.env = env;
+    tris = m->index_count / 3u;
+
+    /* triangles with a NaN/Inf coordinate are skipped; the rest give the bounds */
+    status = (uint8_t *)gim__alloc(env, tris);
+    if (!status) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+    for (k = 0; k < 3; ++k) { lo[k] = DBL_MAX; hi[k] = -DBL_MAX; }
+    for (t = 0; t < tris; ++t) {
+        const float *p[3];
+        int v;
+        for (v = 0; v < 3; ++v) p[v] = gim__cg_position(m, gim__cg_index(m, t * 3u + (size_t)v));
+        if (!gim__all_finite(p[0], 3) || !gim__all_finite(p[1], 3) || !gim__all_finite(p[2], 3)) {
+            status[t] = GIM__CG_NONFINITE;
+            rep.triangles_nonfinite++;
+            continue;
+        }
+        status[t] = GIM__CG_USED;
+        any = 1;
+        for (v = 0; v < 3; ++v)
+            for (k = 0; k < 3; ++k) {
+                if (p[v][k] < lo[k]) lo[k] = p[v][k];
+                if (p[v][k] > hi[k]) hi[k] = p[v][k];
+            }
+    }
+    if (!any) for (k = 0; k < 3; ++k) lo[k] = hi[k] = 0.0;
+    for (k = 0; k < 3; ++k) { g.origin[k] = lo[k]; ext[k] = hi[k] - lo[k]; }
+    scale = desc->scene_scale > 0.0f ? (double)desc->scene_scale : sqrt(ext[0] * ext[0] + ext[1] * ext[1] + ext[2] * ext[2]);
+    d_eps = desc->d_eps > 0.0f ? (double)desc->d_eps : scale / 32.0;
+    g.theta = desc->theta_eps > 0.0f ? (double)desc->theta_eps : 30.0 * 3.14159265358979323846 / 180.0;
+    g.cos_theta = cos(g.theta);
+    if (!(d_eps > 0.0)) d_eps = 1.0; /* a mesh of one point: nothing has area anyway */
+    if (!((float)d_eps > 0.0f) || !gim__isfinitef((float)d_eps)) {
+        res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "d_eps %g is outside float range", d_eps);
+        goto fail;
+    }
+    g.h = 0.5 * d_eps;
+    g.inv_h = 1.0 / g.h;
+    {
+        double big = 0.0;
+        for (k = 0; k < 3; ++k) {
+            if (fabs(lo[k]) > big) big = fabs(lo[k]);
+            if (fabs(hi[k]) > big) big = fabs(hi[k]);
+        }
+        g.limit = 2.0 - 2.0 * big * (double)FLT_EPSILON * g.inv_h - 1e-6;
+        if (g.limit < 0.0) g.limit = 0.0;
+    }
+    cells = 1.0;
+    for (k = 0; k < 3; ++k) {
+        double nk = floor(ext[k] * g.inv_h) + 1.0;
+        g.dim[k] = nk < 4e18 ? (uint64_t)nk : (uint64_t)4e18;
+        cells *= nk;
+    }
+    if (!(cells < 4.0e18)) {
+        res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "d_eps %g is too small for a mesh of extent %g: %.3g voxels",
+                        d_eps, sqrt(ext[0] * ext[0] + ext[1] * ext[1] + ext[2] * ext[2]), cells);
+        goto fail;
+    }
+
+    /* degenerate triangles; the rest hashed by their positions and sorted by hash (stable, so
+       equal hashes keep triangle order and the first of a set of duplicates stays) */
+    pairs = (gim__cg_pair *)gim__alloc_array(env, tris, sizeof *pairs);
+    ptmp = (gim__cg_pair *)gim__alloc_array(env, tris, sizeof *ptmp);
+    if (!pairs || !ptmp) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+    for (t = 0, j = 0; t < tris; ++t) {
+        double v[3][3], e1[3], e2[3], e3[3], cr[3], l1, l2, l3, lmax;
+        float key[9];
+        if (status[t] != GIM__CG_USED) continue;
+        for (k = 0; k < 3; ++k) gim__cg_vertex(&g, gim__cg_index(m, t * 3u + (size_t)k), v[k]);
+        for (k = 0; k < 3; ++k) { e1[k] = v[1][k] - v[0][k]; e2[k] = v[2][k] - v[0][k]; e3[k] = v[2][k] - v[1][k]; }
+        gim__cg_cross(e1, e2, cr);
+        l1 = gim__cg_dot(e1, e1); l2 = gim__cg_dot(e2, e2); l3 = gim__cg_dot(e3, e3);
+        lmax = l1 > l2 ? l1 : l2;
+        if (l3 > lmax) lmax = l3;
+        /* zero area, or thinner than float precision across its longest edge */
+        if (!(sqrt(gim__cg_dot(cr, cr)) > 1e-7 * lmax)) { status[t] = GIM__CG_DEGENERATE; rep.triangles_degenerate++; continue; }
+        gim__cg_canonical(m, (uint32_t)t, key);
+        pairs[j].key = gim__cg_hash9(key);
+        pairs[j].idx = (uint32_t)t;
+        ++j;
+    }
+    gim__cg_radix(pairs, ptmp, j, 0xffffffffu);
+    gim__free(env, ptmp);
+    ptmp = NULL;
+    for (i = 0; i < j;) { /* duplicates: same canonical positions within a run of one hash */
+        size_t e = i + 1u, x, y;
+        while (e < j && pairs[e].key == pairs[i].key) ++e;
+        for (x = i + 1u; x < e; ++x) {
+            float key[9], other[9];
+            gim__cg_canonical(m, pairs[x].idx, key);
+            for (y = i; y < x; ++y) {
+                if (status[pairs[y].idx] != GIM__CG_USED) continue;
+                gim__cg_canonical(m, pairs[y].idx, other);
+                if (memcmp(key, other, sizeof key) == 0) { status[pairs[x].idx] = GIM__CG_DUPLICATE; break; }
+            }
+        }
+        i = e;
+    }
+    gim__free(env, pairs);
+    pairs = NULL;
+    /* the used surface; an estimate of the voxel pieces guards the work */
+    for (t = 0; t < tris; ++t) {
+        double v[3][3], e1[3], e2[3], e3[3], cr[3], a2;
+        if (status[t] == GIM__CG_DUPLICATE) rep.triangles_duplicate++;
+        if (status[t] != GIM__CG_USED) continue;
+        for (k = 0; k < 3; ++k) gim__cg_vertex(&g, gim__cg_index(m, t * 3u + (size_t)k), v[k]);
+        for (k = 0; k < 3; ++k) { e1[k] = v[1][k] - v[0][k]; e2[k] = v[2][k] - v[0][k]; e3[k] = v[2][k] - v[1][k]; }
+        gim__cg_cross(e1, e2, cr);
+        a2 = sqrt(gim__cg_dot(cr, cr));
+        rep.triangles_used++;
+        area_total += 0.5 * a2;
+        est += 0.5 * a2 * 3.0 + 2.0 * (sqrt(gim__cg_dot(e1, e1)) + sqrt(gim__cg_dot(e2, e2)) + sqrt(gim__cg_dot(e3, e3))) + 1.0;
+    }
+    rep.surface_area = area_total * g.h * g.h;
+    if (est > 1.0e9) {
+        res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "d_eps %g is too small for this mesh: about %.3g voxel pieces",
+                        d_eps, est);
+        goto fail;
+    }
+
+    /* step 1: voxelize (at least one piece per used triangle) */
+    g.frag_cap = (size_t)rep.triangles_used + rep.triangles_used / 4u + 64u;
+    g.frags = (gim__cg_frag *)gim__alloc_array(env, g.frag_cap, sizeof(gim__cg_frag));
+    if (!g.frags) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+    for (t = 0; t < tris; ++t) {
+        gim__cg_tri tri;
+        double e1[3], e2[3];
+        uint32_t idx[3];
+        if (status[t] != GIM__CG_USED) continue;
+        for (k = 0; k < 3; ++k) {
+            idx[k] = gim__cg_index(m, t * 3u + (size_t)k);
+            gim__cg_vertex(&g, idx[k], tri.v[k]);
+        }
+        for (k = 0; k < 3; ++k) { e1[k] = tri.v[1][k] - tri.v[0][k]; e2[k] = tri.v[2][k] - tri.v[0][k]; }
+        gim__cg_cross(e1, e2, tri.face_n);
+        tri.area = 0.5 * sqrt(gim__cg_dot(tri.face_n, tri.face_n));
+        gim__cg_normalize(tri.face_n);
+        tri.rho = 1.0f;
+        if (m->material_reflectance) tri.rho = m->material_reflectance[m->triangle_material ? m->triangle_material[t] : 0u];
+        tri.tri = (uint32_t)t;
+        tri.smooth = 0;
+        if (m->normals) {
+            tri.smooth = 1;
+            for (k = 0; k < 3 && tri.smooth; ++k) {
+                const float *n = gim__cg_normal(m, idx[k]);
+                tri.smooth = gim__all_finite(n, 3);
+                tri.vn[k][0] = tri.smooth ? n[0] : 0.0; tri.vn[k][1] = tri.smooth ? n[1] : 0.0; tri.vn[k][2] = tri.smooth ? n[2] : 0.0;
+                if (tri.smooth) tri.smooth = gim__cg_normalize(tri.vn[k]);
+            }
+        }
+        if (!gim__cg_clip(&g, &tri)) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+    }
+    gim__free(env, status);
+    status = NULL;
+
+    /* group the pieces by voxel: a stable radix sort of (key, piece) keeps triangle order
+       within a voxel; the pieces stay where they are (a permutation costs more than it saves) */
+    if (g.frag_count > 0) {
+        size_t n = g.frag_count;
+        pairs = (gim__cg_pair *)gim__alloc_array(env, n, sizeof *pairs);
+        ptmp = (gim__cg_pair *)gim__alloc_array(env, n, sizeof *ptmp);
+        if (!pairs || !ptmp) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+        for (i = 0; i < n; ++i) { pairs[i].key = g.frags[i].key; pairs[i].idx = (uint32_t)i; }
+        gim__cg_radix(pairs, ptmp, n, g.dim[0] * g.dim[1] * g.dim[2] - 1u);
+        gim__free(env, ptmp);
+        ptmp = NULL;
+    }
+
+    /* steps 2-3: normal bins and averaging, voxel by voxel */
+    bins = (uint32_t)ceil(3.14159265358979323846 / g.theta);
+    if (bins < 2u) bins = 2u;
+    if (bins > 64u) bins = 64u;
+    for (i = 0; i < g.frag_count; i = j) {
+        for (j = i + 1u; j < g.frag_count && pairs[j].key == pairs[i].key; ++j) {}
+        if (j - i > max_run) max_run = j - i;
+        rep.voxels++;
+    }
+    if (g.frag_count > 0) {
+        bin_area = (double *)gim__alloc_array(env, (size_t)6u * bins * bins, sizeof(double));
+        touched = (uint32_t *)gim__alloc_array(env, (size_t)6u * bins * bins, sizeof(uint32_t));
+        rem = (uint32_t *)gim__alloc_array(env, max_run, sizeof(uint32_t));
+        rem_bin = (uint32_t *)gim__alloc_array(env, max_run, sizeof(uint32_t));
+        frag_cache = (uint32_t *)gim__alloc_array(env, g.frag_count, sizeof(uint32_t));
+        if (!bin_area || !touched || !rem || !rem_bin || !frag_cache) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+        memset(frag_cache, 0xff, g.frag_count * sizeof(uint32_t)); /* no cache yet */
+        for (i = 0; i < (size_t)6u * bins * bins; ++i) bin_area[i] = 0.0;
+        for (i = 0; i < g.frag_count; i = j) {
+            for (j = i + 1u; j < g.frag_count && pairs[j].key == pairs[i].key; ++j) {}
+            if (!gim__cg_voxel(&g, pairs + i, j - i, bins, bin_area, touched, rem, rem_bin, frag_cache)) {
+                res = GIM_ERROR_OUT_OF_MEMORY;
+                goto fail;
+            }
+        }
+        gim__free(env, bin_area); bin_area = NULL;
+        gim__free(env, touched); touched = NULL;
+        gim__free(env, rem); rem = NULL;
+        gim__free(env, rem_bin); rem_bin = NULL;
+        gim__free(env, pairs); pairs = NULL;
+    }
+    rep.caches_before_merge = (uint32_t)g.cache_count;
+
+    /* step 5 (before snapping, so a snap sees everything its cache represents) */
+    if (!desc->no_merge) gim__cg_merge(&g);
+
+    /* compact the surviving caches and group the pieces by their final cache */
+    if (g.cache_count > 0) {
+        remap = (uint32_t *)gim__alloc_array(env, g.cache_count, sizeof(uint32_t));
+        if (!remap) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+        for (i = 0; i < g.cache_count; ++i) {
+            if (g.caches[i].parent == (uint32_t)i) {
+                remap[i] = (uint32_t)final_count;
+                g.caches[final_count] = g.caches[i];
+                g.caches[final_count].parent = (uint32_t)final_count;
+                final_count++;
+            } else {
+                uint32_t r = g.caches[i].parent;
+                remap[i] = remap[r]; /* absorbers come earlier and are never absorbed later */
+            }
+        }
+        g.cache_count = final_count;
+        start = (uint32_t *)gim__alloc_array(env, final_count + 1u, sizeof(uint32_t));
+        order = (uint32_t *)gim__alloc_array(env, g.frag_count, sizeof(uint32_t));
+        if (!start || !order) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+        memset(start, 0, (final_count + 1u) * sizeof(uint32_t));
+        for (i = 0; i < g.frag_count; ++i) { frag_cache[i] = remap[frag_cache[i]]; start[frag_cache[i] + 1u]++; }
+        for (i = 0; i < final_count; ++i) start[i + 1u] += start[i];
+        for (i = 0; i < g.frag_count; ++i) order[start[frag_cache[i]]++] = (uint32_t)i;
+        for (i = final_count; i > 0; --i) start[i] = start[i - 1u];
+        start[0] = 0;
+        gim__free(env, remap); remap = NULL;
+        /* step 4 */
+        if (!desc->no_snap) gim__cg_snap(&g, order, start, final_count, &snapped);
+        rep.caches_snapped = snapped;
+    }
+
+    /* the caches in the paper's layout, back in model units */
+    if (final_count > 0) {
+        result = (gim_cache *)gim__alloc_array(env, final_count, sizeof(gim_cache));
+        if (!result) { res = GIM_ERROR_OUT_OF_MEMORY; goto fail; }
+        for (i = 0; i < final_count; ++i) {
+            const gim__cg_cache *c = &g.caches[i];
+            gim_cache *o = &result[i];
+            for (k = 0; k < 3; ++k) {
+                o->position[k] = (float)(g.origin[k] + c->p[k] * g.h);
+                o->normal[k] = (float)c->n[k];
+            }
+            o->area = (float)(c->area * g.h * g.h);
+            o->reflectance = c->area > 0.0 ? (float)(c->rho_area / c->area) : 0.0f;
+            if (o->reflectance > 1.0f) o->reflectance = 1.0f;
+            if (!gim__all_finite(o->position, 3) || !gim__isfinitef(o->area)) {
+                res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "cache %u does not fit in float (mesh area %g)",
+                                (unsigned)i, rep.surface_area);
+                goto fail;
+            }
+        }
+    } else {
+        gim__log(env, GIM_LOG_WARNING, fn, "no usable triangle (%u degenerate, %u non-finite, %u duplicate): no caches",
+                 rep.triangles_degenerate, rep.triangles_nonfinite, rep.triangles_duplicate);
+    }
+    gim__free(env, start);
+    gim__free(env, order);
+    gim__free(env, frag_cache);
+    gim__free(env, g.frags);
+    gim__free(env, g.caches);
+    memset(out, 0, sizeof *out);
+    out->caches = result;
+    out->count = (uint32_t)final_count;
+    out->d_eps = (float)d_eps;
+    out->theta_eps = (float)g.theta;
+    out->report = rep;
+    out->env = *env;
+    return GIM_OK;
+
+fail:
+    if (res == GIM_ERROR_OUT_OF_MEMORY) gim__fail(env, res, fn, "allocation failed");
+    gim__free(env, status);
+    gim__free(env, pairs);
+    gim__free(env, ptmp);
+    gim__free(env, bin_area);
+    gim__free(env, touched);
+    gim__free(env, rem);
+    gim__free(env, rem_bin);
+    gim__free(env, frag_cache);
+    gim__free(env, remap);
+    gim__free(env, start);
+    gim__free(env, order);
+    gim__free(env, result);
+    gim__free(env, g.frags);
+    gim__free(env, g.caches);
+    return res;
+}
+
+GIMANY_DEF void gim_cache_set_free(gim_cache_set *set) {
+    if (!set) return;
+    gim__free(&set->env, set->caches);
+    memset(set, 0, sizeof *set);
+}
 
 /* neighbours: spatial grid, per-vertex nearest compatible caches */
 
 /* blobs: versioned, checksummed serialisation */
 
 /* @impl importance ======================================================================== */
+
+#define GIM__IMPORTANCE_DEFAULT_CLAMP (1.0f / 64.0f)
+
+/* eq. 10-11 for one texel; vs holds 6 doubles per view sample: position / scene_scale and a
+   unit normal (zero for a sample that sees nothing). Per texel independent: a GPU thread. */
+static float gim__importance_texel(const float *p, const float *nrm, const float *flux,
+                                   const double *vs, uint32_t vs_count, double inv_scale, double clamp2) {
+    double nx, ny, nz, len, px, py, pz, phi, sum = 0.0, r;
+    uint32_t j;
+    if (!gim__all_finite(p, 3) || !gim__all_finite(nrm, 3) || !gim__all_finite(flux, 3)) return 0.0f;
+    phi = gim_v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
+    if (!(phi > 0.0)) return 0.0f;                 /* black, or negative (non-physical) flux */
+    if (phi > FLT_MAX) phi = FLT_MAX;              /* the float luminance of huge rgb overflowed */
+    len = sqrt((double)nrm[0] * nrm[0] + (double)nrm[1] * nrm[1] + (double)nrm[2] * nrm[2]);
+    if (!(len > 0.0)) return 0.0f;
+    nx = nrm[0] / len; ny = nrm[1] / len; nz = nrm[2] / len;
+    px = p[0] * inv_scale; py = p[1] * inv_scale; pz = p[2] * inv_scale;
+    for (j = 0; j < vs_count; ++j) {
+        const double *s = vs + (size_t)j * 6u;
+        double mx = s[0] - px, my = s[1] - py, mz = s[2] - pz;   /* l in scene scales */
+        double d2 = mx * mx + my * my + mz * mz;
+        double cl = nx * mx + ny * my + nz * mz;                 /* (n_l . d)+ |l| */
+        double cv = -(s[3] * mx + s[4] * my + s[5] * mz);        /* (n_VS . -d)+ |l| */
+        cl = cl > 0.0 ? cl : 0.0;
+        cv = cv > 0.0 ? cv : 0.0;
+        /* cos cos / max(d2, clamp^2) = cl cv / (d2 max(d2, clamp^2)); cl cv <= d2, so a sample
+           at the texel itself (d2 = 0, cl = cv = 0) gives 0 through the DBL_MIN guard */
+        sum += cl * cv / ((d2 > clamp2 ? d2 : clamp2) * (d2 > DBL_MIN ? d2 : DBL_MIN));
+    }
+    r = phi * sum / (double)vs_count;
+    return r < FLT_MAX ? (float)r : FLT_MAX;
+}
+
+GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float *out) {
+    static const char fn[] = "gim_importance_map";
+    const gim_env *env;
+    size_t texels, i;
+    uint32_t j, unusable = 0;
+    double *vs, inv_scale, clamp;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    env = &desc->env;
+    if (!out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
+    if (!desc->rsm_position || !desc->rsm_normal || !desc->rsm_flux)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm_position, rsm_normal and rsm_flux are required");
+    if (desc->width == 0 || desc->height == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM size %ux%u is empty",
+                         (unsigned)desc->width, (unsigned)desc->height);
+    texels = gim__array_size(desc->width, desc->height);
+    if (texels == 0 || gim__array_size(texels, 3u * sizeof(float)) == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM size %ux%u overflows size_t",
+                         (unsigned)desc->width, (unsigned)desc->height);
+    if (!desc->view_samples || desc->view_sample_count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no view samples");
+    if (!(desc->scene_scale > 0.0f) || !gim__isfinitef(desc->scene_scale))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and > 0",
+                         (double)desc->scene_scale);
+    clamp = desc->clamp == 0.0f ? GIM__IMPORTANCE_DEFAULT_CLAMP : desc->clamp;
+    if (!(clamp > 0.0) || !gim__isfinitef((float)clamp))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "clamp %g must be finite and > 0 (0: default)",
+                         (double)desc->clamp);
+    vs = (double *)gim__alloc_array(env, desc->view_sample_count, 6u * sizeof(double));
+    if (!vs) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u view samples", (unsigned)desc->view_sample_count);
+    /* view samples once: scaled positions, unit normals; unusable ones see nothing */
+    inv_scale = 1.0 / (double)desc->scene_scale;
+    for (j = 0; j < desc->view_sample_count; ++j) {
+        gim_view_sample s = desc->view_samples[j];
+        double *o = vs + (size_t)j * 6u;
+        double len = sqrt((double)s.normal.x * s.normal.x + (double)s.normal.y * s.normal.y +
+                          (double)s.normal.z * s.normal.z);
+        if (!gim_v3_isfinite(s.position) || !gim_v3_isfinite(s.normal) || !(len > 0.0) || len > DBL_MAX) {
+            o[0] = o[1] = o[2] = o[3] = o[4] = o[5] = 0.0;
+            ++unusable;
+            continue;
+        }
+        o[0] = s.position.x * inv_scale; o[1] = s.position.y * inv_scale; o[2] = s.position.z * inv_scale;
+        o[3] = s.normal.x / len; o[4] = s.normal.y / len; o[5] = s.normal.z / len;
+    }
+    if (unusable)
+        gim__log(env, GIM_LOG_WARNING, fn, "%u of %u view samples are NaN/Inf or have a zero normal; they see nothing",
+                 (unsigned)unusable, (unsigned)desc->view_sample_count);
+    for (i = 0; i < texels; ++i) {
+        if (desc->rsm_valid && !(desc->rsm_valid[i] > 0.0f)) { out[i] = 0.0f; continue; }
+        out[i] = gim__importance_texel(desc->rsm_position + i * 3u, desc->rsm_normal + i * 3u,
+                                       desc->rsm_flux + i * 3u, vs, desc->view_sample_count,
+                                       inv_scale, clamp * clamp);
+    }
+    gim__free(env, vs);
+    return GIM_OK;
+}
+
+/* Table size checks shared by cumsum and select. */
+static gim_result gim__importance_tables_check(const gim_env *env, const char *fn, uint32_t width, uint32_t height) {
+    size_t texels;
+    if (width == 0 || height == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "map size %ux%u is empty", (unsigned)width, (unsigned)height);
+    texels = gim__array_size(width, height);
+    if (texels == 0 || gim__array_size(texels, sizeof(double)) == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "map size %ux%u overflows size_t",
+                         (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_importance_cumsum(const float *map, uint32_t width, uint32_t height,
+                                            double *column, double *row, gim_env env) {
+    static const char fn[] = "gim_importance_cumsum";
+    uint32_t x, y;
+    double acc;
+    gim_result r;
+    if (!map || !column || !row) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map, column and row are required");
+    r = gim__importance_tables_check(&env, fn, width, height);
+    if (r != GIM_OK) return r;
+    /* eq. 12, vertical: every column an independent sequential scan from row 0 down (one GPU
+       thread or scan per column; y outer here only for the cache). Doubles: a column of 4096
+       floats sums with a relative error near 4096 * 2^-53 instead of 4096 * 2^-24. */
+    for (y = 0; y < height; ++y) {
+        const float *m = map + (size_t)y * width;
+        double *c = column + (size_t)y * width;
+        const double *above = y ? c - width : NULL;
+        for (x = 0; x < width; ++x) {
+            float v = m[x];
+            if (!(v >= 0.0f && v <= FLT_MAX))
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map(%u, %u) = %g is not finite and >= 0",
+                                 (unsigned)x, (unsigned)y, (double)v);
+            c[x] = above ? above[x] + (double)v : (double)v;
+        }
+    }
+    /* eq. 12, horizontal: one scan along the column totals (the last row) */
+    acc = 0.0;
+    for (x = 0; x < width; ++x) {
+        acc += column[(size_t)(height - 1u) * width + x];
+        row[x] = acc;
+    }
+    return GIM_OK;
+}
+
+/* First index k in [0, n) with a[k * stride] > t, for t < a[(n-1) * stride] (so k < n). Branch
+   free (the compare becomes a select), so independent searches overlap in the pipeline.
+   When k > 0, a[k-1] <= t was seen, so a[k] - a[k-1] > 0 for a monotone table; a NaN met on
+   the way shows up as a NaN difference, which the caller rejects. */
+static uint32_t gim__first_above(const double *a, size_t stride, uint32_t n, double t) {
+    uint32_t base = 0;
+    while (n > 1u) {
+        uint32_t half = n / 2u;
+#if defined(__GNUC__) || defined(__clang__)
+        /* both possible next probes: large strided tables are bound by memory latency */
+        __builtin_prefetch(a + (size_t)(base + (n - half) / 2u) * stride);
+        __builtin_prefetch(a + (size_t)(base + half + (n - half) / 2u) * stride);
+#endif
+        base = a[(size_t)(base + half) * stride] <= t ? base + half : base;
+        n -= half;
+    }
+    return base + (a[(size_t)base * stride] <= t ? 1u : 0u);
+}
+
+/* The largest double below total, for u * total rounding up to total. */
+static double gim__below(double t, double total) {
+    return t < total ? t : nextafter(total, 0.0);
+}
+
+GIMANY_DEF gim_result gim_importance_select(const double *column, const double *row,
+                                            uint32_t width, uint32_t height, uint32_t count,
+                                            uint32_t seed, gim_selected_val *out, gim_env env) {
+    static const char fn[] = "gim_importance_select";
+    const double *totals; /* the last row of column: per-column totals */
+    double total, prev, o0, o1;
+    float off[4];
+    uint32_t i, x;
+    gim_result r;
+    if (!column || !row || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row and out are required");
+    if (count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
+    r = gim__importance_tables_check(&env, fn, width, height);
+    if (r != GIM_OK) return r;
+    totals = column + (size_t)(height - 1u) * width;
+    /* O(width) check of what every search relies on; the interior of the columns is checked
+       per sample (a NaN there shows as a non-positive difference) */
+    for (x = 0, prev = 0.0; x < width; ++x) {
+        if (!(row[x] >= prev && row[x] <= DBL_MAX) || !(totals[x] >= 0.0 && totals[x] <= DBL_MAX) ||
+            (row[x] > prev && !(totals[x] > 0.0)))
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "tables are not cumulative sums at column %u (row %g, column total %g)",
+                             (unsigned)x, row[x], totals[x]);
+        prev = row[x];
+    }
+    total = row[width - 1u];
+    /* 48-bit Cranley-Patterson offsets, two 24-bit ones per dimension: over all seeds u_i
+       only takes values on the offsets' lattice, so with 24 bits a column holding less than
+       2^-24 of the total would be picked with the wrong frequency (never, or far too often) */
+    gim_rotation_offsets(off, 4u, seed);
+    o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
+    o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
+    if (!(total > 0.0))
+        gim__log(&env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
+                 (unsigned)count);
+    for (i = 0; i < count; ++i) {
+        double u = (double)i / (double)count + o0, v = gim_van_der_corput(i) + o1;
+        uint32_t sx, sy;
+        u = u < 1.0 ? u : u - 1.0;
+        v = v < 1.0 ? v : v - 1.0;
+        if (!(total > 0.0)) { /* documented fallback: uniform, pdf 1 / texels */
+            sx = (uint32_t)(u * width); sy = (uint32_t)(v * height);
+            out[i].x = sx < width ? sx : width - 1u;
+            out[i].y = sy < height ? sy : height - 1u;
+            out[i].pdf = (float)(1.0 / ((double)width * (double)height));
+            continue;
+        }
+        {
+            double col_total, p_col, p_row, p;
+            sx = gim__first_above(row, 1u, width, gim__below(u * total, total));
+            col_total = totals[sx];
+            sy = gim__first_above(column + sx, width, height, gim__below(v * col_total, col_total));
+            p_col = (row[sx] - (sx ? row[sx - 1u] : 0.0)) / total;
+            p_row = (column[(size_t)sy * width + sx] - (sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0)) / col_total;
+            p = p_col * p_row;
+            if (!(p > 0.0 && p <= 1.0))
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                                 "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
+                                 (unsigned)sx, (unsigned)sy, p);
+            out[i].x = sx;
+            out[i].y = sy;
+            out[i].pdf = p > FLT_MIN ? (float)p : FLT_MIN;
+        }
+    }
+    return GIM_OK;
+}
 
 /* @impl twins ============================================================================= */
 
@@ -855,6 +2536,931 @@ GIMANY_DEF gim_vec3 gim_square_to_cosine_hemisphere(float u, float v) {
 
 /* @impl gl ================================================================================ */
 #ifndef GIMANY_NO_GL
+#include "shaders_embedded.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* --- GL declarations without a GL header -------------------------------------------------
+   Private type and constant names (GIM__GL_*), so that no host GL header or loader, included
+   before or after gimany.h, can clash with them (typedefs cannot be guarded with #ifndef). */
+#if defined(_WIN32) && !defined(__CYGWIN__)
+#define GIM__APIENTRY __stdcall
+#else
+#define GIM__APIENTRY
+#endif
+typedef unsigned int gim__GLenum;
+typedef unsigned int gim__GLuint;
+typedef unsigned int gim__GLbitfield;
+typedef int gim__GLint;
+typedef int gim__GLsizei;
+typedef unsigned char gim__GLboolean;
+typedef char gim__GLchar;
+typedef float gim__GLfloat;
+typedef ptrdiff_t gim__GLsizeiptr;
+typedef ptrdiff_t gim__GLintptr;
+typedef int64_t gim__GLint64;
+
+enum {
+    GIM__GL_NO_ERROR = 0,
+    GIM__GL_FALSE = 0,
+    GIM__GL_TRUE = 1,
+    GIM__GL_VENDOR = 0x1F00,
+    GIM__GL_RENDERER = 0x1F01,
+    GIM__GL_VERSION = 0x1F02,
+    GIM__GL_SHADING_LANGUAGE_VERSION = 0x8B8C,
+    GIM__GL_MAJOR_VERSION = 0x821B,
+    GIM__GL_MINOR_VERSION = 0x821C,
+    GIM__GL_CURRENT_PROGRAM = 0x8B8D,
+    GIM__GL_VERTEX_ARRAY_BINDING = 0x85B5,
+    GIM__GL_ARRAY_BUFFER = 0x8892,
+    GIM__GL_ARRAY_BUFFER_BINDING = 0x8894,
+    GIM__GL_ELEMENT_ARRAY_BUFFER = 0x8893,
+    GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING = 0x8895,
+    GIM__GL_DISPATCH_INDIRECT_BUFFER = 0x90EE,
+    GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING = 0x90EF,
+    GIM__GL_DRAW_INDIRECT_BUFFER = 0x8F3F,
+    GIM__GL_DRAW_INDIRECT_BUFFER_BINDING = 0x8F43,
+    GIM__GL_PIXEL_PACK_BUFFER = 0x88EB,
+    GIM__GL_PIXEL_PACK_BUFFER_BINDING = 0x88ED,
+    GIM__GL_PIXEL_UNPACK_BUFFER = 0x88EC,
+    GIM__GL_PIXEL_UNPACK_BUFFER_BINDING = 0x88EF,
+    GIM__GL_COPY_READ_BUFFER = 0x8F36,
+    GIM__GL_COPY_READ_BUFFER_BINDING = 0x8F36,
+    GIM__GL_COPY_WRITE_BUFFER = 0x8F37,
+    GIM__GL_COPY_WRITE_BUFFER_BINDING = 0x8F37,
+    GIM__GL_SHADER_STORAGE_BUFFER = 0x90D2,
+    GIM__GL_SHADER_STORAGE_BUFFER_BINDING = 0x90D3,
+    GIM__GL_SHADER_STORAGE_BUFFER_START = 0x90D4,
+    GIM__GL_SHADER_STORAGE_BUFFER_SIZE = 0x90D5,
+    GIM__GL_UNIFORM_BUFFER = 0x8A11,
+    GIM__GL_UNIFORM_BUFFER_BINDING = 0x8A28,
+    GIM__GL_UNIFORM_BUFFER_START = 0x8A29,
+    GIM__GL_UNIFORM_BUFFER_SIZE = 0x8A2A,
+    GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
+    GIM__GL_READ_FRAMEBUFFER = 0x8CA8,
+    GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
+    GIM__GL_READ_FRAMEBUFFER_BINDING = 0x8CAA,
+    GIM__GL_VIEWPORT = 0x0BA2,
+    GIM__GL_SCISSOR_BOX = 0x0C10,
+    GIM__GL_BLEND = 0x0BE2,
+    GIM__GL_CULL_FACE = 0x0B44,
+    GIM__GL_DEPTH_TEST = 0x0B71,
+    GIM__GL_STENCIL_TEST = 0x0B90,
+    GIM__GL_SCISSOR_TEST = 0x0C11,
+    GIM__GL_PRIMITIVE_RESTART = 0x8F9D,
+    GIM__GL_RASTERIZER_DISCARD = 0x8C89,
+    GIM__GL_POLYGON_OFFSET_FILL = 0x8037,
+    GIM__GL_FRAMEBUFFER_SRGB = 0x8DB9,
+    GIM__GL_DEPTH_CLAMP = 0x864F,
+    GIM__GL_BLEND_SRC_RGB = 0x80C9,
+    GIM__GL_BLEND_DST_RGB = 0x80C8,
+    GIM__GL_BLEND_SRC_ALPHA = 0x80CB,
+    GIM__GL_BLEND_DST_ALPHA = 0x80CA,
+    GIM__GL_BLEND_EQUATION_RGB = 0x8009,
+    GIM__GL_BLEND_EQUATION_ALPHA = 0x883D,
+    GIM__GL_DEPTH_FUNC = 0x0B74,
+    GIM__GL_DEPTH_WRITEMASK = 0x0B72,
+    GIM__GL_COLOR_WRITEMASK = 0x0C23,
+    GIM__GL_FRONT_FACE = 0x0B46,
+    GIM__GL_CULL_FACE_MODE = 0x0B45,
+    GIM__GL_POLYGON_MODE = 0x0B40,
+    GIM__GL_FRONT_AND_BACK = 0x0408,
+    GIM__GL_ACTIVE_TEXTURE = 0x84E0,
+    GIM__GL_TEXTURE0 = 0x84C0,
+    GIM__GL_TEXTURE_2D = 0x0DE1,
+    GIM__GL_TEXTURE_2D_ARRAY = 0x8C1A,
+    GIM__GL_TEXTURE_BINDING_2D = 0x8069,
+    GIM__GL_TEXTURE_BINDING_2D_ARRAY = 0x8C1D,
+    GIM__GL_SAMPLER_BINDING = 0x8919,
+    GIM__GL_IMAGE_BINDING_NAME = 0x8F3A,
+    GIM__GL_IMAGE_BINDING_LEVEL = 0x8F3B,
+    GIM__GL_IMAGE_BINDING_LAYERED = 0x8F3C,
+    GIM__GL_IMAGE_BINDING_LAYER = 0x8F3D,
+    GIM__GL_IMAGE_BINDING_ACCESS = 0x8F3E,
+    GIM__GL_IMAGE_BINDING_FORMAT = 0x906E,
+    GIM__GL_PACK_ALIGNMENT = 0x0D05,
+    GIM__GL_UNPACK_ALIGNMENT = 0x0CF5,
+    GIM__GL_PACK_ROW_LENGTH = 0x0D02,
+    GIM__GL_UNPACK_ROW_LENGTH = 0x0CF2,
+    GIM__GL_COLOR_CLEAR_VALUE = 0x0C22,
+    GIM__GL_DEPTH_CLEAR_VALUE = 0x0B73,
+    GIM__GL_COMPUTE_SHADER = 0x91B9,
+    GIM__GL_VERTEX_SHADER = 0x8B31,
+    GIM__GL_FRAGMENT_SHADER = 0x8B30,
+    GIM__GL_GEOMETRY_SHADER = 0x8DD9,
+    GIM__GL_COMPILE_STATUS = 0x8B81,
+    GIM__GL_LINK_STATUS = 0x8B82,
+    GIM__GL_MAX_COMPUTE_SHARED_MEMORY_SIZE = 0x8262,
+    GIM__GL_MAX_IMAGE_UNITS = 0x8F38,
+    GIM__GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS = 0x8B4D,
+    GIM__GL_SHADER_STORAGE_BARRIER_BIT = 0x00002000,
+    GIM__GL_TEXTURE_FETCH_BARRIER_BIT = 0x00000008,
+    GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x00000020,
+    GIM__GL_BUFFER_UPDATE_BARRIER_BIT = 0x00000200,
+    GIM__GL_DYNAMIC_COPY = 0x88EA,
+    GIM__GL_STREAM_READ = 0x88E1,
+    GIM__GL_R32F = 0x822E,
+    GIM__GL_RGBA32F = 0x8814,
+    GIM__GL_READ_ONLY = 0x88B8,
+    GIM__GL_RED = 0x1903,
+    GIM__GL_RGBA = 0x1908,
+    GIM__GL_FLOAT = 0x1406,
+    GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE = 0x90DE,
+    GIM__GL_BUFFER_SIZE = 0x8764,
+    GIM__GL_TEXTURE_WIDTH = 0x1000,
+    GIM__GL_TEXTURE_HEIGHT = 0x1001,
+    GIM__GL_INVALID_ENUM = 0x0500
+};
+
+/* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
+#define GIM__GL_FUNCS(X)                                                                          \
+    X(gim__GLenum, GetError, (void))                                                              \
+    X(const unsigned char *, GetString, (gim__GLenum name))                                      \
+    X(void, GetIntegerv, (gim__GLenum pname, gim__GLint *data))                                  \
+    X(void, GetIntegeri_v, (gim__GLenum target, gim__GLuint index, gim__GLint *data))            \
+    X(void, GetInteger64i_v, (gim__GLenum target, gim__GLuint index, gim__GLint64 *data))        \
+    X(void, GetInteger64v, (gim__GLenum pname, gim__GLint64 *data))                             \
+    X(void, GetBooleanv, (gim__GLenum pname, gim__GLboolean *data))                              \
+    X(void, GetFloatv, (gim__GLenum pname, gim__GLfloat *data))                                  \
+    X(gim__GLboolean, IsEnabled, (gim__GLenum cap))                                              \
+    X(void, Enable, (gim__GLenum cap))                                                           \
+    X(void, Disable, (gim__GLenum cap))                                                          \
+    X(void, UseProgram, (gim__GLuint program))                                                   \
+    X(void, BindVertexArray, (gim__GLuint array))                                                \
+    X(void, BindBuffer, (gim__GLenum target, gim__GLuint buffer))                                \
+    X(void, BindBufferBase, (gim__GLenum target, gim__GLuint index, gim__GLuint buffer))         \
+    X(void, BindBufferRange, (gim__GLenum target, gim__GLuint index, gim__GLuint buffer,         \
+                              gim__GLintptr offset, gim__GLsizeiptr size))                       \
+    X(void, BindFramebuffer, (gim__GLenum target, gim__GLuint framebuffer))                      \
+    X(void, Viewport, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))     \
+    X(void, Scissor, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))      \
+    X(void, BlendFuncSeparate, (gim__GLenum src_rgb, gim__GLenum dst_rgb, gim__GLenum src_alpha, \
+                                gim__GLenum dst_alpha))                                          \
+    X(void, BlendEquationSeparate, (gim__GLenum mode_rgb, gim__GLenum mode_alpha))               \
+    X(void, DepthFunc, (gim__GLenum func))                                                       \
+    X(void, DepthMask, (gim__GLboolean flag))                                                    \
+    X(void, ColorMask, (gim__GLboolean r, gim__GLboolean g, gim__GLboolean b, gim__GLboolean a)) \
+    X(void, FrontFace, (gim__GLenum mode))                                                       \
+    X(void, CullFace, (gim__GLenum mode))                                                        \
+    X(void, PolygonMode, (gim__GLenum face, gim__GLenum mode))                                   \
+    X(void, ClearColor, (gim__GLfloat r, gim__GLfloat g, gim__GLfloat b, gim__GLfloat a))        \
+    X(void, ClearDepth, (double depth))                                                          \
+    X(void, ActiveTexture, (gim__GLenum texture))                                                \
+    X(void, BindTexture, (gim__GLenum target, gim__GLuint texture))                              \
+    X(void, BindSampler, (gim__GLuint unit, gim__GLuint sampler))                                \
+    X(void, BindImageTexture, (gim__GLuint unit, gim__GLuint texture, gim__GLint level,          \
+                               gim__GLboolean layered, gim__GLint layer, gim__GLenum access,     \
+                               gim__GLenum format))                                              \
+    X(void, PixelStorei, (gim__GLenum pname, gim__GLint param))                                  \
+    X(gim__GLuint, CreateShader, (gim__GLenum type))                                             \
+    X(void, ShaderSource, (gim__GLuint shader, gim__GLsizei count,                               \
+                           const gim__GLchar *const *string, const gim__GLint *length))          \
+    X(void, CompileShader, (gim__GLuint shader))                                                 \
+    X(void, GetShaderiv, (gim__GLuint shader, gim__GLenum pname, gim__GLint *params))            \
+    X(void, GetShaderInfoLog, (gim__GLuint shader, gim__GLsizei size, gim__GLsizei *length,      \
+                               gim__GLchar *log))                                                \
+    X(void, DeleteShader, (gim__GLuint shader))                                                  \
+    X(gim__GLuint, CreateProgram, (void))                                                        \
+    X(void, AttachShader, (gim__GLuint program, gim__GLuint shader))                             \
+    X(void, DetachShader, (gim__GLuint program, gim__GLuint shader))                             \
+    X(void, LinkProgram, (gim__GLuint program))                                                  \
+    X(void, GetProgramiv, (gim__GLuint program, gim__GLenum pname, gim__GLint *params))          \
+    X(void, GetProgramInfoLog, (gim__GLuint program, gim__GLsizei size, gim__GLsizei *length,    \
+                                gim__GLchar *log))                                               \
+    X(void, DeleteProgram, (gim__GLuint program))                                                \
+    X(gim__GLint, GetUniformLocation, (gim__GLuint program, const gim__GLchar *name))            \
+    X(void, Uniform1i, (gim__GLint location, gim__GLint v0))                                     \
+    X(void, Uniform1ui, (gim__GLint location, gim__GLuint v0))                                   \
+    X(void, Uniform1f, (gim__GLint location, gim__GLfloat v0))                                   \
+    X(void, Uniform2ui, (gim__GLint location, gim__GLuint v0, gim__GLuint v1))                   \
+    X(void, Uniform2d, (gim__GLint location, double v0, double v1))                              \
+    X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
+    X(gim__GLboolean, IsBuffer, (gim__GLuint buffer))                                           \
+    X(void, GetBufferParameteri64v, (gim__GLenum target, gim__GLenum pname, gim__GLint64 *data)) \
+    X(gim__GLboolean, IsTexture, (gim__GLuint texture))                                         \
+    X(void, GetTexLevelParameteriv, (gim__GLenum target, gim__GLint level, gim__GLenum pname,    \
+                                     gim__GLint *params))                                        \
+    X(void, DeleteBuffers, (gim__GLsizei n, const gim__GLuint *buffers))                         \
+    X(void, BufferData, (gim__GLenum target, gim__GLsizeiptr size, const void *data,             \
+                         gim__GLenum usage))                                                     \
+    X(void, DispatchCompute, (gim__GLuint x, gim__GLuint y, gim__GLuint z))                      \
+    X(void, MemoryBarrier, (gim__GLbitfield barriers))
+
+/* The function table, filled by gim__gl_load. */
+typedef struct gim__gl {
+#define GIM__X(ret, name, args) ret(GIM__APIENTRY *name) args;
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+    int unused_; /* keeps the struct non-empty whatever the list holds */
+} gim__gl;
+
+/* Fill the table; a function the loader does not have is GIM_ERROR_UNSUPPORTED, each one
+   logged by name. With GIMANY_EXTERNAL_GL the host's own gl* functions (from its loader's
+   header, included before the implementation) fill it and get_proc_address is unused. */
+static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(const char *), const gim_env *env) {
+    int missing = 0;
+    const char *first = NULL;
+    memset(gl, 0, sizeof *gl);
+#ifdef GIMANY_EXTERNAL_GL
+    (void)get_proc_address;
+#define GIM__X(ret, name, args) gl->name = (ret(GIM__APIENTRY *) args)gl##name;
+#else
+#define GIM__X(ret, name, args) gl->name = (ret(GIM__APIENTRY *) args)get_proc_address("gl" #name);
+#endif
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+#define GIM__X(ret, name, args)                                                                  \
+    if (!gl->name) {                                                                             \
+        gim__log(env, GIM_LOG_ERROR, "gim_create", "GL function gl%s not found", #name);        \
+        if (!missing++) first = #name;                                                           \
+    }
+    GIM__GL_FUNCS(GIM__X)
+#undef GIM__X
+    if (missing)
+        return gim__fail(env, GIM_ERROR_UNSUPPORTED, "gim_create",
+                         "gl%s not found (%d GL function%s missing): gimany needs OpenGL 4.3", first, missing,
+                         missing == 1 ? "" : "s");
+    return GIM_OK;
+}
+
+/* --- GL state save/restore ----------------------------------------------------------------
+   The GL state gimany may touch, in one place. gim__gl_enter saves it on the way into the
+   outermost call that touches GL, gim__gl_leave restores it on the way out; what is not listed
+   here gimany must not change. Units and bindings are those gimany's passes use (within
+   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units). */
+#define GIM__GL_TEXTURE_UNITS 8
+#define GIM__GL_IMAGE_UNITS 8
+#define GIM__GL_SSBO_BINDINGS 8
+#define GIM__GL_UBO_BINDINGS 4
+
+/* glEnable/glDisable capabilities */
+static const gim__GLenum gim__gl_state_caps[] = {
+    GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
+    GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
+    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP};
+#define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
+
+/* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
+   and restored with the VAO. The generic SSBO/UBO bindings come after the indexed ones on
+   restore, because glBindBufferBase/Range also sets them. */
+static const gim__GLenum gim__gl_state_buffers[][2] = {
+    {GIM__GL_ARRAY_BUFFER, GIM__GL_ARRAY_BUFFER_BINDING},
+    {GIM__GL_DISPATCH_INDIRECT_BUFFER, GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING},
+    {GIM__GL_DRAW_INDIRECT_BUFFER, GIM__GL_DRAW_INDIRECT_BUFFER_BINDING},
+    {GIM__GL_PIXEL_PACK_BUFFER, GIM__GL_PIXEL_PACK_BUFFER_BINDING},
+    {GIM__GL_PIXEL_UNPACK_BUFFER, GIM__GL_PIXEL_UNPACK_BUFFER_BINDING},
+    {GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_READ_BUFFER_BINDING},
+    {GIM__GL_COPY_WRITE_BUFFER, GIM__GL_COPY_WRITE_BUFFER_BINDING},
+    {GIM__GL_SHADER_STORAGE_BUFFER, GIM__GL_SHADER_STORAGE_BUFFER_BINDING},
+    {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
+#define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
+
+/* glPixelStorei parameters */
+static const gim__GLenum gim__gl_state_pixel_store[] = {
+    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH};
+#define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
+
+/* One image unit (glBindImageTexture's arguments). */
+typedef struct gim__gl_image_binding {
+    gim__GLint texture, level, layered, layer, access, format;
+} gim__gl_image_binding;
+
+/* One indexed buffer binding; size 0 means the whole buffer (glBindBufferBase). */
+typedef struct gim__gl_indexed_buffer {
+    gim__GLint buffer;
+    gim__GLint64 start, size;
+} gim__gl_indexed_buffer;
+
+typedef struct gim__gl_state {
+    gim__GLint program, vertex_array, element_array_buffer;
+    gim__GLint draw_framebuffer, read_framebuffer;
+    gim__GLint viewport[4], scissor_box[4];
+    gim__GLboolean caps[GIM__GL_STATE_CAPS];
+    gim__GLint buffers[GIM__GL_STATE_BUFFERS];
+    gim__GLint blend_src_rgb, blend_dst_rgb, blend_src_alpha, blend_dst_alpha;
+    gim__GLint blend_equation_rgb, blend_equation_alpha;
+    gim__GLint depth_func;
+    gim__GLboolean depth_mask, color_mask[4];
+    gim__GLint front_face, cull_face_mode, polygon_mode[2];
+    gim__GLfloat color_clear[4], depth_clear;
+    gim__GLint active_texture;
+    gim__GLint texture_2d[GIM__GL_TEXTURE_UNITS], texture_2d_array[GIM__GL_TEXTURE_UNITS];
+    gim__GLint sampler[GIM__GL_TEXTURE_UNITS];
+    gim__gl_image_binding image[GIM__GL_IMAGE_UNITS];
+    gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS], ubo[GIM__GL_UBO_BINDINGS];
+    gim__GLint pixel_store[GIM__GL_STATE_PIXEL_STORE];
+} gim__gl_state;
+
+static void gim__gl_indexed_save(const gim__gl *gl, gim__GLenum binding, gim__GLenum start, gim__GLenum size,
+                                 gim__gl_indexed_buffer *b, unsigned count) {
+    unsigned i;
+    for (i = 0; i < count; ++i) {
+        gl->GetIntegeri_v(binding, i, &b[i].buffer);
+        gl->GetInteger64i_v(start, i, &b[i].start);
+        gl->GetInteger64i_v(size, i, &b[i].size);
+    }
+}
+
+static void gim__gl_indexed_restore(const gim__gl *gl, gim__GLenum target, const gim__gl_indexed_buffer *b,
+                                    unsigned count) {
+    unsigned i;
+    for (i = 0; i < count; ++i) {
+        if (b[i].buffer && b[i].size > 0)
+            gl->BindBufferRange(target, i, (gim__GLuint)b[i].buffer, (gim__GLintptr)b[i].start,
+                                (gim__GLsizeiptr)b[i].size);
+        else
+            gl->BindBufferBase(target, i, (gim__GLuint)b[i].buffer);
+    }
+}
+
+static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
+    unsigned i;
+    memset(s, 0, sizeof *s);
+    gl->GetIntegerv(GIM__GL_CURRENT_PROGRAM, &s->program);
+    gl->GetIntegerv(GIM__GL_VERTEX_ARRAY_BINDING, &s->vertex_array);
+    gl->GetIntegerv(GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING, &s->element_array_buffer);
+    gl->GetIntegerv(GIM__GL_DRAW_FRAMEBUFFER_BINDING, &s->draw_framebuffer);
+    gl->GetIntegerv(GIM__GL_READ_FRAMEBUFFER_BINDING, &s->read_framebuffer);
+    gl->GetIntegerv(GIM__GL_VIEWPORT, s->viewport);
+    gl->GetIntegerv(GIM__GL_SCISSOR_BOX, s->scissor_box);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) s->caps[i] = gl->IsEnabled(gim__gl_state_caps[i]);
+    for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i) gl->GetIntegerv(gim__gl_state_buffers[i][1], &s->buffers[i]);
+    gl->GetIntegerv(GIM__GL_BLEND_SRC_RGB, &s->blend_src_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_DST_RGB, &s->blend_dst_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_SRC_ALPHA, &s->blend_src_alpha);
+    gl->GetIntegerv(GIM__GL_BLEND_DST_ALPHA, &s->blend_dst_alpha);
+    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_RGB, &s->blend_equation_rgb);
+    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_ALPHA, &s->blend_equation_alpha);
+    gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
+    gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
+    gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
+    gl->GetIntegerv(GIM__GL_FRONT_FACE, &s->front_face);
+    gl->GetIntegerv(GIM__GL_CULL_FACE_MODE, &s->cull_face_mode);
+    gl->GetIntegerv(GIM__GL_POLYGON_MODE, s->polygon_mode); /* front and back; core has one mode */
+    gl->GetFloatv(GIM__GL_COLOR_CLEAR_VALUE, s->color_clear);
+    gl->GetFloatv(GIM__GL_DEPTH_CLEAR_VALUE, &s->depth_clear);
+    gl->GetIntegerv(GIM__GL_ACTIVE_TEXTURE, &s->active_texture);
+    for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &s->texture_2d[i]);
+        gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D_ARRAY, &s->texture_2d_array[i]);
+        gl->GetIntegerv(GIM__GL_SAMPLER_BINDING, &s->sampler[i]);
+    }
+    gl->ActiveTexture((gim__GLenum)s->active_texture);
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        gim__gl_image_binding *b = &s->image[i];
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_NAME, i, &b->texture);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LEVEL, i, &b->level);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYERED, i, &b->layered);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYER, i, &b->layer);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_ACCESS, i, &b->access);
+        gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_FORMAT, i, &b->format);
+    }
+    gim__gl_indexed_save(gl, GIM__GL_SHADER_STORAGE_BUFFER_BINDING, GIM__GL_SHADER_STORAGE_BUFFER_START,
+                         GIM__GL_SHADER_STORAGE_BUFFER_SIZE, s->ssbo, GIM__GL_SSBO_BINDINGS);
+    gim__gl_indexed_save(gl, GIM__GL_UNIFORM_BUFFER_BINDING, GIM__GL_UNIFORM_BUFFER_START,
+                         GIM__GL_UNIFORM_BUFFER_SIZE, s->ubo, GIM__GL_UBO_BINDINGS);
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->GetIntegerv(gim__gl_state_pixel_store[i], &s->pixel_store[i]);
+}
+
+static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+    unsigned i;
+    gl->UseProgram((gim__GLuint)s->program);
+    gl->BindVertexArray((gim__GLuint)s->vertex_array);
+    if (s->vertex_array) gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, (gim__GLuint)s->element_array_buffer);
+    gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);
+    gl->BindFramebuffer(GIM__GL_READ_FRAMEBUFFER, (gim__GLuint)s->read_framebuffer);
+    gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
+    gl->Scissor(s->scissor_box[0], s->scissor_box[1], s->scissor_box[2], s->scissor_box[3]);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) {
+        if (s->caps[i]) gl->Enable(gim__gl_state_caps[i]);
+        else gl->Disable(gim__gl_state_caps[i]);
+    }
+    gl->BlendFuncSeparate((gim__GLenum)s->blend_src_rgb, (gim__GLenum)s->blend_dst_rgb,
+                          (gim__GLenum)s->blend_src_alpha, (gim__GLenum)s->blend_dst_alpha);
+    gl->BlendEquationSeparate((gim__GLenum)s->blend_equation_rgb, (gim__GLenum)s->blend_equation_alpha);
+    gl->DepthFunc((gim__GLenum)s->depth_func);
+    gl->DepthMask(s->depth_mask);
+    gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
+    gl->FrontFace((gim__GLenum)s->front_face);
+    gl->CullFace((gim__GLenum)s->cull_face_mode);
+    gl->PolygonMode(GIM__GL_FRONT_AND_BACK, (gim__GLenum)s->polygon_mode[0]);
+    gl->ClearColor(s->color_clear[0], s->color_clear[1], s->color_clear[2], s->color_clear[3]);
+    gl->ClearDepth(s->depth_clear);
+    for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, (gim__GLuint)s->texture_2d[i]);
+        gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, (gim__GLuint)s->texture_2d_array[i]);
+        gl->BindSampler(i, (gim__GLuint)s->sampler[i]);
+    }
+    gl->ActiveTexture((gim__GLenum)s->active_texture);
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        const gim__gl_image_binding *b = &s->image[i];
+        gl->BindImageTexture(i, (gim__GLuint)b->texture, b->level, (gim__GLboolean)(b->layered != 0), b->layer,
+                             (gim__GLenum)b->access, (gim__GLenum)b->format);
+    }
+    gim__gl_indexed_restore(gl, GIM__GL_SHADER_STORAGE_BUFFER, s->ssbo, GIM__GL_SSBO_BINDINGS);
+    gim__gl_indexed_restore(gl, GIM__GL_UNIFORM_BUFFER, s->ubo, GIM__GL_UBO_BINDINGS);
+    for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i)
+        gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->PixelStorei(gim__gl_state_pixel_store[i], s->pixel_store[i]);
+}
+
+/* --- the context ----------------------------------------------------------------------- */
+
+/* Programs, compiled on first use from shaders_embedded.h. */
+typedef enum gim__program_id {
+    GIM__PROGRAM_IMPORTANCE_MAP = 0, /* eq. 10-11 */
+    GIM__PROGRAM_SCAN_COLUMNS,       /* eq. 12: block-local vertical sums */
+    GIM__PROGRAM_SCAN_TOTALS,        /* eq. 12: block offsets, horizontal sums of column totals */
+    GIM__PROGRAM_SCAN_OFFSETS,       /* eq. 12: block offsets added to the vertical sums */
+    GIM__PROGRAM_SELECT,             /* binary-search selection of VALs */
+    GIM__PROGRAM_COUNT
+} gim__program_id;
+
+/* Shader files of each program (compute: one file; draw programs: vertex, fragment). */
+static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
+    {"importance_map.comp", NULL},
+    {"importance_scan_columns.comp", NULL},
+    {"importance_scan_totals.comp", NULL},
+    {"importance_scan_offsets.comp", NULL},
+    {"importance_select.comp", NULL}};
+
+struct gim_context {
+    gim_env env;
+    gim__gl gl;
+    int gl_major, gl_minor;
+    int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
+    gim__gl_state saved;
+    gim__GLint64 max_ssbo_bytes;  /* GL_MAX_SHADER_STORAGE_BLOCK_SIZE */
+    gim__GLuint programs[GIM__PROGRAM_COUNT];
+    gim__GLuint scan_blocks;      /* eq. 12 scratch: per-block column totals, then offsets */
+    size_t scan_blocks_bytes;
+};
+
+/* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
+   error the host left pending is logged and cleared, so it is not blamed on gimany. */
+static void gim__gl_enter(gim_context *ctx, const char *where) {
+    if (ctx->gl_depth++ != 0) return;
+#ifdef GIMANY_DEBUG
+    {
+        gim__GLenum e;
+        int guard = 0;
+        while ((e = ctx->gl.GetError()) != GIM__GL_NO_ERROR && guard++ < 16)
+            gim__log(&ctx->env, GIM_LOG_WARNING, where, "GL error 0x%04x was pending before the call (left by the host)",
+                     (unsigned)e);
+    }
+#else
+    (void)where;
+#endif
+    gim__gl_state_save(&ctx->gl, &ctx->saved);
+}
+
+/* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
+static gim_result gim__gl_leave(gim_context *ctx, gim_result r) {
+    GIMANY_ASSERT(ctx->gl_depth > 0);
+    if (--ctx->gl_depth == 0) gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    return r;
+}
+
+/* Under GIMANY_DEBUG: GIM_ERROR_GL (logged) when the pass just run raised a GL error. */
+static gim_result gim__gl_check(gim_context *ctx, const char *where) {
+#ifdef GIMANY_DEBUG
+    gim__GLenum e, first = GIM__GL_NO_ERROR;
+    int guard = 0;
+    while ((e = ctx->gl.GetError()) != GIM__GL_NO_ERROR && guard++ < 16) {
+        if (first == GIM__GL_NO_ERROR) first = e;
+        gim__log(&ctx->env, GIM_LOG_ERROR, where, "GL error 0x%04x", (unsigned)e);
+    }
+    if (first != GIM__GL_NO_ERROR) return gim__fail(&ctx->env, GIM_ERROR_GL, where, "GL error 0x%04x", (unsigned)first);
+#else
+    (void)ctx; (void)where;
+#endif
+    return GIM_OK;
+}
+
+/* --- shaders --------------------------------------------------------------------------- */
+
+/* One stage of a program to build: its GL type, a name for the log, its source (no #version). */
+typedef struct gim__shader_stage {
+    gim__GLenum type;
+    const char *name;
+    const char *source;
+} gim__shader_stage;
+
+/* Send an info log through the logger, one message per line (a message holds ~450 chars). */
+static void gim__gl_log_info(const gim_context *ctx, const char *where, const char *log) {
+    while (*log) {
+        const char *end = strchr(log, '\n');
+        int n = end ? (int)(end - log) : (int)strlen(log);
+        if (n > 0) gim__log(&ctx->env, GIM_LOG_ERROR, where, "%.*s", n, log);
+        log += n + (end ? 1 : 0);
+    }
+}
+
+/* Compile and link stages into a program. The runtime prepends "#version 430 core\n", so
+   the compiler's line numbers are one more than the file's. Failure: GIM_ERROR_GL with the
+   info log through the logger, nothing left behind. */
+static gim_result gim__gl_build_program(gim_context *ctx, const char *program_name, const gim__shader_stage *stages,
+                                        int stage_count, gim__GLuint *out) {
+    static const char version[] = "#version 430 core\n";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint shaders[3] = {0, 0, 0}, program = 0;
+    gim__GLint ok = 0;
+    char log[2048];
+    gim_result r = GIM_OK;
+    int i;
+    GIMANY_ASSERT(stage_count >= 1 && stage_count <= 3);
+    for (i = 0; i < stage_count && r == GIM_OK; ++i) {
+        const gim__GLchar *src[2];
+        src[0] = version;
+        src[1] = stages[i].source;
+        shaders[i] = gl->CreateShader(stages[i].type);
+        if (!shaders[i]) {
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "glCreateShader failed for %s", stages[i].name);
+            break;
+        }
+        gl->ShaderSource(shaders[i], 2, src, NULL);
+        gl->CompileShader(shaders[i]);
+        gl->GetShaderiv(shaders[i], GIM__GL_COMPILE_STATUS, &ok);
+        if (!ok) {
+            log[0] = 0;
+            gl->GetShaderInfoLog(shaders[i], (gim__GLsizei)sizeof log, NULL, log);
+            log[sizeof log - 1] = 0;
+            gim__gl_log_info(ctx, stages[i].name, log);
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "%s does not compile (line numbers above are one past the file's)",
+                          stages[i].name);
+        }
+    }
+    if (r == GIM_OK) {
+        program = gl->CreateProgram();
+        if (!program) r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "glCreateProgram failed");
+    }
+    if (r == GIM_OK) {
+        for (i = 0; i < stage_count; ++i) gl->AttachShader(program, shaders[i]);
+        gl->LinkProgram(program);
+        for (i = 0; i < stage_count; ++i) gl->DetachShader(program, shaders[i]);
+        gl->GetProgramiv(program, GIM__GL_LINK_STATUS, &ok);
+        if (!ok) {
+            log[0] = 0;
+            gl->GetProgramInfoLog(program, (gim__GLsizei)sizeof log, NULL, log);
+            log[sizeof log - 1] = 0;
+            gim__gl_log_info(ctx, program_name, log);
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, program_name, "program does not link");
+        }
+    }
+    for (i = 0; i < stage_count; ++i)
+        if (shaders[i]) gl->DeleteShader(shaders[i]);
+    if (r != GIM_OK) {
+        if (program) gl->DeleteProgram(program);
+        return r;
+    }
+    *out = program;
+    return GIM_OK;
+}
+
+/* Source of an embedded shader file, or NULL. */
+static const char *gim__embedded_source(const char *file) {
+    const gim__embedded_shader *e;
+    for (e = gim__embedded_shaders; e->name; ++e)
+        if (strcmp(e->name, file) == 0) return (const char *)e->source;
+    return NULL;
+}
+
+/* The program id, built on first use (a feature never used costs nothing). */
+static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLuint *out) {
+    gim__shader_stage stages[2];
+    int n = 0, i;
+    gim_result r;
+    GIMANY_ASSERT((unsigned)id < GIM__PROGRAM_COUNT);
+    if (ctx->programs[id]) { *out = ctx->programs[id]; return GIM_OK; }
+    for (i = 0; i < 2 && gim__program_files[id][i]; ++i) {
+        const char *file = gim__program_files[id][i], *dot = strrchr(file, '.');
+        stages[n].name = file;
+        stages[n].source = gim__embedded_source(file);
+        if (!stages[n].source)
+            return gim__fail(&ctx->env, GIM_ERROR_GL, file, "not in shaders_embedded.h (run `make shaders`)");
+        if (dot && strcmp(dot, ".comp") == 0) stages[n].type = GIM__GL_COMPUTE_SHADER;
+        else if (dot && strcmp(dot, ".vert") == 0) stages[n].type = GIM__GL_VERTEX_SHADER;
+        else if (dot && strcmp(dot, ".geom") == 0) stages[n].type = GIM__GL_GEOMETRY_SHADER;
+        else stages[n].type = GIM__GL_FRAGMENT_SHADER;
+        ++n;
+    }
+    r = gim__gl_build_program(ctx, gim__program_files[id][0], stages, n, &ctx->programs[id]);
+    if (r == GIM_OK) *out = ctx->programs[id];
+    return r;
+}
+
+/* --- importance sampling passes (paper 000 sec. 4) -----------------------------------
+   The shape of every pass: argument checks (no GL) -> gim__gl_enter -> the host objects it
+   reads or writes checked (gim__gl_check_buffer/_texture) -> gim__gl_program (built on first
+   use) -> bindings on the units/bindings of the state list only -> dispatch -> barrier for how
+   the output is read next -> gim__gl_leave(ctx, gim__gl_check(ctx, where)). Every return after
+   the enter goes through the leave. A new binding point or state item goes into the state list
+   first (and into tests/gltest_runtime.c's distinctive state). */
+
+#define GIM__SCAN_MAX_SIZE 16384u  /* largest RSM side the scan takes */
+
+/* Make the context's scratch buffer at least bytes long (contents undefined). */
+static gim_result gim__gl_scratch(gim_context *ctx, gim__GLuint *buffer, size_t *have, size_t bytes, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    if (*buffer && *have >= bytes) return GIM_OK;
+    if (!*buffer) gl->GenBuffers(1, buffer);
+    if (!*buffer) return gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    gl->BindBuffer(GIM__GL_SHADER_STORAGE_BUFFER, *buffer);
+    gl->BufferData(GIM__GL_SHADER_STORAGE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
+    *have = bytes;
+    return gim__gl_check(ctx, where);
+}
+
+/* A host buffer a pass reads or writes must exist and hold bytes: the shaders index it up to
+   there, and an SSBO access past the end is undefined. Binds it to COPY_WRITE_BUFFER, so call
+   between gim__gl_enter and gim__gl_leave. */
+static gim_result gim__gl_check_buffer(gim_context *ctx, const char *where, const char *what, gim__GLuint buffer,
+                                       uint64_t bytes) {
+    gim__GLint64 size = 0;
+    if (!buffer || !ctx->gl.IsBuffer(buffer))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a buffer object", what, (unsigned)buffer);
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, buffer);
+    ctx->gl.GetBufferParameteri64v(GIM__GL_COPY_WRITE_BUFFER, GIM__GL_BUFFER_SIZE, &size);
+    if (size < 0 || (uint64_t)size < bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s holds %lld bytes, the pass needs %llu", what,
+                         (long long)size, (unsigned long long)bytes);
+    return GIM_OK;
+}
+
+/* A host 2D texture a pass reads must exist, be 2D and be at least width x height at level 0.
+   Binds it to TEXTURE_2D of the active unit (call between enter and leave). A texture of
+   another target raises GL_INVALID_OPERATION in the bind; under GIMANY_DEBUG it is cleared,
+   otherwise the host will see it. */
+static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, const char *what, gim__GLuint texture,
+                                        uint32_t width, uint32_t height) {
+    gim__GLint w = 0, h = 0;
+    if (!texture || !ctx->gl.IsTexture(texture))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, texture);
+    ctx->gl.GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &w);
+    if ((gim__GLuint)w != texture) { /* GL 4.3 cannot ask a texture's target: the bind failed */
+#ifdef GIMANY_DEBUG
+        ctx->gl.GetError(); /* that GL_INVALID_OPERATION is ours (enter cleared the host's) */
+#endif
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture", what,
+                         (unsigned)texture);
+    }
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_WIDTH, &w);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_HEIGHT, &h);
+    if (w < 0 || h < 0 || (uint32_t)w < width || (uint32_t)h < height)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s is %dx%d, the pass reads %ux%u", what, (int)w,
+                         (int)h, (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
+/* eq. 10-11 on the GPU, the twin of gim_importance_map. rsm_position, rsm_normal, rsm_flux:
+   2D float textures of width x height (position.xyz with .w > 0 where the RSM saw a surface,
+   the twin's rsm_valid; normal.xyz; flux.rgb), read with texelFetch on units 0-2.
+   view_samples: SSBO of view_sample_count {vec4 position; vec4 normal} (xyz used). map: SSBO
+   of width * height floats (row-major, row 0 first), written. clamp 0 means 1/64 of scene_scale.
+   Cost: width * height * view_sample_count terms. */
+static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                     gim__GLuint rsm_flux, uint32_t width, uint32_t height,
+                                                     gim__GLuint view_samples, uint32_t view_sample_count,
+                                                     float scene_scale, float clamp, gim__GLuint map) {
+    static const char where[] = "importance map (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3];
+    gim_result r;
+    unsigned i;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !view_samples || !map)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or buffer is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (clamp == 0.0f) clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
+    if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
+    gim__gl_enter(ctx, where);
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    for (i = 0; i < 3; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
+        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
+    }
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, map);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, view_sample_count);
+    gl->Uniform1f(2, (float)(1.0 / (double)scene_scale));
+    gl->Uniform1f(3, clamp * clamp);
+    gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* eq. 12 on the GPU, the twin of gim_importance_cumsum. map: SSBO of width * height floats
+   (row-major, row 0 first); column: SSBO of width * height doubles, written with
+   column[y * width + x] = sum of map(x, 0..y); row: SSBO of width doubles, written with
+   row[x] = sum of the column totals 0..x. block_rows: rows per block of the first level
+   (0: chosen from the size). Three dispatches, O(width * height) adds, in double like the twin: a float
+   table at 1024^2 of uniform random importance already gives 0.1% of the texels a selection
+   frequency more than 1% away from their P (tests/bench_gl.c), a bias the 1/P weights do not
+   undo. The cost is memory, not arithmetic: 8 bytes per texel (128 MB at 4096^2, checked
+   against GL_MAX_SHADER_STORAGE_BLOCK_SIZE); consumer GPUs' slow fp64 is ~3 adds per texel.
+   On llvmpipe (2 shared, loaded cores) the double scan took 0.8-3x the time of the same
+   shaders in float over several runs; a real GPU is bound by the memory traffic. */
+static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__GLuint map, gim__GLuint column,
+                                                        gim__GLuint row, uint32_t width, uint32_t height,
+                                                        uint32_t block_rows) {
+    static const char where[] = "importance cumsum (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint p_columns = 0, p_totals = 0, p_offsets = 0;
+    uint32_t blocks;
+    gim_result r;
+    if (!map || !column || !row) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (block_rows == 0) {
+        /* ~64k (column, block) invocations in the first level, enough to fill a GPU; the second
+           level then runs ~64k / 256 serial steps per invocation whatever the size */
+        uint32_t want = (65536u + width - 1u) / width;
+        block_rows = (height + want - 1u) / want;
+        if (block_rows < 16u) block_rows = 16u;
+    }
+    blocks = (height + block_rows - 1u) / block_rows;
+    if ((gim__GLint64)width * height * 8 > ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%ux%u doubles exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)width,
+                         (unsigned)height, (long long)ctx->max_ssbo_bytes);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "column", column, (uint64_t)width * height * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "row", row, (uint64_t)width * 8u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_COLUMNS, &p_columns);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_TOTALS, &p_totals);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SCAN_OFFSETS, &p_offsets);
+    if (r == GIM_OK)
+        r = gim__gl_scratch(ctx, &ctx->scan_blocks, &ctx->scan_blocks_bytes, (size_t)blocks * width * 8u, where);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, map);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->scan_blocks);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
+
+    gl->UseProgram(p_columns);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, block_rows);
+    gl->DispatchCompute((width + 63u) / 64u, blocks, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+
+    gl->UseProgram(p_totals);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, block_rows);
+    gl->DispatchCompute(1u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+
+    if (blocks > 1u) { /* one block: its offsets are 0 */
+        gl->UseProgram(p_offsets);
+        gl->Uniform2ui(0, width, height);
+        gl->Uniform1ui(1, block_rows);
+        gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
+    }
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Selection on the GPU, the twin of gim_importance_select: count VALs from the eq. 12 tables
+   (column, row: SSBOs as gim__gl_importance_cumsum writes them) into out, an SSBO of count
+   gim_selected_val (12 bytes each: x, y, pdf). Same seed, same picks as the twin. An all-zero
+   map selects uniformly (the twin also logs a warning, which the GPU cannot without a read-back);
+   pdf 0 marks a pick from tables that are not cumulative sums (the twin returns an error). */
+static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__GLuint column, gim__GLuint row,
+                                                        uint32_t width, uint32_t height, uint32_t count,
+                                                        uint32_t seed, gim__GLuint out) {
+    static const char where[] = "importance select (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    float off[4];
+    gim_result r;
+    if (!column || !row || !out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "count %u above %u", (unsigned)count, 65535u * 64u);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "column", column, (uint64_t)width * height * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "row", row, (uint64_t)width * 8u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "out", out, (uint64_t)count * 12u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    /* the twin's 48-bit rotation: two 24-bit offsets per dimension */
+    gim_rotation_offsets(off, 4u, seed);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, out);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, count);
+    gl->Uniform2d(2, (double)off[0] + (double)off[2] * (1.0 / 16777216.0),
+                  (double)off[1] + (double)off[3] * (1.0 / 16777216.0));
+    gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* --- create / destroy ------------------------------------------------------------------ */
+
+/* "4.6 (Core Profile) Mesa ..." or "OpenGL ES 3.2 ...": the major.minor a legacy context
+   (no GL_MAJOR_VERSION query) reports in its version string. */
+static void gim__gl_parse_version(const char *s, int *major, int *minor) {
+    *major = *minor = 0;
+    if (!s) return;
+    while (*s && (*s < '0' || *s > '9')) ++s;
+    while (*s >= '0' && *s <= '9') *major = *major * 10 + (*s++ - '0');
+    if (*s == '.') ++s;
+    while (*s >= '0' && *s <= '9') *minor = *minor * 10 + (*s++ - '0');
+}
+
+GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
+    gim__gl gl;
+    gim_context *ctx;
+    gim__GLint major = 0, minor = 0;
+    const char *version, *renderer, *vendor, *glsl;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    if (!out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create", "out is NULL");
+#ifndef GIMANY_EXTERNAL_GL
+    if (!desc->get_proc_address)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
+                         "desc.get_proc_address is NULL (pass eglGetProcAddress, glfwGetProcAddress, ...)");
+#endif
+    r = gim__gl_load(&gl, desc->get_proc_address, &desc->env);
+    if (r != GIM_OK) return r;
+
+    version = (const char *)gl.GetString(GIM__GL_VERSION);
+    renderer = (const char *)gl.GetString(GIM__GL_RENDERER);
+    vendor = (const char *)gl.GetString(GIM__GL_VENDOR);
+    if (!version)
+        return gim__fail(&desc->env, GIM_ERROR_UNSUPPORTED, "gim_create", "glGetString(GL_VERSION) is NULL: is a GL context current?");
+    gl.GetIntegerv(GIM__GL_MAJOR_VERSION, &major);
+    gl.GetIntegerv(GIM__GL_MINOR_VERSION, &minor);
+    if (major < 3) { /* before 3.0 the query is GL_INVALID_ENUM: clear it, read the string */
+        int guard = 0;
+        while (gl.GetError() != GIM__GL_NO_ERROR && guard++ < 16) {}
+        gim__gl_parse_version(version, &major, &minor);
+    }
+    if (strncmp(version, "OpenGL ES", 9) == 0 || major < 4 || (major == 4 && minor < 3))
+        return gim__fail(&desc->env, GIM_ERROR_UNSUPPORTED, "gim_create",
+                         "the context is %s %d.%d (\"%s\", %s): gimany needs desktop OpenGL 4.3",
+                         strncmp(version, "OpenGL ES", 9) == 0 ? "OpenGL ES" : "OpenGL", (int)major, (int)minor, version,
+                         renderer ? renderer : "?");
+    glsl = (const char *)gl.GetString(GIM__GL_SHADING_LANGUAGE_VERSION);
+    gim__log(&desc->env, GIM_LOG_INFO, "gim_create", "OpenGL %s; renderer %s; vendor %s; GLSL %s", version,
+             renderer ? renderer : "?", vendor ? vendor : "?", glsl ? glsl : "?");
+
+    ctx = (gim_context *)gim__alloc(&desc->env, sizeof *ctx);
+    if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
+    memset(ctx, 0, sizeof *ctx);
+    ctx->env = desc->env;
+    ctx->gl = gl;
+    ctx->gl_major = (int)major;
+    ctx->gl_minor = (int)minor;
+    gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
+    *out = ctx;
+    return GIM_OK;
+}
+
+GIMANY_DEF void gim_destroy(gim_context *ctx) {
+    gim_env env;
+    int i;
+    if (!ctx) return;
+    for (i = 0; i < GIM__PROGRAM_COUNT; ++i)
+        if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
+    if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
+    env = ctx->env;
+    gim__free(&env, ctx);
+}
+
+#ifdef __cplusplus
+}
+#endif
 #endif /* GIMANY_NO_GL */
 
 #endif /* GIMANY_IMPLEMENTATION_DONE */

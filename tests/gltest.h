@@ -1,0 +1,174 @@
+/* Headless GL for tests: an EGL desktop GL 4.3+ core context with no surface, and a KHR_debug
+   callback that counts GL errors so every GL test can assert there were none.
+
+   Display: EGL_PLATFORM_DEVICE_EXT on a hardware device when a GPU driver offers one, else
+   Mesa's EGL_PLATFORM_SURFACELESS_MESA (llvmpipe in CI). If no context can be had the tests
+   FAIL, unless GIMANY_SKIP_GL=1 is set (then they are skipped).
+
+   Include after `#define GIMANY_IMPLEMENTATION` in place of testutil.h. The test calls GL
+   directly through libGL (GL_GLEXT_PROTOTYPES); gimany loads its own table through
+   eglGetProcAddress, so gimany.h here also proves it coexists with a host's GL header. */
+#ifndef GIMANY_GLTEST_H
+#define GIMANY_GLTEST_H
+#include <EGL/egl.h>
+#include <EGL/eglext.h>
+#define GL_GLEXT_PROTOTYPES 1
+#include <GL/glcorearb.h>
+#include "testutil.h"
+
+typedef struct gltest_state {
+    EGLDisplay display;
+    EGLContext context;
+    int ready;            /* 1: a context is current */
+    int tried;
+    char why[256];        /* why there is no context */
+    const char *platform; /* "device" or "surfaceless" */
+    long gl_errors;       /* GL_DEBUG_TYPE_ERROR messages since gltest_reset_errors */
+    int quiet;            /* 1 while a test provokes errors on purpose */
+    char last_error[512];
+} gltest_state;
+
+static gltest_state gltest;
+
+static void APIENTRY gltest_debug_callback(GLenum source, GLenum type, GLuint id, GLenum severity,
+                                             GLsizei length, const GLchar *message, const void *user) {
+    (void)id; (void)length; (void)user; (void)severity;
+    /* a failed shader compile is reported through the info log, not as a GL error */
+    if (type != GL_DEBUG_TYPE_ERROR || source == GL_DEBUG_SOURCE_SHADER_COMPILER) return;
+    gltest.gl_errors++;
+    snprintf(gltest.last_error, sizeof gltest.last_error, "%s", message);
+    if (!gltest.quiet) fprintf(stderr, "gltest: GL error: %s\n", message);
+}
+
+static int gltest_has_ext(const char *list, const char *ext) {
+    size_t n = strlen(ext);
+    const char *p = list;
+    while (p && (p = strstr(p, ext)) != NULL) {
+        if ((p == list || p[-1] == ' ') && (p[n] == ' ' || p[n] == 0)) return 1;
+        p += n;
+    }
+    return 0;
+}
+
+/* A hardware EGL device's display, or EGL_NO_DISPLAY. */
+static EGLDisplay gltest_device_display(PFNEGLGETPLATFORMDISPLAYEXTPROC get_platform_display) {
+    PFNEGLQUERYDEVICESEXTPROC query_devices =
+        (PFNEGLQUERYDEVICESEXTPROC)eglGetProcAddress("eglQueryDevicesEXT");
+    PFNEGLQUERYDEVICESTRINGEXTPROC query_string =
+        (PFNEGLQUERYDEVICESTRINGEXTPROC)eglGetProcAddress("eglQueryDeviceStringEXT");
+    EGLDeviceEXT devices[16];
+    EGLint count = 0, i;
+    if (!query_devices || !query_string || !query_devices(16, devices, &count)) return EGL_NO_DISPLAY;
+    for (i = 0; i < count; ++i) {
+        const char *ext = query_string(devices[i], EGL_EXTENSIONS);
+        if (ext && gltest_has_ext(ext, "EGL_MESA_device_software")) continue; /* llvmpipe: use surfaceless */
+        {
+            EGLDisplay d = get_platform_display(EGL_PLATFORM_DEVICE_EXT, devices[i], NULL);
+            if (d != EGL_NO_DISPLAY) return d;
+        }
+    }
+    return EGL_NO_DISPLAY;
+}
+
+static int gltest_try_display(EGLDisplay d) {
+    static const EGLint ctx_attribs[] = {
+        EGL_CONTEXT_MAJOR_VERSION, 4, EGL_CONTEXT_MINOR_VERSION, 3,
+        EGL_CONTEXT_OPENGL_PROFILE_MASK, EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT,
+        EGL_CONTEXT_OPENGL_DEBUG, EGL_TRUE, EGL_NONE};
+    static const EGLint cfg_attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_SURFACE_TYPE, 0, EGL_NONE};
+    EGLint major, minor, n = 0;
+    EGLConfig cfg = (EGLConfig)0;
+    const char *ext;
+    if (d == EGL_NO_DISPLAY || !eglInitialize(d, &major, &minor)) return 0;
+    ext = eglQueryString(d, EGL_EXTENSIONS);
+    if (!eglBindAPI(EGL_OPENGL_API)) { eglTerminate(d); return 0; }
+    if (!(ext && gltest_has_ext(ext, "EGL_KHR_no_config_context"))) {
+        if (!eglChooseConfig(d, cfg_attribs, &cfg, 1, &n) || n < 1) { eglTerminate(d); return 0; }
+    }
+    gltest.context = eglCreateContext(d, cfg, EGL_NO_CONTEXT, ctx_attribs);
+    if (gltest.context == EGL_NO_CONTEXT) { eglTerminate(d); return 0; }
+    if (!eglMakeCurrent(d, EGL_NO_SURFACE, EGL_NO_SURFACE, gltest.context)) {
+        eglDestroyContext(d, gltest.context);
+        eglTerminate(d);
+        return 0;
+    }
+    gltest.display = d;
+    return 1;
+}
+
+/* Creates the context once per process; 1 when one is current. */
+static int gltest_init(void) {
+    PFNEGLGETPLATFORMDISPLAYEXTPROC get_platform_display;
+    const char *client_ext;
+    if (gltest.tried) return gltest.ready;
+    gltest.tried = 1;
+    client_ext = eglQueryString(EGL_NO_DISPLAY, EGL_EXTENSIONS);
+    get_platform_display = (PFNEGLGETPLATFORMDISPLAYEXTPROC)eglGetProcAddress("eglGetPlatformDisplayEXT");
+    if (!client_ext || !get_platform_display) {
+        snprintf(gltest.why, sizeof gltest.why, "EGL has no client extensions / eglGetPlatformDisplayEXT");
+        return 0;
+    }
+    if (gltest_has_ext(client_ext, "EGL_EXT_platform_device") &&
+        gltest_try_display(gltest_device_display(get_platform_display))) {
+        gltest.platform = "device";
+    } else if (gltest_has_ext(client_ext, "EGL_MESA_platform_surfaceless") &&
+               gltest_try_display(get_platform_display(EGL_PLATFORM_SURFACELESS_MESA, EGL_DEFAULT_DISPLAY, NULL))) {
+        gltest.platform = "surfaceless";
+    } else {
+        snprintf(gltest.why, sizeof gltest.why, "no EGL display gives a desktop GL 4.3 core context (EGL error 0x%x)",
+                 (unsigned)eglGetError());
+        return 0;
+    }
+    glEnable(GL_DEBUG_OUTPUT);
+    glEnable(GL_DEBUG_OUTPUT_SYNCHRONOUS);
+    glDebugMessageCallback(gltest_debug_callback, NULL);
+    glDebugMessageControl(GL_DONT_CARE, GL_DONT_CARE, GL_DONT_CARE, 0, NULL, GL_TRUE);
+    gltest.ready = 1;
+    fprintf(stderr, "gltest: %s platform, %s, %s\n", gltest.platform, (const char *)glGetString(GL_RENDERER),
+            (const char *)glGetString(GL_VERSION));
+    return 1;
+}
+
+static void gltest_shutdown(void) {
+    if (!gltest.ready) return;
+    eglMakeCurrent(gltest.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
+    eglDestroyContext(gltest.display, gltest.context);
+    eglTerminate(gltest.display);
+    gltest.ready = 0;
+}
+
+/* GL errors since the last reset: debug-callback errors plus anything glGetError still holds. */
+static GIM__UNUSED long gltest_errors(void) {
+    GLenum e;
+    int guard = 0;
+    while ((e = glGetError()) != GL_NO_ERROR && guard++ < 64) {
+        fprintf(stderr, "gltest: glGetError 0x%x\n", (unsigned)e);
+        gltest.gl_errors++;
+    }
+    return gltest.gl_errors;
+}
+static GIM__UNUSED void gltest_reset_errors(void) {
+    while (glGetError() != GL_NO_ERROR) {}
+    gltest.gl_errors = 0;
+    gltest.last_error[0] = 0;
+}
+
+/* The get_proc_address a host hands to gimany. */
+static GIM__UNUSED gim_gl_proc gltest_get_proc(const char *name) { return (gim_gl_proc)eglGetProcAddress(name); }
+
+/* First line of every GL test: a current context with no pending errors, or FAIL (skip only
+   with GIMANY_SKIP_GL=1). */
+#define GLTEST_BEGIN()                                                                          \
+    do {                                                                                        \
+        if (!gltest_init()) {                                                                   \
+            const char *skip_ = getenv("GIMANY_SKIP_GL");                                       \
+            if (skip_ && strcmp(skip_, "1") == 0) { print_message("GL skipped: %s\n", gltest.why); skip(); } \
+            fail_msg("no GL 4.3 context: %s (set GIMANY_SKIP_GL=1 to skip GL tests)", gltest.why); \
+        }                                                                                       \
+        gltest_reset_errors();                                                                  \
+    } while (0)
+
+/* Last line of every GL test. */
+#define GLTEST_END() assert_int_equal(gltest_errors(), 0)
+
+#endif

@@ -1,0 +1,520 @@
+/* The GPU importance-sampling passes (paper 000 eq. 10-12 and the selection) against their CPU
+   twins gim_importance_map / gim_importance_cumsum / gim_importance_select, on small inputs,
+   with zero GL errors and the GL state restored around every pass. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+
+/* --- inputs ---------------------------------------------------------------------------------- */
+
+/* A w x h RSM of a box corner seen by a light: the lower half of the texels on the floor
+   (y = 0, normal +y), the upper half on the back wall (z = 0, normal +z), size L, shifted by
+   origin. Flux random in [0, 1)^3; a few texels invalid, black, or NaN. */
+typedef struct rsm_data {
+    int w, h;
+    float *position, *normal, *flux, *valid; /* valid: the twin's rsm_valid (position.w on the GPU) */
+} rsm_data;
+
+static void make_rsm(rsm_data *r, int w, int h, float L, const float origin[3], int damaged) {
+    int x, y;
+    r->w = w;
+    r->h = h;
+    r->position = (float *)calloc((size_t)w * h * 3, sizeof(float));
+    r->normal = (float *)calloc((size_t)w * h * 3, sizeof(float));
+    r->flux = (float *)calloc((size_t)w * h * 3, sizeof(float));
+    r->valid = (float *)calloc((size_t)w * h, sizeof(float));
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t i = (size_t)y * w + x;
+            float u = ((float)x + 0.5f) / (float)w, v = ((float)(y % (h / 2)) + 0.5f) / (float)(h / 2);
+            float *p = r->position + i * 3, *n = r->normal + i * 3, *f = r->flux + i * 3;
+            if (y < h / 2) { p[0] = u * L; p[1] = 0.0f; p[2] = v * L; n[1] = 1.0f; }
+            else { p[0] = u * L; p[1] = v * L; p[2] = 0.0f; n[2] = 1.0f; }
+            p[0] += origin[0]; p[1] += origin[1]; p[2] += origin[2];
+            f[0] = (float)test_rand01(); f[1] = (float)test_rand01(); f[2] = (float)test_rand01();
+            r->valid[i] = 1.0f;
+        }
+    if (damaged) {
+        r->valid[5] = 0.0f;                              /* the RSM saw nothing */
+        r->flux[7 * 3] = r->flux[7 * 3 + 1] = r->flux[7 * 3 + 2] = 0.0f; /* black */
+        r->position[11 * 3 + 1] = NAN;                   /* a NaN position */
+        r->normal[13 * 3] = r->normal[13 * 3 + 1] = r->normal[13 * 3 + 2] = 0.0f; /* no normal */
+        r->flux[17 * 3 + 2] = INFINITY;                  /* an Inf flux */
+    }
+}
+
+static void free_rsm(rsm_data *r) {
+    free(r->position);
+    free(r->normal);
+    free(r->flux);
+    free(r->valid);
+}
+
+/* n view samples in the box (on its floor and walls, facing in), one unusable (NaN normal). */
+static gim_view_sample *make_view_samples(int n, float L, const float origin[3]) {
+    gim_view_sample *s = (gim_view_sample *)calloc((size_t)n, sizeof *s);
+    int i;
+    for (i = 0; i < n; ++i) {
+        float a = (float)test_rand01() * L, b = (float)test_rand01() * L;
+        switch (i % 3) {
+        case 0: s[i].position = gim_v3(a, 0.0f, b); s[i].normal = gim_v3(0.0f, 1.0f, 0.0f); break;
+        case 1: s[i].position = gim_v3(0.0f, a, b); s[i].normal = gim_v3(1.0f, 0.0f, 0.0f); break;
+        default: s[i].position = gim_v3(L, a, b); s[i].normal = gim_v3(-1.0f, 0.2f, 0.1f); break; /* not unit */
+        }
+        s[i].position = gim_v3_add(s[i].position, gim_v3(origin[0], origin[1], origin[2]));
+    }
+    if (n > 3) s[3].normal.y = NAN;
+    return s;
+}
+
+/* --- GL objects -------------------------------------------------------------------------- */
+
+static GLuint texture_rgba32f(int w, int h, const float *rgb, const float *alpha) {
+    float *t = (float *)malloc((size_t)w * h * 4 * sizeof(float));
+    GLuint tex = 0;
+    int i;
+    for (i = 0; i < w * h; ++i) {
+        t[i * 4] = rgb[i * 3];
+        t[i * 4 + 1] = rgb[i * 3 + 1];
+        t[i * 4 + 2] = rgb[i * 3 + 2];
+        t[i * 4 + 3] = alpha ? alpha[i] : 0.0f;
+    }
+    glGenTextures(1, &tex);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, w, h);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, w, h, GL_RGBA, GL_FLOAT, t);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    free(t);
+    return tex;
+}
+
+static GLuint ssbo(size_t bytes, const void *data) {
+    GLuint b = 0;
+    glGenBuffers(1, &b);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    return b;
+}
+
+static void read_ssbo(GLuint b, size_t bytes, void *out) {
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, (GLsizeiptr)bytes, out);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+}
+
+/* View samples as the GPU pass takes them: {vec4 position; vec4 normal}. */
+static GLuint view_sample_buffer(const gim_view_sample *s, int n) {
+    float *v = (float *)calloc((size_t)n * 8, sizeof(float));
+    GLuint b;
+    int i;
+    for (i = 0; i < n; ++i) {
+        v[i * 8] = s[i].position.x; v[i * 8 + 1] = s[i].position.y; v[i * 8 + 2] = s[i].position.z;
+        v[i * 8 + 4] = s[i].normal.x; v[i * 8 + 5] = s[i].normal.y; v[i * 8 + 6] = s[i].normal.z;
+    }
+    b = ssbo((size_t)n * 32, v);
+    free(v);
+    return b;
+}
+
+typedef struct fixture {
+    test_alloc_stats stats;
+    test_log log;
+    gim_env env;
+    gim_context *ctx;
+    gim__gl_state before;
+} fixture;
+
+static void fixture_begin(fixture *f) {
+    gim_desc d;
+    memset(&d, 0, sizeof d);
+    d.get_proc_address = gltest_get_proc;
+    d.env = f->env = test_env(&f->stats, &f->log);
+    assert_int_equal(gim_create(&d, &f->ctx), GIM_OK);
+    gim__gl_state_save(&f->ctx->gl, &f->before);
+}
+
+/* After every pass: the whole state list as it was (the runtime test checks it item by item). */
+static void assert_state_unchanged(fixture *f) {
+    gim__gl_state now;
+    gim__gl_state_save(&f->ctx->gl, &now);
+    assert_memory_equal(&f->before, &now, sizeof now);
+}
+
+static void fixture_end(fixture *f) {
+    gim_destroy(f->ctx);
+    assert_int_equal(f->stats.live, 0);
+    assert_int_equal(f->log.errors, 0);
+}
+
+/* --- eq. 10-11 ------------------------------------------------------------------------------ */
+
+/* GPU map of (rsm, samples) against the twin; returns the largest relative error. */
+static double compare_map(fixture *f, const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
+                          float clamp, float *cpu_out) {
+    gim_importance_desc d;
+    GLuint tp, tn, tf, bvs, bmap;
+    size_t texels = (size_t)r->w * r->h, i;
+    float *gpu = (float *)malloc(texels * sizeof(float));
+    float *cpu = cpu_out ? cpu_out : (float *)malloc(texels * sizeof(float));
+    double worst = 0.0, max_cpu = 0.0;
+    memset(&d, 0, sizeof d);
+    d.rsm_position = r->position;
+    d.rsm_normal = r->normal;
+    d.rsm_flux = r->flux;
+    d.rsm_valid = r->valid;
+    d.width = (uint32_t)r->w;
+    d.height = (uint32_t)r->h;
+    d.view_samples = vs;
+    d.view_sample_count = (uint32_t)n;
+    d.scene_scale = scene_scale;
+    d.clamp = clamp;
+    d.env = f->env;
+    assert_int_equal(gim_importance_map(&d, cpu), GIM_OK);
+    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
+    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
+    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
+    bvs = view_sample_buffer(vs, n);
+    bmap = ssbo(texels * sizeof(float), NULL);
+    assert_int_equal(gim__gl_importance_map(f->ctx, tp, tn, tf, (uint32_t)r->w, (uint32_t)r->h, bvs, (uint32_t)n,
+                                            scene_scale, clamp, bmap),
+                     GIM_OK);
+    assert_state_unchanged(f);
+    read_ssbo(bmap, texels * sizeof(float), gpu);
+    for (i = 0; i < texels; ++i) max_cpu = cpu[i] > max_cpu ? cpu[i] : max_cpu;
+    assert_true(max_cpu > 0.0);
+    for (i = 0; i < texels; ++i) {
+        double e = fabs((double)gpu[i] - cpu[i]) / (cpu[i] > 1e-3 * max_cpu ? cpu[i] : 1e-3 * max_cpu);
+        assert_true(gpu[i] >= 0.0f && gim__isfinitef(gpu[i]));
+        if (cpu[i] == 0.0f) assert_true(gpu[i] == 0.0f); /* invalid, black, NaN texels and back-facing ones */
+        if (e > worst) worst = e;
+    }
+    glDeleteTextures(1, &tp);
+    glDeleteTextures(1, &tn);
+    glDeleteTextures(1, &tf);
+    glDeleteBuffers(1, &bvs);
+    glDeleteBuffers(1, &bmap);
+    free(gpu);
+    if (!cpu_out) free(cpu);
+    return worst;
+}
+
+/* The GPU map is the twin's within 1e-4 relative (floats against doubles: ~1e-6 seen). What
+   breaks it: a missing clamp (eq. 11) or cosine, the flux luminance weights, dividing by S,
+   the texel/sample order, normals left unnormalised (the third wall's are not unit), scaling
+   positions before subtracting them (the far-from-origin case: ~1e-3 off), or an invalid/NaN
+   texel getting a non-zero value. */
+static void map_matches_twin(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    static const float far_away[3] = {2.0e4f, -1.0e4f, 3.0e4f};
+    fixture f;
+    rsm_data r;
+    gim_view_sample *vs;
+    double e;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+
+    make_rsm(&r, 64, 64, 4.0f, zero, 1);
+    vs = make_view_samples(48, 4.0f, zero);
+    e = compare_map(&f, &r, vs, 48, 4.0f * 1.7320508f, 0.0f, NULL);
+    print_message("importance map, 64x64 x 48 view samples: max relative error %.3g\n", e);
+    assert_true(e < 1e-4);
+    e = compare_map(&f, &r, vs, 48, 4.0f * 1.7320508f, 0.25f, NULL); /* a wide clamp shapes the map */
+    assert_true(e < 1e-4);
+    free(vs);
+    free_rsm(&r);
+
+    /* 300 view samples: more than one shared-memory tile (256), a partial last tile; and an
+       RSM size that is no multiple of the 16x16 work group */
+    make_rsm(&r, 40, 26, 4.0f, zero, 0);
+    vs = make_view_samples(300, 4.0f, zero);
+    e = compare_map(&f, &r, vs, 300, 7.0f, 0.0f, NULL);
+    assert_true(e < 1e-4);
+    free(vs);
+    free_rsm(&r);
+
+    /* the same box in millimetres and in kilometres: the twin's map, so the same map */
+    {
+        static const float scales[2] = {1e-3f, 1e3f};
+        int k;
+        for (k = 0; k < 2; ++k) {
+            float L = 4.0f * scales[k];
+            make_rsm(&r, 24, 24, L, zero, 0);
+            vs = make_view_samples(16, L, zero);
+            e = compare_map(&f, &r, vs, 16, L * 1.7320508f, 0.0f, NULL);
+            assert_true(e < 1e-4);
+            free(vs);
+            free_rsm(&r);
+        }
+    }
+
+    /* the same box 3e4 units from the origin (unit 1 m, box 50 m): float positions, same map */
+    make_rsm(&r, 32, 32, 50.0f, far_away, 0);
+    vs = make_view_samples(16, 50.0f, far_away);
+    e = compare_map(&f, &r, vs, 16, 87.0f, 0.0f, NULL);
+    print_message("importance map, 3e4 from the origin: max relative error %.3g\n", e);
+    assert_true(e < 1e-4);
+    free(vs);
+    free_rsm(&r);
+
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+/* --- eq. 12 ------------------------------------------------------------------------------- */
+
+/* GPU tables of map against the twin's; returns the largest relative error of any entry. */
+static double compare_cumsum(fixture *f, const float *map, uint32_t w, uint32_t h, uint32_t block_rows) {
+    size_t texels = (size_t)w * h, i;
+    double *cc = (double *)malloc(texels * sizeof(double)), *cr = (double *)malloc(w * sizeof(double));
+    double *gc = (double *)malloc(texels * sizeof(double)), *gr = (double *)malloc(w * sizeof(double));
+    GLuint bmap = ssbo(texels * sizeof(float), map), bc = ssbo(texels * sizeof(double), NULL),
+           br = ssbo(w * sizeof(double), NULL);
+    double worst = 0.0;
+    assert_int_equal(gim_importance_cumsum(map, w, h, cc, cr, f->env), GIM_OK);
+    assert_int_equal(gim__gl_importance_cumsum(f->ctx, bmap, bc, br, w, h, block_rows), GIM_OK);
+    assert_state_unchanged(f);
+    read_ssbo(bc, texels * sizeof(double), gc);
+    read_ssbo(br, w * sizeof(double), gr);
+    for (i = 0; i < texels; ++i) {
+        double e = fabs(gc[i] - cc[i]) / (cc[i] > 0.0 ? cc[i] : 1.0);
+        if (e > worst) worst = e;
+    }
+    for (i = 0; i < w; ++i) {
+        double e = fabs(gr[i] - cr[i]) / (cr[i] > 0.0 ? cr[i] : 1.0);
+        if (e > worst) worst = e;
+    }
+    glDeleteBuffers(1, &bmap);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &br);
+    free(cc); free(cr); free(gc); free(gr);
+    return worst;
+}
+
+/* Tables within 1e-13 relative of the twin's (both double; only the order of the adds
+   differs: ~1e-16 seen). A float scan is ~1e-7 off and fails; so do a lost block offset, an
+   exclusive scan, a column/row mix-up, or a thread's run of columns added twice. */
+static void cumsum_matches_twin(void **state) {
+    static const uint32_t sizes[][3] = {
+        {64, 64, 64},  /* one block: no offsets pass */
+        {64, 64, 0},   /* default: 16 rows, 4 blocks */
+        {300, 70, 0},  /* 5 blocks of 16, the last partial; 300 columns: 2 per thread, uneven */
+        {1, 1, 0}, {1, 130, 7}, {700, 3, 1}};
+    fixture f;
+    size_t k, i;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    for (k = 0; k < sizeof sizes / sizeof sizes[0]; ++k) {
+        uint32_t w = sizes[k][0], h = sizes[k][1];
+        float *map = (float *)malloc((size_t)w * h * sizeof(float));
+        double e;
+        for (i = 0; i < (size_t)w * h; ++i) /* 12 decades, some zeros */
+            map[i] = test_rand01() < 0.1 ? 0.0f : (float)pow(10.0, 12.0 * test_rand01() - 6.0);
+        e = compare_cumsum(&f, map, w, h, sizes[k][2]);
+        if (k == 2) print_message("cumsum 300x70: max relative error %.3g\n", e);
+        assert_true(e < 1e-13);
+        free(map);
+    }
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+/* Why double: a 4096-row column with 1e8 on top and ones below. In float every 1 is lost
+   (1e8 + 1 == 1e8), so those texels would never be selected; in double the differences of
+   the table are the map again, exactly. */
+static void cumsum_keeps_small_texels(void **state) {
+    enum { W = 4, H = 4096 };
+    fixture f;
+    float *map = (float *)malloc((size_t)W * H * sizeof(float));
+    double *col = (double *)malloc((size_t)W * H * sizeof(double)), row[W];
+    GLuint bmap, bc, br;
+    int i, x, y;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    for (i = 0; i < W * H; ++i) map[i] = i < W ? 1e8f : 1.0f;
+    bmap = ssbo(sizeof(float) * W * H, map);
+    bc = ssbo(sizeof(double) * W * H, NULL);
+    br = ssbo(sizeof row, NULL);
+    assert_int_equal(gim__gl_importance_cumsum(f.ctx, bmap, bc, br, W, H, 0), GIM_OK);
+    read_ssbo(bc, sizeof(double) * W * H, col);
+    read_ssbo(br, sizeof row, row);
+    for (x = 0; x < W; ++x)
+        for (y = 1; y < H; ++y) assert_true(col[y * W + x] - col[(y - 1) * W + x] == 1.0);
+    assert_true(row[W - 1] == W * (1e8 + (H - 1)));
+    glDeleteBuffers(1, &bmap);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &br);
+    free(map);
+    free(col);
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+/* --- selection ------------------------------------------------------------------------------ */
+
+/* GPU selection from the given tables against the twin's; returns the number of picks that
+   differ (and checks pdfs where they agree). */
+static int compare_select(fixture *f, const double *column, const double *row, GLuint bc, GLuint br, uint32_t w,
+                          uint32_t h, uint32_t count, uint32_t seed, test_log *warn_log) {
+    gim_selected_val *cpu = (gim_selected_val *)malloc(count * sizeof *cpu);
+    gim_selected_val *gpu = (gim_selected_val *)malloc(count * sizeof *gpu);
+    GLuint bout = ssbo(count * sizeof *gpu, NULL);
+    gim_env env = f->env;
+    uint32_t i;
+    int differ = 0;
+    if (warn_log) env = test_env(NULL, warn_log);
+    assert_int_equal(gim_importance_select(column, row, w, h, count, seed, cpu, env), GIM_OK);
+    assert_int_equal(gim__gl_importance_select(f->ctx, bc, br, w, h, count, seed, bout), GIM_OK);
+    assert_state_unchanged(f);
+    read_ssbo(bout, count * sizeof *gpu, gpu);
+    for (i = 0; i < count; ++i) {
+        assert_true(gpu[i].x < w && gpu[i].y < h);
+        assert_true(gpu[i].pdf > 0.0f && gpu[i].pdf <= 1.0f);
+        if (gpu[i].x != cpu[i].x || gpu[i].y != cpu[i].y) { ++differ; continue; }
+        assert_true(fabs((double)gpu[i].pdf - cpu[i].pdf) <= 1e-6 * cpu[i].pdf);
+    }
+    glDeleteBuffers(1, &bout);
+    free(cpu);
+    free(gpu);
+    return differ;
+}
+
+/* From the same tables the GPU picks exactly the twin's texels (same u, v, same search) with
+   the same pdf (1e-6 relative). What breaks it: another sample sequence or rotation, an
+   off-by-one in the search, P from the wrong differences, or the u * total == total case. */
+static void select_matches_twin(void **state) {
+    enum { W = 64, H = 64, N = 256 };
+    fixture f;
+    float *map = (float *)malloc(sizeof(float) * W * H);
+    double *col = (double *)malloc(sizeof(double) * W * H), row[W];
+    GLuint bc, br;
+    uint32_t seed;
+    int i;
+    test_log wl;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    /* a peaked map with empty columns and rows: the search must step over zero-width entries */
+    for (i = 0; i < W * H; ++i) {
+        int x = i % W, y = i / W;
+        map[i] = (x % 7 == 3 || y % 5 == 1) ? 0.0f : (float)(test_rand01() * (x == 40 ? 1000.0 : 1.0));
+    }
+    assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
+    bc = ssbo(sizeof(double) * W * H, col);
+    br = ssbo(sizeof row, row);
+    for (seed = 0; seed < 4; ++seed) assert_int_equal(compare_select(&f, col, row, bc, br, W, H, N, seed, NULL), 0);
+    assert_int_equal(compare_select(&f, col, row, bc, br, W, H, 1, 9, NULL), 0);
+    assert_int_equal(compare_select(&f, col, row, bc, br, W, H, 1000, 9, NULL), 0);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &br);
+
+    /* all-zero map: both select uniformly with pdf 1 / texels (the twin also warns) */
+    for (i = 0; i < W * H; ++i) map[i] = 0.0f;
+    assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
+    bc = ssbo(sizeof(double) * W * H, col);
+    br = ssbo(sizeof row, row);
+    assert_int_equal(compare_select(&f, col, row, bc, br, W, H, N, 3, &wl), 0);
+    assert_int_equal(wl.warnings, 1);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &br);
+    free(map);
+    free(col);
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+/* The whole chain on the GPU (map -> tables -> selection) against the whole chain on the CPU.
+   The maps differ by float rounding (~1e-6), which can move a pick whose u lands that close to
+   a boundary: at most 1 of 512 may differ; a wrong pass makes most of them differ. */
+static void chain_matches_twin(void **state) {
+    enum { W = 64, H = 64, S = 32, N = 512 };
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    fixture f;
+    rsm_data r;
+    gim_view_sample *vs;
+    float *map = (float *)malloc(sizeof(float) * W * H);
+    double *col = (double *)malloc(sizeof(double) * W * H), row[W];
+    gim_selected_val cpu[N], gpu[N];
+    GLuint tp, tn, tf, bvs, bmap, bc, br, bout;
+    int i, differ = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    make_rsm(&r, W, H, 3.0f, zero, 1);
+    vs = make_view_samples(S, 3.0f, zero);
+    assert_true(compare_map(&f, &r, vs, S, 5.0f, 0.0f, map) < 1e-4);
+    assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
+    assert_int_equal(gim_importance_select(col, row, W, H, N, 11, cpu, f.env), GIM_OK);
+
+    tp = texture_rgba32f(W, H, r.position, r.valid);
+    tn = texture_rgba32f(W, H, r.normal, NULL);
+    tf = texture_rgba32f(W, H, r.flux, NULL);
+    bvs = view_sample_buffer(vs, S);
+    bmap = ssbo(sizeof(float) * W * H, NULL);
+    bc = ssbo(sizeof(double) * W * H, NULL);
+    br = ssbo(sizeof row, NULL);
+    bout = ssbo(sizeof gpu, NULL);
+    assert_int_equal(gim__gl_importance_map(f.ctx, tp, tn, tf, W, H, bvs, S, 5.0f, 0.0f, bmap), GIM_OK);
+    assert_int_equal(gim__gl_importance_cumsum(f.ctx, bmap, bc, br, W, H, 0), GIM_OK);
+    assert_int_equal(gim__gl_importance_select(f.ctx, bc, br, W, H, N, 11, bout), GIM_OK);
+    assert_state_unchanged(&f);
+    read_ssbo(bout, sizeof gpu, gpu);
+    for (i = 0; i < N; ++i) {
+        if (gpu[i].x != cpu[i].x || gpu[i].y != cpu[i].y) { ++differ; continue; }
+        assert_true(fabs((double)gpu[i].pdf - cpu[i].pdf) <= 1e-4 * cpu[i].pdf);
+    }
+    print_message("GPU chain vs CPU chain: %d of %d picks differ\n", differ, N);
+    assert_true(differ <= 1);
+    glDeleteTextures(1, &tp);
+    glDeleteTextures(1, &tn);
+    glDeleteTextures(1, &tf);
+    glDeleteBuffers(1, &bvs);
+    glDeleteBuffers(1, &bmap);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &br);
+    glDeleteBuffers(1, &bout);
+    free(vs);
+    free_rsm(&r);
+    free(map);
+    free(col);
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+/* Bad arguments: an error through the logger, no GL touched, no GL error. */
+static void pass_arguments(void **state) {
+    fixture f;
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    assert_int_equal(gim__gl_importance_map(f.ctx, 0, 1, 1, 4, 4, 1, 1, 1.0f, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 4, 4, 1, 0, 1.0f, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 4, 4, 1, 1, NAN, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 4, 4, 1, 1, 1.0f, -1.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 0, 4, 1, 1, 1.0f, 0.0f, 1), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_importance_cumsum(f.ctx, 1, 1, 1, 4, 40000, 0), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_importance_cumsum(f.ctx, 1, 0, 1, 4, 4, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_select(f.ctx, 1, 1, 4, 4, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_importance_select(f.ctx, 1, 0, 4, 4, 8, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(f.log.errors, 9);
+    f.log.errors = 0;
+    assert_state_unchanged(&f);
+    fixture_end(&f);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(map_matches_twin),
+        cmocka_unit_test(cumsum_matches_twin),
+        cmocka_unit_test(cumsum_keeps_small_texels),
+        cmocka_unit_test(select_matches_twin),
+        cmocka_unit_test(chain_matches_twin),
+        cmocka_unit_test(pass_arguments),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
