@@ -77,8 +77,8 @@ test: deps check-shaders
 	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
 
 # --- ground truth: tools/reference (Embree) on the shared scene layer examples/scene.* ----------
-REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -isystem /usr/include/stb
-REF_HDRS := examples/scene.h tools/reference/reference.h
+REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -Itests -isystem /usr/include/stb
+REF_HDRS := examples/scene.h tools/reference/reference.h tests/street.h
 $(B)/ref/%.o: examples/%.cpp $(REF_HDRS)
 	@mkdir -p $(@D)
 	$(REF_CXX) -O2 -c $< -o $@
@@ -99,9 +99,9 @@ $(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref
 	gcc $(CSTD) $(WARN) -fsyntax-only -Iexamples -x c examples/scene.h tools/reference/reference.h
 	$(REF_CXX) -O1 -g $(SAN) -DREF_BIN='"$(B)/gimany-reference"' $< $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o -o $@ -lcmocka -lembree3 -pthread
 
-$(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h
+$(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h tests/street.h
 	@mkdir -p $(@D)
-	clang++ -std=c++11 -Iexamples -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< examples/scene.cpp -o $@
+	clang++ -std=c++11 -Iexamples -Itests -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< examples/scene.cpp -o $@
 
 reference:
 	@$(DEPS) build examples reference

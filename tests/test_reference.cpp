@@ -27,6 +27,7 @@ extern "C" {
 
 #include "reference.h"
 #include "scene.h"
+#include "street.h"
 
 #include <stb_image_write.h>
 
@@ -826,6 +827,41 @@ void hostile_files(void **) {
     }
 }
 
+/* the default scene: tests/street.h's street with its sun; a small render is finite and lit */
+void street_scene(void **) {
+    scene s;
+    char err[256];
+    assert_int_equal(scene_builtin("street", &s, err, sizeof err), 0);
+    /* the same geometry and albedos as street.h builds with default parameters */
+    street_params sp;
+    std::memset(&sp, 0, sizeof sp);
+    street_mesh sm;
+    assert_int_equal(street_build(&sp, &sm), 0);
+    assert_int_equal(s.mesh_count, 1);
+    assert_int_equal(s.meshes[0].triangle_count, sm.triangle_count);
+    assert_int_equal(s.meshes[0].vertex_count, sm.vertex_count);
+    assert_memory_equal(s.meshes[0].positions, sm.positions, (size_t)sm.vertex_count * 3 * sizeof(float));
+    assert_memory_equal(s.meshes[0].indices, sm.indices, (size_t)sm.triangle_count * 3 * sizeof(uint32_t));
+    assert_int_equal(s.material_count, STREET_MATERIAL_COUNT);
+    for (uint32_t m = 0; m < STREET_MATERIAL_COUNT; ++m) assert_true(s.materials[m].diffuse[1] == sm.albedo[m][1]);
+    street_free(&sm);
+    assert_true(triangles(s) >= 100000);
+    assert_int_equal(s.light_count, 1);
+    assert_int_equal(s.lights[0].type, SCENE_LIGHT_DIRECTIONAL);
+    assert_true(s.lights[0].direction[1] > 0.5f);
+    check_scene_sane(s);
+    s.camera.width = 32;
+    s.camera.height = 18;
+    ref_image img = render(&s, 8, 2);
+    assert_true(img.covered_pixels > 32 * 18 / 2);
+    double red = 0, green = 0;
+    for (size_t i = 0; i < 32 * 18 * 3; ++i) assert_true(std::isfinite(img.radiance[i]) && img.radiance[i] >= 0);
+    for (size_t i = 0; i < 32 * 18; ++i) { red += img.radiance[3 * i]; green += img.radiance[3 * i + 1]; }
+    assert_true(img.mean_radiance > 0 && red > 0 && green > 0);
+    ref_image_free(&img);
+    scene_free(&s);
+}
+
 /* ---- generated glTF ------------------------------------------------------------------------ */
 std::string base64(const std::vector<unsigned char> &d) {
     static const char *t = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
@@ -1079,6 +1115,7 @@ int main(void) {
         cmocka_unit_test(spot_patch),
         cmocka_unit_test(corner_two_bounces),
         cmocka_unit_test(deterministic),
+        cmocka_unit_test(street_scene),
         cmocka_unit_test(unit_free),
         cmocka_unit_test(renderer_rejects_bad_input),
         cmocka_unit_test(args_parse),
