@@ -79,13 +79,13 @@ test: deps check-shaders
 # --- ground truth: tools/reference (Embree) on the shared scene layer examples/scene.* ----------
 REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -Itests -isystem /usr/include/stb
 REF_HDRS := examples/scene.h tools/reference/reference.h tests/street.h
-$(B)/ref/%.o: examples/%.cpp $(REF_HDRS)
+$(B)/ref/%.o: examples/%.cpp examples/scene.h tests/street.h
 	@mkdir -p $(@D)
 	$(REF_CXX) -O2 -c $< -o $@
 $(B)/ref/%.o: tools/reference/%.cpp $(REF_HDRS)
 	@mkdir -p $(@D)
 	$(REF_CXX) -O2 -c $< -o $@
-$(B)/ref/asan/%.o: examples/%.cpp $(REF_HDRS)
+$(B)/ref/asan/%.o: examples/%.cpp examples/scene.h tests/street.h
 	@mkdir -p $(@D)
 	$(REF_CXX) -O1 -g $(SAN) -c $< -o $@
 $(B)/ref/asan/%.o: tools/reference/%.cpp $(REF_HDRS)

@@ -203,6 +203,7 @@ ref_image render(const scene *s, uint32_t spp, int bounces, uint32_t seed = 1, u
     int r = ref_render(s, &st, &img, err, sizeof err);
     if (r) std::printf("ref_render: %s\n", err);
     assert_int_equal(r, 0);
+    assert_int_equal(img.nonfinite_samples, 0);
     return img;
 }
 

@@ -81,7 +81,7 @@ int main(int argc, char **argv) {
                          "  \"camera\": {\"eye\": [%.9g, %.9g, %.9g], \"target\": [%.9g, %.9g, %.9g], \"fovy_deg\": %.9g},\n"
                          "  \"lights\": %u,\n  \"triangles\": %llu,\n  \"covered_pixels\": %u,\n"
                          "  \"mean_radiance\": %.9g,\n  \"mean_std_error\": %.9g,\n  \"relative_std_error\": %.9g,\n"
-                         "  \"relative_std_error_image_mean\": %.9g,\n  \"rays\": %llu,\n  \"threads\": %u,\n"
+                         "  \"relative_std_error_image_mean\": %.9g,\n  \"rays\": %llu,\n  \"nonfinite_samples\": %llu,\n  \"threads\": %u,\n"
                          "  \"build_seconds\": %.6f,\n  \"seconds\": %.6f,\n"
                          "  \"files\": {\"radiance\": \"reference.pfm\", \"std_error\": \"reference_stderr.pfm\"}\n}\n",
                          json_escape(opt.scene).c_str(), img.width, img.height, opt.bounces, opt.spp, opt.seed,
@@ -89,11 +89,15 @@ int main(int argc, char **argv) {
                          s.light_count,
                          [&] { unsigned long long t = 0; for (uint32_t i = 0; i < s.mesh_count; ++i) t += s.meshes[i].triangle_count; return t; }(),
                          img.covered_pixels, img.mean_radiance, img.mean_std_error, img.relative_std_error,
-                         img.relative_std_error_image, (unsigned long long)img.rays, threads, img.build_seconds,
+                         img.relative_std_error_image, (unsigned long long)img.rays,
+                         (unsigned long long)img.nonfinite_samples, threads, img.build_seconds,
                          img.seconds);
             if (std::fclose(f) != 0) rc = 1;
         }
     }
+    if (!rc && img.nonfinite_samples)
+        std::fprintf(stderr, "%s: warning: %llu paths gave a non-finite value (counted as 0)\n", prog,
+                     (unsigned long long)img.nonfinite_samples);
     if (!rc)
         std::printf("%s: %s %ux%u, %d bounce(s), %u spp: mean radiance %.6g, relative standard error %.4f%% "
                     "(per pixel, mean) / %.5f%% (image mean), %.2f s (%.1f Mrays/s), wrote %s\n",

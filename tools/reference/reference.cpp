@@ -416,8 +416,9 @@ extern "C" int ref_render(const scene *s, const ref_settings *st, ref_image *out
     std::atomic<uint32_t> next_row(0);
     std::vector<uint64_t> rays(nt, 0);
     const uint32_t spp = st->spp;
+    std::vector<uint64_t> bad(nt, 0);
     auto work = [&](unsigned tid) {
-        uint64_t nrays = 0;
+        uint64_t nrays = 0, nonfinite = 0;
         for (;;) {
             uint32_t y = next_row.fetch_add(1);
             if (y >= H) break;
@@ -438,6 +439,10 @@ extern "C" int ref_render(const scene *s, const ref_settings *st, ref_image *out
                 for (uint32_t k = 0; k < spp; ++k) {
                     double L[3];
                     tr.path(x0, -dir, g, L, nrays);
+                    if (!std::isfinite(L[0] + L[1] + L[2])) { /* never seen; counted, not hidden */
+                        ++nonfinite;
+                        L[0] = L[1] = L[2] = 0;
+                    }
                     for (int c = 0; c < 3; ++c) { sum[c] += L[c]; sq[c] += L[c] * L[c]; }
                     double yl = 0.2126 * L[0] + 0.7152 * L[1] + 0.0722 * L[2];
                     sy += yl;
@@ -456,6 +461,7 @@ extern "C" int ref_render(const scene *s, const ref_settings *st, ref_image *out
             }
         }
         rays[tid] = nrays;
+        bad[tid] = nonfinite;
     };
     std::vector<std::thread> pool;
     for (unsigned t = 1; t < nt; ++t) pool.emplace_back(work, t);
@@ -483,5 +489,6 @@ extern "C" int ref_render(const scene *s, const ref_settings *st, ref_image *out
     out->build_seconds = std::chrono::duration<double>(t1 - t0).count();
     out->seconds = std::chrono::duration<double>(t2 - t1).count();
     for (uint64_t r : rays) out->rays += r;
+    for (uint64_t b : bad) out->nonfinite_samples += b;
     return 0;
 }

@@ -45,6 +45,7 @@ typedef struct ref_image {
     double seconds;                  /* tracing time (BVH build excluded) */
     double build_seconds;
     uint64_t rays;                   /* all rays traced, shadow rays included */
+    uint64_t nonfinite_samples;      /* paths that gave NaN/Inf, counted as 0 (expected: none) */
 } ref_image;
 
 /* Renders s (its camera sets the size). Returns 0, or non-zero with one line in err. */
