@@ -270,7 +270,7 @@ void disk_form_factor(void **) {
     t.square({0, h, 0}, X, Z, 0.005, recv);
     t.sun({std::sin(theta), std::cos(theta), 0}, E); /* the receiver's shadow falls 1.7 m away, off the disk */
     t.camera({0, 0.5, 0}, {0, h, 0}, 0.5, 12, 12);
-    ref_image img = render(t.get(), 160, 1);
+    ref_image img = render(t.get(), 480, 1);
     double L = rho * E * std::cos(theta) / PI;
     /* the 256-gon's form factor is within 1e-4 of the disk's R^2 / (R^2 + h^2) */
     assert_true(std::fabs(form_factor({0, h, 0}, Y * -1.0, disk) - R * R / (R * R + h * h)) < 2e-4);
@@ -315,7 +315,7 @@ void blocker_reduces_exactly(void **) {
     test_scene open, blocked;
     build(open, false);
     build(blocked, true);
-    ref_image a = render(open.get(), 128, 1), c = render(blocked.get(), 128, 1);
+    ref_image a = render(open.get(), 384, 1), c = render(blocked.get(), 384, 1);
     double L = rho * E * std::cos(theta) / PI;
     auto disk = disk_pts({0, 0, 0}, R, 256);
     auto blk = square_pts({0, 0.5 * h, 0}, X, Z, b);
@@ -326,6 +326,30 @@ void blocker_reduces_exactly(void **) {
     assert_true(cb.mean < co.mean - 10 * (co.se + cb.se));
     ref_image_free(&a);
     ref_image_free(&c);
+}
+
+/* shadow rays: a black square above the receiver's horizon shades part of the reflector, so
+   the lit part is the disk minus the square's shadow, a translated copy of it */
+void shadow_on_reflector(void **) {
+    const double rho = 0.6, rho_r = 1.0, E = 1.0, R = 1.0, h = 1.0, b = 0.2, theta = 60 * PI / 180;
+    const double lift = 2.0, shift = lift * std::tan(theta); /* the square at y = 2 throws its shadow this far */
+    test_scene t;
+    uint32_t refl = t.material(rho), recv = t.material(rho_r), black = t.material(0.0);
+    t.polygon(disk_pts({0, 0, 0}, R, 256), refl);
+    t.square({0, h, 0}, X, Z, 0.004, recv);
+    t.square({0.4 + shift, lift, 0}, X, Z, b, black);
+    t.sun({std::sin(theta), std::cos(theta), 0}, E);
+    t.camera({0, 0.75 * h, 0}, {0, h, 0}, 0.5, 12, 12);
+    ref_image img = render(t.get(), 384, 1);
+    double L = rho * E * std::cos(theta) / PI;
+    auto disk = disk_pts({0, 0, 0}, R, 256);
+    auto shadow = square_pts({0.4, 0, 0}, X, Z, b);
+    cmp c = compare(img, [&](V p) { return rho_r * L * (form_factor(p, Y * -1.0, disk) - form_factor(p, Y * -1.0, shadow)); });
+    check("disk minus the blocker's shadow", c, 1e-3);
+    /* without shadow rays the answer would be the whole disk's: far outside the noise */
+    double whole = rho_r * L * form_factor({0, h, 0}, Y * -1.0, disk);
+    assert_true(whole - c.mean > 10 * c.se);
+    ref_image_free(&img);
 }
 
 /* glossy receiver seen along its normal, facing a uniform plane: rho_g L (+ rho_d L) */
@@ -391,7 +415,7 @@ void spot_patch(void **) {
     t.square(rp, u, v, 0.003, recv);
     t.spot(spot, {0, -1, 0}, 30, I);
     t.camera(rp + rn * 0.2, rp, 0.6, 4, 4);
-    ref_image img = render(t.get(), 12000, 1);
+    ref_image img = render(t.get(), 24000, 1);
     assert_int_equal(img.covered_pixels, 16);
     auto expected = [&](V x) {
         const int N = 300;
@@ -423,7 +447,7 @@ void corner_two_bounces(void **) {
     t.polygon({{0, 0, -S}, {0, 0, S}, {0, S, S}, {0, S, -S}}, wall_m);
     t.sun(sun, E);
     t.camera({0.5, 1, 0}, {0, 1, 0}, 0.5, 8, 8);
-    ref_image b1 = render(t.get(), 512, 1), b2 = render(t.get(), 512, 2);
+    ref_image b1 = render(t.get(), 1536, 1), b2 = render(t.get(), 1536, 2);
     std::vector<V> floor_pts{{0, 0, -S}, {S, 0, -S}, {S, 0, S}, {0, 0, S}};
     double Lf = rho_f * E * sun.y / PI, Lw = rho_w * E * sun.x / PI;
     check("corner bounce 1 (Lambert)", compare(b1, [&](V p) { return rho_w * Lf * form_factor(p, X, floor_pts); }), 1e-3);
@@ -1111,6 +1135,7 @@ int main(void) {
         cmocka_unit_test(disk_form_factor),
         cmocka_unit_test(zero_albedo_gives_zero),
         cmocka_unit_test(blocker_reduces_exactly),
+        cmocka_unit_test(shadow_on_reflector),
         cmocka_unit_test(glossy_receiver_normal_view),
         cmocka_unit_test(glossy_reflector),
         cmocka_unit_test(spot_patch),
