@@ -373,31 +373,45 @@ GIMANY_API void gim_cache_set_free(gim_cache_set *set);
 #define GIM_MAX_NEIGHBOUR_CACHES 16
 
 /* Input of gim_cache_neighbours: for every vertex, the n nearest caches whose normal is within
-   theta_eps (default: the set's) of the vertex normal, and d_c,max, the largest of their
-   distances, for the weights of eq. 8. */
+   theta_eps of the vertex normal, and d_c,max, the largest of their distances, for the
+   weights of eq. 8.
+   - compatible: n_v . n_c >= cos(theta_eps), both normalised (theta_eps = pi: every cache);
+   - order: Euclidean distance, ties by cache index; the result is exactly the O(V x C) one;
+   - fewer than n compatible caches anywhere: count < n, the rest of the row UINT32_MAX;
+   - a vertex normal that is zero or not finite (or, with normals NULL, a vertex on no
+     non-degenerate triangle): the n nearest caches of any normal; a vertex position that is
+     not finite: count 0, d_cmax 0. Both are counted in one warning, neither is an error.
+   The set's caches must have finite positions and non-zero finite normals. */
 typedef struct gim_neighbour_desc {
     gim_mesh_data mesh;          /* positions and normals (normals NULL: area-weighted face normals) */
     const gim_cache_set *caches;
     uint32_t n;                  /* 1..GIM_MAX_NEIGHBOUR_CACHES, default 16 */
-    float theta_eps;             /* default: caches->theta_eps */
+    float theta_eps;             /* (0, pi]; default: 2 x caches->theta_eps (30 degrees if 0), at most 90
+                                    degrees, so smooth-shaded edges and corners find caches */
     gim_env env;
 } gim_neighbour_desc;
 
-/* Caller-owned output of gim_cache_neighbours, sized by the mesh's vertex count. */
+/* Caller-owned output of gim_cache_neighbours, sized by the mesh's vertex count; all three
+   required. Row v of index is index[v * n .. v * n + n - 1] (n after its default). */
 typedef struct gim_neighbour_result {
     uint32_t *index;   /* vertex_count * n cache indices, nearest first; UINT32_MAX pads */
     uint32_t *count;   /* vertex_count: how many of the n were found (compatible caches may be fewer) */
     float *d_cmax;     /* vertex_count: distance of the farthest found cache (0 when none) */
 } gim_neighbour_result;
 
-/* Per-vertex neighbour caches through a spatial grid (not O(V x C)). */
+/* Per-vertex neighbour caches through a k-d tree over the caches (not O(V x C)): median splits
+   adapt to any density with no unit; nodes farther than the n-th best found, or whose normal
+   bounds admit no compatible normal, are skipped. Exact: the O(V x C) answer, bit for bit. */
 GIMANY_API gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out);
 
-/* Versioned, checksummed byte blob of a cache set (little-endian), to precompute once. */
+/* Versioned, checksummed byte blob of a cache set (little-endian, CRC-32; layout at @impl
+   caches "blobs"), to precompute once: 92 + 32 * count bytes; 0 for NULL. */
 GIMANY_API size_t gim_cache_blob_size(const gim_cache_set *set);
-/* Write the blob into out (capacity bytes, at least gim_cache_blob_size). */
+/* Write the blob into out (capacity bytes, at least gim_cache_blob_size). A set the reader
+   would reject (NaN, negative area, non-unit normal, reflectance outside [0,1]) is refused. */
 GIMANY_API gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity);
-/* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. */
+/* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. On GIM_OK out
+   owns caches allocated through env (free with gim_cache_set_free); else out is untouched. */
 GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out);
 
 /* @section importance ===================================================================== */
@@ -2300,7 +2314,569 @@ GIMANY_DEF void gim_cache_set_free(gim_cache_set *set) {
 
 /* neighbours: spatial grid, per-vertex nearest compatible caches */
 
+/* Compatibility: cache c may light vertex v when n_v . n_c >= cos(theta_eps), both normals
+   normalised, the dot product in double (eq. 8 weighs a cache by sqrt((n_x . n_c)^+), and a
+   cache only stands for surface within theta_eps of its normal). A vertex whose normal is
+   zero or not finite takes the nearest caches whatever their normal; a vertex whose position
+   is not finite gets none (count 0); both are counted in one warning. Order: squared distance
+   in double from the input floats, then cache index, so the search answers exactly what the
+   O(V x C) loop would.
+   Search: a k-d tree over the cache positions (median splits, so it adapts to any density and
+   needs no unit), each node also bounding its caches' normals. Depth first, nearer child
+   first; a node is skipped when its box is farther than the n-th best found, or when no
+   normal in its bounds can be compatible. So the faces of a thin wall, and a flipped mesh
+   whose only compatible caches are across the room, cost a few nodes, not a scan. */
+
+/* A cache as the search reads it: 32 bytes, two per cache line. */
+typedef struct gim__nb_slot {
+    float pos[3], nrm[3];        /* position, normalised normal */
+    uint32_t id;                 /* index in the set */
+    uint32_t pad;
+} gim__nb_slot;
+
+typedef struct gim__nb_node {
+    float plo[3], phi[3];        /* bounds of the positions below */
+    float nlo[3], nhi[3];        /* bounds of the normals below */
+    uint32_t begin, end;         /* range of slots */
+    uint32_t left;               /* first of two children; 0 for a leaf */
+} gim__nb_node;
+
+typedef struct gim__nb_tree {
+    gim__nb_node *node;
+    gim__nb_slot *slot;          /* the caches in node order */
+} gim__nb_tree;
+
+#define GIM__NB_LEAF 8u
+#define GIM__NB_STACK 160u
+
+/* Quickselect: put the k-th smallest of keys key[perm[i] * 3 + axis], i in [lo, hi), at k,
+   smaller or equal ones before it, greater or equal after. */
+static void gim__nb_select(const float *key, uint32_t *perm, uint32_t lo, uint32_t hi, uint32_t k, int axis) {
+    while (hi - lo > 1u) {
+        uint32_t i = lo, j = hi - 1u, t;
+        float pivot = key[(size_t)perm[lo + (hi - lo) / 2u] * 3u + (uint32_t)axis];
+        while (i <= j) {
+            while (key[(size_t)perm[i] * 3u + (uint32_t)axis] < pivot) ++i;
+            while (key[(size_t)perm[j] * 3u + (uint32_t)axis] > pivot) --j;
+            if (i <= j) {
+                t = perm[i]; perm[i] = perm[j]; perm[j] = t;
+                ++i;
+                if (j == 0) break;
+                --j;
+            }
+        }
+        /* now [lo, j] <= pivot <= [i, hi), and what lies between equals the pivot */
+        if (k <= j && j + 1u > lo) hi = j + 1u;
+        else if (k >= i) lo = i;
+        else return;
+    }
+}
+
+/* Build over the caches; unit_nrm holds their normalised normals. */
+static gim_result gim__nb_tree_build(const gim_env *env, const gim_cache_set *set, const float *unit_nrm, gim__nb_tree *t) {
+    uint32_t C = set->count, *perm, stack[GIM__NB_STACK], top = 0, count = 1, c;
+    float *key;
+    t->node = (gim__nb_node *)gim__alloc_array(env, 2u * (size_t)C, sizeof(gim__nb_node));
+    t->slot = (gim__nb_slot *)gim__alloc_array(env, C, sizeof(gim__nb_slot));
+    perm = (uint32_t *)gim__alloc_array(env, C, sizeof(uint32_t));
+    key = (float *)gim__alloc_array(env, C, 3u * sizeof(float));
+    if (!t->node || !t->slot || !perm || !key) {
+        gim__free(env, t->node); gim__free(env, t->slot); gim__free(env, perm); gim__free(env, key);
+        t->node = NULL; t->slot = NULL;
+        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, "gim_cache_neighbours", "search tree of %u caches", C);
+    }
+    for (c = 0; c < C; ++c) { perm[c] = c; memcpy(key + (size_t)c * 3u, set->caches[c].position, 3u * sizeof(float)); }
+    t->node[0].begin = 0; t->node[0].end = C;
+    stack[top++] = 0;
+    while (top) { /* median splits: depth <= log2(C) + 1, the stack holds at most 2 per level */
+        gim__nb_node *nd = &t->node[stack[--top]];
+        uint32_t i, a, axis = 0, mid;
+        for (a = 0; a < 3u; ++a) { nd->plo[a] = FLT_MAX; nd->phi[a] = -FLT_MAX; nd->nlo[a] = 2.0f; nd->nhi[a] = -2.0f; }
+        for (i = nd->begin; i < nd->end; ++i)
+            for (a = 0; a < 3u; ++a) {
+                float p = key[(size_t)perm[i] * 3u + a], q = unit_nrm[(size_t)perm[i] * 3u + a];
+                if (p < nd->plo[a]) nd->plo[a] = p;
+                if (p > nd->phi[a]) nd->phi[a] = p;
+                if (q < nd->nlo[a]) nd->nlo[a] = q;
+                if (q > nd->nhi[a]) nd->nhi[a] = q;
+            }
+        /* widest axis, its extent in double (a float difference can overflow) */
+        for (a = 1; a < 3u; ++a)
+            if ((double)nd->phi[a] - nd->plo[a] > (double)nd->phi[axis] - nd->plo[axis]) axis = a;
+        nd->left = 0;
+        if (nd->end - nd->begin <= GIM__NB_LEAF || !(nd->phi[axis] > nd->plo[axis]) || top + 2u > GIM__NB_STACK - 2u)
+            continue; /* leaf: few caches, all at one point, or (never with median splits) too deep */
+        mid = nd->begin + (nd->end - nd->begin) / 2u;
+        gim__nb_select(key, perm, nd->begin, nd->end, mid, (int)axis);
+        nd->left = count;
+        t->node[count].begin = nd->begin; t->node[count].end = mid;
+        t->node[count + 1u].begin = mid; t->node[count + 1u].end = nd->end;
+        stack[top++] = count; stack[top++] = count + 1u;
+        count += 2u;
+    }
+    for (c = 0; c < C; ++c) {
+        gim__nb_slot *sl = &t->slot[c];
+        memcpy(sl->pos, set->caches[perm[c]].position, 3u * sizeof(float));
+        memcpy(sl->nrm, unit_nrm + (size_t)perm[c] * 3u, 3u * sizeof(float));
+        sl->id = perm[c];
+        sl->pad = 0;
+    }
+    gim__free(env, perm);
+    gim__free(env, key);
+    return GIM_OK;
+}
+
+/* Squared distance from p to a node's box, shrunk by a relative 1e-9 so that rounding never
+   lifts it above the distance of a cache inside: a lower bound. */
+static double gim__nb_box_d2(const double *p, const gim__nb_node *nd) {
+    double d2 = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        double g = p[a] < nd->plo[a] ? (double)nd->plo[a] - p[a] : (p[a] > nd->phi[a] ? p[a] - (double)nd->phi[a] : 0.0);
+        d2 += g * g;
+    }
+    return d2 * (1.0 - 1e-9);
+}
+
+/* 1 when no normal inside the node's bounds can pass nv . m >= cos_theta: the interval
+   bound of the dot product, with 1e-9 to spare for the rounding of the exact test. */
+static int gim__nb_normals_out(const double *nv, const gim__nb_node *nd, double cos_theta) {
+    double dmax = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        double p = nv[a] * nd->nlo[a], q = nv[a] * nd->nhi[a];
+        dmax += p > q ? p : q;
+    }
+    return dmax < cos_theta - 1e-9;
+}
+
+/* Keep the n best (squared distance, index) pairs sorted ascending. */
+static void gim__nb_insert(double *bd, uint32_t *bi, uint32_t *found, uint32_t n, double d2, uint32_t idx) {
+    uint32_t k = *found;
+    if (k == n) {
+        if (d2 > bd[n - 1] || (d2 == bd[n - 1] && idx > bi[n - 1])) return;
+        k = n - 1;
+    } else {
+        *found = k + 1;
+    }
+    while (k > 0 && (bd[k - 1] > d2 || (bd[k - 1] == d2 && bi[k - 1] > idx))) {
+        bd[k] = bd[k - 1];
+        bi[k] = bi[k - 1];
+        --k;
+    }
+    bd[k] = d2;
+    bi[k] = idx;
+}
+
+/* The n nearest compatible caches of one vertex into bd/bi; returns how many. any: every
+   normal is compatible. bound: a squared distance the n-th nearest is known not to exceed
+   (from n compatible caches that near), or HUGE_VAL. */
+static uint32_t gim__nb_query(const gim__nb_tree *t, const double *p, const double *nv, int any, double cos_theta,
+                              uint32_t n, double bound, double *bd, uint32_t *bi) {
+    uint32_t stack[GIM__NB_STACK], top = 0, found = 0;
+    double sd[GIM__NB_STACK];
+    stack[top] = 0; sd[top++] = 0.0;
+    while (top) {
+        const gim__nb_node *nd;
+        double d = sd[--top];
+        nd = &t->node[stack[top]];
+        if (d > bound) continue; /* ties with a smaller index stay in */
+        if (!any && gim__nb_normals_out(nv, nd, cos_theta)) continue;
+        if (nd->left) {
+            const gim__nb_node *l = &t->node[nd->left], *r = l + 1;
+            double dl = gim__nb_box_d2(p, l), dr = gim__nb_box_d2(p, r);
+            /* the nearer child is popped first */
+            if (dl <= dr) { stack[top] = nd->left + 1u; sd[top++] = dr; stack[top] = nd->left; sd[top++] = dl; }
+            else { stack[top] = nd->left; sd[top++] = dl; stack[top] = nd->left + 1u; sd[top++] = dr; }
+        } else {
+            uint32_t s;
+            for (s = nd->begin; s < nd->end; ++s) {
+                const gim__nb_slot *sl = &t->slot[s];
+                double dx = p[0] - sl->pos[0], dy = p[1] - sl->pos[1], dz = p[2] - sl->pos[2];
+                double d2 = dx * dx + dy * dy + dz * dz;
+                if (d2 > bound) continue;
+                if (!any && nv[0] * sl->nrm[0] + nv[1] * sl->nrm[1] + nv[2] * sl->nrm[2] < cos_theta) continue;
+                gim__nb_insert(bd, bi, &found, n, d2, sl->id);
+                if (found == n && bd[n - 1] < bound) bound = bd[n - 1];
+            }
+        }
+    }
+    return found;
+}
+
+/* The three floats at base + i * stride, without alignment assumptions. */
+static gim_vec3 gim__nb_load3(const float *base, uint32_t stride, uint32_t i) {
+    float f[3];
+    memcpy(f, (const unsigned char *)base + (size_t)i * stride, sizeof f);
+    return gim_v3(f[0], f[1], f[2]);
+}
+
+static uint32_t gim__nb_index(const gim_mesh_data *m, uint32_t k) {
+    if (m->index_type == GIM_INDEX_U16) {
+        uint16_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 2u, 2);
+        return s;
+    } else {
+        uint32_t s;
+        memcpy(&s, (const unsigned char *)m->indices + (size_t)k * 4u, 4);
+        return s;
+    }
+}
+
+/* Per-vertex normals: the given ones normalised, or the area-weighted sum of the adjacent
+   triangles' normals (cross products of the edges, in double). Zero where undefined. */
+static gim_result gim__nb_vertex_normals(const gim_mesh_data *m, const gim_env *env, float *out) {
+    uint32_t v, t, pstride = m->position_stride ? m->position_stride : 12u;
+    if (m->normals) {
+        uint32_t nstride = m->normal_stride ? m->normal_stride : 12u;
+        for (v = 0; v < m->vertex_count; ++v) {
+            gim_vec3 n = gim_v3_normalize(gim__nb_load3(m->normals, nstride, v));
+            out[(size_t)v * 3u] = n.x; out[(size_t)v * 3u + 1u] = n.y; out[(size_t)v * 3u + 2u] = n.z;
+        }
+        return GIM_OK;
+    } else {
+        double *acc = (double *)gim__alloc_array(env, m->vertex_count, 3u * sizeof(double));
+        if (!acc) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, "gim_cache_neighbours", "face normals of %u vertices", m->vertex_count);
+        memset(acc, 0, (size_t)m->vertex_count * 3u * sizeof(double));
+        for (t = 0; t + 3u <= m->index_count; t += 3u) {
+            uint32_t i[3], k;
+            gim_vec3 p[3];
+            double e1[3], e2[3], c[3];
+            for (k = 0; k < 3u; ++k) { i[k] = gim__nb_index(m, t + k); p[k] = gim__nb_load3(m->positions, pstride, i[k]); }
+            if (!gim_v3_isfinite(p[0]) || !gim_v3_isfinite(p[1]) || !gim_v3_isfinite(p[2])) continue;
+            e1[0] = (double)p[1].x - p[0].x; e1[1] = (double)p[1].y - p[0].y; e1[2] = (double)p[1].z - p[0].z;
+            e2[0] = (double)p[2].x - p[0].x; e2[1] = (double)p[2].y - p[0].y; e2[2] = (double)p[2].z - p[0].z;
+            c[0] = e1[1] * e2[2] - e1[2] * e2[1];
+            c[1] = e1[2] * e2[0] - e1[0] * e2[2];
+            c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+            for (k = 0; k < 3u; ++k) {
+                acc[(size_t)i[k] * 3u] += c[0]; acc[(size_t)i[k] * 3u + 1u] += c[1]; acc[(size_t)i[k] * 3u + 2u] += c[2];
+            }
+        }
+        for (v = 0; v < m->vertex_count; ++v) {
+            double *a = acc + (size_t)v * 3u, s = fabs(a[0]), l;
+            if (fabs(a[1]) > s) s = fabs(a[1]);
+            if (fabs(a[2]) > s) s = fabs(a[2]);
+            out[(size_t)v * 3u] = out[(size_t)v * 3u + 1u] = out[(size_t)v * 3u + 2u] = 0.0f;
+            if (!(s > 0.0) || s > DBL_MAX) continue;
+            l = sqrt((a[0] / s) * (a[0] / s) + (a[1] / s) * (a[1] / s) + (a[2] / s) * (a[2] / s));
+            out[(size_t)v * 3u] = (float)(a[0] / s / l);
+            out[(size_t)v * 3u + 1u] = (float)(a[1] / s / l);
+            out[(size_t)v * 3u + 2u] = (float)(a[2] / s / l);
+        }
+        gim__free(env, acc);
+        return GIM_OK;
+    }
+}
+
+GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out) {
+    static const char *where = "gim_cache_neighbours";
+    const gim_env *env;
+    const gim_mesh_data *m;
+    const gim_cache_set *set;
+    uint32_t n, v, c, pstride, nstride, no_normal = 0, no_position = 0;
+    gim__nb_tree tree;
+    double theta, cos_theta;
+    float *vn = NULL, *cn = NULL;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    m = &desc->mesh;
+    set = desc->caches;
+    if (!out || !out->index || !out->count || !out->d_cmax)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "result or one of its arrays (index, count, d_cmax) is NULL");
+    n = desc->n ? desc->n : GIM_MAX_NEIGHBOUR_CACHES;
+    if (n > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "n = %u, not in 1..%d", n, GIM_MAX_NEIGHBOUR_CACHES);
+    if (!set || !set->caches || set->count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no caches");
+    if (!m->positions || m->vertex_count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no vertex positions");
+    pstride = m->position_stride ? m->position_stride : 12u;
+    nstride = m->normal_stride ? m->normal_stride : 12u;
+    if (pstride < 12u || nstride < 12u)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "stride below 12 bytes");
+    if (!m->normals) {
+        uint32_t k;
+        if (!m->indices || m->index_count == 0 || m->index_count % 3u)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no normals and no whole triangles to take face normals from");
+        if (m->index_type != GIM_INDEX_DEFAULT && m->index_type != GIM_INDEX_U32 && m->index_type != GIM_INDEX_U16)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown index type %d", (int)m->index_type);
+        for (k = 0; k < m->index_count; ++k)
+            if (gim__nb_index(m, k) >= m->vertex_count)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "index %u (at %u) >= vertex count %u",
+                                 gim__nb_index(m, k), k, m->vertex_count);
+    }
+    /* theta_eps: the desc's; by default the set's (0: the generator's 30 degrees) doubled, up to
+       90 degrees. A cache stands for normals within theta_eps of its own, but a smooth-shaded
+       vertex averages the faces around it: 45 degrees off either face on a box edge, 54.7 at a
+       corner, where theta_eps itself would find no cache at all and leave the vertex unlit.
+       Below 90 degrees the far side of a thin wall, and every cache eq. 8 weighs zero, stay out. */
+    theta = desc->theta_eps != 0.0f ? desc->theta_eps : (set->theta_eps != 0.0f ? set->theta_eps : 0.52359877559829887);
+    if (!(theta > 0.0 && theta <= (double)3.14159265358979324f)) /* pi rounded to float is a little above pi */
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "theta_eps %g not in (0, pi]", theta);
+    if (desc->theta_eps == 0.0f && theta < 1.57079632679489662)
+        theta = 2.0 * theta < 1.57079632679489662 ? 2.0 * theta : 1.57079632679489662;
+    /* theta_eps = pi (float pi is slightly above) admits every normal, opposite ones included */
+    cos_theta = theta >= 3.14159265358979 ? -2.0 : cos(theta);
+    /* the caches: finite positions, normals that normalise */
+    cn = (float *)gim__alloc_array(env, set->count, 3u * sizeof(float));
+    if (!cn) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u caches", set->count);
+    for (c = 0; c < set->count; ++c) {
+        const gim_cache *k = &set->caches[c];
+        gim_vec3 nn = gim_v3_normalize(gim_v3(k->normal[0], k->normal[1], k->normal[2]));
+        if (!gim__all_finite(k->position, 3) || !gim__all_finite(k->normal, 3) || (nn.x == 0.0f && nn.y == 0.0f && nn.z == 0.0f)) {
+            gim__free(env, cn);
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u has a non-finite position or an unusable normal", c);
+        }
+        cn[(size_t)c * 3u] = nn.x; cn[(size_t)c * 3u + 1u] = nn.y; cn[(size_t)c * 3u + 2u] = nn.z;
+    }
+    vn = (float *)gim__alloc_array(env, m->vertex_count, 3u * sizeof(float));
+    if (!vn) { gim__free(env, cn); return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u vertices", m->vertex_count); }
+    tree.node = NULL; tree.slot = NULL;
+    r = gim__nb_vertex_normals(m, env, vn);
+    if (r == GIM_OK) r = gim__nb_tree_build(env, set, cn, &tree);
+    if (r != GIM_OK) { gim__free(env, cn); gim__free(env, vn); return r; }
+
+    for (v = 0; v < m->vertex_count; ++v) {
+        double bd[GIM_MAX_NEIGHBOUR_CACHES], pd[3], nd[3];
+        uint32_t bi[GIM_MAX_NEIGHBOUR_CACHES], found = 0, k;
+        gim_vec3 p = gim__nb_load3(m->positions, pstride, v);
+        uint32_t *oi = out->index + (size_t)v * n;
+        int any;
+        if (gim_v3_isfinite(p)) {
+            double bound = HUGE_VAL;
+            pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
+            nd[0] = vn[(size_t)v * 3u]; nd[1] = vn[(size_t)v * 3u + 1u]; nd[2] = vn[(size_t)v * 3u + 2u];
+            any = nd[0] == 0.0 && nd[1] == 0.0 && nd[2] == 0.0;
+            no_normal += (uint32_t)any;
+            /* Neighbouring vertices share caches: if the previous vertex's n caches are all
+               compatible here too, the farthest of them bounds the search from the start. The
+               bound only prunes, so the answer stays exact. */
+            if (v > 0 && out->count[v - 1] == n) {
+                const uint32_t *prev = out->index + (size_t)(v - 1) * n;
+                for (k = 0; k < n; ++k) {
+                    const float *cp = set->caches[prev[k]].position, *cq = cn + (size_t)prev[k] * 3u;
+                    double dx = pd[0] - cp[0], dy = pd[1] - cp[1], dz = pd[2] - cp[2];
+                    double d2 = dx * dx + dy * dy + dz * dz;
+                    if (!any && nd[0] * cq[0] + nd[1] * cq[1] + nd[2] * cq[2] < cos_theta) break;
+                    if (k == 0 || d2 > bound) bound = d2;
+                }
+                if (k < n) bound = HUGE_VAL;
+            }
+            found = gim__nb_query(&tree, pd, nd, any, cos_theta, n, bound, bd, bi);
+        } else {
+            ++no_position;
+        }
+        for (k = 0; k < found; ++k) oi[k] = bi[k];
+        for (; k < n; ++k) oi[k] = UINT32_MAX;
+        out->count[v] = found;
+        out->d_cmax[v] = found ? (float)sqrt(bd[found - 1]) : 0.0f;
+    }
+    if (no_normal || no_position)
+        gim__log(env, GIM_LOG_WARNING, where, "%u vertices without a usable normal took the nearest caches of any normal; "
+                 "%u vertices with a non-finite position got none", no_normal, no_position);
+    gim__free(env, tree.node);
+    gim__free(env, tree.slot);
+    gim__free(env, cn);
+    gim__free(env, vn);
+    return GIM_OK;
+}
+
 /* blobs: versioned, checksummed serialisation */
+/* Layout, version 1, every field little-endian, floats as their IEEE-754 bits:
+     offset  size  field
+          0     8  magic "GIMCACHE"
+          8     4  version (1)
+         12     4  header size (88)
+         16     4  record size (32)
+         20     4  count
+         24     8  payload size (count * 32)
+         32     4  d_eps (f32)          36  4  theta_eps (f32)
+         40    28  report: triangles_used, _degenerate, _nonfinite, _duplicate, voxels,
+                   caches_before_merge, caches_snapped (u32 each)
+         68     4  reserved (0)
+         72     8  report.surface_area (f64)
+         80     8  reserved (0)
+         88  32 * count  caches: position xyz, area, normal xyz, reflectance (f32 each)
+    88 + payload  4  CRC-32 (IEEE 802.3, as zlib's crc32) of every byte before it
+   Bytes are packed one by one: no struct is dumped, nothing assumes alignment or host order. */
+#define GIM__BLOB_VERSION 1u
+#define GIM__BLOB_HEADER 88u
+#define GIM__BLOB_RECORD 32u
+#define GIM__BLOB_TAIL 4u
+
+static void gim__put32(unsigned char *p, uint32_t v) {
+    p[0] = (unsigned char)v; p[1] = (unsigned char)(v >> 8); p[2] = (unsigned char)(v >> 16); p[3] = (unsigned char)(v >> 24);
+}
+static void gim__put64(unsigned char *p, uint64_t v) { gim__put32(p, (uint32_t)v); gim__put32(p + 4, (uint32_t)(v >> 32)); }
+static uint32_t gim__get32(const unsigned char *p) {
+    return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
+}
+static uint64_t gim__get64(const unsigned char *p) { return (uint64_t)gim__get32(p) | (uint64_t)gim__get32(p + 4) << 32; }
+static void gim__putf(unsigned char *p, float f) { uint32_t u; memcpy(&u, &f, 4); gim__put32(p, u); }
+static float gim__getf(const unsigned char *p) { uint32_t u = gim__get32(p); float f; memcpy(&f, &u, 4); return f; }
+
+/* CRC-32, reflected polynomial 0xEDB88320: detects every error burst up to 32 bits, so every
+   single-byte corruption. The table lives on the stack (no global state). */
+static GIM__UNUSED uint32_t gim__crc32(const unsigned char *p, size_t size) {
+    uint32_t table[256], crc = 0xffffffffu, k, b;
+    size_t i;
+    for (k = 0; k < 256u; ++k) {
+        uint32_t c = k;
+        for (b = 0; b < 8u; ++b) c = (c & 1u) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+        table[k] = c;
+    }
+    for (i = 0; i < size; ++i) crc = table[(crc ^ p[i]) & 0xffu] ^ (crc >> 8);
+    return crc ^ 0xffffffffu;
+}
+
+/* What a stored set may hold; the writer refuses what the reader would reject. NULL: valid. */
+static const char *gim__blob_check_set(float d_eps, float theta_eps, double surface_area) {
+    if (!(gim__isfinitef(d_eps) && d_eps >= 0.0f)) return "d_eps is negative or not finite";
+    if (!(gim__isfinitef(theta_eps) && theta_eps >= 0.0f && theta_eps <= 3.14159265358979324f)) return "theta_eps is not in [0, pi]";
+    if (!(surface_area >= 0.0 && surface_area <= DBL_MAX)) return "surface area is negative or not finite";
+    return NULL;
+}
+static const char *gim__blob_check_cache(const gim_cache *c) {
+    double l2;
+    if (!gim__all_finite(c->position, 3)) return "position not finite";
+    if (!(gim__isfinitef(c->area) && c->area >= 0.0f)) return "area negative or not finite";
+    if (!gim__all_finite(c->normal, 3)) return "normal not finite";
+    l2 = (double)c->normal[0] * c->normal[0] + (double)c->normal[1] * c->normal[1] + (double)c->normal[2] * c->normal[2];
+    if (!(fabs(sqrt(l2) - 1.0) <= 1e-3)) return "normal not of unit length";
+    if (!(c->reflectance >= 0.0f && c->reflectance <= 1.0f)) return "reflectance not in [0, 1]";
+    return NULL;
+}
+
+GIMANY_DEF size_t gim_cache_blob_size(const gim_cache_set *set) {
+    uint64_t total;
+    if (!set) return 0;
+    total = GIM__BLOB_HEADER + (uint64_t)set->count * GIM__BLOB_RECORD + GIM__BLOB_TAIL;
+    if (total > (uint64_t)(size_t)-1) return 0;
+    return (size_t)total;
+}
+
+GIMANY_DEF gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity) {
+    static const char *where = "gim_cache_blob_write";
+    unsigned char *p = (unsigned char *)out;
+    const char *why;
+    size_t size;
+    uint32_t i;
+    if (!set) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!out) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "output is NULL");
+    if (set->count && !set->caches) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "%u caches but no array", set->count);
+    size = gim_cache_blob_size(set);
+    if (size == 0) return gim__fail(&set->env, GIM_ERROR_OUT_OF_RANGE, where, "%u caches do not fit in size_t bytes", set->count);
+    if (capacity < size) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "capacity %zu < blob size %zu", capacity, size);
+    why = gim__blob_check_set(set->d_eps, set->theta_eps, set->report.surface_area);
+    if (why) return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s", why);
+    for (i = 0; i < set->count; ++i)
+        if ((why = gim__blob_check_cache(&set->caches[i])) != NULL)
+            return gim__fail(&set->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u: %s", i, why);
+    memset(p, 0, GIM__BLOB_HEADER);
+    memcpy(p, "GIMCACHE", 8);
+    gim__put32(p + 8, GIM__BLOB_VERSION);
+    gim__put32(p + 12, GIM__BLOB_HEADER);
+    gim__put32(p + 16, GIM__BLOB_RECORD);
+    gim__put32(p + 20, set->count);
+    gim__put64(p + 24, (uint64_t)set->count * GIM__BLOB_RECORD);
+    gim__putf(p + 32, set->d_eps);
+    gim__putf(p + 36, set->theta_eps);
+    gim__put32(p + 40, set->report.triangles_used);
+    gim__put32(p + 44, set->report.triangles_degenerate);
+    gim__put32(p + 48, set->report.triangles_nonfinite);
+    gim__put32(p + 52, set->report.triangles_duplicate);
+    gim__put32(p + 56, set->report.voxels);
+    gim__put32(p + 60, set->report.caches_before_merge);
+    gim__put32(p + 64, set->report.caches_snapped);
+    {
+        uint64_t u;
+        memcpy(&u, &set->report.surface_area, 8);
+        gim__put64(p + 72, u);
+    }
+    for (i = 0; i < set->count; ++i) {
+        unsigned char *r = p + GIM__BLOB_HEADER + (size_t)i * GIM__BLOB_RECORD;
+        const gim_cache *c = &set->caches[i];
+        gim__putf(r, c->position[0]); gim__putf(r + 4, c->position[1]); gim__putf(r + 8, c->position[2]);
+        gim__putf(r + 12, c->area);
+        gim__putf(r + 16, c->normal[0]); gim__putf(r + 20, c->normal[1]); gim__putf(r + 24, c->normal[2]);
+        gim__putf(r + 28, c->reflectance);
+    }
+    gim__put32(p + size - GIM__BLOB_TAIL, gim__crc32(p, size - GIM__BLOB_TAIL));
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out) {
+    static const char *where = "gim_cache_blob_read";
+    const unsigned char *p = (const unsigned char *)blob;
+    uint32_t version, count, i;
+    uint64_t payload, expected;
+    gim_cache_set set;
+    const char *why;
+    if (!blob || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "blob or out is NULL");
+    if (size < GIM__BLOB_HEADER + GIM__BLOB_TAIL)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "truncated: %zu bytes, less than the %u of header and checksum",
+                         size, GIM__BLOB_HEADER + GIM__BLOB_TAIL);
+    if (memcmp(p, "GIMCACHE", 8) != 0) return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "not a gimany cache blob (magic)");
+    version = gim__get32(p + 8);
+    if (version != GIM__BLOB_VERSION)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "unknown version %u (this reader knows %u)", version, GIM__BLOB_VERSION);
+    if (gim__get32(p + 12) != GIM__BLOB_HEADER || gim__get32(p + 16) != GIM__BLOB_RECORD)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "header size %u or record size %u is not version 1's",
+                         gim__get32(p + 12), gim__get32(p + 16));
+    count = gim__get32(p + 20);
+    payload = gim__get64(p + 24);
+    if (payload != (uint64_t)count * GIM__BLOB_RECORD)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "payload size %llu does not match %u caches",
+                         (unsigned long long)payload, count);
+    expected = GIM__BLOB_HEADER + payload + GIM__BLOB_TAIL;
+    if ((uint64_t)size < expected)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "truncated: %zu bytes of %llu", size, (unsigned long long)expected);
+    if ((uint64_t)size > expected)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "size mismatch: %zu bytes, %u caches need %llu",
+                         size, count, (unsigned long long)expected);
+    if (gim__crc32(p, size - GIM__BLOB_TAIL) != gim__get32(p + size - GIM__BLOB_TAIL))
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "checksum mismatch");
+    if (gim__get32(p + 68) != 0 || gim__get64(p + 80) != 0)
+        return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "reserved fields are not zero");
+    memset(&set, 0, sizeof set);
+    set.env = env;
+    set.count = count;
+    set.d_eps = gim__getf(p + 32);
+    set.theta_eps = gim__getf(p + 36);
+    set.report.triangles_used = gim__get32(p + 40);
+    set.report.triangles_degenerate = gim__get32(p + 44);
+    set.report.triangles_nonfinite = gim__get32(p + 48);
+    set.report.triangles_duplicate = gim__get32(p + 52);
+    set.report.voxels = gim__get32(p + 56);
+    set.report.caches_before_merge = gim__get32(p + 60);
+    set.report.caches_snapped = gim__get32(p + 64);
+    {
+        uint64_t u = gim__get64(p + 72);
+        memcpy(&set.report.surface_area, &u, 8);
+    }
+    why = gim__blob_check_set(set.d_eps, set.theta_eps, set.report.surface_area);
+    if (why) return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "%s", why);
+    if (count) {
+        set.caches = (gim_cache *)gim__alloc_array(&env, count, sizeof(gim_cache));
+        if (!set.caches) return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", count);
+    }
+    for (i = 0; i < count; ++i) {
+        const unsigned char *r = p + GIM__BLOB_HEADER + (size_t)i * GIM__BLOB_RECORD;
+        gim_cache *c = &set.caches[i];
+        c->position[0] = gim__getf(r); c->position[1] = gim__getf(r + 4); c->position[2] = gim__getf(r + 8);
+        c->area = gim__getf(r + 12);
+        c->normal[0] = gim__getf(r + 16); c->normal[1] = gim__getf(r + 20); c->normal[2] = gim__getf(r + 24);
+        c->reflectance = gim__getf(r + 28);
+        if ((why = gim__blob_check_cache(c)) != NULL) {
+            gim_cache_set_free(&set);
+            return gim__fail(&env, GIM_ERROR_CORRUPT_DATA, where, "cache %u: %s", i, why);
+        }
+    }
+    *out = set;
+    return GIM_OK;
+}
 
 /* @impl importance ======================================================================== */
 
