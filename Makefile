@@ -1,5 +1,5 @@
 # gimany.h - build, test, bench. `make test` and `make demo` install what they need (tools/install-deps.sh).
-.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench fuzz fuzz-short demo deps clean
+.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench fuzz fuzz-short demo deps clean reference
 .DEFAULT_GOAL := test
 
 CC      ?= cc
@@ -15,12 +15,13 @@ CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
 GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
 BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c tests/bench_*.cpp)))
 FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
+FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of examples/scene.cpp, rule in 'ground truth'
 SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
 FUZZ_SECONDS ?= 300
 FUZZ_SHORT  ?= 15
 
 deps:
-	@$(DEPS) build test gl shaders fuzz
+	@$(DEPS) build test gl shaders fuzz examples reference
 
 # --- shaders ------------------------------------------------------------------------------
 $(B)/embed-shaders: tools/embed_shaders.c 
@@ -68,11 +69,43 @@ CPU_BINS := $(addprefix $(B)/asan/,$(CPU_TESTS)) $(addprefix $(B)/clang/,$(CPU_T
 VG_BINS  := $(addprefix $(B)/plain/,$(CPU_TESTS))
 GL_BINS  := $(addprefix $(B)/gl/,$(GL_TESTS))
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c
+REF_BINS := $(B)/ref/test_reference
 
 test: deps check-shaders
-	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS)
+	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
 	@$(MAKE) --no-print-directory fuzz-short
-	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS)
+	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
+
+# --- ground truth: tools/reference (Embree) on the shared scene layer examples/scene.* ----------
+REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -Itests -isystem /usr/include/stb
+REF_HDRS := examples/scene.h tools/reference/reference.h tests/street.h
+$(B)/ref/%.o: examples/%.cpp examples/scene.h tests/street.h
+	@mkdir -p $(@D)
+	$(REF_CXX) -O2 -c $< -o $@
+$(B)/ref/%.o: tools/reference/%.cpp $(REF_HDRS)
+	@mkdir -p $(@D)
+	$(REF_CXX) -O2 -c $< -o $@
+$(B)/ref/asan/%.o: examples/%.cpp examples/scene.h tests/street.h
+	@mkdir -p $(@D)
+	$(REF_CXX) -O1 -g $(SAN) -c $< -o $@
+$(B)/ref/asan/%.o: tools/reference/%.cpp $(REF_HDRS)
+	@mkdir -p $(@D)
+	$(REF_CXX) -O1 -g $(SAN) -c $< -o $@
+$(B)/gimany-reference: $(B)/ref/scene.o $(B)/ref/reference.o $(B)/ref/main.o
+	$(REF_CXX) $^ -o $@ -lembree3 -pthread
+# Tests (ASan+UBSan) of the renderer against closed forms, of the loader and of the CLI; the
+# headers must also compile as C99.
+$(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o $(B)/gimany-reference $(REF_HDRS)
+	gcc $(CSTD) $(WARN) -fsyntax-only -Iexamples -x c examples/scene.h tools/reference/reference.h
+	$(REF_CXX) -O1 -g $(SAN) -DREF_BIN='"$(B)/gimany-reference"' $< $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o -o $@ -lcmocka -lembree3 -pthread
+
+$(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h tests/street.h
+	@mkdir -p $(@D)
+	clang++ -std=c++11 -Iexamples -Itests -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< examples/scene.cpp -o $@
+
+reference:
+	@$(DEPS) build examples reference
+	@$(MAKE) --no-print-directory $(B)/gimany-reference
 
 # --- benchmarks ---------------------------------------------------------------------------
 $(B)/bench/%: tests/%.c $(HDRS) 

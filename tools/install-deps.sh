@@ -10,7 +10,7 @@ for g in "$@"; do
     gl)        pkgs+=(libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0) ;;
     shaders)   pkgs+=(glslang-tools) ;;
     fuzz)      pkgs+=(clang libclang-rt-14-dev) ;;
-    examples)  pkgs+=(libglfw3-dev libtinygltf-dev nlohmann-json3-dev libstb-dev xvfb xauth) ;;
+    examples)  pkgs+=(libglfw3-dev libtinygltf-dev nlohmann-json3-dev libstb-dev xvfb xauth assimp-testmodels) ;;
     reference) pkgs+=(libembree-dev) ;;
     plots)     pkgs+=(gnuplot-nox) ;;
     *) echo "install-deps: unknown group '$g'" >&2; exit 2 ;;
