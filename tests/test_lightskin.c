@@ -289,6 +289,70 @@ static void flux_guard_bound(void **state) {
     assert_true(pg.flux[0] > 0.0f && isfinite(pg.flux[0]));
 }
 
+/* How much eq. 7's guard costs: a room corner (floor and wall VALs, floor and wall caches),
+   the caches' own radiance reproduced from their proxy lights against the exact sums of eq. 3
+   and 4. Diffuse: the guard never bites. Glossy: where it bites the cache's lobe sees little
+   light, so the glossy energy over all caches stays within 2 %. */
+static void guard_bias(void **state) {
+    enum { NC = 64, NV = 1024 };
+    static const float ks[] = {8.0f, 100.0f, 1000.0f};
+    gim_cache c[NC];
+    gim_val *v = (gim_val *)malloc(NV * sizeof(gim_val));
+    gim_proxy_light pd[NC], pg[NC];
+    gim_receiver rd[NC], rg[NC];
+    float Ld[NC * 3], Lg[NC * 3];
+    gim_vec3 eye = gim_v3(-3, -2, 4);
+    uint32_t i, j, ki;
+    int a;
+    (void)state;
+    test_rng_state = 5;
+    for (i = 0; i < NC; ++i)
+        c[i] = (i % 2) ? mk_cache((float)(4 * test_rand01() - 2), (float)(4 * test_rand01() - 2), 0, 0, 0, 1, 0.1f)
+                       : mk_cache(2, (float)(4 * test_rand01() - 2), (float)(2 * test_rand01()), -1, 0, 0, 0.1f);
+    for (i = 0; i < NV; ++i)
+        v[i] = (i % 2) ? mk_val((float)(4 * test_rand01() - 2), (float)(4 * test_rand01() - 2), 0, 0, 0, 1, 0.016f, 0, 0, 0)
+                       : mk_val(-2, (float)(4 * test_rand01() - 2), (float)(2 * test_rand01()), 1, 0, 0, 0.016f, 0, 0, 0);
+    for (i = 0; i < NV; ++i) v[i].flux[0] = v[i].flux[1] = v[i].flux[2] = (float)(0.016 * test_rand01());
+    for (ki = 0; ki < 3; ++ki) {
+        gim_proxy_desc d = proxy_desc(c, NC, v, NV, test_env(NULL, NULL));
+        double ge = 0.0, gx = 0.0;
+        int bites = 0;
+        d.eye = eye; d.glossy_exponent = ks[ki];
+        assert_int_equal(gim_proxy_lights(&d, pd, pg), GIM_OK);
+        for (i = 0; i < NC; ++i) {
+            gim_vec3 vv = gim_v3_normalize(gim_v3(eye.x - c[i].position[0], eye.y - c[i].position[1], eye.z - c[i].position[2]));
+            rd[i] = mk_recv(c + i, vv.x, vv.y, vv.z, 1.0f, 0.0f, ks[ki]);
+            rg[i] = mk_recv(c + i, vv.x, vv.y, vv.z, 0.0f, 1.0f, ks[ki]);
+        }
+        radiance_at_caches(c, NC, pd, NULL, rd, 5.0f, Ld);
+        radiance_at_caches(c, NC, pd, pg, rg, 5.0f, Lg);
+        for (i = 0; i < NC; ++i) {
+            double S = 0.0, G = 0.0, vv3[3];
+            gim_vec3 vv = gim_v3_normalize(gim_v3(eye.x - c[i].position[0], eye.y - c[i].position[1], eye.z - c[i].position[2]));
+            vv3[0] = vv.x; vv3[1] = vv.y; vv3[2] = vv.z;
+            for (j = 0; j < NV; ++j) {
+                double dx[3], d2 = 0.0, dl, cx = 0.0, cl = 0.0, re = 0.0, e;
+                for (a = 0; a < 3; ++a) { dx[a] = (double)v[j].position[a] - c[i].position[a]; d2 += dx[a] * dx[a]; }
+                dl = sqrt(d2);
+                for (a = 0; a < 3; ++a) { cx += c[i].normal[a] * dx[a] / dl; cl -= v[j].normal[a] * dx[a] / dl; }
+                if (cx <= 0.0 || cl <= 0.0) continue;
+                e = v[j].flux[1] * cx * cl / (v[j].area + PI_D * d2);
+                for (a = 0; a < 3; ++a) re += (2.0 * cx * c[i].normal[a] - dx[a] / dl) * vv3[a];
+                S += e;
+                G += re > 0.0 ? e * pow(re, ks[ki]) : 0.0;
+            }
+            assert_true(fabs(Ld[i * 3 + 1] - S / PI_D) <= 1e-4 * S / PI_D);                 /* eq. 3, no bias */
+            G *= (ks[ki] + 2.0) / (2.0 * PI_D);
+            assert_true(Lg[i * 3 + 1] <= G * (1.0 + 1e-4 + 1e-6 * ks[ki]) + 1e-12);   /* never more (float lobe: k eps) */
+            bites += Lg[i * 3 + 1] < G * (1.0 - 1e-4);
+            ge += Lg[i * 3 + 1]; gx += G;
+        }
+        print_message("k = %4g: glossy guard bites at %d of %d caches, glossy energy %.4f of exact\n", ks[ki], bites, NC, ge / gx);
+        assert_true(ge >= 0.98 * gx);
+    }
+    free(v);
+}
+
 /* Degenerate VALs, caches and exponents: finite, non-negative outputs everywhere. */
 static void guards_finite(void **state) {
     static const float ks[] = {0.0f, 1.0f, 1e4f};
@@ -796,6 +860,7 @@ int main(void) {
         cmocka_unit_test(brsm_converges_to_full),
         cmocka_unit_test(proportional_pdf_low_variance),
         cmocka_unit_test(flux_guard_bound),
+        cmocka_unit_test(guard_bias),
         cmocka_unit_test(guards_finite),
         cmocka_unit_test(extreme_values),
         cmocka_unit_test(interpolation_at_cache),
