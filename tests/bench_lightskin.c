@@ -37,16 +37,36 @@ static double rand01(void) { /* splitmix64 */
 
 enum { NC = 5000, RSM = 128, NT = RSM * RSM, NSEL = 2048, NR = 100000, NB = 16 };
 
-static double time_proxies(const gim_proxy_desc *d, gim_proxy_light *pd, gim_proxy_light *pg, int reps, double *check) {
-    double t[15];
-    int r;
-    for (r = 0; r < reps; ++r) {
-        double t0 = now_s();
+/* CPU time of this thread: the machine may be shared, and descheduled time is not ours */
+static double cpu_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* FULL and BRSM runs interleaved (one FULL, then BRSM_PER_FULL BRSM), so both see the same load;
+   medians of thread CPU time (ms) into full_ms and brsm_ms, wall-clock medians beside them. */
+#define FULL_REPS 3
+#define BRSM_PER_FULL 4
+static void time_pair(gim_proxy_desc *d, const gim_val *full, uint32_t nfull, const gim_val *sel, uint32_t nsel,
+                      gim_proxy_light *pd, gim_proxy_light *pg, double *ms) {
+    double tf[FULL_REPS], tb[FULL_REPS * BRSM_PER_FULL], wf[FULL_REPS], wb[FULL_REPS * BRSM_PER_FULL];
+    int r, b;
+    for (r = 0; r < FULL_REPS; ++r) {
+        double c0, w0;
+        d->vals = full; d->val_count = nfull;
+        c0 = cpu_s(); w0 = now_s();
         if (gim_proxy_lights(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights failed\n"); exit(1); }
-        t[r] = now_s() - t0;
+        tf[r] = cpu_s() - c0; wf[r] = now_s() - w0;
+        d->vals = sel; d->val_count = nsel;
+        for (b = 0; b < BRSM_PER_FULL; ++b) {
+            c0 = cpu_s(); w0 = now_s();
+            if (gim_proxy_lights(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights failed\n"); exit(1); }
+            tb[r * BRSM_PER_FULL + b] = cpu_s() - c0; wb[r * BRSM_PER_FULL + b] = now_s() - w0;
+        }
     }
-    *check = pd[NC / 2].flux[1];
-    return median(t, reps) * 1e3;
+    ms[0] = median(tf, FULL_REPS) * 1e3; ms[1] = median(tb, FULL_REPS * BRSM_PER_FULL) * 1e3;
+    ms[2] = median(wf, FULL_REPS) * 1e3; ms[3] = median(wb, FULL_REPS * BRSM_PER_FULL) * 1e3;
 }
 
 int main(void) {
@@ -58,7 +78,7 @@ int main(void) {
     float *dcm = (float *)malloc(NR * sizeof *dcm), *L = (float *)malloc((size_t)NR * 3 * sizeof *L);
     gim_proxy_desc d;
     gim_shade_desc sd;
-    double tf, tb, tfg, tbg, ts, to, t[15], chk;
+    double ms[4], ts, to, t[15], chk;
     int i, r, a;
     if (!c || !full || !sel || !pd || !pg || !rc || !idx || !dcm || !L) return 1;
     /* caches on a 100 x 100 ground facing up and on a 20 high wall x = 50 facing -x */
@@ -111,16 +131,15 @@ int main(void) {
     }
     memset(&d, 0, sizeof d);
     d.caches = c; d.cache_count = NC; d.eye = gim_v3(-60, -60, 40); d.glossy_exponent = 32; d.scene_scale = 150;
-    printf("proxy lights, %d caches (median ms):\n", NC);
-    d.vals = full; d.val_count = NT;
-    tf = time_proxies(&d, pd, NULL, 3, &chk);
-    tfg = time_proxies(&d, pd, pg, 3, &chk);
-    d.vals = sel; d.val_count = NSEL;
-    tb = time_proxies(&d, pd, NULL, 11, &chk);
-    tbg = time_proxies(&d, pd, pg, 11, &chk);
-    printf("  diffuse:            FULL %d^2 texels %8.1f ms   BRSM %d VALs %7.1f ms   ratio %.2f\n", RSM, tf, NSEL, tb, tf / tb);
-    printf("  diffuse + glossy:   FULL %d^2 texels %8.1f ms   BRSM %d VALs %7.1f ms   ratio %.2f\n", RSM, tfg, NSEL, tbg, tfg / tbg);
+    printf("proxy lights, %d caches, median thread CPU ms (wall ms in brackets):\n", NC);
+    time_pair(&d, full, NT, sel, NSEL, pd, NULL, ms);
+    printf("  diffuse:          FULL %d^2 texels %7.1f (%7.1f)   BRSM %d VALs %6.1f (%6.1f)   ratio %.2f\n",
+           RSM, ms[0], ms[2], NSEL, ms[1], ms[3], ms[0] / ms[1]);
+    time_pair(&d, full, NT, sel, NSEL, pd, pg, ms);
+    printf("  diffuse + glossy: FULL %d^2 texels %7.1f (%7.1f)   BRSM %d VALs %6.1f (%6.1f)   ratio %.2f\n",
+           RSM, ms[0], ms[2], NSEL, ms[1], ms[3], ms[0] / ms[1]);
     printf("  (cost model: %d / %d = %.1f)\n", NT, NSEL, (double)NT / NSEL);
+    chk = pd[NC / 2].flux[1];
     /* shading: receivers near caches, 16 neighbours each (random nearby caches) */
     for (i = 0; i < NR; ++i) {
         const gim_cache *cc = c + (i % NC);
@@ -135,19 +154,19 @@ int main(void) {
     sd.caches = c; sd.cache_count = NC; sd.diffuse = pd; sd.glossy = pg; sd.receivers = rc; sd.receiver_count = NR;
     sd.neighbour_index = idx; sd.neighbour_stride = NB; sd.d_cmax = dcm; sd.scene_scale = 150;
     for (r = 0; r < 7; ++r) {
-        double t0 = now_s();
+        double t0 = cpu_s();
         if (gim_lightskin_shade(&sd, L) != GIM_OK) return 1;
-        t[r] = now_s() - t0;
+        t[r] = cpu_s() - t0;
     }
     ts = median(t, 7) * 1e3;
     for (r = 0; r < 3; ++r) {
-        double t0 = now_s();
+        double t0 = cpu_s();
         if (gim_proxy_occlusion(c, NC, pd, 150, sd.env) != GIM_OK) return 1;
-        t[r] = now_s() - t0;
+        t[r] = cpu_s() - t0;
     }
     to = median(t, 3) * 1e3;
-    printf("shading, %d receivers x %d neighbours, diffuse + glossy: %.1f ms\n", NR, NB, ts);
-    printf("occlusion, %d caches (O(C^2)), one proxy set: %.1f ms\n", NC, to);
+    printf("shading, %d receivers x %d neighbours, diffuse + glossy: %.1f CPU ms\n", NR, NB, ts);
+    printf("occlusion, %d caches (O(C^2)), one proxy set: %.1f CPU ms\n", NC, to);
     printf("(check %g %g)\n", chk, L[3]);
     free(c); free(full); free(sel); free(pd); free(pg); free(rc); free(idx); free(dcm); free(L);
     return 0;
