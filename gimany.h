@@ -638,9 +638,10 @@ typedef struct gim_shade_desc {
           Positions weigh W' = w' lum(Phi_p visibility): a dark neighbour dims the light but
           does not move it (eq. 9's w' alone would pull an unlit cache's proxy position in and
           brighten the receiver through 1/|l|^2); equal fluxes give eq. 9 exactly.
-   shading: l = x_v - x, E = Phi_v (n_x . l)+ / (4 pi |l|^3) with |l|^2 floored at a quarter of
-          the W'-mean of |x_p,j - c_j|^2 (the interpolated light never comes more than twice
-          as close as its caches saw theirs, so offsets that cancel give no spike);
+   shading: l = x_v - x, E = Phi_v (n_x . l / |l|)+ / (4 pi |l|^2) with |l|^2 floored at a
+          quarter of the W'-mean of |x_p,j - c_j|^2 (the interpolated light never comes more
+          than twice as close as its caches saw theirs, so offsets that cancel give no spike)
+          and at (1e-6 scene_scale)^2;
           L = rho_d / pi E_d + rho_g (k+2) / (2 pi) ((r . view)+)^k E_g, r = l mirrored at n_x.
    Receivers with no neighbour get 0. Errors: NULL arrays, zero counts, an index >= cache_count
    (other than the UINT32_MAX pad), NaN/Inf or out-of-range inputs (the first is logged). */
@@ -2185,12 +2186,14 @@ static void gim__interp_light(const gim_shade_desc *d, const gim_proxy_light *li
     for (a = 0; a < 3; ++a) e_out[a] = phi[use][a] * ein;
 }
 
-static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn) {
+/* The arguments of the shading pass; lights 0 leaves out the proxy lights (gim_lightskin_cpu
+   checks the rest before it spends the proxy pass). */
+static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn, int lights) {
     const gim_env *env = &d->env;
     gim_result r;
     uint32_t i, j;
     if (!d->caches || d->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
-    if (!d->diffuse) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "diffuse proxy lights are required");
+    if (lights && !d->diffuse) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "diffuse proxy lights are required");
     if (!d->receivers || d->receiver_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no receivers");
     if (!d->neighbour_index || !d->d_cmax) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "neighbour_index and d_cmax are required");
     if (d->neighbour_stride == 0 || d->neighbour_stride > GIM_MAX_NEIGHBOUR_CACHES)
@@ -2198,7 +2201,7 @@ static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn) {
     if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
     if ((r = gim__check_caches(env, fn, d->caches, d->cache_count)) != GIM_OK) return r;
-    for (i = 0; i < d->cache_count; ++i) {
+    for (i = 0; lights && i < d->cache_count; ++i) {
         const gim_proxy_light *p = d->diffuse + i, *g = d->glossy ? d->glossy + i : NULL;
         if (!gim__all_finite(p->position, 3) || !gim__all_finite(p->flux, 3) || !(p->visibility >= 0.0f && p->visibility <= 1.0f) ||
             (g && (!gim__all_finite(g->position, 3) || !gim__all_finite(g->flux, 3) || !(g->visibility >= 0.0f && g->visibility <= 1.0f))))
@@ -2236,7 +2239,7 @@ GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *rad
     float near_;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
     if (!radiance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance_out is NULL");
-    if ((r = gim__check_shade(desc, fn)) != GIM_OK) return r;
+    if ((r = gim__check_shade(desc, fn, 1)) != GIM_OK) return r;
     near_ = GIM__TWINS_COINCIDENT * desc->scene_scale;
     for (i = 0; i < desc->receiver_count; ++i) {
         const gim_receiver *rc = desc->receivers + i;
@@ -2289,6 +2292,7 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     sd.neighbour_index = desc->neighbour_index; sd.neighbour_count = desc->neighbour_count;
     sd.neighbour_stride = desc->neighbour_stride; sd.d_cmax = desc->d_cmax;
     sd.scene_scale = scale; sd.env = desc->env;
+    if ((r = gim__check_shade(&sd, fn, 0)) != GIM_OK) return r;   /* before the costly passes */
     n = (size_t)desc->cache_count * (desc->glossy ? 2u : 1u);
     lights = (gim_proxy_light *)gim__alloc_array(env, n, sizeof *lights);
     if (!lights) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%zu proxy lights", n);

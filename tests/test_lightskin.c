@@ -720,7 +720,10 @@ static void argument_errors(void **state) {
     ld.scene_scale = INFINITY;
     EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "scene_scale");
     ld.scene_scale = 0.0f; ld.receivers = NULL;
-    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_shade: no receivers");
+    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_cpu: no receivers");
+    assert_int_equal(as.allocs, 0);                 /* refused before the proxy pass */
+    ld.receivers = &r; ld.d_cmax = NULL;
+    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_cpu: neighbour_index and d_cmax");
     /* gather */
     memset(&rsm, 0, sizeof rsm);
     rsm.position = fv; rsm.normal = nv; rsm.flux = fv; rsm.area = av; rsm.width = 2; rsm.height = 2;
