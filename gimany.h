@@ -503,6 +503,208 @@ GIMANY_API gim_result gim_importance_select(const double *column, const double *
                                             uint32_t seed, gim_selected_val *out, gim_env env);
 
 /* @section twins ========================================================================== */
+/* LightSkin cache lighting, CPU twins of its GPU passes (paper 000 sec. 3 "Cache Lighting",
+   "Proxy Lights Generation", "Interpolation using the Proxy Lights", "Occlusion"; sec. 4
+   eq. 13-15). Each function has the structure of its pass: one independent invocation per
+   cache (gim_proxy_lights, gim_proxy_occlusion) or per receiver pixel (gim_lightskin_shade),
+   each a loop in a fixed order, so the results are deterministic.
+
+   Units (DESIGN.md sec. 4): a VAL is an RSM texel, a Lambertian disk of area A_l with
+   reflected flux Phi_l (rgb), so its radiance is Phi_l / (pi A_l). Per cache c (normal n_c)
+   and VAL j, with w_j the VAL's estimator weight, d_j = |x_l,j - c|, omega_j = (x_l,j - c) / d_j:
+     e_j = w_j Phi_j cos+theta_l cos+theta_x / (A_j + pi d_j^2)       irradiance at c (eq. 3
+                                                                      without rho_d / pi)
+     g_j = ((r_j . v_c)+)^k, r_j = omega_j mirrored at n_c            Phong lobe (eq. 4), v_c the
+                                                                      unit direction c -> eye
+   so L_o,d = rho_d / pi sum e_j (eq. 3/14) and L_o,g = rho_g (k+2) / (2 pi) sum g_j e_j
+   (eq. 4/15, the `+` printed in eq. 4 is a product). Summed with w_j = 1 over every texel
+   (FULL) or with w_j = 1 / (N P_VAL) over N VALs drawn with probability P_VAL (BRSM), which
+   is an unbiased estimate of the FULL sum wherever P_VAL > 0 on every texel that lights the
+   cache (eq. 14-15 print 1 / P without the 1 / N of the mean; gim_vals_gather applies it).
+
+   A proxy light is a point light (position x_p, flux Phi_p, isotropic) that gives the cache
+   the same outgoing radiance (eq. 7): f_r(omega_p) Phi_p (n_c . omega_p)+ / (4 pi |x_p - c|^2)
+   = L_o. The BRDF's constants (rho_d / pi, rho_g (k+2) / (2 pi)) cancel between eq. 3/4 and
+   eq. 7, so a proxy light carries no cache material: the receiver applies its own albedo and
+   glossy colour when it is shaded. */
+
+/* One virtual area light (an RSM texel): three vec4 (std430 layout of the GPU buffer). */
+typedef struct gim_val {
+    float position[3];  /* x_l, world space */
+    float area;         /* A_l >= 0, footprint on the surface (eq. 1) */
+    float normal[3];    /* unit (|n|^2 within 1e-3 of 1), or zero: the VAL emits nothing */
+    float weight;       /* estimator weight >= 0: 1 for FULL, 1 / (N P_VAL) for BRSM; 0 skips it */
+    float flux[3];      /* Phi_l, rgb, >= 0 */
+    float unused;       /* padding, ignored */
+} gim_val;
+
+/* One proxy light of a cache: three vec4. */
+typedef struct gim_proxy_light {
+    float position[3];  /* x_p (eq. 5 / 13) */
+    float radius;       /* bounding sphere for occlusion: 2 max(sigma) (the AABB of extent 2 sigma) */
+    float flux[3];      /* Phi_p, rgb (eq. 7 with the guard below) */
+    float visibility;   /* 1 - occlusion, in [0,1]: written 1 by gim_proxy_lights, then by gim_proxy_occlusion */
+    float sigma[3];     /* weighted standard deviation of the VAL positions per world axis */
+    float unused;       /* padding, 0 */
+} gim_proxy_light;
+
+/* An RSM as float arrays, width * height texels row-major, row 0 first (as gim_importance_desc). */
+typedef struct gim_rsm_data {
+    const float *position;  /* * 3: world position */
+    const float *normal;    /* * 3: unit normal */
+    const float *flux;      /* * 3: reflected flux Phi, rgb */
+    const float *area;      /* * 1: footprint A (eq. 1; constant / cos for an orthographic RSM) */
+    const float *valid;     /* * 1, or NULL: a texel counts only where > 0 */
+    uint32_t width, height;
+} gim_rsm_data;
+
+/* The VAL list of one frame (the fetch at the start of the proxy pass):
+   selected == NULL (FULL LightSkin): out[width * height], texel t with weight 1;
+   selected != NULL (BRSM): out[selected_count], selected[i]'s texel with weight
+   1 / (selected_count * pdf), the unbiased Monte Carlo weight of eq. 13-15.
+   An invalid texel (valid <= 0, a NaN/Inf in its data, negative flux or area) becomes a VAL
+   of weight 0 and zero flux: it lights nothing. A selected texel outside the RSM or a pdf that
+   is not finite and > 0 is GIM_ERROR_INVALID_ARGUMENT (out partly written). */
+GIMANY_API gim_result gim_vals_gather(const gim_rsm_data *rsm, const gim_selected_val *selected,
+                                      uint32_t selected_count, gim_val *out, gim_env env);
+
+/* Input of gim_proxy_lights; zero means default. */
+typedef struct gim_proxy_desc {
+    const gim_cache *caches;     /* world-space caches (unit normals) */
+    uint32_t cache_count;        /* > 0 */
+    const gim_val *vals;         /* the frame's VALs (gim_vals_gather); val_count 0 is dark, not an error */
+    uint32_t val_count;
+    gim_vec3 eye;                /* camera position: v_c of the glossy lobe at each cache */
+    float glossy_exponent;       /* k >= 0 of every cache (<= 1e6) */
+    const float *cache_glossy_exponent; /* cache_count values of k, or NULL: glossy_exponent */
+    float scene_scale;           /* > 0; 0: diagonal of the bounds of caches and VALs */
+    gim_env env;
+} gim_proxy_desc;
+
+/* Proxy lights of every cache, one independent invocation per cache looping over the VALs:
+   diffuse_out[cache_count] (required) and glossy_out[cache_count] (NULL skips the glossy
+   pass: a scene without glossy materials pays nothing for it). Per cache:
+   position (eq. 5/13): x_p = c + sum W_j (x_l,j - c) / sum W_j with the contribution weights
+     W_j = lum(Phi_j) e_j (diffuse), lum(Phi_j) g_j e_j (glossy). The paper's eq. 6 weighs by
+     the form factor alone (epsilon_p + F); weighing by what each VAL adds puts the proxy where
+     the light comes from, and a black texel no longer drags it. They are equal when all VALs
+     have the same radiance. Where no VAL lights the cache (sum W = 0), the paper's form factor
+     weights F_j = w_j A_j cos cos / (A_j + pi d^2) place it, with zero flux, so the position
+     an interpolating neighbour sees stays meaningful; with no VAL in front of the cache at
+     all, x_p = c. A glossy lobe that sees none of the light takes the diffuse proxy's position
+     and sigma, with zero flux. epsilon_p of eq. 6 is then never needed.
+   sigma: sqrt(sum W (x - c)^2 / sum W - (x_p - c)^2) per axis (the same weights); radius = 2 max.
+   flux (eq. 7): Phi_p = 4 pi |x_p - c|^2 S / max(D_p, lum(S) / lum(E_n)), with S = sum e_j
+     (diffuse) or sum g_j e_j (glossy), D_p = f(omega_p) (n_c . omega_p)+ (f = 1 or the lobe
+     g at the proxy's direction) and E_n = sum e_j / cos+theta_x,j, the irradiance the VALs
+     deliver to c perpendicular to each of their directions. Guard: the proxy light may not
+     carry more normal irradiance (Phi_p / 4 pi d_p^2) than all its VALs deliver, so eq. 7's
+     division by the BRDF and the cosine stays finite. It never bites for one VAL (then
+     D_p = lum(S) / lum(E_n) exactly) and rarely for diffuse light (the weighted mean direction
+     rises above its VALs); where it bites the cache's own radiance is underestimated by
+     D_p / floor (a glossy lobe narrower than the spread of the light around the mirror
+     direction), never overestimated.
+   visibility = 1. A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
+   weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
+   (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
+   or breaks the ranges above (the first offender is logged), k out of range. */
+GIMANY_API gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
+                                       gim_proxy_light *glossy_out);
+
+/* Occlusion of the proxy lights (paper 000 "Occlusion"; Lensing and Broll 2013), one invocation
+   per target cache i looping over the other caches; writes lights[i].visibility in [0,1].
+   Projections onto the unit disk of cache i's tangent plane (the Nusselt analogue: a shape's
+   projected area there is pi times its form factor from c_i), each then made an axis-aligned
+   square of the same area centred on the projection of its centre (t, b of gim_basis(n_i)):
+     proxy light: sphere of centre x_p, radius r = lights[i].radius at distance D:
+                  F = (min(r / D, 1))^2 (n_i . omega_p)+
+     cache j:     disk of area a_j = caches[j].area, normal n_j, at distance d:
+                  F = a_j (n_i . omega_j)+ |n_j . omega_j| / (a_j + pi d^2) (two-sided, as eq. 3)
+   A cache blocks only where it lies strictly between: 1e-6 scene_scale < d < D - r (caches
+   inside the light's sphere or beyond are what emits it). occlusion = the sum over blockers of
+   the overlap of their square with the light's square, divided by the light's square's area,
+   clamped to 1 (overlapping blockers are counted twice: the paper's estimate). A point light
+   (r = 0) is occluded 1 when its centre falls inside a blocker's square. A light with zero
+   flux, below c_i's horizon or around c_i (D <= r) keeps visibility 1. O(C^2) per call. */
+GIMANY_API gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
+                                          gim_proxy_light *lights, float scene_scale, gim_env env);
+
+/* A receiver: a visible surface point (a G-buffer pixel) and its material. */
+typedef struct gim_receiver {
+    float position[3];
+    float normal[3];    /* unit */
+    float view[3];      /* unit direction from the point towards the viewer */
+    float albedo[3];    /* diffuse rho_d, >= 0 */
+    float glossy[3];    /* glossy rho_g, >= 0 (ignored without glossy proxy lights) */
+    float exponent;     /* Phong k >= 0, <= 1e6 */
+} gim_receiver;
+
+/* Input of gim_lightskin_shade; zero means default. */
+typedef struct gim_shade_desc {
+    const gim_cache *caches;
+    uint32_t cache_count;
+    const gim_proxy_light *diffuse;   /* cache_count proxy lights (required) */
+    const gim_proxy_light *glossy;    /* cache_count, or NULL: no glossy term */
+    const gim_receiver *receivers;
+    uint32_t receiver_count;
+    const uint32_t *neighbour_index;  /* receiver_count * neighbour_stride cache indices; UINT32_MAX pads */
+    const uint32_t *neighbour_count;  /* receiver_count counts <= stride, or NULL: all stride entries */
+    uint32_t neighbour_stride;        /* n of gim_cache_neighbours, 1..GIM_MAX_NEIGHBOUR_CACHES */
+    const float *d_cmax;              /* receiver_count: d_c,max of eq. 8 (>= 0) */
+    float scene_scale;                /* > 0 */
+    gim_env env;
+} gim_shade_desc;
+
+/* Indirect radiance leaving each receiver towards its viewer, rgb into
+   radiance_out[receiver_count * 3]; one independent invocation per receiver (pixel).
+   eq. 8: w'_d = (1 - |x - c_j| / d_c,max)+ sqrt((n_x . n_c)+),
+          w'_g = (1 - |x - c_j| / d_c,max)+ sqrt((r_x . r_c)+), r the direction towards the
+          cache's glossy proxy mirrored at n_x and at n_c. Guards: d_c,max <= 1e-6 scene_scale
+          (coincident caches) makes the distance factor 1; where every w' is 0 (a lone
+          neighbour at exactly d_c,max) the distance factor is dropped, leaving the normal one.
+   eq. 9: flux Phi_v = sum w' Phi_p visibility / sum w'; the proxies "move along with the
+          surface point": each is translated by x - c_j before eq. 9 averages positions, so
+          x_v = x + sum W' (x_p,j - c_j) / sum W' (the receiver sees each light at its cache's
+          offset; with one neighbour at x = c_j the cache's own radiance is reproduced exactly).
+          Positions weigh W' = w' lum(Phi_p visibility): a dark neighbour dims the light but
+          does not move it (eq. 9's w' alone would pull an unlit cache's proxy position in and
+          brighten the receiver through 1/|l|^2); equal fluxes give eq. 9 exactly.
+   shading: l = x_v - x, E = Phi_v (n_x . l / |l|)+ / (4 pi |l|^2) with |l|^2 floored at a
+          quarter of the W'-mean of |x_p,j - c_j|^2 (the interpolated light never comes more
+          than twice as close as its caches saw theirs, so offsets that cancel give no spike)
+          and at (1e-6 scene_scale)^2;
+          L = rho_d / pi E_d + rho_g (k+2) / (2 pi) ((r . view)+)^k E_g, r = l mirrored at n_x.
+   Receivers with no neighbour get 0. Errors: NULL arrays, zero counts, an index >= cache_count
+   (other than the UINT32_MAX pad), NaN/Inf or out-of-range inputs (the first is logged). */
+GIMANY_API gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *radiance_out);
+
+/* Input of gim_lightskin_cpu: one LightSkin frame, everything of the two descs above. */
+typedef struct gim_lightskin_desc {
+    const gim_cache *caches;
+    uint32_t cache_count;
+    const gim_val *vals;              /* FULL or BRSM, from gim_vals_gather */
+    uint32_t val_count;
+    gim_vec3 eye;
+    int glossy;                       /* 1: glossy proxy lights and the glossy term; 0: diffuse only */
+    float glossy_exponent;
+    const float *cache_glossy_exponent;
+    int occlusion;                    /* 1: gim_proxy_occlusion on both proxy light sets; 0: off */
+    const gim_receiver *receivers;
+    uint32_t receiver_count;
+    const uint32_t *neighbour_index;
+    const uint32_t *neighbour_count;
+    uint32_t neighbour_stride;
+    const float *d_cmax;
+    float scene_scale;                /* > 0; 0: diagonal of the bounds of caches and VALs */
+    gim_env env;
+} gim_lightskin_desc;
+
+/* The whole CPU LightSkin frame, the twin of the GPU frame after the RSM (and selection):
+   gim_proxy_lights -> gim_proxy_occlusion (when on) -> gim_lightskin_shade. Allocates the
+   proxy lights (cache_count, twice with glossy) through env and frees them before returning.
+   radiance_out[receiver_count * 3]. */
+GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
+
 
 #ifdef __cplusplus
 }
@@ -3105,6 +3307,534 @@ GIMANY_DEF gim_result gim_importance_select(const double *column, const double *
 }
 
 /* @impl twins ============================================================================= */
+#define GIM__PI 3.14159265358979323846
+#define GIM__TWINS_MAX_EXPONENT 1e6f
+/* a VAL or cache nearer than this (in scene scales) has no direction from the cache */
+#define GIM__TWINS_COINCIDENT 1e-6f
+
+/* |v|^2 of a unit vector within 1e-3 of 1 (or exactly 0 where allowed) */
+static int gim__unit_or_zero(const float *n, int zero_ok) {
+    float l2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    if (zero_ok && l2 == 0.0f) return 1;
+    return l2 > 0.999f && l2 < 1.001f;
+}
+/* Phong lobe value ((r . v)+)^k; k = 0 is the constant lobe (pow(0, 0) = 1). */
+static float gim__lobe(float cos_e, float k) {
+    if (k == 0.0f) return 1.0f;
+    return cos_e > 0.0f ? powf(cos_e, k) : 0.0f;
+}
+static float gim__clamp_flt(double x) { return x < (double)FLT_MAX ? (float)x : FLT_MAX; }
+
+GIMANY_DEF gim_result gim_vals_gather(const gim_rsm_data *rsm, const gim_selected_val *selected,
+                                      uint32_t selected_count, gim_val *out, gim_env env) {
+    static const char fn[] = "gim_vals_gather";
+    size_t n, i;
+    if (!rsm) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm is NULL");
+    if (!out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
+    if (!rsm->position || !rsm->normal || !rsm->flux || !rsm->area)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm position, normal, flux and area are required");
+    if (rsm->width == 0 || rsm->height == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "empty RSM");
+    if (selected && selected_count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "selected_count is 0");
+    n = selected ? (size_t)selected_count : (size_t)rsm->width * rsm->height;
+    for (i = 0; i < n; ++i) {
+        size_t t = i;
+        float w = 1.0f;
+        gim_val *v = out + i;
+        if (selected) {
+            const gim_selected_val *s = selected + i;
+            double wd;
+            if (s->x >= rsm->width || s->y >= rsm->height)
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "selected[%zu] = (%u, %u) is outside the %ux%u RSM",
+                                 i, s->x, s->y, rsm->width, rsm->height);
+            if (!(s->pdf > 0.0f) || !gim__isfinitef(s->pdf))
+                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "selected[%zu].pdf is not finite and > 0", i);
+            t = (size_t)s->y * rsm->width + s->x;
+            wd = 1.0 / ((double)selected_count * (double)s->pdf);   /* eq. 13-15: 1 / (N P) */
+            w = gim__clamp_flt(wd);
+        }
+        memcpy(v->position, rsm->position + t * 3, sizeof v->position);
+        memcpy(v->normal, rsm->normal + t * 3, sizeof v->normal);
+        memcpy(v->flux, rsm->flux + t * 3, sizeof v->flux);
+        v->area = rsm->area[t];
+        v->weight = w;
+        v->unused = 0.0f;
+        if ((rsm->valid && !(rsm->valid[t] > 0.0f)) || !gim__all_finite(v->position, 3) ||
+            !gim__all_finite(v->normal, 3) || !gim__all_finite(v->flux, 3) || !gim__isfinitef(v->area) ||
+            !(v->area >= 0.0f) || !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f)) {
+            memset(v, 0, sizeof *v);   /* lights nothing, passes gim_proxy_lights' checks */
+        }
+    }
+    return GIM_OK;
+}
+
+/* Diagonal of the bounds of the caches and VALs (the default scene scale); 1 when all coincide. */
+static float gim__twins_scale(const gim_cache *caches, uint32_t cache_count, const gim_val *vals, uint32_t val_count) {
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, d2 = 0.0;
+    uint32_t i;
+    int a;
+    for (i = 0; i < cache_count; ++i)
+        for (a = 0; a < 3; ++a) {
+            double p = caches[i].position[a];
+            lo[a] = p < lo[a] ? p : lo[a]; hi[a] = p > hi[a] ? p : hi[a];
+        }
+    for (i = 0; i < val_count; ++i)
+        if (vals[i].weight > 0.0f)
+            for (a = 0; a < 3; ++a) {
+                double p = vals[i].position[a];
+                lo[a] = p < lo[a] ? p : lo[a]; hi[a] = p > hi[a] ? p : hi[a];
+            }
+    for (a = 0; a < 3; ++a) if (hi[a] >= lo[a]) d2 += (hi[a] - lo[a]) * (hi[a] - lo[a]);
+    return d2 > 0.0 ? gim__clamp_flt(sqrt(d2)) : 1.0f;
+}
+
+static gim_result gim__check_caches(const gim_env *env, const char *fn, const gim_cache *caches, uint32_t count) {
+    uint32_t i;
+    for (i = 0; i < count; ++i) {
+        const gim_cache *c = caches + i;
+        if (!gim__all_finite(c->position, 3) || !gim__all_finite(c->normal, 3) || !gim__isfinitef(c->area) ||
+            !(c->area >= 0.0f) || !gim__unit_or_zero(c->normal, 0))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "cache %u: position, normal and area must be finite, the normal unit, the area >= 0", i);
+    }
+    return GIM_OK;
+}
+
+static gim_result gim__check_vals(const gim_env *env, const char *fn, const gim_val *vals, uint32_t count) {
+    uint32_t i;
+    for (i = 0; i < count; ++i) {
+        const gim_val *v = vals + i;
+        if (!gim__all_finite(v->position, 3) || !gim__all_finite(v->normal, 3) || !gim__all_finite(v->flux, 3) ||
+            !gim__isfinitef(v->area) || !gim__isfinitef(v->weight) || !(v->area >= 0.0f) || !(v->weight >= 0.0f) ||
+            !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f) || !gim__unit_or_zero(v->normal, 1))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "VAL %u: not finite, negative area/weight/flux, or a normal neither unit nor zero", i);
+    }
+    return GIM_OK;
+}
+
+/* Sums of one proxy light of one cache (the registers of one GPU invocation). */
+typedef struct gim__proxy_sums {
+    double s[3];      /* S: sum e_j (diffuse) or sum g_j e_j (glossy), rgb */
+    double en;        /* lum(E_n) = sum lum(Phi_j) e_j / cos theta_x,j */
+    double w;         /* sum W_j */
+    double m1[3];     /* sum W_j (x_l,j - c) */
+    double m2[3];     /* sum W_j (x_l,j - c)^2 per axis */
+} gim__proxy_sums;
+
+static void gim__sums_add(gim__proxy_sums *a, const float *d, double weight, const float *phi, double e, double lum_en) {
+    int k;
+    for (k = 0; k < 3; ++k) {
+        a->s[k] += (double)phi[k] * e;
+        a->m1[k] += weight * d[k];
+        a->m2[k] += weight * d[k] * d[k];
+    }
+    a->en += lum_en;
+    a->w += weight;
+}
+
+/* Position, sigma and flux (eq. 5/13, eq. 7 with the guard) from the sums; glossy_k < 0: diffuse. */
+static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, const float *v, float glossy_k,
+                              gim_proxy_light *out) {
+    double o[3], d2 = 0.0, dp, cos_p = 0.0, dproxy, floor_, lum_s, smax = 0.0;
+    int k;
+    memset(out, 0, sizeof *out);
+    out->visibility = 1.0f;
+    for (k = 0; k < 3; ++k) {
+        double var;
+        o[k] = a->w > 0.0 ? a->m1[k] / a->w : 0.0;
+        var = a->w > 0.0 ? a->m2[k] / a->w - o[k] * o[k] : 0.0;
+        out->sigma[k] = var > 0.0 ? gim__clamp_flt(sqrt(var)) : 0.0f;
+        smax = out->sigma[k] > smax ? out->sigma[k] : smax;
+        out->position[k] = (float)((double)c->position[k] + o[k]);
+        d2 += o[k] * o[k];
+    }
+    out->radius = gim__clamp_flt(2.0 * smax);
+    lum_s = 0.2126 * a->s[0] + 0.7152 * a->s[1] + 0.0722 * a->s[2];
+    if (!(lum_s > 0.0) || !(a->en > 0.0) || !(d2 > 0.0)) return;  /* dark: flux 0 */
+    dp = sqrt(d2);
+    for (k = 0; k < 3; ++k) cos_p += (double)c->normal[k] * o[k] / dp;
+    dproxy = cos_p > 0.0 ? cos_p : 0.0;
+    if (glossy_k >= 0.0f && dproxy > 0.0) {
+        /* lobe at the proxy's direction: omega_p mirrored at n_c, dotted with v */
+        double re = 0.0;
+        for (k = 0; k < 3; ++k) re += (2.0 * cos_p * c->normal[k] - o[k] / dp) * v[k];
+        dproxy *= gim__lobe((float)re, glossy_k);
+    }
+    floor_ = lum_s / a->en;                 /* the guard: normal irradiance <= E_n */
+    if (dproxy < floor_) dproxy = floor_;
+    for (k = 0; k < 3; ++k) out->flux[k] = gim__clamp_flt(4.0 * GIM__PI * d2 * a->s[k] / dproxy);
+}
+
+/* One invocation of the proxy pass: cache c against every VAL. */
+static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t val_count, const float *v,
+                             float k, float coincident2, gim_proxy_light *diffuse, gim_proxy_light *glossy) {
+    gim__proxy_sums sd, sg;
+    uint32_t j;
+    const float *n = c->normal;
+    memset(&sd, 0, sizeof sd);
+    memset(&sg, 0, sizeof sg);
+    for (j = 0; j < val_count; ++j) {
+        const gim_val *l = vals + j;
+        float d[3], d2, inv, cos_x, cos_l, den;
+        double en, e, lphi, wgt;
+        d[0] = l->position[0] - c->position[0];
+        d[1] = l->position[1] - c->position[1];
+        d[2] = l->position[2] - c->position[2];
+        d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        inv = d2 > coincident2 ? 1.0f / sqrtf(d2) : 0.0f;          /* no direction: no light */
+        cos_x = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) * inv;
+        cos_l = -(l->normal[0] * d[0] + l->normal[1] * d[1] + l->normal[2] * d[2]) * inv;
+        cos_x = cos_x > 0.0f ? cos_x : 0.0f;                       /* (also NaN from inf * 0) */
+        cos_l = cos_l > 0.0f ? cos_l : 0.0f;
+        den = l->area + (float)GIM__PI * d2;
+        /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
+        en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
+        e = en * cos_x;
+        if (!(e > 0.0)) continue;          /* behind, grazing, coincident or weight 0: adds nothing */
+        lphi = 0.2126 * l->flux[0] + 0.7152 * l->flux[1] + 0.0722 * l->flux[2];
+        wgt = lphi * e;                                            /* W_j: what the VAL adds */
+        gim__sums_add(&sd, d, wgt, l->flux, e, lphi * en);
+        if (glossy) {
+            float re = 0.0f;
+            double g;
+            int a;
+            for (a = 0; a < 3; ++a) re += (2.0f * cos_x * n[a] - d[a] * inv) * v[a];
+            g = gim__lobe(re, k);                                  /* eq. 4/15, eq. 6 cos^k theta_e */
+            if (g > 0.0) gim__sums_add(&sg, d, wgt * g, l->flux, e * g, lphi * en);
+            else sg.en += lphi * en;                               /* E_n counts all the light */
+        }
+    }
+    /* a dark cache: the paper's form-factor weights of eq. 6 place the proxy (a second loop,
+       only in the invocations that need it) */
+    if (!(sd.w > 0.0)) {
+        int a;
+        for (j = 0; j < val_count; ++j) {
+            const gim_val *l = vals + j;
+            float d[3], d2, inv, cos_x, cos_l, den;
+            double f;
+            for (a = 0; a < 3; ++a) d[a] = l->position[a] - c->position[a];
+            d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            inv = d2 > coincident2 ? 1.0f / sqrtf(d2) : 0.0f;
+            cos_x = (n[0] * d[0] + n[1] * d[1] + n[2] * d[2]) * inv;
+            cos_l = -(l->normal[0] * d[0] + l->normal[1] * d[1] + l->normal[2] * d[2]) * inv;
+            cos_x = cos_x > 0.0f ? cos_x : 0.0f;
+            cos_l = cos_l > 0.0f ? cos_l : 0.0f;
+            den = l->area + (float)GIM__PI * d2;
+            f = den > 0.0f ? (double)l->weight * l->area * cos_l * cos_x / den : 0.0;   /* F */
+            if (!(f > 0.0)) continue;
+            sd.w += f;
+            for (a = 0; a < 3; ++a) { sd.m1[a] += f * d[a]; sd.m2[a] += f * d[a] * d[a]; }
+        }
+    }
+    gim__proxy_finish(&sd, c, v, -1.0f, diffuse);
+    if (glossy) {
+        if (!(sg.w > 0.0)) {    /* the lobe sees no light: the diffuse proxy's place, flux 0 */
+            int a;
+            sg.w = sd.w;
+            for (a = 0; a < 3; ++a) { sg.m1[a] = sd.m1[a]; sg.m2[a] = sd.m2[a]; }
+        }
+        gim__proxy_finish(&sg, c, v, k, glossy);
+    }
+}
+
+GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
+                                       gim_proxy_light *glossy_out) {
+    static const char fn[] = "gim_proxy_lights";
+    const gim_env *env;
+    gim_result r;
+    float scale, coincident2;
+    uint32_t i;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    if (!diffuse_out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "diffuse_out is NULL");
+    if (!desc->caches || desc->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (desc->val_count > 0 && !desc->vals) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "vals is NULL");
+    if (!gim__isfinitef(desc->scene_scale) || desc->scene_scale < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and >= 0 (0: default)");
+    if (glossy_out) {
+        if (!gim_v3_isfinite(desc->eye)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "eye is not finite");
+        if (!(desc->glossy_exponent >= 0.0f && desc->glossy_exponent <= GIM__TWINS_MAX_EXPONENT))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "glossy_exponent must be in [0, 1e6]");
+        if (desc->cache_glossy_exponent)
+            for (i = 0; i < desc->cache_count; ++i)
+                if (!(desc->cache_glossy_exponent[i] >= 0.0f && desc->cache_glossy_exponent[i] <= GIM__TWINS_MAX_EXPONENT))
+                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cache_glossy_exponent[%u] must be in [0, 1e6]", i);
+    }
+    if ((r = gim__check_caches(env, fn, desc->caches, desc->cache_count)) != GIM_OK) return r;
+    if ((r = gim__check_vals(env, fn, desc->vals, desc->val_count)) != GIM_OK) return r;
+    scale = desc->scene_scale > 0.0f ? desc->scene_scale
+                                     : gim__twins_scale(desc->caches, desc->cache_count, desc->vals, desc->val_count);
+    coincident2 = GIM__TWINS_COINCIDENT * scale * (GIM__TWINS_COINCIDENT * scale);
+    for (i = 0; i < desc->cache_count; ++i) {
+        const gim_cache *c = desc->caches + i;
+        float v[3] = {0.0f, 0.0f, 0.0f}, k = 0.0f;
+        if (glossy_out) {
+            gim_vec3 vv = gim_v3_normalize(gim_v3(desc->eye.x - c->position[0], desc->eye.y - c->position[1],
+                                                  desc->eye.z - c->position[2]));
+            v[0] = vv.x; v[1] = vv.y; v[2] = vv.z;    /* an eye at the cache: v = 0, only k = 0 lights */
+            k = desc->cache_glossy_exponent ? desc->cache_glossy_exponent[i] : desc->glossy_exponent;
+        }
+        gim__proxy_cache(c, desc->vals, desc->val_count, v, k, coincident2, diffuse_out + i,
+                         glossy_out ? glossy_out + i : NULL);
+    }
+    return GIM_OK;
+}
+
+/* Overlap of two axis-aligned squares (centre, side) divided by the first's area; a first of
+   side 0 is a point: 1 inside the second, else 0. */
+static double gim__square_overlap(double ax, double ay, double as, double bx, double by, double bs) {
+    double ox, oy;
+    if (!(as > 0.0)) return (fabs(ax - bx) <= 0.5 * bs && fabs(ay - by) <= 0.5 * bs) ? 1.0 : 0.0;
+    ox = (ax + 0.5 * as < bx + 0.5 * bs ? ax + 0.5 * as : bx + 0.5 * bs) - (ax - 0.5 * as > bx - 0.5 * bs ? ax - 0.5 * as : bx - 0.5 * bs);
+    oy = (ay + 0.5 * as < by + 0.5 * bs ? ay + 0.5 * as : by + 0.5 * bs) - (ay - 0.5 * as > by - 0.5 * bs ? ay - 0.5 * as : by - 0.5 * bs);
+    if (!(ox > 0.0) || !(oy > 0.0)) return 0.0;
+    return ox * oy / (as * as);
+}
+
+GIMANY_DEF gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
+                                          gim_proxy_light *lights, float scene_scale, gim_env env) {
+    static const char fn[] = "gim_proxy_occlusion";
+    gim_result r;
+    uint32_t i, j;
+    double near_;
+    if (!caches || cache_count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (!lights) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "lights is NULL");
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if ((r = gim__check_caches(&env, fn, caches, cache_count)) != GIM_OK) return r;
+    for (i = 0; i < cache_count; ++i)
+        if (!gim__all_finite(lights[i].position, 3) || !gim__all_finite(lights[i].flux, 3) ||
+            !gim__isfinitef(lights[i].radius) || !(lights[i].radius >= 0.0f))
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "light %u: not finite or negative radius", i);
+    near_ = (double)GIM__TWINS_COINCIDENT * scene_scale;
+    for (i = 0; i < cache_count; ++i) {
+        const gim_cache *c = caches + i;
+        gim_proxy_light *p = lights + i;
+        gim_vec3 n = gim_v3(c->normal[0], c->normal[1], c->normal[2]), t, b;
+        double o[3], dist, rr, cos_p, fs, px, py, ps, occ = 0.0;
+        int a;
+        p->visibility = 1.0f;
+        if (!(p->flux[0] > 0.0f || p->flux[1] > 0.0f || p->flux[2] > 0.0f)) continue;
+        for (a = 0; a < 3; ++a) o[a] = (double)p->position[a] - c->position[a];
+        dist = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
+        rr = p->radius;
+        if (!(dist > near_) || !(dist > rr)) continue;             /* the light surrounds the cache */
+        for (a = 0; a < 3; ++a) o[a] /= dist;
+        cos_p = n.x * o[0] + n.y * o[1] + n.z * o[2];
+        if (!(cos_p > 0.0)) continue;
+        gim_basis(n, &t, &b);
+        fs = (rr / dist) * (rr / dist) * cos_p;                     /* sphere form factor */
+        px = t.x * o[0] + t.y * o[1] + t.z * o[2];                  /* projection on the unit disk */
+        py = b.x * o[0] + b.y * o[1] + b.z * o[2];
+        ps = sqrt(GIM__PI * fs);                                    /* equal-area square */
+        for (j = 0; j < cache_count && occ < 1.0; ++j) {
+            const gim_cache *q = caches + j;
+            double u[3], d, ci, cj, fq, qs;
+            if (j == i) continue;
+            for (a = 0; a < 3; ++a) u[a] = (double)q->position[a] - c->position[a];
+            d = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+            if (!(d > near_) || !(d < dist - rr)) continue;         /* strictly between */
+            for (a = 0; a < 3; ++a) u[a] /= d;
+            ci = n.x * u[0] + n.y * u[1] + n.z * u[2];
+            if (!(ci > 0.0)) continue;
+            cj = fabs(q->normal[0] * u[0] + q->normal[1] * u[1] + q->normal[2] * u[2]);
+            fq = (double)q->area * ci * cj / ((double)q->area + GIM__PI * d * d);   /* disk form factor */
+            if (!(fq > 0.0)) continue;
+            qs = sqrt(GIM__PI * fq);
+            occ += gim__square_overlap(px, py, ps, t.x * u[0] + t.y * u[1] + t.z * u[2],
+                                       b.x * u[0] + b.y * u[1] + b.z * u[2], qs);
+        }
+        p->visibility = (float)(occ < 1.0 ? 1.0 - occ : 0.0);
+    }
+    return GIM_OK;
+}
+
+/* One proxy light set interpolated at x (eq. 8-9) and its irradiance there: E (rgb) into
+   e_out, the unit direction towards the interpolated light into l_out. Sums per pass: [0] with
+   eq. 8's weights, [1] with the normal term alone (used when every eq. 8 weight is 0). */
+static void gim__interp_light(const gim_shade_desc *d, const gim_proxy_light *lights, int glossy,
+                              const gim_receiver *rc, const uint32_t *idx, uint32_t cnt, float dcmax,
+                              float near_, double *e_out, double *l_out) {
+    double sw[2] = {0, 0}, sp[2] = {0, 0}, dq[2] = {0, 0}, o[2][3] = {{0, 0, 0}, {0, 0, 0}},
+           phi[2][3] = {{0, 0, 0}, {0, 0, 0}}, lo2 = 0.0, len, cos_x = 0.0, ein;
+    uint32_t j;
+    int a, pass, use;
+    e_out[0] = e_out[1] = e_out[2] = 0.0;
+    l_out[0] = l_out[1] = l_out[2] = 0.0;
+    for (j = 0; j < cnt; ++j) {
+        const gim_cache *c;
+        const gim_proxy_light *p;
+        double dist = 0.0, tent, nterm = 0.0, op[3], dp2 = 0.0, lp, fl[3], lum;
+        if (idx[j] == UINT32_MAX) continue;
+        c = d->caches + idx[j];
+        p = lights + idx[j];
+        for (a = 0; a < 3; ++a) {
+            double dx = (double)rc->position[a] - c->position[a];
+            dist += dx * dx;
+            op[a] = (double)p->position[a] - c->position[a];          /* the proxy's offset */
+            dp2 += op[a] * op[a];
+            fl[a] = (double)p->flux[a] * p->visibility;
+        }
+        dist = sqrt(dist);
+        tent = dcmax > near_ ? 1.0 - dist / dcmax : 1.0;             /* eq. 8 distance term */
+        if (tent < 0.0) tent = 0.0;
+        lp = sqrt(dp2);
+        if (glossy && lp > 0.0) {
+            /* r_x . r_c: the direction towards the proxy, mirrored at n_x and at n_c */
+            double w_[3], cx = 0.0, cc = 0.0;
+            for (a = 0; a < 3; ++a) { w_[a] = op[a] / lp; cx += rc->normal[a] * w_[a]; cc += c->normal[a] * w_[a]; }
+            for (a = 0; a < 3; ++a) nterm += (2.0 * cx * rc->normal[a] - w_[a]) * (2.0 * cc * c->normal[a] - w_[a]);
+        } else {   /* diffuse, or a glossy proxy with no direction (dark): the normals */
+            for (a = 0; a < 3; ++a) nterm += (double)rc->normal[a] * c->normal[a];
+        }
+        nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
+        lum = 0.2126 * fl[0] + 0.7152 * fl[1] + 0.0722 * fl[2];
+        for (pass = 0; pass < 2; ++pass) {
+            double w = pass == 0 ? tent * nterm : nterm;
+            if (!(w > 0.0)) continue;
+            sw[pass] += w;
+            sp[pass] += w * lum;
+            dq[pass] += w * lum * dp2;
+            for (a = 0; a < 3; ++a) { o[pass][a] += w * lum * op[a]; phi[pass][a] += w * fl[a]; }
+        }
+    }
+    use = sw[0] > 0.0 ? 0 : 1;
+    if (!(sw[use] > 0.0) || !(sp[use] > 0.0)) return;                  /* no neighbour, or all dark */
+    for (a = 0; a < 3; ++a) { o[use][a] /= sp[use]; phi[use][a] /= sw[use]; lo2 += o[use][a] * o[use][a]; }  /* eq. 9 */
+    if (!(lo2 > 0.0)) return;                                          /* no direction: dark */
+    len = sqrt(lo2);
+    for (a = 0; a < 3; ++a) { l_out[a] = o[use][a] / len; cos_x += rc->normal[a] * l_out[a]; }
+    if (!(cos_x > 0.0)) return;
+    dq[use] /= sp[use];
+    if (lo2 < 0.25 * dq[use]) lo2 = 0.25 * dq[use];                    /* no spike where offsets cancel */
+    if (lo2 < (double)near_ * near_) lo2 = (double)near_ * near_;      /* and never closer than 1e-6 scale */
+    ein = cos_x / (4.0 * GIM__PI * lo2);
+    for (a = 0; a < 3; ++a) e_out[a] = phi[use][a] * ein;
+}
+
+/* The arguments of the shading pass; lights 0 leaves out the proxy lights (gim_lightskin_cpu
+   checks the rest before it spends the proxy pass). */
+static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn, int lights) {
+    const gim_env *env = &d->env;
+    gim_result r;
+    uint32_t i, j;
+    if (!d->caches || d->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (lights && !d->diffuse) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "diffuse proxy lights are required");
+    if (!d->receivers || d->receiver_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no receivers");
+    if (!d->neighbour_index || !d->d_cmax) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "neighbour_index and d_cmax are required");
+    if (d->neighbour_stride == 0 || d->neighbour_stride > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "neighbour_stride must be 1..%d", GIM_MAX_NEIGHBOUR_CACHES);
+    if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if ((r = gim__check_caches(env, fn, d->caches, d->cache_count)) != GIM_OK) return r;
+    for (i = 0; lights && i < d->cache_count; ++i) {
+        const gim_proxy_light *p = d->diffuse + i, *g = d->glossy ? d->glossy + i : NULL;
+        if (!gim__all_finite(p->position, 3) || !gim__all_finite(p->flux, 3) || !(p->visibility >= 0.0f && p->visibility <= 1.0f) ||
+            (g && (!gim__all_finite(g->position, 3) || !gim__all_finite(g->flux, 3) || !(g->visibility >= 0.0f && g->visibility <= 1.0f))))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "proxy light %u: not finite or visibility outside [0,1]", i);
+        if (!(p->flux[0] >= 0.0f && p->flux[1] >= 0.0f && p->flux[2] >= 0.0f) ||
+            (g && !(g->flux[0] >= 0.0f && g->flux[1] >= 0.0f && g->flux[2] >= 0.0f)))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "proxy light %u: negative flux", i);
+    }
+    for (i = 0; i < d->receiver_count; ++i) {
+        const gim_receiver *rc = d->receivers + i;
+        uint32_t cnt = d->neighbour_count ? d->neighbour_count[i] : d->neighbour_stride;
+        const uint32_t *idx = d->neighbour_index + (size_t)i * d->neighbour_stride;
+        if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->albedo, 3) || !gim__all_finite(rc->glossy, 3) ||
+            !gim__unit_or_zero(rc->normal, 0) || !gim__unit_or_zero(rc->view, 0) ||
+            !(rc->albedo[0] >= 0.0f && rc->albedo[1] >= 0.0f && rc->albedo[2] >= 0.0f) ||
+            !(rc->glossy[0] >= 0.0f && rc->glossy[1] >= 0.0f && rc->glossy[2] >= 0.0f) ||
+            !(rc->exponent >= 0.0f && rc->exponent <= GIM__TWINS_MAX_EXPONENT))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "receiver %u: not finite, normal or view not unit, negative colour, or k outside [0, 1e6]", i);
+        if (cnt > d->neighbour_stride)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "neighbour_count[%u] = %u exceeds the stride %u", i, cnt, d->neighbour_stride);
+        if (!gim__isfinitef(d->d_cmax[i]) || !(d->d_cmax[i] >= 0.0f))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "d_cmax[%u] must be finite and >= 0", i);
+        for (j = 0; j < cnt; ++j)
+            if (idx[j] != UINT32_MAX && idx[j] >= d->cache_count)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver %u: neighbour %u is cache %u of %u", i, j, idx[j], d->cache_count);
+    }
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_lightskin_shade";
+    gim_result r;
+    uint32_t i;
+    float near_;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!radiance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance_out is NULL");
+    if ((r = gim__check_shade(desc, fn, 1)) != GIM_OK) return r;
+    near_ = GIM__TWINS_COINCIDENT * desc->scene_scale;
+    for (i = 0; i < desc->receiver_count; ++i) {
+        const gim_receiver *rc = desc->receivers + i;
+        const uint32_t *idx = desc->neighbour_index + (size_t)i * desc->neighbour_stride;
+        uint32_t cnt = desc->neighbour_count ? desc->neighbour_count[i] : desc->neighbour_stride;
+        double ed[3], eg[3], ld[3], lg[3], out[3];
+        int a;
+        gim__interp_light(desc, desc->diffuse, 0, rc, idx, cnt, desc->d_cmax[i], near_, ed, ld);
+        for (a = 0; a < 3; ++a) out[a] = rc->albedo[a] / GIM__PI * ed[a];
+        if (desc->glossy) {
+            double cx = 0.0, re = 0.0, f;
+            gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg, lg);
+            for (a = 0; a < 3; ++a) cx += rc->normal[a] * lg[a];
+            for (a = 0; a < 3; ++a) re += (2.0 * cx * rc->normal[a] - lg[a]) * rc->view[a];
+            f = (rc->exponent + 2.0) / (2.0 * GIM__PI) * gim__lobe((float)re, rc->exponent);
+            for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * f * eg[a];
+        }
+        for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + a] = gim__clamp_flt(out[a]);
+    }
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_lightskin_cpu";
+    const gim_env *env;
+    gim_proxy_desc pd;
+    gim_shade_desc sd;
+    gim_proxy_light *lights;
+    gim_result r;
+    size_t n;
+    float scale;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    if (!radiance_out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance_out is NULL");
+    if (!desc->caches || desc->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (desc->val_count > 0 && !desc->vals) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "vals is NULL");
+    if (!gim__isfinitef(desc->scene_scale) || desc->scene_scale < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and >= 0 (0: default)");
+    scale = desc->scene_scale > 0.0f ? desc->scene_scale
+                                     : gim__twins_scale(desc->caches, desc->cache_count, desc->vals, desc->val_count);
+    memset(&pd, 0, sizeof pd);
+    pd.caches = desc->caches; pd.cache_count = desc->cache_count;
+    pd.vals = desc->vals; pd.val_count = desc->val_count;
+    pd.eye = desc->eye; pd.glossy_exponent = desc->glossy_exponent;
+    pd.cache_glossy_exponent = desc->cache_glossy_exponent;
+    pd.scene_scale = scale; pd.env = desc->env;
+    memset(&sd, 0, sizeof sd);
+    sd.caches = desc->caches; sd.cache_count = desc->cache_count;
+    sd.receivers = desc->receivers; sd.receiver_count = desc->receiver_count;
+    sd.neighbour_index = desc->neighbour_index; sd.neighbour_count = desc->neighbour_count;
+    sd.neighbour_stride = desc->neighbour_stride; sd.d_cmax = desc->d_cmax;
+    sd.scene_scale = scale; sd.env = desc->env;
+    if ((r = gim__check_shade(&sd, fn, 0)) != GIM_OK) return r;   /* before the costly passes */
+    n = (size_t)desc->cache_count * (desc->glossy ? 2u : 1u);
+    lights = (gim_proxy_light *)gim__alloc_array(env, n, sizeof *lights);
+    if (!lights) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%zu proxy lights", n);
+    sd.diffuse = lights;
+    sd.glossy = desc->glossy ? lights + desc->cache_count : NULL;
+    r = gim_proxy_lights(&pd, lights, desc->glossy ? lights + desc->cache_count : NULL);
+    if (r == GIM_OK && desc->occlusion) {
+        r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights, scale, desc->env);
+        if (r == GIM_OK && desc->glossy)
+            r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights + desc->cache_count, scale, desc->env);
+    }
+    if (r == GIM_OK) r = gim_lightskin_shade(&sd, radiance_out);
+    gim__free(env, lights);
+    return r;
+}
+
 
 #ifdef __cplusplus
 }
