@@ -601,7 +601,27 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
 /* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
    host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
    the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
-   every call below. Every call that touches GL leaves the GL state as it found it. */
+   every call below. Every call that touches GL leaves the GL state as it found it.
+
+   A frame, step by step (zero means default everywhere):
+         gim_context *ctx;
+         gim_desc d = {0}; d.get_proc_address = glfwGetProcAddress;
+         gim_create(&d, &ctx);
+         gim_mesh_desc md = {0};                      once per mesh, model space
+         md.data.positions = p; md.data.vertex_count = nv;
+         md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
+         md.data.triangle_material = mat_ids;         NULL: material 0
+         gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
+         gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
+         gim_instance in = {mesh, model};
+         gim_set_instances(ctx, &in, 1);              every frame for moving objects
+         gim_light sun = {0}; sun.irradiance = 3.0f; sun.direction = towards_sun; sun.rsm_size = 1024;
+         gim_set_lights(ctx, &sun, 1);
+         gim_frame f = {0}; f.view = v; f.proj = p; f.width = w; f.height = h;
+         gim_update(ctx, &f);                         RSM, G-buffer, view samples, importance, selection
+         gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
+         ...
+         gim_destroy(ctx); */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -3501,8 +3521,10 @@ static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_
     if (!*b) ctx->gl.GenBuffers(1, b);
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, *b);
     ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
+    *have = 0; /* unknown until the check passes (a failed glBufferData leaves the store undefined) */
+    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
     *have = bytes;
-    return gim__gl_check(ctx, where);
+    return GIM_OK;
 }
 
 /* Raster state of the RSM and G-buffer passes, everything from the state list. */
