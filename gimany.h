@@ -2316,7 +2316,9 @@ enum {
     GIM__GL_FILL = 0x1B02,
     GIM__GL_DEPTH_RANGE = 0x0B70,
     GIM__GL_MAX_TEXTURE_SIZE = 0x0D33,
-    GIM__GL_MAX_VIEWPORT_DIMS = 0x0D3A
+    GIM__GL_MAX_VIEWPORT_DIMS = 0x0D3A,
+    GIM__GL_CLIP_DISTANCE0 = 0x3000,
+    GIM__GL_POLYGON_SMOOTH = 0x0B41
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -2474,7 +2476,12 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 static const gim__GLenum gim__gl_state_caps[] = {
     GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
     GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
-    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP};
+    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
+    /* a host's clip planes would cut gimany's draws (its vertex shader writes no clip
+       distance); polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
+    GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2, GIM__GL_CLIP_DISTANCE0 + 3,
+    GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5, GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7,
+    GIM__GL_POLYGON_SMOOTH};
 #define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
 
 /* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
@@ -3531,7 +3538,10 @@ static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_
 static void gim__gl_raster_state(const gim__gl *gl, gim__GLuint fbo, uint32_t w, uint32_t h) {
     static const gim__GLenum off[] = {GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
                                       GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD,
-                                      GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP};
+                                      GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
+                                      GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2,
+                                      GIM__GL_CLIP_DISTANCE0 + 3, GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5,
+                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH};
     unsigned i;
     gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, fbo);
     gl->Viewport(0, 0, (gim__GLsizei)w, (gim__GLsizei)h);

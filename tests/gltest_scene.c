@@ -827,12 +827,94 @@ static void out_of_memory(void **state) {
     GLTEST_END();
 }
 
+/* --- the host's state does not reach gimany's passes -------------------------------------- */
+
+static void read_outputs(gim_context *ctx, float *rsm_flux, float *rsm_pos, float *gb_normal, float *gb_depth) {
+    gim_frame_outputs o = gim_outputs(ctx);
+    int n = (int)o.lights[0].rsm_size;
+    GLint fbo = 0;
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &fbo);
+    read_texture(o.lights[0].rsm_flux, GL_RGBA, 4, n, n, rsm_flux);
+    read_texture(o.lights[0].rsm_position, GL_RGBA, 4, n, n, rsm_pos);
+    read_texture(o.gbuffer_normal, GL_RGBA, 4, (int)o.width, (int)o.height, gb_normal);
+    read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, 1, (int)o.width, (int)o.height, gb_depth);
+}
+
+/* The same frame under GL's defaults and under a hostile host state (culling, clip planes,
+   line mode, inverted depth test and range, masks, scissor, blending, smoothing, a bound
+   program, VAO and FBO): the same RSM and G-buffer, bit for bit, and the host state back. */
+static void host_state_isolated(void **state) {
+    enum { N = 32, W = 40, H = 30 };
+    static const float origin[3] = {0.0f, 0.0f, 0.0f};
+    fixture f;
+    gim_light l;
+    gim_frame fr;
+    float *a = (float *)malloc((N * N * 8 + W * H * 5) * sizeof(float)), *b = (float *)malloc((N * N * 8 + W * H * 5) * sizeof(float));
+    GLuint vao, fbo, tex;
+    GLint v4[4];
+    (void)state;
+    GLTEST_BEGIN();
+    fixture_begin(&f);
+    build_scene(&f, 1.0f, origin);
+    memset(&l, 0, sizeof l);
+    l.irradiance = 1.0f;
+    l.direction = gim_v3(0.3f, 1.0f, 0.5f);
+    l.rsm_size = N;
+    assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
+    fr = default_frame(1.0f, origin, W, H);
+    assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
+    read_outputs(f.ctx, a, a + N * N * 4, a + N * N * 8, a + N * N * 8 + W * H * 4);
+    glGenVertexArrays(1, &vao);
+    glBindVertexArray(vao);
+    glGenTextures(1, &tex);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, 4, 4);
+    glGenFramebuffers(1, &fbo);
+    glBindFramebuffer(GL_FRAMEBUFFER, fbo);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, tex, 0);
+    glEnable(GL_CULL_FACE); glCullFace(GL_FRONT_AND_BACK);
+    glEnable(GL_CLIP_DISTANCE0); glEnable(GL_CLIP_DISTANCE5);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+    glEnable(GL_DEPTH_TEST); glDepthFunc(GL_GREATER); glDepthMask(GL_FALSE); glDepthRange(0.9, 0.1);
+    glColorMask(GL_FALSE, GL_TRUE, GL_FALSE, GL_FALSE);
+    glEnable(GL_SCISSOR_TEST); glScissor(1, 1, 2, 2);
+    glEnable(GL_BLEND); glBlendFunc(GL_ONE, GL_ONE);
+    glEnable(GL_POLYGON_SMOOTH); glEnable(GL_POLYGON_OFFSET_FILL); glPolygonOffset(5.0f, 5.0f);
+    glEnable(GL_DEPTH_CLAMP); glEnable(GL_PRIMITIVE_RESTART); glPrimitiveRestartIndex(0);
+    glViewport(0, 0, 1, 1);
+    assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
+    glGetIntegerv(GL_VIEWPORT, v4);
+    assert_true(v4[2] == 1 && v4[3] == 1);
+    assert_true(glIsEnabled(GL_CLIP_DISTANCE5) && glIsEnabled(GL_POLYGON_SMOOTH));
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    read_outputs(f.ctx, b, b + N * N * 4, b + N * N * 8, b + N * N * 8 + W * H * 4);
+    assert_memory_equal(a, b, (N * N * 8 + W * H * 5) * sizeof(float));
+    /* back to GL's defaults for the tests after this one */
+    glDisable(GL_CULL_FACE); glCullFace(GL_BACK);
+    glDisable(GL_CLIP_DISTANCE0); glDisable(GL_CLIP_DISTANCE5);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    glDisable(GL_DEPTH_TEST); glDepthFunc(GL_LESS); glDepthMask(GL_TRUE); glDepthRange(0.0, 1.0);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glDisable(GL_SCISSOR_TEST);
+    glDisable(GL_BLEND); glBlendFunc(GL_ONE, GL_ZERO);
+    glDisable(GL_POLYGON_SMOOTH); glDisable(GL_POLYGON_OFFSET_FILL); glPolygonOffset(0.0f, 0.0f);
+    glDisable(GL_DEPTH_CLAMP); glDisable(GL_PRIMITIVE_RESTART);
+    glBindVertexArray(0);
+    glDeleteVertexArrays(1, &vao);
+    glDeleteFramebuffers(1, &fbo);
+    glDeleteTextures(1, &tex);
+    fixture_end(&f);
+    free(a); free(b);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(rsm_sun_and_spot_match_twin),
         cmocka_unit_test(flux_totals),
         cmocka_unit_test(gbuffer_and_view_samples_match_twin),
         cmocka_unit_test(importance_chain_matches_twin),
+        cmocka_unit_test(host_state_isolated),
         cmocka_unit_test(argument_errors),
         cmocka_unit_test(out_of_memory),
     };
