@@ -2423,7 +2423,16 @@ enum {
     X(void, Uniform4f, (gim__GLint location, gim__GLfloat v0, gim__GLfloat v1, gim__GLfloat v2,  \
                         gim__GLfloat v3))                                                        \
     X(void, BufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size,      \
-                            const void *data))
+                            const void *data))                                                   \
+    X(gim__GLboolean, IsEnabledi, (gim__GLenum cap, gim__GLuint index))                          \
+    X(void, Enablei, (gim__GLenum cap, gim__GLuint index))                                       \
+    X(void, Disablei, (gim__GLenum cap, gim__GLuint index))                                      \
+    X(void, GetBooleani_v, (gim__GLenum target, gim__GLuint index, gim__GLboolean *data))        \
+    X(void, ColorMaski, (gim__GLuint buf, gim__GLboolean r, gim__GLboolean g, gim__GLboolean b,  \
+                         gim__GLboolean a))                                                      \
+    X(void, BlendFuncSeparatei, (gim__GLuint buf, gim__GLenum src_rgb, gim__GLenum dst_rgb,      \
+                                 gim__GLenum src_alpha, gim__GLenum dst_alpha))                  \
+    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -2471,6 +2480,7 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 #define GIM__GL_IMAGE_UNITS 8
 #define GIM__GL_SSBO_BINDINGS 8
 #define GIM__GL_UBO_BINDINGS 4
+#define GIM__GL_DRAW_BUFFERS 8   /* per-draw-buffer blend and colour mask (GL 4.3 has >= 8) */
 
 /* glEnable/glDisable capabilities */
 static const gim__GLenum gim__gl_state_caps[] = {
@@ -2525,6 +2535,9 @@ typedef struct gim__gl_state {
     gim__GLint blend_equation_rgb, blend_equation_alpha;
     gim__GLint depth_func;
     gim__GLboolean depth_mask, color_mask[4];
+    /* per draw buffer (glEnablei/glBlendFunci/glColorMaski), restored after the global ones */
+    gim__GLboolean blend_i[GIM__GL_DRAW_BUFFERS], color_mask_i[GIM__GL_DRAW_BUFFERS][4];
+    gim__GLint blend_func_i[GIM__GL_DRAW_BUFFERS][6];  /* src/dst rgb, src/dst alpha, equations */
     gim__GLint front_face, cull_face_mode, polygon_mode[2];
     gim__GLfloat color_clear[4], depth_clear;
     double depth_range[2];
@@ -2579,6 +2592,16 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
     gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
     gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        s->blend_i[i] = gl->IsEnabledi(GIM__GL_BLEND, i);
+        gl->GetBooleani_v(GIM__GL_COLOR_WRITEMASK, i, s->color_mask_i[i]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_RGB, i, &s->blend_func_i[i][0]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_DST_RGB, i, &s->blend_func_i[i][1]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_ALPHA, i, &s->blend_func_i[i][2]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_DST_ALPHA, i, &s->blend_func_i[i][3]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_RGB, i, &s->blend_func_i[i][4]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_ALPHA, i, &s->blend_func_i[i][5]);
+    }
     gl->GetIntegerv(GIM__GL_FRONT_FACE, &s->front_face);
     gl->GetIntegerv(GIM__GL_CULL_FACE_MODE, &s->cull_face_mode);
     gl->GetIntegerv(GIM__GL_POLYGON_MODE, s->polygon_mode); /* front and back; core has one mode */
@@ -2628,6 +2651,14 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     gl->DepthFunc((gim__GLenum)s->depth_func);
     gl->DepthMask(s->depth_mask);
     gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        const gim__GLint *b = s->blend_func_i[i];
+        if (s->blend_i[i]) gl->Enablei(GIM__GL_BLEND, i);
+        else gl->Disablei(GIM__GL_BLEND, i);
+        gl->ColorMaski(i, s->color_mask_i[i][0], s->color_mask_i[i][1], s->color_mask_i[i][2], s->color_mask_i[i][3]);
+        gl->BlendFuncSeparatei(i, (gim__GLenum)b[0], (gim__GLenum)b[1], (gim__GLenum)b[2], (gim__GLenum)b[3]);
+        gl->BlendEquationSeparatei(i, (gim__GLenum)b[4], (gim__GLenum)b[5]);
+    }
     gl->FrontFace((gim__GLenum)s->front_face);
     gl->CullFace((gim__GLenum)s->cull_face_mode);
     gl->PolygonMode(GIM__GL_FRONT_AND_BACK, (gim__GLenum)s->polygon_mode[0]);

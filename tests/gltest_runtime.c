@@ -272,6 +272,10 @@ static void set_distinctive_state(host_objects *h) {
     glDepthFunc(GL_GREATER);
     glDepthMask(GL_FALSE);
     glColorMask(GL_TRUE, GL_FALSE, GL_TRUE, GL_FALSE);
+    glColorMaski(3, GL_FALSE, GL_TRUE, GL_FALSE, GL_TRUE); /* per draw buffer: 3 and 6 differ */
+    glDisablei(GL_BLEND, 6);
+    glBlendFuncSeparatei(6, GL_ONE, GL_ONE, GL_ZERO, GL_ONE);
+    glBlendEquationSeparatei(3, GL_MIN, GL_FUNC_REVERSE_SUBTRACT);
     glFrontFace(GL_CW);
     glCullFace(GL_FRONT);
     glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
@@ -333,6 +337,14 @@ static void check_distinctive_state(const host_objects *h) {
     glGetBooleanv(GL_DEPTH_WRITEMASK, b4); assert_int_equal(b4[0], GL_FALSE);
     glGetBooleanv(GL_COLOR_WRITEMASK, b4);
     assert_true(b4[0] == GL_TRUE && b4[1] == GL_FALSE && b4[2] == GL_TRUE && b4[3] == GL_FALSE);
+    glGetBooleani_v(GL_COLOR_WRITEMASK, 3, b4);
+    assert_true(b4[0] == GL_FALSE && b4[1] == GL_TRUE && b4[2] == GL_FALSE && b4[3] == GL_TRUE);
+    assert_true(glIsEnabledi(GL_BLEND, 5) && !glIsEnabledi(GL_BLEND, 6));
+    glGetIntegeri_v(GL_BLEND_SRC_RGB, 6, &v); assert_int_equal(v, GL_ONE);
+    glGetIntegeri_v(GL_BLEND_SRC_ALPHA, 6, &v); assert_int_equal(v, GL_ZERO);
+    glGetIntegeri_v(GL_BLEND_SRC_RGB, 5, &v); assert_int_equal(v, GL_SRC_ALPHA);
+    glGetIntegeri_v(GL_BLEND_EQUATION_RGB, 3, &v); assert_int_equal(v, GL_MIN);
+    glGetIntegeri_v(GL_BLEND_EQUATION_ALPHA, 3, &v); assert_int_equal(v, GL_FUNC_REVERSE_SUBTRACT);
     glGetIntegerv(GL_FRONT_FACE, &v); assert_int_equal(v, GL_CW);
     glGetIntegerv(GL_CULL_FACE_MODE, &v); assert_int_equal(v, GL_FRONT);
     glGetIntegerv(GL_POLYGON_MODE, v4); assert_int_equal(v4[0], GL_LINE);
