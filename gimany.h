@@ -732,8 +732,8 @@ typedef struct gim_frame_outputs {
     int valid;                  /* 0 before the first successful gim_update, or after a failed one */
     uint32_t width, height;
     uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
-    uint32_t gbuffer_normal;    /* RGBA32F world normal towards the eye, w = 1 where drawn (or the host's) */
-    uint32_t gbuffer_albedo;    /* RGBA16F diffuse albedo (0 with the host's G-buffer) */
+    uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
+    uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
     uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} */
     uint32_t view_sample_count;
     float scene_scale;
@@ -1853,6 +1853,9 @@ static gim_result gim__light_check(const gim_light *l, const gim_env *env, const
     return GIM_OK;
 }
 
+/* min(a, b) where a may be +inf: the twins' outputs stay finite, as the shaders' do */
+static double gim__min_d(double a, double b) { return a < b ? a : b; }
+
 static uint32_t gim__light_rsm_size(const gim_light *l) { return l->rsm_size ? l->rsm_size : 512u; }
 
 /* The light's colour times its power: E for the sun, I for the spot (all-zero colour: white). */
@@ -2052,18 +2055,18 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
             dd += e * e;
         }
         omega = s * s / pow(1.0 + u * u + v * v, 1.5);
-        out->area = (float)(omega * dd / cosv);
+        out->area = (float)gim__min_d(omega * dd / cosv, FLT_MAX);
         out->lit = inside >= cos((double)light->cone_angle);
         a_perp = omega;
     } else {
         double side = 2.0 / proj.m[0] / size; /* 2 extent / size */
         a_perp = side * side;
-        out->area = (float)(a_perp / cosv);
+        out->area = (float)gim__min_d(a_perp / cosv, FLT_MAX);
         out->lit = 1;
     }
     if (out->lit) {
         const float *al = scene->albedo + (size_t)h.triangle * 3;
-        for (i = 0; i < 3; ++i) out->flux[i] = (float)((double)al[i] * power[i] * a_perp);
+        for (i = 0; i < 3; ++i) out->flux[i] = (float)gim__min_d((double)al[i] * power[i] * a_perp, FLT_MAX);
     }
     return GIM_OK;
 }
@@ -2302,6 +2305,7 @@ enum {
     GIM__GL_NONE = 0,
     GIM__GL_DEPTH_COMPONENT32F = 0x8CAC,
     GIM__GL_RGBA16F = 0x881A,
+    GIM__GL_RGBA8 = 0x8058,
     GIM__GL_FRAMEBUFFER = 0x8D40,
     GIM__GL_COLOR_ATTACHMENT0 = 0x8CE0,
     GIM__GL_DEPTH_ATTACHMENT = 0x8D00,
@@ -3678,7 +3682,8 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const float bmin[3],
     return gim__gl_check(ctx, where);
 }
 
-/* gimany's own G-buffer: depth, world normal towards the eye (w = 1 where drawn), albedo. */
+/* gimany's own G-buffer: depth (32-bit float), world normal towards the eye (RGBA16F, w = 1
+   where drawn), diffuse albedo (RGBA8). */
 static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "G-buffer (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -3689,8 +3694,10 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     if (ctx->gbuffer_width != f->width || ctx->gbuffer_height != f->height || !ctx->gbuffer_fbo) {
         gim__GLuint color[2];
         gim__gl_texture(ctx, &ctx->gbuffer_depth, GIM__GL_DEPTH_COMPONENT32F, f->width, f->height);
-        gim__gl_texture(ctx, &ctx->gbuffer_normal, GIM__GL_RGBA32F, f->width, f->height);
-        gim__gl_texture(ctx, &ctx->gbuffer_albedo, GIM__GL_RGBA16F, f->width, f->height);
+        /* 12 bytes a pixel: half normals (~5e-4) are plenty for the cosines of eq. 10, 8-bit
+           albedo is what engines keep; positions come from the 32-bit depth */
+        gim__gl_texture(ctx, &ctx->gbuffer_normal, GIM__GL_RGBA16F, f->width, f->height);
+        gim__gl_texture(ctx, &ctx->gbuffer_albedo, GIM__GL_RGBA8, f->width, f->height);
         color[0] = ctx->gbuffer_normal; color[1] = ctx->gbuffer_albedo;
         ctx->gbuffer_width = ctx->gbuffer_height = 0;
         r = gim__gl_framebuffer(ctx, &ctx->gbuffer_fbo, color, 2, ctx->gbuffer_depth, where);

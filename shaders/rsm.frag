@@ -25,6 +25,8 @@ layout(location = 7) uniform vec4 axis_cos;  /* spot: unit axis, cos(cone half-a
 layout(location = 8) uniform vec4 rsm;       /* size, tan(half fov) (spot), s^2 (spot) or a (sun) */
 layout(location = 9) uniform float min_cos;
 
+const float FLT_MAX = 3.402823466e+38;
+
 void main() {
     uint id = min(triangle_material[gl_PrimitiveID], material_count - 1u);
     vec3 albedo = material[id].diffuse.rgb;
@@ -46,7 +48,8 @@ void main() {
         area = rsm.z / c;
         share = 1.0;
     }
+    /* finite whatever the scale (lengths near 1e19 overflow d^2): clamp at FLT_MAX */
     out_position = vec4(world_position, lit);
-    out_normal = vec4(n, area);
-    out_flux = vec4(albedo * power * (share * lit), 0.0);
+    out_normal = vec4(n, min(area, FLT_MAX));
+    out_flux = vec4(min(albedo * power * (share * lit), vec3(FLT_MAX)), 0.0);
 }

@@ -264,6 +264,11 @@ static void light_checks_log(void **state) {
     assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 0, 0, NULL), GIM_ERROR_INVALID_ARGUMENT);
     s.triangle_count = 0;
     assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+    /* a scene 1e25 across: areas and fluxes beyond float clamp at FLT_MAX, never inf */
+    square(1e25f, pos, alb, &s);
+    bmin[0] = bmin[2] = -1e25f; bmax[0] = bmax[2] = 1e25f; bmax[1] = 0.0f;
+    assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 4, 4, &t), GIM_OK);
+    assert_true(t.lit && t.area == FLT_MAX && t.flux[1] == FLT_MAX && gim__all_finite(t.position, 3));
 }
 
 int main(void) {
