@@ -642,7 +642,26 @@ static void argument_errors(void **state) {
     md.data.index_type = (gim_index_type)7;
     EXPECT(gim_add_mesh(f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
     md.data.index_type = GIM_INDEX_U16;
-    assert_int_equal(gim_add_mesh(f.ctx, &md, &mesh), GIM_OK);
+    {   /* the mesh's caches are copied for later passes: NULL array or a NaN is an error */
+        gim_cache c[2];
+        gim_cache_set cs;
+        memset(c, 0, sizeof c);
+        memset(&cs, 0, sizeof cs);
+        c[0].normal[1] = c[1].normal[1] = 1.0f;
+        c[0].area = c[1].area = 2.0f;
+        cs.count = 2;
+        md.caches = &cs;
+        EXPECT(gim_add_mesh(f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        cs.caches = c;
+        c[1].position[2] = NAN;
+        EXPECT(gim_add_mesh(f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        c[1].position[2] = 0.5f;
+        assert_int_equal(gim_add_mesh(f.ctx, &md, &mesh), GIM_OK);
+        c[1].position[2] = 9.0f; /* the host's array may change: gimany kept its copy */
+        assert_int_equal(f.ctx->meshes[(mesh.id & 0xFFFFu) - 1].cache_count, 2);
+        assert_true(f.ctx->meshes[(mesh.id & 0xFFFFu) - 1].caches[1].position[2] == 0.5f);
+        md.caches = NULL;
+    }
     /* instances */
     inst.mesh = mesh;
     inst.model = gim_mat4_identity();
