@@ -542,7 +542,7 @@ typedef struct gim_twin_scene {
     const float *positions;  /* triangle_count * 9: three world-space vertices per triangle */
     const float *normals;    /* triangle_count * 9 vertex normals (any length, interpolated then
                                 normalised, as the GPU does), or NULL: face normals */
-    const float *albedo;     /* triangle_count * 3: diffuse rgb */
+    const float *albedo;     /* triangle_count * 3: diffuse rgb, >= 0 */
     uint32_t triangle_count;
 } gim_twin_scene;
 
@@ -1935,7 +1935,8 @@ static void gim__mat4_apply_d(const gim_mat4 *m, const double v[4], double out[4
 }
 
 /* Nearest hit of the ray through the centre of pixel (x, y) of a width x height view with
-   view * proj. Returns 1 on a hit between the near and far planes; p: hit point, n: the
+   view * proj. Returns 1 on a hit between the near and far planes, 0 on none, -1 when the
+   camera's rays or the hit leave the float range (a degenerate camera); p: hit point, n: the
    interpolated normal normalised and turned towards the ray's origin, toward: unit vector to
    the eye (or the light), depth: window depth. */
 typedef struct gim__twin_hit {
@@ -2006,16 +2007,25 @@ static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj,
         gim__mat4_apply_d(&m, hp, vv);
         h->depth = 0.5 * vv[2] / vv[3] + 0.5;
     }
+    for (i = 0; i < 3; ++i)
+        if (!(fabs(h->p[i]) <= FLT_MAX) || !(fabs(h->n[i]) <= 1.0 + 1e-6)) return -1;
+    if (!(fabs(h->depth) <= FLT_MAX)) return -1;
+    /* window depth is clamped to [0, 1] as the GPU's is (an ill-conditioned camera's float
+       inverse can put a hit between its planes slightly outside) */
+    h->depth = h->depth < 0.0 ? 0.0 : h->depth > 1.0 ? 1.0 : h->depth;
     return 1;
 }
 
 static gim_result gim__twin_scene_check(const gim_twin_scene *s, const char *where) {
+    size_t i;
     if (!s || !s->positions || !s->albedo || s->triangle_count == 0)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "scene without positions, albedo or triangles");
     if (!gim__all_finite(s->positions, (size_t)s->triangle_count * 9) ||
         (s->normals && !gim__all_finite(s->normals, (size_t)s->triangle_count * 9)) ||
         !gim__all_finite(s->albedo, (size_t)s->triangle_count * 3))
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "a NaN/Inf in the scene");
+    for (i = 0; i < (size_t)s->triangle_count * 3; ++i)
+        if (s->albedo[i] < 0.0f) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "a negative albedo");
     return GIM_OK;
 }
 
@@ -2028,7 +2038,7 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     float power[3];
     double a_perp, cosv, omega = 0.0;
     gim_result r;
-    int i;
+    int i, hit;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r == GIM_OK) r = gim_light_camera(light, bmin, bmax, &view, &proj);
@@ -2038,7 +2048,9 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     memset(out, 0, sizeof *out);
     out->depth = 1.0f;
     out->triangle = UINT32_MAX;
-    if (!gim__twin_cast(scene, view, proj, size, size, x, y, &h)) return GIM_OK;
+    hit = gim__twin_cast(scene, view, proj, size, size, x, y, &h);
+    if (hit < 0) return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the light's rays leave the float range");
+    if (hit == 0) return GIM_OK;
     gim__light_power(light, power);
     out->triangle = h.triangle;
     out->depth = (float)h.depth;
@@ -2077,7 +2089,7 @@ GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
     static const char where[] = "gim_gbuffer_texel_twin";
     gim__twin_hit h;
     gim_result r;
-    int i;
+    int i, hit;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r != GIM_OK) return r;
@@ -2086,7 +2098,9 @@ GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
     memset(out, 0, sizeof *out);
     out->depth = 1.0f;
     out->triangle = UINT32_MAX;
-    if (!gim__twin_cast(scene, view, proj, width, height, x, y, &h)) return GIM_OK;
+    hit = gim__twin_cast(scene, view, proj, width, height, x, y, &h);
+    if (hit < 0) return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the camera's rays leave the float range");
+    if (hit == 0) return GIM_OK;
     out->triangle = h.triangle;
     out->depth = (float)h.depth;
     for (i = 0; i < 3; ++i) {
