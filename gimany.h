@@ -706,6 +706,126 @@ typedef struct gim_lightskin_desc {
 GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
 
 
+/* twins of the scene passes: RSM texel, G-buffer, view samples ------------------------------
+   The scene description the GL runtime takes (gim_set_materials, gim_set_lights) and the CPU
+   twins of the shared passes of the frame (DESIGN.md sec. 5): each casts the ray through one
+   texel centre against a world-space triangle soup (brute force: for tests and small scenes)
+   and computes what the GPU pass writes at that texel.
+
+   Units (DESIGN.md sec. 4). Lengths in the host's unit L; a directional light's irradiance E
+   is power per unit area perpendicular to its direction (W / L^2); a spot's intensity I is
+   power per steradian (W / sr) inside its cone and 0 outside. An RSM texel is a VAL:
+     footprint area A (L^2): for the spot the texel's solid angle w at the light times d^2
+       over the cosine at the surface, A = w d^2 / cos (eq. 1 of paper 000 is the on-axis
+       case w = s^2, with s the texel side on the plane at distance 1; the exact
+       w = s^2 / (1 + u^2 + v^2)^(3/2) at image-plane point (u, v) makes the texels' w sum to
+       the cone's solid angle); for the orthographic sun A = a / cos with a = (2 extent /
+       size)^2 the texel's area perpendicular to the light. cos is clamped below at
+       GIM_RSM_MIN_COS so a grazing texel's A stays finite.
+     flux Phi (W) = albedo x the power arriving on the footprint: the sun's E x a (E cos on
+       an area a / cos: the tilt cancels), the spot's I x w (I w over A = w d^2 / cos is
+       irradiance I cos / d^2 on A). Summed over the texels that see a diffuse plane of
+       albedo rho: rho E (projected area) for the sun, rho I (solid angle of the plane
+       within the cone) for the spot.
+   Normals face the light (the RSM) or the eye (the G-buffer): a surface seen from its back
+   is lit and seen on that side (two-sided). */
+
+/* Kind of light. */
+typedef enum gim_light_type {
+    GIM_LIGHT_DEFAULT = 0,     /* = DIRECTIONAL */
+    GIM_LIGHT_DIRECTIONAL,     /* the sun: parallel light, orthographic RSM */
+    GIM_LIGHT_SPOT             /* a point light in a cone, perspective RSM */
+} gim_light_type;
+
+#define GIM_MAX_LIGHTS 8              /* lights per context */
+#define GIM_RSM_MIN_COS (1.0f / 64.0f) /* floor of the cosine in a VAL's area A = ... / cos */
+
+/* A light; zero means default. */
+typedef struct gim_light {
+    gim_light_type type;
+    float color[3];         /* rgb factor of the power, >= 0; all zero: (1, 1, 1) */
+    float irradiance;       /* DIRECTIONAL: E, per unit area perpendicular to direction, >= 0 */
+    float intensity;        /* SPOT: I, per steradian inside the cone, >= 0 */
+    gim_vec3 position;      /* SPOT: where the light is */
+    gim_vec3 direction;     /* DIRECTIONAL: towards the light; SPOT: the cone's axis, away from
+                               the light; non-zero (normalised internally) */
+    float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
+    float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
+                               0: the radius of the scene bounds' sphere, so it covers the scene */
+    uint32_t rsm_size;      /* RSM side in texels; 0: 512 */
+} gim_light;
+
+/* One material; zero is black. Diffuse and glossy albedo rgb, Phong-like exponent k. */
+typedef struct gim_material {
+    float diffuse[3];       /* >= 0 */
+    float glossy[3];        /* >= 0 */
+    float exponent;         /* k >= 0 */
+} gim_material;
+
+/* The light's camera: a look-at view and a projection fitted to the scene bounds (bmin, bmax:
+   the world bounds of everything that casts or receives). SPOT: perspective of field of view
+   2 x cone_angle, aspect 1, far just past the farthest bounds corner, near at the bounds (or
+   far / 10^4 when the light is inside them). DIRECTIONAL: orthographic +-extent around the
+   bounds' centre, the bounds' sphere inside its depth range. The GL runtime uses the same. */
+GIMANY_API gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
+                                       gim_mat4 *view, gim_mat4 *proj);
+
+/* A world-space triangle soup for the twins. */
+typedef struct gim_twin_scene {
+    const float *positions;  /* triangle_count * 9: three world-space vertices per triangle */
+    const float *normals;    /* triangle_count * 9 vertex normals (any length, interpolated then
+                                normalised, as the GPU does), or NULL: face normals */
+    const float *albedo;     /* triangle_count * 3: diffuse rgb, >= 0 */
+    uint32_t triangle_count;
+} gim_twin_scene;
+
+/* What the RSM pass writes at one texel. */
+typedef struct gim_rsm_texel {
+    float position[3];
+    float normal[3];         /* unit, towards the light */
+    float flux[3];           /* Phi (see the units above); 0 where not lit */
+    float area;              /* A */
+    float depth;             /* window depth in [0, 1]; 1 where nothing is hit */
+    int lit;                 /* 1: a VAL (a surface inside the cone); the GPU's position.w */
+    uint32_t triangle;       /* the triangle hit, UINT32_MAX: none */
+} gim_rsm_texel;
+
+/* Twin of the RSM pass at texel (x, y) of the light's rsm_size^2 RSM (row 0 at the bottom of
+   its clip space, as GL stores it); bounds as for gim_light_camera. */
+GIMANY_API gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
+                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out);
+
+/* What the G-buffer pass writes at one pixel. */
+typedef struct gim_gbuffer_texel {
+    float position[3];       /* world */
+    float normal[3];         /* unit, towards the eye; 0 where nothing is hit */
+    float albedo[3];         /* diffuse rgb */
+    float depth;             /* window depth in [0, 1]; 1 where nothing is hit */
+    uint32_t triangle;       /* UINT32_MAX: none */
+} gim_gbuffer_texel;
+
+/* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
+GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
+                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
+                                             gim_gbuffer_texel *out);
+
+/* The pixels of the view samples (paper 000 sec. 4): Halton points 1..count in bases 2 and 3
+   (point 0 is the corner), Cranley-Patterson rotated by offsets (2 values in [0,1), e.g. from
+   gim_rotation_offsets(off, 2, frame), or NULL), scaled to the width x height G-buffer:
+   pixels[2 i] = min(floor(u_i width), width - 1), pixels[2 i + 1] likewise with v_i, height. */
+GIMANY_API gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uint32_t height, const float *offsets,
+                                             uint32_t *pixels);
+
+/* Twin of the view-sample pass: the G-buffer at each pixel as a gim_view_sample. depth:
+   width * height window depths in [0, 1] (row-major, row 0 at the bottom); normal: width *
+   height * 4 (xyz used: world normal). The position is unprojected through the inverses of
+   proj and view (in double). Where depth >= 1 (nothing drawn) or the normal is zero or not
+   finite the sample is unusable: position and normal are written as zero (the importance
+   pass skips a zero normal). */
+GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
+                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
+                                            gim_view_sample *out);
+
 #ifdef __cplusplus
 }
 #endif
@@ -714,7 +834,27 @@ GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
 /* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
    host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
    the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
-   every call below. Every call that touches GL leaves the GL state as it found it. */
+   every call below. Every call that touches GL leaves the GL state as it found it.
+
+   A frame, step by step (zero means default everywhere):
+         gim_context *ctx;
+         gim_desc d = {0}; d.get_proc_address = glfwGetProcAddress;
+         gim_create(&d, &ctx);
+         gim_mesh_desc md = {0};                      once per mesh, model space
+         md.data.positions = p; md.data.vertex_count = nv;
+         md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
+         md.data.triangle_material = mat_ids;         NULL: material 0
+         gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
+         gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
+         gim_instance in = {mesh, model};
+         gim_set_instances(ctx, &in, 1);              every frame for moving objects
+         gim_light sun = {0}; sun.irradiance = 3.0f; sun.direction = towards_sun; sun.rsm_size = 1024;
+         gim_set_lights(ctx, &sun, 1);
+         gim_frame f = {0}; f.view = v; f.proj = p; f.width = w; f.height = h;
+         gim_update(ctx, &f);                         RSM, G-buffer, view samples, importance, selection
+         gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
+         ...
+         gim_destroy(ctx); */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -738,6 +878,105 @@ typedef struct gim_context gim_context;
 GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
 /* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine. */
 GIMANY_API void gim_destroy(gim_context *ctx);
+
+/* --- the scene the host hands over (DESIGN.md sec. 2) --------------------------------------
+   Meshes are uploaded once; materials, instances and lights are set whenever they change
+   (instances every frame for moving objects); sizes may change between frames without
+   recreating the context. Every call validates all its input before touching anything: on an
+   error the scene is as it was before the call. */
+
+/* A mesh handle; id 0 is never a mesh. */
+typedef struct gim_mesh { uint32_t id; } gim_mesh;
+
+/* Input of gim_add_mesh; zero means default. */
+typedef struct gim_mesh_desc {
+    gim_mesh_data data;         /* model space: positions (finite), normals (non-zero, finite; NULL:
+                                   area-weighted vertex normals are computed), 16/32-bit indices
+                                   (< vertex_count), triangle_material (ids into gim_set_materials'
+                                   array, checked at gim_update; NULL: all 0); material_reflectance
+                                   and material_count are not used here */
+    const gim_cache_set *caches; /* model-space LightSkin caches of the mesh, or NULL; copied */
+} gim_mesh_desc;
+
+/* Upload a mesh (vertex, index and per-triangle material buffers). *out written on GIM_OK. */
+GIMANY_API gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out);
+/* Delete a mesh; instances still naming it make gim_update fail until they are replaced. */
+GIMANY_API gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh);
+
+/* Materials by index (gim_material: diffuse rgb, glossy rgb, exponent k; see @section twins);
+   count 0 clears them. Replaces the previous set. */
+GIMANY_API gim_result gim_set_materials(gim_context *ctx, const gim_material *materials, uint32_t count);
+
+/* One placed mesh. */
+typedef struct gim_instance {
+    gim_mesh mesh;
+    gim_mat4 model;             /* model to world; finite and invertible */
+} gim_instance;
+
+/* The instances of the frame (copied); count 0 clears them. */
+GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *instances, uint32_t count);
+
+/* The lights (gim_light, see @section twins; copied), at most GIM_MAX_LIGHTS; count 0 clears
+   them. rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS. */
+GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
+
+/* --- the frame ------------------------------------------------------------------------------ */
+
+/* Input of gim_update; zero means default. */
+typedef struct gim_frame {
+    gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
+    uint32_t width, height;     /* G-buffer size in pixels (the host's viewport), > 0 */
+    uint32_t gbuffer_depth;     /* the host's G-buffer instead of gimany's: a 2D depth texture of
+                                   the same view (window depth in [0, 1], 1 = nothing) ... */
+    uint32_t gbuffer_normal;    /* ... and a 2D float texture with the world normal in .xyz;
+                                   both >= width x height, or both 0 (gimany draws one) */
+    uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 65536 */
+    uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
+    int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
+    uint32_t val_count;         /* VALs selected per light (paper 000 sec. 4); 0: 2048 */
+    float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
+                                   bounds of the instances */
+    float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
+} gim_frame;
+
+/* Run the frame's passes. Today the shared passes of DESIGN.md sec. 5 and the importance
+   sampling of paper 000 sec. 4: RSM per light -> G-buffer (or the host's) -> view samples ->
+   per light: importance map (eq. 10-11) -> cumulative sums (eq. 12) -> selection of val_count
+   VALs. Needs at least one instance; every material id of an instanced mesh must be below the
+   material count. */
+GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
+
+/* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
+typedef struct gim_light_outputs {
+    uint32_t rsm_size;
+    uint32_t rsm_position;      /* RGBA32F: world xyz; w = 1 where the texel is a VAL (lit) */
+    uint32_t rsm_normal;        /* RGBA32F: unit normal towards the light; w = footprint area A */
+    uint32_t rsm_flux;          /* RGBA32F: reflected flux Phi rgb (units in @section twins) */
+    uint32_t rsm_depth;         /* DEPTH_COMPONENT32F */
+    gim_mat4 view, proj;        /* the light's camera (gim_light_camera) */
+    uint32_t importance;        /* SSBO: rsm_size^2 floats, eq. 10-11, row-major, row 0 first */
+    uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's) */
+    uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
+    uint32_t selected_count;
+} gim_light_outputs;
+
+/* Everything the last successful gim_update left for the host and for later passes. */
+typedef struct gim_frame_outputs {
+    int valid;                  /* 0 before the first successful gim_update, or after a failed one */
+    uint32_t width, height;
+    uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
+    uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
+    uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
+    uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} */
+    uint32_t view_sample_count;
+    float scene_scale;
+    float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
+    uint32_t light_count;
+    gim_light_outputs lights[GIM_MAX_LIGHTS];
+} gim_frame_outputs;
+
+/* The outputs of the last gim_update (all zero for NULL). */
+GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
 
 #ifdef __cplusplus
 }
@@ -3836,6 +4075,354 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
 }
 
 
+/* twins of the scene passes: RSM texel, G-buffer, view samples ---------------------------- */
+
+/* A light the runtime and the twins accept; index names it in the message. */
+static gim_result gim__light_check(const gim_light *l, const gim_env *env, const char *where, uint32_t index) {
+    if (l->type != GIM_LIGHT_DEFAULT && l->type != GIM_LIGHT_DIRECTIONAL && l->type != GIM_LIGHT_SPOT)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: unknown type %d", (unsigned)index, (int)l->type);
+    if (!gim__all_finite(l->color, 3) || l->color[0] < 0.0f || l->color[1] < 0.0f || l->color[2] < 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: color must be finite and >= 0", (unsigned)index);
+    if (!gim_v3_isfinite(l->direction) || gim_v3_length(gim_v3_normalize(l->direction)) == 0.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: direction must be finite and non-zero",
+                         (unsigned)index);
+    if (l->rsm_size > 16384u)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above 16384", (unsigned)index,
+                         (unsigned)l->rsm_size);
+    if (l->type == GIM_LIGHT_SPOT) {
+        if (!gim__isfinitef(l->intensity) || l->intensity < 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: intensity %g must be finite and >= 0",
+                             (unsigned)index, (double)l->intensity);
+        if (!gim_v3_isfinite(l->position))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: position is not finite", (unsigned)index);
+        if (!(l->cone_angle > 0.0f && l->cone_angle <= 1.5f))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: cone_angle %g outside (0, 1.5] radians",
+                             (unsigned)index, (double)l->cone_angle);
+    } else {
+        if (!gim__isfinitef(l->irradiance) || l->irradiance < 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: irradiance %g must be finite and >= 0",
+                             (unsigned)index, (double)l->irradiance);
+        if (!gim__isfinitef(l->extent) || l->extent < 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: extent %g must be finite and >= 0",
+                             (unsigned)index, (double)l->extent);
+    }
+    return GIM_OK;
+}
+
+/* min(a, b) where a may be +inf: the twins' outputs stay finite, as the shaders' do */
+static double gim__min_d(double a, double b) { return a < b ? a : b; }
+
+static uint32_t gim__light_rsm_size(const gim_light *l) { return l->rsm_size ? l->rsm_size : 512u; }
+
+/* The light's colour times its power: E for the sun, I for the spot (all-zero colour: white). */
+static void gim__light_power(const gim_light *l, float out[3]) {
+    int white = l->color[0] == 0.0f && l->color[1] == 0.0f && l->color[2] == 0.0f, i;
+    float p = l->type == GIM_LIGHT_SPOT ? l->intensity : l->irradiance;
+    for (i = 0; i < 3; ++i) out[i] = (white ? 1.0f : l->color[i]) * p;
+}
+
+/* World axis least aligned with d: an up vector look_at cannot fold onto d. */
+static gim_vec3 gim__up_for(gim_vec3 d) {
+    float ax = fabsf(d.x), ay = fabsf(d.y), az = fabsf(d.z);
+    if (ay <= ax && ay <= az) return gim_v3(0.0f, 1.0f, 0.0f);
+    if (az <= ax) return gim_v3(0.0f, 0.0f, 1.0f);
+    return gim_v3(1.0f, 0.0f, 0.0f);
+}
+
+GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
+                                       gim_mat4 *view, gim_mat4 *proj) {
+    static const char where[] = "gim_light_camera";
+    double c[3], radius = 0.0;
+    gim_result r;
+    int i;
+    if (!light || !bmin || !bmax || !view || !proj)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
+    r = gim__light_check(light, NULL, where, 0);
+    if (r != GIM_OK) return r;
+    for (i = 0; i < 3; ++i) {
+        double h = 0.5 * ((double)bmax[i] - (double)bmin[i]);
+        if (!gim__isfinitef(bmin[i]) || !gim__isfinitef(bmax[i]) || !(h >= 0.0))
+            return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "bounds not finite or min > max");
+        c[i] = 0.5 * ((double)bmin[i] + (double)bmax[i]);
+        radius += h * h;
+    }
+    radius = sqrt(radius);
+    if (!(radius > 0.0) || radius > 1e30)
+        return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "scene bounds of radius %g", radius);
+    if (light->type == GIM_LIGHT_SPOT) {
+        gim_vec3 p = light->position, d = gim_v3_normalize(light->direction);
+        double far_d = 0.0, box = 0.0, near_d;
+        int k;
+        for (k = 0; k < 8; ++k) { /* the farthest corner bounds every depth */
+            double dx = ((k & 1) ? bmax[0] : bmin[0]) - (double)p.x, dy = ((k & 2) ? bmax[1] : bmin[1]) - (double)p.y,
+                   dz = ((k & 4) ? bmax[2] : bmin[2]) - (double)p.z, dd = sqrt(dx * dx + dy * dy + dz * dz);
+            if (dd > far_d) far_d = dd;
+        }
+        for (i = 0; i < 3; ++i) { /* distance from the light to the box (0 inside) */
+            double pv = i == 0 ? p.x : i == 1 ? p.y : p.z, e = 0.0;
+            if (pv < bmin[i]) e = bmin[i] - pv;
+            else if (pv > bmax[i]) e = pv - bmax[i];
+            box += e * e;
+        }
+        /* a lit point at distance >= box within the cone has view depth >= box cos(cone) */
+        far_d *= 1.01;
+        near_d = sqrt(box) * cos((double)light->cone_angle) * 0.99;
+        if (near_d < far_d * 1e-4) near_d = far_d * 1e-4;
+        *view = gim_mat4_look_at(p, gim_v3_add(p, d), gim__up_for(d));
+        *proj = gim_mat4_perspective(2.0f * light->cone_angle, 1.0f, (float)near_d, (float)far_d);
+    } else {
+        gim_vec3 l = gim_v3_normalize(light->direction);
+        gim_vec3 centre = gim_v3((float)c[0], (float)c[1], (float)c[2]);
+        float e = light->extent > 0.0f ? light->extent : (float)radius, R = (float)radius;
+        /* the eye 2R out along the light: the bounds' sphere lies between depths R and 3R */
+        *view = gim_mat4_look_at(gim_v3_add(centre, gim_v3_scale(l, 2.0f * R)), centre, gim__up_for(l));
+        *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
+    }
+    if (!gim_mat4_isfinite(*view) || !gim_mat4_isfinite(*proj))
+        return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the light's camera is not finite");
+    return GIM_OK;
+}
+
+/* m * (x, y, z, w) in double. */
+static void gim__mat4_apply_d(const gim_mat4 *m, const double v[4], double out[4]) {
+    int r;
+    for (r = 0; r < 4; ++r)
+        out[r] = m->m[r] * v[0] + m->m[4 + r] * v[1] + m->m[8 + r] * v[2] + m->m[12 + r] * v[3];
+}
+
+/* Nearest hit of the ray through the centre of pixel (x, y) of a width x height view with
+   view * proj. Returns 1 on a hit between the near and far planes, 0 on none, -1 when the
+   camera's rays or the hit leave the float range (a degenerate camera); p: hit point, n: the
+   interpolated normal normalised and turned towards the ray's origin, toward: unit vector to
+   the eye (or the light), depth: window depth. */
+typedef struct gim__twin_hit {
+    double p[3], n[3], toward[3], depth, ndc[2];
+    uint32_t triangle;
+} gim__twin_hit;
+
+static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj, uint32_t width, uint32_t height,
+                          uint32_t x, uint32_t y, gim__twin_hit *h) {
+    gim_mat4 vp = gim_mat4_mul(proj, view), inv;
+    double a[4], b[4], o[3], d[3], best = 2.0, bu = 0.0, bv = 0.0, len, clip[4], hp[4];
+    uint32_t t, best_t = UINT32_MAX;
+    int i;
+    memset(h, 0, sizeof *h);
+    h->triangle = UINT32_MAX;
+    h->depth = 1.0;
+    h->ndc[0] = (2.0 * x + 1.0) / width - 1.0;
+    h->ndc[1] = (2.0 * y + 1.0) / height - 1.0;
+    if (!gim_mat4_invert(vp, &inv)) return 0;
+    a[0] = b[0] = h->ndc[0];
+    a[1] = b[1] = h->ndc[1];
+    a[2] = -1.0; b[2] = 1.0;
+    a[3] = b[3] = 1.0;
+    gim__mat4_apply_d(&inv, a, clip); for (i = 0; i < 3; ++i) o[i] = clip[i] / clip[3];
+    gim__mat4_apply_d(&inv, b, clip); for (i = 0; i < 3; ++i) d[i] = clip[i] / clip[3] - o[i];
+    for (t = 0; t < s->triangle_count; ++t) { /* Moller-Trumbore, t in [0, 1] from near to far */
+        const float *v = s->positions + (size_t)t * 9;
+        double e1[3], e2[3], pv[3], tv[3], qv[3], det, u, w, tt;
+        for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; tv[i] = o[i] - v[i]; }
+        pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
+        det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+        if (det == 0.0) continue;
+        u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
+        if (u < 0.0 || u > 1.0) continue;
+        qv[0] = tv[1] * e1[2] - tv[2] * e1[1]; qv[1] = tv[2] * e1[0] - tv[0] * e1[2]; qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+        w = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+        if (w < 0.0 || u + w > 1.0) continue;
+        tt = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+        if (tt < 0.0 || tt > 1.0 || tt >= best) continue;
+        best = tt; best_t = t; bu = u; bv = w;
+    }
+    if (best_t == UINT32_MAX) return 0;
+    h->triangle = best_t;
+    for (i = 0; i < 3; ++i) { h->p[i] = o[i] + best * d[i]; h->toward[i] = -d[i]; }
+    len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (i = 0; i < 3; ++i) h->toward[i] /= len;
+    {
+        const float *v = s->positions + (size_t)best_t * 9;
+        double nn[3];
+        if (s->normals) {
+            const float *n = s->normals + (size_t)best_t * 9;
+            for (i = 0; i < 3; ++i) nn[i] = (1.0 - bu - bv) * n[i] + bu * n[3 + i] + bv * n[6 + i];
+        } else {
+            double e1[3], e2[3];
+            for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; }
+            nn[0] = e1[1] * e2[2] - e1[2] * e2[1]; nn[1] = e1[2] * e2[0] - e1[0] * e2[2]; nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        }
+        len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+        if (len > 0.0) {
+            double side = nn[0] * h->toward[0] + nn[1] * h->toward[1] + nn[2] * h->toward[2];
+            for (i = 0; i < 3; ++i) h->n[i] = (side < 0.0 ? -nn[i] : nn[i]) / len; /* two-sided */
+        }
+    }
+    hp[0] = h->p[0]; hp[1] = h->p[1]; hp[2] = h->p[2]; hp[3] = 1.0;
+    {
+        double vv[4];
+        gim_mat4 m = vp;
+        gim__mat4_apply_d(&m, hp, vv);
+        h->depth = 0.5 * vv[2] / vv[3] + 0.5;
+    }
+    for (i = 0; i < 3; ++i)
+        if (!(fabs(h->p[i]) <= FLT_MAX) || !(fabs(h->n[i]) <= 1.0 + 1e-6)) return -1;
+    if (!(fabs(h->depth) <= FLT_MAX)) return -1;
+    /* window depth is clamped to [0, 1] as the GPU's is (an ill-conditioned camera's float
+       inverse can put a hit between its planes slightly outside) */
+    h->depth = h->depth < 0.0 ? 0.0 : h->depth > 1.0 ? 1.0 : h->depth;
+    return 1;
+}
+
+static gim_result gim__twin_scene_check(const gim_twin_scene *s, const char *where) {
+    size_t i;
+    if (!s || !s->positions || !s->albedo || s->triangle_count == 0)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "scene without positions, albedo or triangles");
+    if (!gim__all_finite(s->positions, (size_t)s->triangle_count * 9) ||
+        (s->normals && !gim__all_finite(s->normals, (size_t)s->triangle_count * 9)) ||
+        !gim__all_finite(s->albedo, (size_t)s->triangle_count * 3))
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "a NaN/Inf in the scene");
+    for (i = 0; i < (size_t)s->triangle_count * 3; ++i)
+        if (s->albedo[i] < 0.0f) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "a negative albedo");
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
+                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out) {
+    static const char where[] = "gim_rsm_texel_twin";
+    gim_mat4 view, proj;
+    gim__twin_hit h;
+    uint32_t size;
+    float power[3];
+    double a_perp, cosv, omega = 0.0;
+    gim_result r;
+    int i, hit;
+    if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
+    r = gim__twin_scene_check(scene, where);
+    if (r == GIM_OK) r = gim_light_camera(light, bmin, bmax, &view, &proj);
+    if (r != GIM_OK) return r;
+    size = gim__light_rsm_size(light);
+    if (x >= size || y >= size) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "texel outside the RSM");
+    memset(out, 0, sizeof *out);
+    out->depth = 1.0f;
+    out->triangle = UINT32_MAX;
+    hit = gim__twin_cast(scene, view, proj, size, size, x, y, &h);
+    if (hit < 0) return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the light's rays leave the float range");
+    if (hit == 0) return GIM_OK;
+    gim__light_power(light, power);
+    out->triangle = h.triangle;
+    out->depth = (float)h.depth;
+    for (i = 0; i < 3; ++i) { out->position[i] = (float)h.p[i]; out->normal[i] = (float)h.n[i]; }
+    cosv = h.n[0] * h.toward[0] + h.n[1] * h.toward[1] + h.n[2] * h.toward[2];
+    if (cosv < GIM_RSM_MIN_COS) cosv = GIM_RSM_MIN_COS;
+    if (light->type == GIM_LIGHT_SPOT) {
+        /* texel side s on the image plane at distance 1; solid angle at image point (u, v) */
+        double th = 1.0 / proj.m[5], s = 2.0 * th / size, u = h.ndc[0] * th, v = h.ndc[1] * th, dd = 0.0;
+        gim_vec3 axis = gim_v3_normalize(light->direction);
+        double inside = -(h.toward[0] * axis.x + h.toward[1] * axis.y + h.toward[2] * axis.z);
+        for (i = 0; i < 3; ++i) {
+            double e = h.p[i] - (i == 0 ? light->position.x : i == 1 ? light->position.y : light->position.z);
+            dd += e * e;
+        }
+        omega = s * s / pow(1.0 + u * u + v * v, 1.5);
+        out->area = (float)gim__min_d(omega * dd / cosv, FLT_MAX);
+        out->lit = inside >= cos((double)light->cone_angle);
+        a_perp = omega;
+    } else {
+        double side = 2.0 / proj.m[0] / size; /* 2 extent / size */
+        a_perp = side * side;
+        out->area = (float)gim__min_d(a_perp / cosv, FLT_MAX);
+        out->lit = 1;
+    }
+    if (out->lit) {
+        const float *al = scene->albedo + (size_t)h.triangle * 3;
+        for (i = 0; i < 3; ++i) out->flux[i] = (float)gim__min_d((double)al[i] * power[i] * a_perp, FLT_MAX);
+    }
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
+                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
+                                             gim_gbuffer_texel *out) {
+    static const char where[] = "gim_gbuffer_texel_twin";
+    gim__twin_hit h;
+    gim_result r;
+    int i, hit;
+    if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
+    r = gim__twin_scene_check(scene, where);
+    if (r != GIM_OK) return r;
+    if (!gim_mat4_isfinite(view) || !gim_mat4_isfinite(proj) || x >= width || y >= height)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "matrices not finite or pixel outside the view");
+    memset(out, 0, sizeof *out);
+    out->depth = 1.0f;
+    out->triangle = UINT32_MAX;
+    hit = gim__twin_cast(scene, view, proj, width, height, x, y, &h);
+    if (hit < 0) return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the camera's rays leave the float range");
+    if (hit == 0) return GIM_OK;
+    out->triangle = h.triangle;
+    out->depth = (float)h.depth;
+    for (i = 0; i < 3; ++i) {
+        out->position[i] = (float)h.p[i];
+        out->normal[i] = (float)h.n[i];
+        out->albedo[i] = scene->albedo[(size_t)h.triangle * 3 + i];
+    }
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uint32_t height, const float *offsets,
+                                             uint32_t *pixels) {
+    uint32_t i;
+    if (!pixels || count == 0 || width == 0 || height == 0)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_view_sample_pixels", "NULL output or zero count/size");
+    if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_view_sample_pixels", "offsets outside [0,1)");
+    for (i = 0; i < count; ++i) {
+        float u = (float)gim_halton(i + 1u, 0), v = (float)gim_halton(i + 1u, 1);
+        double px, py;
+        if (offsets) { u = gim_rotate01(u, offsets[0]); v = gim_rotate01(v, offsets[1]); }
+        px = floor((double)u * width);
+        py = floor((double)v * height);
+        pixels[2 * i] = px < (double)width ? (uint32_t)px : width - 1u;
+        pixels[2 * i + 1] = py < (double)height ? (uint32_t)py : height - 1u;
+    }
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
+                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
+                                            gim_view_sample *out) {
+    static const char where[] = "gim_view_samples_twin";
+    gim_mat4 inv_view, inv_proj;
+    uint32_t i;
+    if (!depth || !normal || !pixels || !out || count == 0 || width == 0 || height == 0)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL array or zero count/size");
+    if (!gim_mat4_isfinite(view) || !gim_mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) ||
+        !gim_mat4_invert(proj, &inv_proj))
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj not finite or singular");
+    for (i = 0; i < count; ++i) {
+        uint32_t x = pixels[2 * i], y = pixels[2 * i + 1];
+        size_t k;
+        const float *n;
+        double ndc[4], v[4], w[4], len;
+        int j;
+        if (x >= width || y >= height) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "pixel %u outside", (unsigned)i);
+        k = (size_t)y * width + x;
+        n = normal + k * 4;
+        memset(&out[i], 0, sizeof out[i]);
+        len = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        if (!(depth[k] < 1.0f) || !gim__isfinitef(depth[k]) || !gim__all_finite(n, 3) || !(len > 0.0)) continue;
+        ndc[0] = (2.0 * x + 1.0) / width - 1.0;
+        ndc[1] = (2.0 * y + 1.0) / height - 1.0;
+        ndc[2] = 2.0 * depth[k] - 1.0;
+        ndc[3] = 1.0;
+        gim__mat4_apply_d(&inv_proj, ndc, v);
+        for (j = 0; j < 3; ++j) v[j] /= v[3];
+        v[3] = 1.0;
+        gim__mat4_apply_d(&inv_view, v, w);
+        out[i].position = gim_v3((float)w[0], (float)w[1], (float)w[2]);
+        out[i].normal = gim_v3((float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len));
+    }
+    return GIM_OK;
+}
+
 #ifdef __cplusplus
 }
 #endif
@@ -3977,7 +4564,35 @@ enum {
     GIM__GL_BUFFER_SIZE = 0x8764,
     GIM__GL_TEXTURE_WIDTH = 0x1000,
     GIM__GL_TEXTURE_HEIGHT = 0x1001,
-    GIM__GL_INVALID_ENUM = 0x0500
+    GIM__GL_INVALID_ENUM = 0x0500,
+    GIM__GL_TEXTURE_MIN_FILTER = 0x2801,
+    GIM__GL_TEXTURE_MAG_FILTER = 0x2800,
+    GIM__GL_NEAREST = 0x2600,
+    GIM__GL_TEXTURE_WRAP_S = 0x2802,
+    GIM__GL_TEXTURE_WRAP_T = 0x2803,
+    GIM__GL_CLAMP_TO_EDGE = 0x812F,
+    GIM__GL_TEXTURE_COMPARE_MODE = 0x884C,
+    GIM__GL_NONE = 0,
+    GIM__GL_DEPTH_COMPONENT32F = 0x8CAC,
+    GIM__GL_RGBA16F = 0x881A,
+    GIM__GL_RGBA8 = 0x8058,
+    GIM__GL_FRAMEBUFFER = 0x8D40,
+    GIM__GL_COLOR_ATTACHMENT0 = 0x8CE0,
+    GIM__GL_DEPTH_ATTACHMENT = 0x8D00,
+    GIM__GL_FRAMEBUFFER_COMPLETE = 0x8CD5,
+    GIM__GL_COLOR = 0x1800,
+    GIM__GL_DEPTH = 0x1801,
+    GIM__GL_TRIANGLES = 0x0004,
+    GIM__GL_UNSIGNED_INT = 0x1405,
+    GIM__GL_UNSIGNED_SHORT = 0x1403,
+    GIM__GL_STATIC_DRAW = 0x88E4,
+    GIM__GL_LESS = 0x0201,
+    GIM__GL_FILL = 0x1B02,
+    GIM__GL_DEPTH_RANGE = 0x0B70,
+    GIM__GL_MAX_TEXTURE_SIZE = 0x0D33,
+    GIM__GL_MAX_VIEWPORT_DIMS = 0x0D3A,
+    GIM__GL_CLIP_DISTANCE0 = 0x3000,
+    GIM__GL_POLYGON_SMOOTH = 0x0B41
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -4052,7 +4667,46 @@ enum {
     X(void, BufferData, (gim__GLenum target, gim__GLsizeiptr size, const void *data,             \
                          gim__GLenum usage))                                                     \
     X(void, DispatchCompute, (gim__GLuint x, gim__GLuint y, gim__GLuint z))                      \
-    X(void, MemoryBarrier, (gim__GLbitfield barriers))
+    X(void, MemoryBarrier, (gim__GLbitfield barriers))                                           \
+    X(void, GetDoublev, (gim__GLenum pname, double *data))                                       \
+    X(void, DepthRange, (double n, double f))                                                    \
+    X(void, GenTextures, (gim__GLsizei n, gim__GLuint *textures))                                \
+    X(void, DeleteTextures, (gim__GLsizei n, const gim__GLuint *textures))                       \
+    X(void, TexStorage2D, (gim__GLenum target, gim__GLsizei levels, gim__GLenum format,          \
+                           gim__GLsizei width, gim__GLsizei height))                             \
+    X(void, TexParameteri, (gim__GLenum target, gim__GLenum pname, gim__GLint param))            \
+    X(void, GenSamplers, (gim__GLsizei n, gim__GLuint *samplers))                                \
+    X(void, DeleteSamplers, (gim__GLsizei n, const gim__GLuint *samplers))                       \
+    X(void, SamplerParameteri, (gim__GLuint sampler, gim__GLenum pname, gim__GLint param))       \
+    X(void, GenFramebuffers, (gim__GLsizei n, gim__GLuint *framebuffers))                        \
+    X(void, DeleteFramebuffers, (gim__GLsizei n, const gim__GLuint *framebuffers))               \
+    X(void, FramebufferTexture2D, (gim__GLenum target, gim__GLenum attachment, gim__GLenum textarget, \
+                                   gim__GLuint texture, gim__GLint level))                       \
+    X(void, DrawBuffers, (gim__GLsizei n, const gim__GLenum *bufs))                              \
+    X(gim__GLenum, CheckFramebufferStatus, (gim__GLenum target))                                 \
+    X(void, ClearBufferfv, (gim__GLenum buffer, gim__GLint drawbuffer, const gim__GLfloat *value)) \
+    X(void, GenVertexArrays, (gim__GLsizei n, gim__GLuint *arrays))                              \
+    X(void, DeleteVertexArrays, (gim__GLsizei n, const gim__GLuint *arrays))                     \
+    X(void, VertexAttribPointer, (gim__GLuint index, gim__GLint size, gim__GLenum type,          \
+                                  gim__GLboolean normalized, gim__GLsizei stride, const void *pointer)) \
+    X(void, EnableVertexAttribArray, (gim__GLuint index))                                        \
+    X(void, DrawElements, (gim__GLenum mode, gim__GLsizei count, gim__GLenum type, const void *indices)) \
+    X(void, UniformMatrix4fv, (gim__GLint location, gim__GLsizei count, gim__GLboolean transpose, \
+                               const gim__GLfloat *value))                                       \
+    X(void, Uniform3f, (gim__GLint location, gim__GLfloat v0, gim__GLfloat v1, gim__GLfloat v2)) \
+    X(void, Uniform4f, (gim__GLint location, gim__GLfloat v0, gim__GLfloat v1, gim__GLfloat v2,  \
+                        gim__GLfloat v3))                                                        \
+    X(void, BufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size,      \
+                            const void *data))                                                   \
+    X(gim__GLboolean, IsEnabledi, (gim__GLenum cap, gim__GLuint index))                          \
+    X(void, Enablei, (gim__GLenum cap, gim__GLuint index))                                       \
+    X(void, Disablei, (gim__GLenum cap, gim__GLuint index))                                      \
+    X(void, GetBooleani_v, (gim__GLenum target, gim__GLuint index, gim__GLboolean *data))        \
+    X(void, ColorMaski, (gim__GLuint buf, gim__GLboolean r, gim__GLboolean g, gim__GLboolean b,  \
+                         gim__GLboolean a))                                                      \
+    X(void, BlendFuncSeparatei, (gim__GLuint buf, gim__GLenum src_rgb, gim__GLenum dst_rgb,      \
+                                 gim__GLenum src_alpha, gim__GLenum dst_alpha))                  \
+    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -4100,12 +4754,18 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 #define GIM__GL_IMAGE_UNITS 8
 #define GIM__GL_SSBO_BINDINGS 8
 #define GIM__GL_UBO_BINDINGS 4
+#define GIM__GL_DRAW_BUFFERS 8   /* per-draw-buffer blend and colour mask (GL 4.3 has >= 8) */
 
 /* glEnable/glDisable capabilities */
 static const gim__GLenum gim__gl_state_caps[] = {
     GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
     GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
-    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP};
+    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
+    /* a host's clip planes would cut gimany's draws (its vertex shader writes no clip
+       distance); polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
+    GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2, GIM__GL_CLIP_DISTANCE0 + 3,
+    GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5, GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7,
+    GIM__GL_POLYGON_SMOOTH};
 #define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
 
 /* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
@@ -4149,8 +4809,12 @@ typedef struct gim__gl_state {
     gim__GLint blend_equation_rgb, blend_equation_alpha;
     gim__GLint depth_func;
     gim__GLboolean depth_mask, color_mask[4];
+    /* per draw buffer (glEnablei/glBlendFunci/glColorMaski), restored after the global ones */
+    gim__GLboolean blend_i[GIM__GL_DRAW_BUFFERS], color_mask_i[GIM__GL_DRAW_BUFFERS][4];
+    gim__GLint blend_func_i[GIM__GL_DRAW_BUFFERS][6];  /* src/dst rgb, src/dst alpha, equations */
     gim__GLint front_face, cull_face_mode, polygon_mode[2];
     gim__GLfloat color_clear[4], depth_clear;
+    double depth_range[2];
     gim__GLint active_texture;
     gim__GLint texture_2d[GIM__GL_TEXTURE_UNITS], texture_2d_array[GIM__GL_TEXTURE_UNITS];
     gim__GLint sampler[GIM__GL_TEXTURE_UNITS];
@@ -4202,11 +4866,22 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
     gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
     gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        s->blend_i[i] = gl->IsEnabledi(GIM__GL_BLEND, i);
+        gl->GetBooleani_v(GIM__GL_COLOR_WRITEMASK, i, s->color_mask_i[i]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_RGB, i, &s->blend_func_i[i][0]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_DST_RGB, i, &s->blend_func_i[i][1]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_ALPHA, i, &s->blend_func_i[i][2]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_DST_ALPHA, i, &s->blend_func_i[i][3]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_RGB, i, &s->blend_func_i[i][4]);
+        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_ALPHA, i, &s->blend_func_i[i][5]);
+    }
     gl->GetIntegerv(GIM__GL_FRONT_FACE, &s->front_face);
     gl->GetIntegerv(GIM__GL_CULL_FACE_MODE, &s->cull_face_mode);
     gl->GetIntegerv(GIM__GL_POLYGON_MODE, s->polygon_mode); /* front and back; core has one mode */
     gl->GetFloatv(GIM__GL_COLOR_CLEAR_VALUE, s->color_clear);
     gl->GetFloatv(GIM__GL_DEPTH_CLEAR_VALUE, &s->depth_clear);
+    gl->GetDoublev(GIM__GL_DEPTH_RANGE, s->depth_range);
     gl->GetIntegerv(GIM__GL_ACTIVE_TEXTURE, &s->active_texture);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
@@ -4250,11 +4925,20 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     gl->DepthFunc((gim__GLenum)s->depth_func);
     gl->DepthMask(s->depth_mask);
     gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        const gim__GLint *b = s->blend_func_i[i];
+        if (s->blend_i[i]) gl->Enablei(GIM__GL_BLEND, i);
+        else gl->Disablei(GIM__GL_BLEND, i);
+        gl->ColorMaski(i, s->color_mask_i[i][0], s->color_mask_i[i][1], s->color_mask_i[i][2], s->color_mask_i[i][3]);
+        gl->BlendFuncSeparatei(i, (gim__GLenum)b[0], (gim__GLenum)b[1], (gim__GLenum)b[2], (gim__GLenum)b[3]);
+        gl->BlendEquationSeparatei(i, (gim__GLenum)b[4], (gim__GLenum)b[5]);
+    }
     gl->FrontFace((gim__GLenum)s->front_face);
     gl->CullFace((gim__GLenum)s->cull_face_mode);
     gl->PolygonMode(GIM__GL_FRONT_AND_BACK, (gim__GLenum)s->polygon_mode[0]);
     gl->ClearColor(s->color_clear[0], s->color_clear[1], s->color_clear[2], s->color_clear[3]);
     gl->ClearDepth(s->depth_clear);
+    gl->DepthRange(s->depth_range[0], s->depth_range[1]);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
         gl->BindTexture(GIM__GL_TEXTURE_2D, (gim__GLuint)s->texture_2d[i]);
@@ -4283,6 +4967,9 @@ typedef enum gim__program_id {
     GIM__PROGRAM_SCAN_TOTALS,        /* eq. 12: block offsets, horizontal sums of column totals */
     GIM__PROGRAM_SCAN_OFFSETS,       /* eq. 12: block offsets added to the vertical sums */
     GIM__PROGRAM_SELECT,             /* binary-search selection of VALs */
+    GIM__PROGRAM_RSM,                /* RSM of a light: position, normal + area, flux */
+    GIM__PROGRAM_GBUFFER,            /* G-buffer: normal, albedo, depth */
+    GIM__PROGRAM_VIEW_SAMPLES,       /* G-buffer at the Halton pixels -> view samples */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -4292,7 +4979,32 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"importance_scan_columns.comp", NULL},
     {"importance_scan_totals.comp", NULL},
     {"importance_scan_offsets.comp", NULL},
-    {"importance_select.comp", NULL}};
+    {"importance_select.comp", NULL},
+    {"scene.vert", "rsm.frag"},
+    {"scene.vert", "gbuffer.frag"},
+    {"view_samples.comp", NULL}};
+
+/* One uploaded mesh (a slot; used == 0: free). */
+typedef struct gim__mesh {
+    int used;
+    uint32_t generation;          /* bumped when the slot is freed, so old handles fail */
+    gim__GLuint vao, positions, normals, indices, triangle_material;
+    uint32_t index_count, triangle_count;
+    gim__GLenum index_type;
+    uint32_t max_material;        /* largest material id of its triangles */
+    float bmin[3], bmax[3];       /* model-space bounds */
+    gim_cache *caches;            /* the host's model-space caches (copied), for later passes */
+    uint32_t cache_count;
+} gim__mesh;
+
+/* One light's GL objects, sized to its last frame. */
+typedef struct gim__light_gpu {
+    uint32_t size;                /* side of the RSM textures; 0: none yet */
+    gim__GLuint position, normal, flux, depth, fbo;
+    gim__GLuint map, column, row, selected;
+    uint64_t map_bytes, column_bytes, row_bytes, selected_bytes;
+    gim_mat4 view, proj;
+} gim__light_gpu;
 
 struct gim_context {
     gim_env env;
@@ -4304,6 +5016,24 @@ struct gim_context {
     gim__GLuint programs[GIM__PROGRAM_COUNT];
     gim__GLuint scan_blocks;      /* eq. 12 scratch: per-block column totals, then offsets */
     size_t scan_blocks_bytes;
+    gim__GLint max_texture_size, max_viewport[2];
+    /* the scene (see "the scene" below) */
+    gim__mesh *meshes;            /* slots; a handle is slot + 1 | generation << 16 */
+    uint32_t mesh_slots;
+    gim_instance *instances;
+    uint32_t instance_count, instance_capacity;
+    gim_light lights[GIM_MAX_LIGHTS];
+    uint32_t light_count;
+    gim__GLuint materials;        /* SSBO: per material vec4 diffuse, vec4 (glossy, k) */
+    uint32_t material_count;
+    /* the frame's resources, sized to what the last frame used */
+    gim__light_gpu light_gpu[GIM_MAX_LIGHTS];
+    uint32_t gbuffer_width, gbuffer_height;
+    gim__GLuint gbuffer_depth, gbuffer_normal, gbuffer_albedo, gbuffer_fbo;
+    gim__GLuint nearest_sampler;  /* texelFetch of a depth texture needs compare mode NONE */
+    gim__GLuint view_sample_pixels, view_samples;
+    uint64_t view_sample_pixels_bytes, view_samples_bytes;
+    gim_frame_outputs outputs;
 };
 
 /* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
@@ -4691,6 +5421,771 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
+/* --- the scene (DESIGN.md sec. 2) ----------------------------------------------------------
+   Meshes live in GL buffers (one VAO each); instances, lights and materials are small CPU
+   copies (materials also an SSBO). Every setter checks all of its input first, so an error
+   leaves the scene as it was. */
+
+#define GIM__MAX_MESHES 65535u
+#define GIM__MAX_VIEW_SAMPLES 65536u
+#define GIM__DEFAULT_VIEW_SAMPLES 256u
+#define GIM__DEFAULT_VAL_COUNT 2048u
+
+static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
+    uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
+    if (slot == 0 || slot > ctx->mesh_slots) return NULL;
+    if (!ctx->meshes[slot - 1].used || (ctx->meshes[slot - 1].generation & 0xFFFFu) != gen) return NULL;
+    return &ctx->meshes[slot - 1];
+}
+
+static void gim__mesh_release(gim_context *ctx, gim__mesh *m) {
+    const gim__gl *gl = &ctx->gl;
+    if (m->vao) gl->DeleteVertexArrays(1, &m->vao);
+    if (m->positions) gl->DeleteBuffers(1, &m->positions);
+    if (m->normals) gl->DeleteBuffers(1, &m->normals);
+    if (m->indices) gl->DeleteBuffers(1, &m->indices);
+    if (m->triangle_material) gl->DeleteBuffers(1, &m->triangle_material);
+    gim__free(&ctx->env, m->caches);
+    {
+        uint32_t gen = m->generation + 1u;
+        memset(m, 0, sizeof *m);
+        m->generation = gen;
+    }
+}
+
+/* A buffer object holding bytes from data (bound to COPY_WRITE_BUFFER; call inside enter/leave). */
+static gim__GLuint gim__gl_buffer_with(gim_context *ctx, const void *data, size_t bytes, gim__GLenum usage) {
+    gim__GLuint b = 0;
+    ctx->gl.GenBuffers(1, &b);
+    if (!b) return 0;
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, b);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)bytes, data, usage);
+    return b;
+}
+
+static uint32_t gim__index_at(const void *indices, gim_index_type type, size_t i) {
+    if (type == GIM_INDEX_U16) return ((const uint16_t *)indices)[i];
+    return ((const uint32_t *)indices)[i];
+}
+
+GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out) {
+    static const char where[] = "gim_add_mesh";
+    const gim_mesh_data *d;
+    const gim__gl *gl;
+    uint32_t pstride, nstride, i, slot, tri_count, max_material = 0;
+    float *pos = NULL, *nrm = NULL;
+    uint32_t *tri_material = NULL;
+    gim_cache *caches = NULL;
+    gim__mesh m;
+    gim_result r = GIM_OK;
+    size_t index_bytes;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!desc || !out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
+    d = &desc->data;
+    gl = &ctx->gl;
+    pstride = d->position_stride ? d->position_stride : 12u;
+    nstride = d->normal_stride ? d->normal_stride : 12u;
+    if (!d->positions || d->vertex_count == 0 || !d->indices || d->index_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no positions or no indices");
+    if (d->index_count % 3u != 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "index_count %u is not a multiple of 3",
+                         (unsigned)d->index_count);
+    if (pstride < 12u || pstride % 4u != 0 || nstride < 12u || nstride % 4u != 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "strides must be >= 12 and multiples of 4");
+    if (d->index_type != GIM_INDEX_DEFAULT && d->index_type != GIM_INDEX_U32 && d->index_type != GIM_INDEX_U16)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown index_type %d", (int)d->index_type);
+    if (d->vertex_count > 0x7FFFFFFFu / 3u || d->index_count > 0x7FFFFFFFu)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u vertices / %u indices: too many",
+                         (unsigned)d->vertex_count, (unsigned)d->index_count);
+    if (desc->caches && desc->caches->count && !desc->caches->caches)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "caches->caches is NULL with count %u",
+                         (unsigned)desc->caches->count);
+    tri_count = d->index_count / 3u;
+    for (i = 0; i < d->index_count; ++i) {
+        uint32_t v = gim__index_at(d->indices, d->index_type, i);
+        if (v >= d->vertex_count)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "index %u is %u, vertex_count %u", (unsigned)i,
+                             (unsigned)v, (unsigned)d->vertex_count);
+    }
+    for (slot = 0; slot < ctx->mesh_slots && ctx->meshes[slot].used; ++slot) {}
+    if (slot == GIM__MAX_MESHES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "more than %u meshes", GIM__MAX_MESHES);
+    memset(&m, 0, sizeof m);
+    for (i = 0; i < 3; ++i) { m.bmin[i] = FLT_MAX; m.bmax[i] = -FLT_MAX; }
+    /* tight float3 copies: positions checked as they are read */
+    pos = (float *)gim__alloc_array(&ctx->env, (size_t)d->vertex_count * 3u, sizeof(float));
+    nrm = (float *)gim__alloc_array(&ctx->env, (size_t)d->vertex_count * 3u, sizeof(float));
+    tri_material = (uint32_t *)gim__alloc_array(&ctx->env, tri_count, sizeof(uint32_t));
+    if (desc->caches && desc->caches->count)
+        caches = (gim_cache *)gim__alloc_array(&ctx->env, desc->caches->count, sizeof(gim_cache));
+    if (!pos || !nrm || !tri_material || (desc->caches && desc->caches->count && !caches)) {
+        r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "copies of %u vertices", (unsigned)d->vertex_count);
+        goto done;
+    }
+    for (i = 0; i < d->vertex_count; ++i) {
+        const float *p = (const float *)(const void *)((const char *)d->positions + (size_t)i * pstride);
+        int k;
+        if (!gim__all_finite(p, 3)) {
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "position %u is not finite", (unsigned)i);
+            goto done;
+        }
+        for (k = 0; k < 3; ++k) {
+            pos[i * 3 + k] = p[k];
+            if (p[k] < m.bmin[k]) m.bmin[k] = p[k];
+            if (p[k] > m.bmax[k]) m.bmax[k] = p[k];
+        }
+    }
+    if (d->normals) {
+        for (i = 0; i < d->vertex_count; ++i) {
+            const float *n = (const float *)(const void *)((const char *)d->normals + (size_t)i * nstride);
+            if (!gim__all_finite(n, 3) || (n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f)) {
+                r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "normal %u is zero or not finite", (unsigned)i);
+                goto done;
+            }
+            memcpy(nrm + i * 3, n, 3 * sizeof(float));
+        }
+    } else {
+        /* area-weighted vertex normals: the sum of the unnormalised face normals around it */
+        memset(nrm, 0, (size_t)d->vertex_count * 3u * sizeof(float));
+        for (i = 0; i < tri_count; ++i) {
+            uint32_t a = gim__index_at(d->indices, d->index_type, i * 3u),
+                     b = gim__index_at(d->indices, d->index_type, i * 3u + 1u),
+                     c = gim__index_at(d->indices, d->index_type, i * 3u + 2u);
+            gim_vec3 pa = gim_v3(pos[a * 3], pos[a * 3 + 1], pos[a * 3 + 2]);
+            gim_vec3 fn = gim_v3_cross(gim_v3_sub(gim_v3(pos[b * 3], pos[b * 3 + 1], pos[b * 3 + 2]), pa),
+                                       gim_v3_sub(gim_v3(pos[c * 3], pos[c * 3 + 1], pos[c * 3 + 2]), pa));
+            uint32_t v[3];
+            int k;
+            v[0] = a; v[1] = b; v[2] = c;
+            if (!gim_v3_isfinite(fn)) continue;
+            for (k = 0; k < 3; ++k) {
+                nrm[v[k] * 3] += fn.x;
+                nrm[v[k] * 3 + 1] += fn.y;
+                nrm[v[k] * 3 + 2] += fn.z;
+            }
+        }
+        for (i = 0; i < d->vertex_count; ++i) {
+            gim_vec3 n = gim_v3_normalize(gim_v3(nrm[i * 3], nrm[i * 3 + 1], nrm[i * 3 + 2]));
+            if (n.x == 0.0f && n.y == 0.0f && n.z == 0.0f) n = gim_v3(0.0f, 0.0f, 1.0f); /* only on degenerate triangles */
+            nrm[i * 3] = n.x; nrm[i * 3 + 1] = n.y; nrm[i * 3 + 2] = n.z;
+        }
+    }
+    for (i = 0; i < tri_count; ++i) {
+        tri_material[i] = d->triangle_material ? d->triangle_material[i] : 0u;
+        if (tri_material[i] > max_material) max_material = tri_material[i];
+    }
+    if (caches) {
+        for (i = 0; i < desc->caches->count; ++i) {
+            const gim_cache *c = &desc->caches->caches[i];
+            if (!gim__all_finite(c->position, 3) || !gim__all_finite(c->normal, 3) || !gim__isfinitef(c->area) ||
+                !gim__isfinitef(c->reflectance)) {
+                r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u is not finite", (unsigned)i);
+                goto done;
+            }
+        }
+        memcpy(caches, desc->caches->caches, (size_t)desc->caches->count * sizeof(gim_cache));
+    }
+    if (slot == ctx->mesh_slots) { /* grow the slot array */
+        uint32_t n = ctx->mesh_slots ? ctx->mesh_slots * 2u : 8u;
+        gim__mesh *grown;
+        if (n > GIM__MAX_MESHES) n = GIM__MAX_MESHES;
+        grown = (gim__mesh *)gim__alloc_array(&ctx->env, n, sizeof(gim__mesh));
+        if (!grown) {
+            r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u mesh slots", (unsigned)n);
+            goto done;
+        }
+        memset(grown, 0, (size_t)n * sizeof(gim__mesh));
+        if (ctx->mesh_slots) memcpy(grown, ctx->meshes, (size_t)ctx->mesh_slots * sizeof(gim__mesh));
+        gim__free(&ctx->env, ctx->meshes);
+        ctx->meshes = grown;
+        ctx->mesh_slots = n;
+    }
+    m.generation = ctx->meshes[slot].generation;
+    m.index_count = d->index_count;
+    m.triangle_count = tri_count;
+    m.max_material = max_material;
+    m.index_type = d->index_type == GIM_INDEX_U16 ? GIM__GL_UNSIGNED_SHORT : GIM__GL_UNSIGNED_INT;
+    index_bytes = (size_t)d->index_count * (d->index_type == GIM_INDEX_U16 ? 2u : 4u);
+    gim__gl_enter(ctx, where);
+    m.positions = gim__gl_buffer_with(ctx, pos, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
+    m.normals = gim__gl_buffer_with(ctx, nrm, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
+    m.indices = gim__gl_buffer_with(ctx, d->indices, index_bytes, GIM__GL_STATIC_DRAW);
+    m.triangle_material = gim__gl_buffer_with(ctx, tri_material, (size_t)tri_count * 4u, GIM__GL_STATIC_DRAW);
+    gl->GenVertexArrays(1, &m.vao);
+    if (m.vao && m.positions && m.normals && m.indices) {
+        gl->BindVertexArray(m.vao);
+        gl->BindBuffer(GIM__GL_ARRAY_BUFFER, m.positions);
+        gl->VertexAttribPointer(0, 3, GIM__GL_FLOAT, GIM__GL_FALSE, 12, NULL);
+        gl->EnableVertexAttribArray(0);
+        gl->BindBuffer(GIM__GL_ARRAY_BUFFER, m.normals);
+        gl->VertexAttribPointer(1, 3, GIM__GL_FLOAT, GIM__GL_FALSE, 12, NULL);
+        gl->EnableVertexAttribArray(1);
+        gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, m.indices); /* VAO state */
+    }
+    r = gim__gl_check(ctx, where);
+    if (r == GIM_OK && !(m.vao && m.positions && m.normals && m.indices && m.triangle_material))
+        r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGen* returned 0");
+    m.caches = caches;
+    m.cache_count = caches ? desc->caches->count : 0u;
+    if (r != GIM_OK) {
+        gl->BindVertexArray(0); /* not the host's: leave restores it */
+        gim__mesh_release(ctx, &m); /* frees caches too */
+        caches = NULL;
+        gim__gl_leave(ctx, r);
+        goto done;
+    }
+    gim__gl_leave(ctx, r);
+    m.used = 1;
+    ctx->meshes[slot] = m;
+    caches = NULL;
+    out->id = (slot + 1u) | ((m.generation & 0xFFFFu) << 16);
+done:
+    gim__free(&ctx->env, pos);
+    gim__free(&ctx->env, nrm);
+    gim__free(&ctx->env, tri_material);
+    gim__free(&ctx->env, caches);
+    return r;
+}
+
+GIMANY_DEF gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh) {
+    gim__mesh *m;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    m = gim__mesh_get(ctx, mesh);
+    if (!m) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, "gim_remove_mesh", "mesh %u is not a mesh", (unsigned)mesh.id);
+    gim__gl_enter(ctx, "gim_remove_mesh");
+    gim__mesh_release(ctx, m);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, "gim_remove_mesh"));
+}
+
+GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *materials, uint32_t count) {
+    static const char where[] = "gim_set_materials";
+    float *packed;
+    uint32_t i;
+    gim_result r;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (count && !materials) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "materials is NULL");
+    if ((uint64_t)count * 32u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u materials exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
+                         (unsigned)count);
+    for (i = 0; i < count; ++i) {
+        const gim_material *m = &materials[i];
+        if (!gim__all_finite(m->diffuse, 3) || !gim__all_finite(m->glossy, 3) || !gim__isfinitef(m->exponent) ||
+            m->diffuse[0] < 0.0f || m->diffuse[1] < 0.0f || m->diffuse[2] < 0.0f || m->glossy[0] < 0.0f ||
+            m->glossy[1] < 0.0f || m->glossy[2] < 0.0f || m->exponent < 0.0f)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "material %u: values must be finite and >= 0",
+                             (unsigned)i);
+    }
+    if (count == 0) {
+        gim__gl_enter(ctx, where);
+        if (ctx->materials) ctx->gl.DeleteBuffers(1, &ctx->materials);
+        ctx->materials = 0;
+        ctx->material_count = 0;
+        return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+    }
+    packed = (float *)gim__alloc_array(&ctx->env, count, 8u * sizeof(float));
+    if (!packed) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u materials", (unsigned)count);
+    for (i = 0; i < count; ++i) {
+        float *p = packed + (size_t)i * 8u;
+        memcpy(p, materials[i].diffuse, 3 * sizeof(float));
+        p[3] = 0.0f;
+        memcpy(p + 4, materials[i].glossy, 3 * sizeof(float));
+        p[7] = materials[i].exponent;
+    }
+    gim__gl_enter(ctx, where);
+    if (!ctx->materials) ctx->gl.GenBuffers(1, &ctx->materials);
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->materials);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)count * 32, packed, GIM__GL_STATIC_DRAW);
+    gim__free(&ctx->env, packed);
+    r = gim__gl_check(ctx, where);
+    ctx->material_count = r == GIM_OK ? count : 0u;
+    return gim__gl_leave(ctx, r);
+}
+
+GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *instances, uint32_t count) {
+    static const char where[] = "gim_set_instances";
+    uint32_t i;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (count && !instances) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instances is NULL");
+    for (i = 0; i < count; ++i) {
+        gim_mat4 inv;
+        if (!gim__mesh_get(ctx, instances[i].mesh))
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u: mesh %u is not a mesh", (unsigned)i,
+                             (unsigned)instances[i].mesh.id);
+        if (!gim_mat4_isfinite(instances[i].model) || !gim_mat4_invert(instances[i].model, &inv))
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u: model matrix not finite or singular",
+                             (unsigned)i);
+    }
+    if (count > ctx->instance_capacity) {
+        gim_instance *grown = (gim_instance *)gim__alloc_array(&ctx->env, count, sizeof(gim_instance));
+        if (!grown) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u instances", (unsigned)count);
+        gim__free(&ctx->env, ctx->instances);
+        ctx->instances = grown;
+        ctx->instance_capacity = count;
+    }
+    if (count) memcpy(ctx->instances, instances, (size_t)count * sizeof(gim_instance));
+    ctx->instance_count = count;
+    return GIM_OK;
+}
+
+/* Delete one light's GL objects. */
+static void gim__light_gpu_release(gim_context *ctx, gim__light_gpu *g) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint t[4], b[4];
+    t[0] = g->position; t[1] = g->normal; t[2] = g->flux; t[3] = g->depth;
+    b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
+    gl->DeleteTextures(4, t); /* 0 names are ignored */
+    gl->DeleteBuffers(4, b);
+    if (g->fbo) gl->DeleteFramebuffers(1, &g->fbo);
+    memset(g, 0, sizeof *g);
+}
+
+GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count) {
+    static const char where[] = "gim_set_lights";
+    uint32_t i, limit;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (count && !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is NULL");
+    if (count > GIM_MAX_LIGHTS)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u lights, at most %u", (unsigned)count, GIM_MAX_LIGHTS);
+    limit = (uint32_t)ctx->max_texture_size;
+    if ((uint32_t)ctx->max_viewport[0] < limit) limit = (uint32_t)ctx->max_viewport[0];
+    if ((uint32_t)ctx->max_viewport[1] < limit) limit = (uint32_t)ctx->max_viewport[1];
+    for (i = 0; i < count; ++i) {
+        gim_result r = gim__light_check(&lights[i], &ctx->env, where, i);
+        if (r != GIM_OK) return r;
+        if (gim__light_rsm_size(&lights[i]) > limit)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above the GL limit %u",
+                             (unsigned)i, (unsigned)gim__light_rsm_size(&lights[i]), (unsigned)limit);
+    }
+    if (count) memcpy(ctx->lights, lights, (size_t)count * sizeof(gim_light));
+    if (count < ctx->light_count) { /* buffers sized to what is used: drop the removed lights' */
+        gim__gl_enter(ctx, where);
+        for (i = count; i < ctx->light_count; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
+        ctx->light_count = count;
+        ctx->outputs.valid = 0;
+        return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+    }
+    ctx->light_count = count;
+    return GIM_OK;
+}
+
+static void gim__scene_destroy(gim_context *ctx) {
+    const gim__gl *gl = &ctx->gl;
+    uint32_t i;
+    gim__GLuint t[3];
+    for (i = 0; i < ctx->mesh_slots; ++i)
+        if (ctx->meshes[i].used) gim__mesh_release(ctx, &ctx->meshes[i]);
+    gim__free(&ctx->env, ctx->meshes);
+    gim__free(&ctx->env, ctx->instances);
+    for (i = 0; i < GIM_MAX_LIGHTS; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
+    t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
+    gl->DeleteTextures(3, t);
+    if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
+    if (ctx->nearest_sampler) gl->DeleteSamplers(1, &ctx->nearest_sampler);
+    if (ctx->materials) gl->DeleteBuffers(1, &ctx->materials);
+    if (ctx->view_sample_pixels) gl->DeleteBuffers(1, &ctx->view_sample_pixels);
+    if (ctx->view_samples) gl->DeleteBuffers(1, &ctx->view_samples);
+}
+
+/* --- the shared passes of the frame (DESIGN.md sec. 5) ------------------------------------- */
+
+/* A width x height single-level texture of format, nearest, clamped (replaces *tex). */
+static void gim__gl_texture(gim_context *ctx, gim__GLuint *tex, gim__GLenum format, uint32_t w, uint32_t h) {
+    const gim__gl *gl = &ctx->gl;
+    if (*tex) gl->DeleteTextures(1, tex);
+    *tex = 0;
+    gl->GenTextures(1, tex);
+    gl->ActiveTexture(GIM__GL_TEXTURE0);
+    gl->BindTexture(GIM__GL_TEXTURE_2D, *tex);
+    gl->TexStorage2D(GIM__GL_TEXTURE_2D, 1, format, (gim__GLsizei)w, (gim__GLsizei)h);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_MIN_FILTER, GIM__GL_NEAREST);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_MAG_FILTER, GIM__GL_NEAREST);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_WRAP_S, GIM__GL_CLAMP_TO_EDGE);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_WRAP_T, GIM__GL_CLAMP_TO_EDGE);
+}
+
+/* An FBO with colour attachments color[0..n-1] and depth (replaces *fbo). */
+static gim_result gim__gl_framebuffer(gim_context *ctx, gim__GLuint *fbo, const gim__GLuint *color, int n,
+                                      gim__GLuint depth, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLenum bufs[4];
+    gim__GLenum status;
+    int i;
+    if (*fbo) gl->DeleteFramebuffers(1, fbo);
+    *fbo = 0;
+    gl->GenFramebuffers(1, fbo);
+    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, *fbo);
+    for (i = 0; i < n; ++i) {
+        gl->FramebufferTexture2D(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, GIM__GL_TEXTURE_2D,
+                                 color[i], 0);
+        bufs[i] = GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i;
+    }
+    gl->FramebufferTexture2D(GIM__GL_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, GIM__GL_TEXTURE_2D, depth, 0);
+    gl->DrawBuffers(n, bufs);
+    status = gl->CheckFramebufferStatus(GIM__GL_FRAMEBUFFER);
+    if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
+        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "framebuffer incomplete (0x%04x)", (unsigned)status);
+    return gim__gl_check(ctx, where);
+}
+
+/* A buffer of at least bytes (exactly bytes when it grows or shrinks by half or more). */
+static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_t *have, uint64_t bytes, const char *where) {
+    if (*b && *have >= bytes && *have / 2u < bytes) return GIM_OK;
+    if (!*b) ctx->gl.GenBuffers(1, b);
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, *b);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
+    *have = 0; /* unknown until the check passes (a failed glBufferData leaves the store undefined) */
+    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
+    *have = bytes;
+    return GIM_OK;
+}
+
+/* Raster state of the RSM and G-buffer passes, everything from the state list. */
+static void gim__gl_raster_state(const gim__gl *gl, gim__GLuint fbo, uint32_t w, uint32_t h) {
+    static const gim__GLenum off[] = {GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
+                                      GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD,
+                                      GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
+                                      GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2,
+                                      GIM__GL_CLIP_DISTANCE0 + 3, GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5,
+                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH};
+    unsigned i;
+    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, fbo);
+    gl->Viewport(0, 0, (gim__GLsizei)w, (gim__GLsizei)h);
+    for (i = 0; i < sizeof off / sizeof off[0]; ++i) gl->Disable(off[i]);
+    gl->Enable(GIM__GL_DEPTH_TEST);
+    gl->DepthFunc(GIM__GL_LESS);
+    gl->DepthMask(GIM__GL_TRUE);
+    gl->ColorMask(GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE);
+    gl->PolygonMode(GIM__GL_FRONT_AND_BACK, GIM__GL_FILL);
+    gl->DepthRange(0.0, 1.0);
+}
+
+/* Clear n colour attachments to 0 and depth to 1. */
+static void gim__gl_clear_targets(const gim__gl *gl, int n) {
+    static const float zero[4] = {0.0f, 0.0f, 0.0f, 0.0f}, one = 1.0f;
+    int i;
+    for (i = 0; i < n; ++i) gl->ClearBufferfv(GIM__GL_COLOR, i, zero);
+    gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
+}
+
+/* Draw every instance with program (scene.vert's uniforms: 0 model, 1 normal matrix,
+   2 view_proj; SSBO 0 materials, 1 the mesh's triangle materials). */
+static void gim__gl_draw_instances(gim_context *ctx, gim_mat4 view_proj) {
+    const gim__gl *gl = &ctx->gl;
+    uint32_t i;
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, view_proj.m);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
+    for (i = 0; i < ctx->instance_count; ++i) {
+        const gim_instance *in = &ctx->instances[i];
+        const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
+        gim_mat4 nm = gim_mat4_normal(in->model);
+        gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
+        gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
+        gl->BindVertexArray(m->vao);
+        gl->DrawElements(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, NULL);
+    }
+}
+
+/* The eye of a camera as the fragment shaders take it: (position, 1) for a perspective
+   projection, (unit direction towards the eye, 0) for an orthographic one. */
+static void gim__camera_eye(gim_mat4 view, gim_mat4 proj, float eye[4]) {
+    gim_mat4 inv;
+    if (!gim_mat4_invert(view, &inv)) inv = gim_mat4_identity();
+    if (proj.m[11] != 0.0f) {
+        eye[0] = inv.m[12]; eye[1] = inv.m[13]; eye[2] = inv.m[14]; eye[3] = 1.0f;
+    } else {
+        gim_vec3 z = gim_v3_normalize(gim_v3(inv.m[8], inv.m[9], inv.m[10])); /* the view's +z */
+        eye[0] = z.x; eye[1] = z.y; eye[2] = z.z; eye[3] = 0.0f;
+    }
+}
+
+/* RSM of light i (paper 000 sec. 3; units in @section twins): position (w = lit),
+   normal (w = A), flux, depth. */
+static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const float bmin[3], const float bmax[3]) {
+    static const char where[] = "RSM (GL)";
+    const gim__gl *gl = &ctx->gl;
+    const gim_light *l = &ctx->lights[i];
+    gim__light_gpu *g = &ctx->light_gpu[i];
+    uint32_t size = gim__light_rsm_size(l);
+    gim__GLuint program = 0;
+    float power[3], eye[4];
+    gim_result r = gim_light_camera(l, bmin, bmax, &g->view, &g->proj);
+    if (r != GIM_OK) return gim__fail(&ctx->env, r, where, "light %u: no camera for the scene bounds", (unsigned)i);
+    r = gim__gl_program(ctx, GIM__PROGRAM_RSM, &program);
+    if (r != GIM_OK) return r;
+    if (g->size != size) {
+        gim__GLuint color[3];
+        gim__gl_texture(ctx, &g->position, GIM__GL_RGBA32F, size, size);
+        gim__gl_texture(ctx, &g->normal, GIM__GL_RGBA32F, size, size);
+        gim__gl_texture(ctx, &g->flux, GIM__GL_RGBA32F, size, size);
+        gim__gl_texture(ctx, &g->depth, GIM__GL_DEPTH_COMPONENT32F, size, size);
+        color[0] = g->position; color[1] = g->normal; color[2] = g->flux;
+        g->size = 0;
+        r = gim__gl_framebuffer(ctx, &g->fbo, color, 3, g->depth, where);
+        if (r != GIM_OK) return r;
+        g->size = size;
+    }
+    gim__light_power(l, power);
+    gim__camera_eye(g->view, g->proj, eye);
+    gim__gl_raster_state(gl, g->fbo, size, size);
+    gim__gl_clear_targets(gl, 3);
+    gl->UseProgram(program);
+    gl->Uniform1ui(3, ctx->material_count);
+    gl->Uniform4f(4, eye[0], eye[1], eye[2], eye[3]);
+    if (l->type == GIM_LIGHT_SPOT) {
+        gim_vec3 axis = gim_v3_normalize(l->direction);
+        float tan_half = 1.0f / g->proj.m[5], s = 2.0f * tan_half / (float)size;
+        gl->Uniform1i(5, 1);
+        gl->Uniform3f(6, power[0], power[1], power[2]);                   /* flux = albedo I w */
+        gl->Uniform4f(7, axis.x, axis.y, axis.z, cosf(l->cone_angle));
+        gl->Uniform4f(8, (float)size, tan_half, s * s, 0.0f);
+    } else {
+        float side = 2.0f / g->proj.m[0] / (float)size, a = side * side;  /* perpendicular texel area */
+        gl->Uniform1i(5, 0);
+        gl->Uniform3f(6, power[0] * a, power[1] * a, power[2] * a);     /* flux = albedo E a */
+        gl->Uniform4f(7, 0.0f, 0.0f, 0.0f, -2.0f);
+        gl->Uniform4f(8, (float)size, 0.0f, a, 0.0f);
+    }
+    gl->Uniform1f(9, GIM_RSM_MIN_COS);
+    gim__gl_draw_instances(ctx, gim_mat4_mul(g->proj, g->view));
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* gimany's own G-buffer: depth (32-bit float), world normal towards the eye (RGBA16F, w = 1
+   where drawn), diffuse albedo (RGBA8). */
+static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
+    static const char where[] = "G-buffer (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    float eye[4];
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_GBUFFER, &program);
+    if (r != GIM_OK) return r;
+    if (ctx->gbuffer_width != f->width || ctx->gbuffer_height != f->height || !ctx->gbuffer_fbo) {
+        gim__GLuint color[2];
+        gim__gl_texture(ctx, &ctx->gbuffer_depth, GIM__GL_DEPTH_COMPONENT32F, f->width, f->height);
+        /* 12 bytes a pixel: half normals (~5e-4) are plenty for the cosines of eq. 10, 8-bit
+           albedo is what engines keep; positions come from the 32-bit depth */
+        gim__gl_texture(ctx, &ctx->gbuffer_normal, GIM__GL_RGBA16F, f->width, f->height);
+        gim__gl_texture(ctx, &ctx->gbuffer_albedo, GIM__GL_RGBA8, f->width, f->height);
+        color[0] = ctx->gbuffer_normal; color[1] = ctx->gbuffer_albedo;
+        ctx->gbuffer_width = ctx->gbuffer_height = 0;
+        r = gim__gl_framebuffer(ctx, &ctx->gbuffer_fbo, color, 2, ctx->gbuffer_depth, where);
+        if (r != GIM_OK) return r;
+        ctx->gbuffer_width = f->width;
+        ctx->gbuffer_height = f->height;
+    }
+    gim__camera_eye(f->view, f->proj, eye);
+    gim__gl_raster_state(gl, ctx->gbuffer_fbo, f->width, f->height);
+    gim__gl_clear_targets(gl, 2);
+    gl->UseProgram(program);
+    gl->Uniform1ui(3, ctx->material_count);
+    gl->Uniform4f(4, eye[0], eye[1], eye[2], eye[3]);
+    gim__gl_draw_instances(ctx, gim_mat4_mul(f->proj, f->view));
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* View samples (paper 000 sec. 4): the G-buffer at count Halton pixels (gim_view_sample_pixels,
+   computed here and uploaded: the same pixels as the twin, bit for bit), unprojected. */
+static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                       uint32_t count) {
+    static const char where[] = "view samples (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim_mat4 inv_view, inv_proj;
+    uint32_t *pixels;
+    float off[2];
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_VIEW_SAMPLES, &program);
+    if (r != GIM_OK) return r;
+    if (!gim_mat4_invert(f->view, &inv_view) || !gim_mat4_invert(f->proj, &inv_proj))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
+    pixels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+    if (!pixels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u view samples", (unsigned)count);
+    if (f->rotate_view_samples) gim_rotation_offsets(off, 2u, f->frame_index);
+    gim_view_sample_pixels(count, f->width, f->height, f->rotate_view_samples ? off : NULL, pixels);
+    r = gim__gl_sized_buffer(ctx, &ctx->view_sample_pixels, &ctx->view_sample_pixels_bytes, (uint64_t)count * 8u, where);
+    if (r == GIM_OK)
+        r = gim__gl_sized_buffer(ctx, &ctx->view_samples, &ctx->view_samples_bytes, (uint64_t)count * 32u, where);
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->view_sample_pixels);
+        gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 8, pixels);
+    }
+    gim__free(&ctx->env, pixels);
+    if (r != GIM_OK) return r;
+    if (!ctx->nearest_sampler) {
+        gl->GenSamplers(1, &ctx->nearest_sampler);
+        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MIN_FILTER, GIM__GL_NEAREST);
+        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MAG_FILTER, GIM__GL_NEAREST);
+        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_COMPARE_MODE, GIM__GL_NONE);
+    }
+    gl->ActiveTexture(GIM__GL_TEXTURE0);
+    gl->BindTexture(GIM__GL_TEXTURE_2D, depth);
+    gl->BindSampler(0, ctx->nearest_sampler);
+    gl->ActiveTexture(GIM__GL_TEXTURE0 + 1);
+    gl->BindTexture(GIM__GL_TEXTURE_2D, normal);
+    gl->BindSampler(1, ctx->nearest_sampler);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->view_sample_pixels);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->view_samples);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, count);
+    gl->Uniform2ui(1, f->width, f->height);
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_proj.m);
+    gl->UniformMatrix4fv(3, 1, GIM__GL_FALSE, inv_view.m);
+    gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* Argument checks of gim_update that need no GL. */
+static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
+    static const char where[] = "gim_update";
+    gim_mat4 inv;
+    uint32_t i, limit;
+    if (!gim_mat4_isfinite(f->view) || !gim_mat4_isfinite(f->proj) || !gim_mat4_invert(f->view, &inv) ||
+        !gim_mat4_invert(f->proj, &inv))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is not finite or singular");
+    limit = (uint32_t)ctx->max_texture_size;
+    if (f->width == 0 || f->height == 0 || f->width > limit || f->height > limit ||
+        f->width > (uint32_t)ctx->max_viewport[0] || f->height > (uint32_t)ctx->max_viewport[1])
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..GL limits (%d, viewport %dx%d)",
+                         (unsigned)f->width, (unsigned)f->height, (int)ctx->max_texture_size, (int)ctx->max_viewport[0],
+                         (int)ctx->max_viewport[1]);
+    if ((f->gbuffer_depth == 0) != (f->gbuffer_normal == 0))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_depth and gbuffer_normal: both or neither");
+    if (f->view_sample_count > GIM__MAX_VIEW_SAMPLES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "view_sample_count %u above %u",
+                         (unsigned)f->view_sample_count, GIM__MAX_VIEW_SAMPLES);
+    if (f->val_count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "val_count %u above %u", (unsigned)f->val_count,
+                         65535u * 64u);
+    if (!gim__isfinitef(f->scene_scale) || f->scene_scale < 0.0f || !gim__isfinitef(f->importance_clamp) ||
+        f->importance_clamp < 0.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
+    if (ctx->instance_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no instances");
+    for (i = 0; i < 3; ++i) { bmin[i] = FLT_MAX; bmax[i] = -FLT_MAX; }
+    for (i = 0; i < ctx->instance_count; ++i) {
+        const gim_instance *in = &ctx->instances[i];
+        const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
+        int k, j;
+        if (!m)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u: mesh %u was removed", (unsigned)i,
+                             (unsigned)in->mesh.id);
+        if (m->max_material >= ctx->material_count)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "instance %u: its mesh uses material %u, %u materials are set", (unsigned)i,
+                             (unsigned)m->max_material, (unsigned)ctx->material_count);
+        for (k = 0; k < 8; ++k) { /* world bounds from the 8 corners of the model bounds */
+            gim_vec3 c = gim_mat4_point(in->model, gim_v3((k & 1) ? m->bmax[0] : m->bmin[0], (k & 2) ? m->bmax[1] : m->bmin[1],
+                                                          (k & 4) ? m->bmax[2] : m->bmin[2]));
+            float cv[3];
+            cv[0] = c.x; cv[1] = c.y; cv[2] = c.z;
+            for (j = 0; j < 3; ++j) {
+                if (cv[j] < bmin[j]) bmin[j] = cv[j];
+                if (cv[j] > bmax[j]) bmax[j] = cv[j];
+            }
+        }
+    }
+    if (!gim__all_finite(bmin, 3) || !gim__all_finite(bmax, 3))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the world bounds of the instances are not finite");
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
+    static const char where[] = "gim_update";
+    gim_frame_outputs o;
+    float bmin[3], bmax[3], scale;
+    uint32_t i, vs_count, val_count;
+    gim__GLuint depth, normal;
+    gim_result r;
+    double diag;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
+    r = gim__frame_check(ctx, frame, bmin, bmax);
+    if (r != GIM_OK) return r;
+    diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
+                ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
+                ((double)bmax[2] - bmin[2]) * ((double)bmax[2] - bmin[2]));
+    scale = frame->scene_scale > 0.0f ? frame->scene_scale : (float)diag;
+    if (!(scale > 0.0f) || !gim__isfinitef(scale))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
+    vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
+    val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
+    ctx->outputs.valid = 0;
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) r = gim__gl_rsm(ctx, i, bmin, bmax);
+    if (r == GIM_OK && frame->gbuffer_depth) {
+        depth = frame->gbuffer_depth;
+        normal = frame->gbuffer_normal;
+        r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
+        if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
+    } else if (r == GIM_OK) {
+        r = gim__gl_gbuffer(ctx, frame);
+        depth = ctx->gbuffer_depth;
+        normal = ctx->gbuffer_normal;
+    } else {
+        depth = normal = 0;
+    }
+    if (r == GIM_OK) r = gim__gl_view_samples(ctx, frame, depth, normal, vs_count);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+        gim__light_gpu *g = &ctx->light_gpu[i];
+        uint64_t texels = (uint64_t)g->size * g->size;
+        if (texels * 8u > (uint64_t)ctx->max_ssbo_bytes)
+            r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: a %u^2 RSM's eq. 12 table exceeds "
+                          "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", (unsigned)i, (unsigned)g->size);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->map, &g->map_bytes, texels * 4u, where);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->column, &g->column_bytes, texels * 8u, where);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->size * 8u, where);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->selected, &g->selected_bytes, (uint64_t)val_count * 12u, where);
+        if (r == GIM_OK)
+            r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
+                                       scale, frame->importance_clamp, g->map);
+        if (r == GIM_OK) r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
+        if (r == GIM_OK)
+            r = gim__gl_importance_select(ctx, g->column, g->row, g->size, g->size, val_count,
+                                          frame->frame_index * GIM_MAX_LIGHTS + i, g->selected);
+    }
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    memset(&o, 0, sizeof o);
+    o.valid = 1;
+    o.width = frame->width;
+    o.height = frame->height;
+    o.gbuffer_depth = depth;
+    o.gbuffer_normal = normal;
+    o.gbuffer_albedo = frame->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
+    o.view_samples = ctx->view_samples;
+    o.view_sample_count = vs_count;
+    o.scene_scale = scale;
+    memcpy(o.bounds_min, bmin, sizeof bmin);
+    memcpy(o.bounds_max, bmax, sizeof bmax);
+    o.light_count = ctx->light_count;
+    for (i = 0; i < ctx->light_count; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        gim_light_outputs *lo = &o.lights[i];
+        lo->rsm_size = g->size;
+        lo->rsm_position = g->position;
+        lo->rsm_normal = g->normal;
+        lo->rsm_flux = g->flux;
+        lo->rsm_depth = g->depth;
+        lo->view = g->view;
+        lo->proj = g->proj;
+        lo->importance = g->map;
+        lo->column = g->column;
+        lo->row = g->row;
+        lo->selected = g->selected;
+        lo->selected_count = val_count;
+    }
+    ctx->outputs = o;
+    return gim__gl_leave(ctx, GIM_OK);
+}
+
+GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
+    gim_frame_outputs o;
+    if (ctx) return ctx->outputs;
+    memset(&o, 0, sizeof o);
+    return o;
+}
+
 /* --- create / destroy ------------------------------------------------------------------ */
 
 /* "4.6 (Core Profile) Mesa ..." or "OpenGL ES 3.2 ...": the major.minor a legacy context
@@ -4749,6 +6244,8 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     ctx->gl_major = (int)major;
     ctx->gl_minor = (int)minor;
     gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
+    gl.GetIntegerv(GIM__GL_MAX_TEXTURE_SIZE, &ctx->max_texture_size);
+    gl.GetIntegerv(GIM__GL_MAX_VIEWPORT_DIMS, ctx->max_viewport);
     *out = ctx;
     return GIM_OK;
 }
@@ -4760,6 +6257,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
     for (i = 0; i < GIM__PROGRAM_COUNT; ++i)
         if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
+    gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);
 }

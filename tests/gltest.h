@@ -129,11 +129,13 @@ static int gltest_init(void) {
     return 1;
 }
 
+/* The display is left initialised: Mesa 22.3's llvmpipe loses 112 bytes in eglTerminate
+   once anything was drawn (a draw-module leak; a plain draw into an FBO shows it), which
+   LeakSanitizer would pin on the test. The process ends right after. */
 static void gltest_shutdown(void) {
     if (!gltest.ready) return;
     eglMakeCurrent(gltest.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT);
     eglDestroyContext(gltest.display, gltest.context);
-    eglTerminate(gltest.display);
     gltest.ready = 0;
 }
 

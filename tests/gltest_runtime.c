@@ -215,7 +215,8 @@ typedef struct host_objects {
 
 static const GLenum caps[] = {GL_BLEND, GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_SCISSOR_TEST,
                               GL_PRIMITIVE_RESTART, GL_RASTERIZER_DISCARD, GL_POLYGON_OFFSET_FILL,
-                              GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP};
+                              GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_CLIP_DISTANCE0, GL_CLIP_DISTANCE3,
+                              GL_CLIP_DISTANCE7, GL_POLYGON_SMOOTH};
 static const GLenum buffer_targets[][2] = {
     {GL_ARRAY_BUFFER, GL_ARRAY_BUFFER_BINDING}, {GL_DISPATCH_INDIRECT_BUFFER, GL_DISPATCH_INDIRECT_BUFFER_BINDING},
     {GL_DRAW_INDIRECT_BUFFER, GL_DRAW_INDIRECT_BUFFER_BINDING}, {GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING},
@@ -271,11 +272,16 @@ static void set_distinctive_state(host_objects *h) {
     glDepthFunc(GL_GREATER);
     glDepthMask(GL_FALSE);
     glColorMask(GL_TRUE, GL_FALSE, GL_TRUE, GL_FALSE);
+    glColorMaski(3, GL_FALSE, GL_TRUE, GL_FALSE, GL_TRUE); /* per draw buffer: 3 and 6 differ */
+    glDisablei(GL_BLEND, 6);
+    glBlendFuncSeparatei(6, GL_ONE, GL_ONE, GL_ZERO, GL_ONE);
+    glBlendEquationSeparatei(3, GL_MIN, GL_FUNC_REVERSE_SUBTRACT);
     glFrontFace(GL_CW);
     glCullFace(GL_FRONT);
     glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
     glClearColor(0.125f, 0.25f, 0.375f, 0.5f);
     glClearDepth(0.25);
+    glDepthRange(0.125, 0.75);
     glGenTextures(GIM__GL_TEXTURE_UNITS, h->tex2d);
     glGenTextures(GIM__GL_TEXTURE_UNITS, h->tex2d_array);
     glGenSamplers(GIM__GL_TEXTURE_UNITS, h->samplers);
@@ -331,12 +337,21 @@ static void check_distinctive_state(const host_objects *h) {
     glGetBooleanv(GL_DEPTH_WRITEMASK, b4); assert_int_equal(b4[0], GL_FALSE);
     glGetBooleanv(GL_COLOR_WRITEMASK, b4);
     assert_true(b4[0] == GL_TRUE && b4[1] == GL_FALSE && b4[2] == GL_TRUE && b4[3] == GL_FALSE);
+    glGetBooleani_v(GL_COLOR_WRITEMASK, 3, b4);
+    assert_true(b4[0] == GL_FALSE && b4[1] == GL_TRUE && b4[2] == GL_FALSE && b4[3] == GL_TRUE);
+    assert_true(glIsEnabledi(GL_BLEND, 5) && !glIsEnabledi(GL_BLEND, 6));
+    glGetIntegeri_v(GL_BLEND_SRC_RGB, 6, &v); assert_int_equal(v, GL_ONE);
+    glGetIntegeri_v(GL_BLEND_SRC_ALPHA, 6, &v); assert_int_equal(v, GL_ZERO);
+    glGetIntegeri_v(GL_BLEND_SRC_RGB, 5, &v); assert_int_equal(v, GL_SRC_ALPHA);
+    glGetIntegeri_v(GL_BLEND_EQUATION_RGB, 3, &v); assert_int_equal(v, GL_MIN);
+    glGetIntegeri_v(GL_BLEND_EQUATION_ALPHA, 3, &v); assert_int_equal(v, GL_FUNC_REVERSE_SUBTRACT);
     glGetIntegerv(GL_FRONT_FACE, &v); assert_int_equal(v, GL_CW);
     glGetIntegerv(GL_CULL_FACE_MODE, &v); assert_int_equal(v, GL_FRONT);
     glGetIntegerv(GL_POLYGON_MODE, v4); assert_int_equal(v4[0], GL_LINE);
     glGetFloatv(GL_COLOR_CLEAR_VALUE, f4);
     assert_true(f4[0] == 0.125f && f4[1] == 0.25f && f4[2] == 0.375f && f4[3] == 0.5f);
     glGetFloatv(GL_DEPTH_CLEAR_VALUE, f4); assert_true(f4[0] == 0.25f);
+    glGetFloatv(GL_DEPTH_RANGE, f4); assert_true(f4[0] == 0.125f && f4[1] == 0.75f);
     glGetIntegerv(GL_ACTIVE_TEXTURE, &v); assert_int_equal(v, GL_TEXTURE5);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         glActiveTexture(GL_TEXTURE0 + i);
@@ -410,6 +425,7 @@ static void set_default_state(void) {
     glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
     glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
     glClearDepth(1.0);
+    glDepthRange(0.0, 1.0);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         glActiveTexture(GL_TEXTURE0 + i);
         glBindTexture(GL_TEXTURE_2D, 0);
@@ -665,6 +681,102 @@ static void pass_objects_checked(void **state) {
     GLTEST_END();
 }
 
+/* The scene API and the frame (gim_add_mesh, gim_set_materials, gim_set_instances,
+   gim_set_lights, gim_update with gimany's G-buffer and with the host's, gim_remove_mesh,
+   failing calls among them, gim_destroy) leave the host's distinctive state as it was. */
+static void scene_state_restored(void **state) {
+    static const float quad[12] = {-1, 0, -1, -1, 0, 1, 1, 0, 1, 1, 0, -1};
+    static const uint32_t idx[6] = {0, 1, 2, 0, 2, 3};
+    test_alloc_stats stats;
+    test_log log;
+    gim_desc d;
+    gim_context *ctx = NULL;
+    host_objects h;
+    gim_mesh_desc md;
+    gim_mesh mesh, box;
+    gim_material mat;
+    gim_instance inst[2];
+    gim_light l[2];
+    gim_frame fr;
+    gim_frame_outputs o;
+    gim__gl_state before, after;
+    (void)state;
+    GLTEST_BEGIN();
+    set_distinctive_state(&h);
+    d = make_desc(&stats, &log);
+    assert_int_equal(gim_create(&d, &ctx), GIM_OK);
+    gim__gl_state_save(&ctx->gl, &before);
+    memset(&md, 0, sizeof md);
+    md.data.positions = quad;
+    md.data.vertex_count = 4;
+    md.data.indices = idx;
+    md.data.index_count = 6;
+    assert_int_equal(gim_add_mesh(ctx, &md, &mesh), GIM_OK);
+    check_distinctive_state(&h);
+    assert_int_equal(gim_add_mesh(ctx, &md, &box), GIM_OK);
+    md.data.index_count = 4;
+    assert_int_equal(gim_add_mesh(ctx, &md, &box), GIM_ERROR_INVALID_ARGUMENT);
+    check_distinctive_state(&h);
+    memset(&mat, 0, sizeof mat);
+    mat.diffuse[0] = mat.diffuse[1] = mat.diffuse[2] = 0.5f;
+    assert_int_equal(gim_set_materials(ctx, &mat, 1), GIM_OK);
+    check_distinctive_state(&h);
+    inst[0].mesh = mesh;
+    inst[0].model = gim_mat4_identity();
+    inst[1].mesh = box;
+    inst[1].model = gim_mat4_identity();
+    inst[1].model.m[13] = 0.5f;
+    assert_int_equal(gim_set_instances(ctx, inst, 2), GIM_OK);
+    memset(l, 0, sizeof l);
+    l[0].irradiance = 1.0f;
+    l[0].direction = gim_v3(0.3f, 1.0f, 0.2f);
+    l[0].rsm_size = 16;
+    l[1].type = GIM_LIGHT_SPOT;
+    l[1].intensity = 1.0f;
+    l[1].position = gim_v3(0.0f, 2.0f, 0.0f);
+    l[1].direction = gim_v3(0.0f, -1.0f, 0.0f);
+    l[1].cone_angle = 0.6f;
+    l[1].rsm_size = 16;
+    assert_int_equal(gim_set_lights(ctx, l, 2), GIM_OK);
+    memset(&fr, 0, sizeof fr);
+    fr.view = gim_mat4_look_at(gim_v3(1.0f, 2.0f, 2.0f), gim_v3(0.0f, 0.0f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
+    fr.proj = gim_mat4_perspective(1.0f, 1.5f, 0.1f, 10.0f);
+    fr.width = 24;
+    fr.height = 16;
+    fr.view_sample_count = 32;
+    fr.val_count = 16;
+    assert_int_equal(gim_update(ctx, &fr), GIM_OK);
+    check_distinctive_state(&h);
+    o = gim_outputs(ctx);
+    assert_true(o.valid && o.light_count == 2);
+    fr.gbuffer_depth = o.gbuffer_depth; /* the host's G-buffer path */
+    fr.gbuffer_normal = o.gbuffer_normal;
+    assert_int_equal(gim_update(ctx, &fr), GIM_OK);
+    check_distinctive_state(&h);
+    fr.width = 25; /* larger than those textures: fails after the RSM passes ran */
+    assert_int_equal(gim_update(ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+    check_distinctive_state(&h);
+    fr.gbuffer_depth = fr.gbuffer_normal = 0;
+    fr.rotate_view_samples = 1;
+    fr.frame_index = 3;
+    assert_int_equal(gim_set_lights(ctx, l, 1), GIM_OK); /* frees light 1's objects */
+    check_distinctive_state(&h);
+    assert_int_equal(gim_update(ctx, &fr), GIM_OK); /* a new G-buffer size */
+    check_distinctive_state(&h);
+    assert_int_equal(gim_set_materials(ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim_update(ctx, &fr), GIM_ERROR_INVALID_ARGUMENT); /* no materials */
+    assert_int_equal(gim_remove_mesh(ctx, box), GIM_OK);
+    check_distinctive_state(&h);
+    gim__gl_state_save(&ctx->gl, &after);
+    assert_snapshot_equal(&before, &after);
+    gim_destroy(ctx);
+    check_distinctive_state(&h);
+    assert_int_equal(log.errors, 3);
+    assert_int_equal(stats.live, 0);
+    delete_host_objects(&h);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(errors_are_seen),
@@ -676,6 +788,7 @@ int main(void) {
         cmocka_unit_test(save_restore_covers_list),
         cmocka_unit_test(state_restored),
         cmocka_unit_test(pass_objects_checked),
+        cmocka_unit_test(scene_state_restored),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();

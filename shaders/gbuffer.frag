@@ -1,0 +1,22 @@
+/* gimany's own G-buffer: the world normal turned towards the eye (two-sided; w = 1 where a
+   surface was drawn) and the diffuse albedo; depth goes to the depth attachment. */
+in vec3 world_position;
+in vec3 world_normal;
+
+layout(location = 0) out vec4 out_normal;
+layout(location = 1) out vec4 out_albedo;
+
+struct Material { vec4 diffuse; vec4 glossy; };
+layout(std430, binding = 0) readonly buffer Materials { Material material[]; };
+layout(std430, binding = 1) readonly buffer TriangleMaterial { uint triangle_material[]; };
+
+layout(location = 3) uniform uint material_count;
+layout(location = 4) uniform vec4 eye;       /* perspective: (position, 1); orthographic: (direction to the eye, 0) */
+
+void main() {
+    uint id = min(triangle_material[gl_PrimitiveID], material_count - 1u);
+    vec3 toward = eye.w > 0.0 ? eye.xyz - world_position : eye.xyz;
+    vec3 n = normalize(world_normal);
+    out_normal = vec4(dot(n, toward) < 0.0 ? -n : n, 1.0);
+    out_albedo = vec4(material[id].diffuse.rgb, 1.0);
+}
