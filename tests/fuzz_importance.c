@@ -4,23 +4,10 @@
    importance 0 is picked only by the all-zero fallback. */
 #define GIMANY_IMPLEMENTATION
 #include "gimany.h"
+#include "fuzzutil.h"
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct reader { const uint8_t *p; size_t n; } reader;
-static uint32_t take_u32(reader *r) {
-    uint32_t v = 0;
-    size_t k = r->n < 4 ? r->n : 4;
-    memcpy(&v, r->p, k);
-    r->p += k; r->n -= k;
-    return v;
-}
-static void take_bytes(reader *r, void *out, size_t size) { /* zero-filled past the end */
-    size_t k = r->n < size ? r->n : size;
-    memset(out, 0, size);
-    memcpy(out, r->p, k);
-    r->p += k; r->n -= k;
-}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {

@@ -6,17 +6,10 @@
    >= 0 and every visibility in [0,1]. */
 #define GIMANY_IMPLEMENTATION
 #include "gimany.h"
+#include "fuzzutil.h"
 #include <stdlib.h>
 #include <string.h>
 
-typedef struct reader { const uint8_t *p; size_t n; } reader;
-static uint32_t take_u32(reader *r) {
-    uint32_t v = 0;
-    size_t k = r->n < 4 ? r->n : 4;
-    memcpy(&v, r->p, k);
-    r->p += k; r->n -= k;
-    return v;
-}
 static float take_f(reader *r, int raw) {
     uint32_t u = take_u32(r);
     float f;
