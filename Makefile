@@ -68,7 +68,14 @@ $(B)/cxx/two_tu_c: tests/two_tu_a.c tests/two_tu_b.c $(HDRS)
 CPU_BINS := $(addprefix $(B)/asan/,$(CPU_TESTS)) $(addprefix $(B)/clang/,$(CPU_TESTS))
 VG_BINS  := $(addprefix $(B)/plain/,$(CPU_TESTS))
 GL_BINS  := $(addprefix $(B)/gl/,$(GL_TESTS))
-CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c
+$(B)/cxx/static_c: tests/static_tu.c $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -O1 $< -o $@ -lm
+$(B)/cxx/static_cxx: tests/static_tu.c $(HDRS)
+	@mkdir -p $(@D)
+	clang++ -x c++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $< -o $@ -lm
+
+CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 REF_BINS := $(B)/ref/test_reference
 
 test: deps check-shaders

@@ -1014,16 +1014,16 @@ GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
 #define GIMANY_DEBUG 1
 #endif
 
-#ifdef GIMANY_STATIC
-#define GIMANY_DEF static
-#else
-#define GIMANY_DEF
-#endif
 /* private helpers that a build (GIMANY_NO_GL, say) may leave unused */
 #if defined(__GNUC__) || defined(__clang__)
 #define GIM__UNUSED __attribute__((unused))
 #else
 #define GIM__UNUSED
+#endif
+#ifdef GIMANY_STATIC
+#define GIMANY_DEF static GIM__UNUSED /* a host calls some of them, not all */
+#else
+#define GIMANY_DEF
 #endif
 
 #ifdef __cplusplus
