@@ -4970,6 +4970,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_RSM,                /* RSM of a light: position, normal + area, flux */
     GIM__PROGRAM_GBUFFER,            /* G-buffer: normal, albedo, depth */
     GIM__PROGRAM_VIEW_SAMPLES,       /* G-buffer at the Halton pixels -> view samples */
+    GIM__PROGRAM_PROXY_LIGHTS,       /* LightSkin proxy lights per cache (eq. 3-7, 13-15) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -4982,7 +4983,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"importance_select.comp", NULL},
     {"scene.vert", "rsm.frag"},
     {"scene.vert", "gbuffer.frag"},
-    {"view_samples.comp", NULL}};
+    {"view_samples.comp", NULL},
+    {"proxy_lights.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -5417,6 +5419,80 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
     gl->Uniform2d(2, (double)off[0] + (double)off[2] * (1.0 / 16777216.0),
                   (double)off[1] + (double)off[3] * (1.0 / 16777216.0));
     gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* --- LightSkin passes (paper 000 sec. 3) --------------------------------------------------- */
+
+#define GIM__PROXY_GROUP 64u   /* TILE of proxy_lights.comp */
+
+/* Proxy lights on the GPU, the twin of gim_proxy_lights (same formulas, guards and clamps;
+   see there). caches: SSBO of cache_count gim_cache (32 bytes: vec4 position + area, vec4
+   normal + reflectance; world space, unit normals). vals: SSBO of val_count gim_val (48 bytes;
+   val_count 0 is dark, not an error, and vals may then be 0). diffuse_out: SSBO of cache_count
+   gim_proxy_light (48 bytes), written; glossy_out: the same for the glossy lobe of exponent k
+   seen from eye, or 0 to skip the glossy sums (a scene without glossy materials pays nothing).
+   One k for every cache (the twin's cache_glossy_exponent is not taken). scene_scale > 0 (the
+   twin's default 0 would need the bounds on the CPU). Sums in float, not double: on the
+   twin's inputs the results agree to ~1e-5 relative (more with large exponents, whose lobe
+   amplifies the float error of the reflected direction k-fold; tests/gltest_proxy.c). A VAL
+   that is not finite or has negative area, weight or flux adds nothing (the twin rejects it),
+   and a sum that overflows float gives the proxy x_p = c and zero flux, so every output is
+   finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
+   no VAL lights). */
+static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
+                                                   gim__GLuint vals, uint32_t val_count, gim_vec3 eye, float exponent,
+                                                   float scene_scale, gim__GLuint diffuse_out,
+                                                   gim__GLuint glossy_out) {
+    static const char where[] = "proxy lights (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    float coincident;
+    gim_result r;
+    if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
+    if (val_count > 0 && !vals) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "vals is 0");
+    if (cache_count > 65535u * GIM__PROXY_GROUP)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cache_count %u above %u", (unsigned)cache_count,
+                         65535u * GIM__PROXY_GROUP);
+    if ((uint64_t)val_count * 48u > (uint64_t)ctx->max_ssbo_bytes || (uint64_t)cache_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%u caches / %u VALs exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)cache_count,
+                         (unsigned)val_count, (long long)ctx->max_ssbo_bytes);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (glossy_out) {
+        if (!gim_v3_isfinite(eye)) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "eye is not finite");
+        if (!(exponent >= 0.0f && exponent <= GIM__TWINS_MAX_EXPONENT))
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "exponent %g must be in [0, 1e6]",
+                             (double)exponent);
+    }
+    coincident = GIM__TWINS_COINCIDENT * scene_scale;
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK && val_count > 0) r = gim__gl_check_buffer(ctx, where, "vals", vals, (uint64_t)val_count * 48u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
+    if (r == GIM_OK && glossy_out)
+        r = gim__gl_check_buffer(ctx, where, "glossy_out", glossy_out, (uint64_t)cache_count * 48u);
+    if (r == GIM_OK && (diffuse_out == glossy_out || diffuse_out == caches || diffuse_out == vals ||
+                        (glossy_out && (glossy_out == caches || glossy_out == vals))))
+        r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "an output buffer is also an input or the other output");
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PROXY_LIGHTS, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, val_count > 0 ? vals : caches); /* never read then */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, diffuse_out);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, glossy_out ? glossy_out : diffuse_out); /* never written then */
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, cache_count);
+    gl->Uniform1ui(1, val_count);
+    gl->Uniform3f(2, glossy_out ? eye.x : 0.0f, glossy_out ? eye.y : 0.0f, glossy_out ? eye.z : 0.0f);
+    gl->Uniform1f(3, glossy_out ? exponent : 0.0f);
+    gl->Uniform1f(4, coincident * coincident);
+    gl->Uniform1ui(5, glossy_out ? 1u : 0u);
+    gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }

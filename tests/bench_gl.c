@@ -202,6 +202,58 @@ int main(void) {
         glDeleteBuffers(1, &br);
         glDeleteBuffers(1, &bo);
     }
+    /* LightSkin proxy lights (paper 000 eq. 3-7, 13-15): 5000 caches against BRSM's 2048 VALs
+       and against FULL LightSkin's 128^2 = 16384; the cost is caches x VALs, so ~8x */
+    {
+        enum { C = 5000, NV = 16384 };
+        gim_cache *caches = (gim_cache *)calloc(C, sizeof *caches);
+        gim_val *vals = (gim_val *)calloc(NV, sizeof *vals);
+        GLuint bc, bv, bd = ssbo((size_t)C * 48, NULL), bg = ssbo((size_t)C * 48, NULL);
+        uint32_t counts[2] = {2048, NV};
+        double med[2][2];
+        int g, r;
+        for (i = 0; i < C; ++i) { /* caches on a 10 x 10 floor, facing up */
+            caches[i].position[0] = (float)(test_rand01() * 10.0);
+            caches[i].position[2] = (float)(test_rand01() * 10.0);
+            caches[i].normal[1] = 1.0f;
+            caches[i].area = 0.02f;
+        }
+        for (i = 0; i < NV; ++i) { /* VALs on a back wall z = 0 */
+            vals[i].position[0] = (float)(test_rand01() * 10.0);
+            vals[i].position[1] = (float)(test_rand01() * 10.0);
+            vals[i].normal[2] = 1.0f;
+            vals[i].area = 100.0f / NV;
+            vals[i].weight = 1.0f;
+            vals[i].flux[0] = vals[i].flux[1] = vals[i].flux[2] = (float)test_rand01();
+        }
+        bc = ssbo((size_t)C * sizeof *caches, caches);
+        bv = ssbo((size_t)NV * sizeof *vals, vals);
+        for (k = 0; k < 2; ++k)
+            for (g = 0; g < 2; ++g) {
+                double t[RUNS];
+                gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 15.0f, bd, g ? bg : 0);
+                glFinish();
+                for (r = 0; r < RUNS; ++r) {
+                    double t0 = now_ms();
+                    gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 15.0f, bd, g ? bg : 0);
+                    glFinish();
+                    t[r] = now_ms() - t0;
+                }
+                med[k][g] = median(t, RUNS);
+                printf("proxy lights %d caches x %u VALs, %s: %.2f ms (median of %d), %.3f G interactions/s\n", C,
+                       (unsigned)counts[k], g ? "diffuse + glossy" : "diffuse", med[k][g], RUNS,
+                       (double)C * counts[k] / (med[k][g] * 1e6));
+            }
+        printf("proxy lights FULL 128^2 / BRSM 2048: %.2fx (diffuse), %.2fx (diffuse + glossy)\n", med[1][0] / med[0][0],
+               med[1][1] / med[0][1]);
+        glDeleteBuffers(1, &bc);
+        glDeleteBuffers(1, &bv);
+        glDeleteBuffers(1, &bd);
+        glDeleteBuffers(1, &bg);
+        free(caches);
+        free(vals);
+    }
+
     free(map);
     gim_destroy(ctx);
     gltest_shutdown();

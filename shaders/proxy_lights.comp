@@ -1,0 +1,215 @@
+/* LightSkin proxy lights (paper 000 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
+   one invocation per cache looping over every VAL in a fixed order, the VAL list passed
+   through shared memory in tiles of TILE (one VAL loaded per invocation). The formulas,
+   guards and clamps are the twin's (see gim_proxy_lights in gimany.h); the sums are in float
+   here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
+   adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
+#define TILE 64
+layout(local_size_x = TILE) in;
+
+struct Cache { vec4 position_area; vec4 normal_reflectance; };          /* gim_cache */
+struct Val { vec4 position_area; vec4 normal_weight; vec4 flux; };      /* gim_val */
+struct Proxy { vec4 position_radius; vec4 flux_visibility; vec4 sigma; }; /* gim_proxy_light */
+layout(std430, binding = 0) readonly buffer Caches { Cache cache[]; };
+layout(std430, binding = 1) readonly buffer Vals { Val val[]; };
+layout(std430, binding = 2) writeonly buffer Diffuse { Proxy diffuse_out[]; };
+layout(std430, binding = 3) writeonly buffer Glossy { Proxy glossy_out[]; };
+
+layout(location = 0) uniform uint cache_count;
+layout(location = 1) uniform uint val_count;
+layout(location = 2) uniform vec3 eye;
+layout(location = 3) uniform float exponent;     /* Phong k of the glossy lobe */
+layout(location = 4) uniform float coincident2;  /* (1e-6 scene_scale)^2: no direction nearer */
+layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out untouched */
+
+shared vec4 tile_pa[TILE];    /* position, area */
+shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
+shared vec3 tile_flux[TILE];
+shared uint any_dark;
+
+const float PI = 3.14159265358979323846;
+const float FLT_MAX = 3.402823466e+38;
+const vec3 LUM = vec3(0.2126, 0.7152, 0.0722);
+
+/* S, sum W, and the W-weighted mean and sum of squared deviations of d = x_l - c, updated
+   per VAL (West's weighted form of Welford's update): float sums of W d and W d^2 would lose
+   sigma to cancellation where the VALs' spread is small against their distance to c (the
+   twin's double m2 / w - o^2 has the headroom) */
+struct Sums { vec3 s; float w; vec3 mean; vec3 m2; };
+
+bool finite4(vec4 v) {   /* exponent bits, not isinf/isnan, which fast-math may fold away */
+    uvec4 e = (floatBitsToUint(v) >> 23) & 0xffu;
+    return all(notEqual(e, uvec4(0xffu)));
+}
+
+/* log2 of the Phong lobe ((r . v)+)^k (k = 0: the constant lobe 1), or NO_LOBE where the twin's
+   float powf gives 0 (below the smallest float denormal 2^-149). The glossy sums are kept
+   scaled by 2^-shift, shift the largest log2 lobe seen so far: at k = 1000 a cache whose
+   lobe sees its light at r . v ~ 0.9 has every lobe value near 1e-46, which a GPU's float
+   flushes to 0 (it keeps no denormals), while the twin's double sums keep them, and eq. 7
+   with its guard gives such a cache a flux of the order of the diffuse one (a light of
+   normal irradiance E_n that the receiver's lobe will dim again) */
+const float NO_LOBE = -1e30;
+float log2_lobe(float c, float k) {
+    if (k == 0.0) return 0.0;
+    float l = c > 0.0 ? k * log2(c) : NO_LOBE;
+    return l >= -149.0 ? l : NO_LOBE;
+}
+
+void add_position(inout Sums a, vec3 d, float w) {
+    float w1 = a.w + w;
+    if (w1 > 0.0) {
+        vec3 delta = d - a.mean;
+        a.mean += delta * (w / w1);
+        a.m2 += w * delta * (d - a.mean);
+    }
+    a.w = w1;
+}
+
+void add(inout Sums a, vec3 d, float w, vec3 phi, float e) {
+    a.s += phi * e;
+    add_position(a, d, w);
+}
+
+/* Rescale glossy sums from 2^-shift to 2^-to (to > shift); the mean is scale-free. */
+void rescale(inout Sums a, inout float shift, float to) {
+    float r = exp2(max(shift - to, -200.0));
+    a.s *= r;
+    a.w *= r;
+    a.m2 *= r;
+    shift = to;
+}
+
+/* eq. 5/13 position, sigma, eq. 7 flux with the guard (normal irradiance <= E_n); the sums
+   (not E_n) scaled by 2^-shift */
+Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float shift) {
+    Proxy p;
+    bool ok = a.w > 0.0 && finite4(vec4(a.mean, a.w)) && finite4(vec4(a.m2, 0.0)) && finite4(vec4(a.s, en));
+    vec3 o = ok ? a.mean : vec3(0.0);
+    vec3 var = ok ? a.m2 / a.w : vec3(0.0);
+    vec3 sigma = min(sqrt(max(var, vec3(0.0))), vec3(FLT_MAX));
+    if (!finite4(vec4(o, 0.0))) { o = vec3(0.0); sigma = vec3(0.0); ok = false; }
+    float d2 = dot(o, o);
+    float lum_s = dot(LUM, a.s);
+    vec3 flux = vec3(0.0);
+    if (ok && lum_s > 0.0 && en > 0.0 && d2 > 0.0) {
+        float dp = sqrt(d2);
+        vec3 w = o / dp;
+        float cos_p = dot(n, w);
+        float dproxy = max(cos_p, 0.0);
+        if (glossy_lobe && dproxy > 0.0) {
+            float l = log2_lobe(dot(2.0 * cos_p * n - w, v), exponent);
+            dproxy = l == NO_LOBE ? 0.0 : dproxy * exp2(min(l - shift, 126.0));   /* scaled as S */
+        }
+        dproxy = max(dproxy, lum_s / en);                       /* the guard */
+        flux = min(4.0 * PI * d2 * a.s / dproxy, vec3(FLT_MAX)); /* eq. 7 */
+        if (!finite4(vec4(flux, 0.0))) flux = vec3(0.0);
+    }
+    p.position_radius = vec4(c + o, min(2.0 * max(sigma.x, max(sigma.y, sigma.z)), FLT_MAX));
+    p.flux_visibility = vec4(flux, 1.0);
+    p.sigma = vec4(sigma, 0.0);
+    return p;
+}
+
+/* load VAL j into the tile slot; a broken VAL gets weight 0 */
+void load(uint j, uint slot) {
+    vec4 pa = vec4(0.0), nw = vec4(0.0);
+    vec3 f = vec3(0.0);
+    if (j < val_count) {
+        pa = val[j].position_area;
+        nw = val[j].normal_weight;
+        f = val[j].flux.rgb;
+        if (!finite4(pa) || !finite4(nw) || !finite4(vec4(f, 0.0)) || !(pa.w >= 0.0) || !(nw.w >= 0.0) ||
+            !all(greaterThanEqual(f, vec3(0.0)))) {
+            pa = vec4(0.0); nw = vec4(0.0); f = vec3(0.0);
+        }
+    }
+    tile_pa[slot] = pa;
+    tile_nw[slot] = nw;
+    tile_flux[slot] = f;
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    uint local = gl_LocalInvocationIndex;
+    bool inside = i < cache_count;
+    Cache cc = cache[min(i, cache_count - 1u)];
+    vec3 c = cc.position_area.xyz, n = cc.normal_reflectance.xyz;
+    bool glossy = with_glossy != 0u;
+    vec3 te = eye - c;
+    float le = dot(te, te);
+    vec3 v = glossy && le > 0.0 ? te / sqrt(le) : vec3(0.0);   /* eye at the cache: only k = 0 lights */
+    Sums sd = Sums(vec3(0.0), 0.0, vec3(0.0), vec3(0.0));
+    Sums sg = sd;
+    float en = 0.0;   /* lum(E_n) = sum lum(Phi) e / cos theta_x */
+    float shift = -200.0; /* the glossy sums are scaled by 2^-shift */
+    for (uint base = 0u; base < val_count; base += uint(TILE)) {
+        load(base + local, local);
+        barrier();
+        uint count = min(uint(TILE), val_count - base);
+        if (inside)
+            for (uint t = 0u; t < count; ++t) {
+                vec3 d = tile_pa[t].xyz - c;
+                float d2 = dot(d, d);
+                float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;   /* no direction: no light */
+                float cos_x = max(dot(n, d) * inv, 0.0);
+                float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                float den = tile_pa[t].w + PI * d2;
+                float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
+                float e = e_n * cos_x;
+                if (!(e > 0.0)) continue;   /* behind, grazing, coincident or weight 0 */
+                vec3 phi = tile_flux[t];
+                float lphi = dot(LUM, phi);
+                float wgt = lphi * e;       /* W_j: what the VAL adds */
+                add(sd, d, wgt, phi, e);
+                en += lphi * e_n;
+                if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
+                    float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), exponent);   /* eq. 4/15 */
+                    if (l != NO_LOBE) {
+                        if (l > shift) rescale(sg, shift, l);
+                        float g = exp2(l - shift);
+                        add(sg, d, wgt * g, phi, e * g);
+                    }
+                }
+            }
+        barrier();
+    }
+    /* a dark cache: the form-factor weights of eq. 6 place the proxy; the second loop runs in
+       the work groups that hold one (barrier() needs the whole group) */
+    if (local == 0u) any_dark = 0u;
+    barrier();
+    if (inside && !(sd.w > 0.0)) any_dark = 1u;
+    barrier();
+    if (any_dark != 0u) {
+        bool dark = inside && !(sd.w > 0.0);
+        for (uint base = 0u; base < val_count; base += uint(TILE)) {
+            load(base + local, local);
+            barrier();
+            uint count = min(uint(TILE), val_count - base);
+            if (dark)
+                for (uint t = 0u; t < count; ++t) {
+                    vec3 d = tile_pa[t].xyz - c;
+                    float d2 = dot(d, d);
+                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+                    float cos_x = max(dot(n, d) * inv, 0.0);
+                    float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                    float den = tile_pa[t].w + PI * d2;
+                    float f = den > 0.0 ? tile_nw[t].w * tile_pa[t].w * cos_l * cos_x / den : 0.0;   /* F */
+                    if (!(f > 0.0)) continue;
+                    add_position(sd, d, f);
+                }
+            barrier();
+        }
+    }
+    if (!inside) return;
+    diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0);
+    if (glossy) {
+        if (!(sg.w > 0.0)) {   /* the lobe sees no light: the diffuse proxy's place, flux 0 */
+            sg.w = sd.w;
+            sg.mean = sd.mean;
+            sg.m2 = sd.m2;
+            shift = 0.0;
+        }
+        glossy_out[i] = finish(sg, en, c, n, v, true, shift);
+    }
+}
