@@ -11,14 +11,6 @@
 
 
 
-static GLuint ssbo(size_t bytes, const void *data) {
-    GLuint b = 0;
-    glGenBuffers(1, &b);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
-    return b;
-}
 
 static GLuint texture_rgba32f(int w, int h, const float *t) {
     GLuint tex = 0;
@@ -69,7 +61,7 @@ static void use_float_scan(gim_context *ctx, int on, GLuint saved[3]) {
 /* Median ms of the scan at w x h; float_scan: with the float shaders (buffers sized alike). */
 static double time_scan(gim_context *ctx, uint32_t w, uint32_t h, const float *map) {
     double t[RUNS];
-    GLuint bm = ssbo((size_t)w * h * 4, map), bc = ssbo((size_t)w * h * 8, NULL), br = ssbo((size_t)w * 8, NULL);
+    GLuint bm = gltest_ssbo((size_t)w * h * 4, map), bc = gltest_ssbo((size_t)w * h * 8, NULL), br = gltest_ssbo((size_t)w * 8, NULL);
     int r;
     gim__gl_importance_cumsum(ctx, bm, bc, br, w, h, 0); /* warm: programs, scratch */
     glFinish();
@@ -88,7 +80,7 @@ static double time_scan(gim_context *ctx, uint32_t w, uint32_t h, const float *m
 /* Of the texels of one w x h scan, how many get a selection frequency (the difference of the
    table) more than 1% away from their map value: the bias a float table would bring. */
 static void float_scan_error(gim_context *ctx, uint32_t w, uint32_t h, const float *map) {
-    GLuint bm = ssbo((size_t)w * h * 4, map), bc = ssbo((size_t)w * h * 8, NULL), br = ssbo((size_t)w * 8, NULL);
+    GLuint bm = gltest_ssbo((size_t)w * h * 4, map), bc = gltest_ssbo((size_t)w * h * 8, NULL), br = gltest_ssbo((size_t)w * 8, NULL);
     float *col = (float *)malloc((size_t)w * h * 4);
     size_t bad = 0, x, y;
     gim__gl_importance_cumsum(ctx, bm, bc, br, w, h, 0);
@@ -159,8 +151,8 @@ int main(void) {
             vs[i * 8] = (float)(test_rand01() * W); vs[i * 8 + 1] = 20.0f; vs[i * 8 + 2] = (float)(test_rand01() * H);
             vs[i * 8 + 4] = 0.0f; vs[i * 8 + 5] = -1.0f; vs[i * 8 + 6] = 0.0f;
         }
-        bvs = ssbo(sizeof vs, vs);
-        bm = ssbo(sizeof(float) * W * H, NULL);
+        bvs = gltest_ssbo(sizeof vs, vs);
+        bm = gltest_ssbo(sizeof(float) * W * H, NULL);
         gim__gl_importance_map(ctx, tp, tn, tf, W, H, bvs, S, 180.0f, 0.0f, bm);
         glFinish();
         for (r = 0; r < RUNS; ++r) {
@@ -183,8 +175,8 @@ int main(void) {
     /* selection: 4096 VALs from 1024x1024 tables */
     {
         enum { W = 1024, H = 1024, N = 4096 };
-        GLuint bm = ssbo((size_t)W * H * 4, map), bc = ssbo((size_t)W * H * 8, NULL), br = ssbo(W * 8, NULL),
-               bo = ssbo(N * 12, NULL);
+        GLuint bm = gltest_ssbo((size_t)W * H * 4, map), bc = gltest_ssbo((size_t)W * H * 8, NULL), br = gltest_ssbo(W * 8, NULL),
+               bo = gltest_ssbo(N * 12, NULL);
         double t[RUNS];
         int r;
         gim__gl_importance_cumsum(ctx, bm, bc, br, W, H, 0);
@@ -208,7 +200,7 @@ int main(void) {
         enum { C = 5000, NV = 16384 };
         gim_cache *caches = (gim_cache *)calloc(C, sizeof *caches);
         gim_val *vals = (gim_val *)calloc(NV, sizeof *vals);
-        GLuint bc, bv, bd = ssbo((size_t)C * 48, NULL), bg = ssbo((size_t)C * 48, NULL);
+        GLuint bc, bv, bd = gltest_ssbo((size_t)C * 48, NULL), bg = gltest_ssbo((size_t)C * 48, NULL);
         uint32_t counts[2] = {2048, NV};
         double med[2][2];
         int g, r;
@@ -226,8 +218,8 @@ int main(void) {
             vals[i].weight = 1.0f;
             vals[i].flux[0] = vals[i].flux[1] = vals[i].flux[2] = (float)test_rand01();
         }
-        bc = ssbo((size_t)C * sizeof *caches, caches);
-        bv = ssbo((size_t)NV * sizeof *vals, vals);
+        bc = gltest_ssbo((size_t)C * sizeof *caches, caches);
+        bv = gltest_ssbo((size_t)NV * sizeof *vals, vals);
         for (k = 0; k < 2; ++k)
             for (g = 0; g < 2; ++g) {
                 double t[RUNS];

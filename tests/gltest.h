@@ -158,6 +158,54 @@ static GIM__UNUSED void gltest_reset_errors(void) {
 /* The get_proc_address a host hands to gimany. */
 static GIM__UNUSED gim_gl_proc gltest_get_proc(const char *name) { return (gim_gl_proc)eglGetProcAddress(name); }
 
+/* A shader storage buffer holding bytes of data (NULL: uninitialised). */
+static GIM__UNUSED GLuint gltest_ssbo(size_t bytes, const void *data) {
+    GLuint b = 0;
+    glGenBuffers(1, &b);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
+    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
+    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+    return b;
+}
+/* Read the first bytes of buffer b back. */
+static GIM__UNUSED void gltest_read_buffer(GLuint b, size_t bytes, void *out) {
+    glBindBuffer(GL_COPY_READ_BUFFER, b);
+    glGetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)bytes, out);
+    glBindBuffer(GL_COPY_READ_BUFFER, 0);
+}
+
+#ifndef GIMANY_EXTERNAL_GL
+/* A context with the counting allocator and the log catcher, and the GL state it started
+   with, for tests of single passes. */
+typedef struct gltest_fixture {
+    test_alloc_stats stats;
+    test_log log;
+    gim_env env;
+    gim_context *ctx;
+    gim__gl_state before;
+} gltest_fixture;
+
+static GIM__UNUSED void gltest_fixture_begin(gltest_fixture *f) {
+    gim_desc d;
+    memset(&d, 0, sizeof d);
+    d.get_proc_address = gltest_get_proc;
+    d.env = f->env = test_env(&f->stats, &f->log);
+    assert_int_equal(gim_create(&d, &f->ctx), GIM_OK);
+    gim__gl_state_save(&f->ctx->gl, &f->before);
+}
+/* After every pass: the whole state list as it was (gltest_runtime checks it item by item). */
+static GIM__UNUSED void gltest_state_unchanged(gltest_fixture *f) {
+    gim__gl_state now;
+    gim__gl_state_save(&f->ctx->gl, &now);
+    assert_memory_equal(&f->before, &now, sizeof now);
+}
+static GIM__UNUSED void gltest_fixture_end(gltest_fixture *f) {
+    gim_destroy(f->ctx);
+    assert_int_equal(f->stats.live, 0);
+    assert_int_equal(f->log.errors, 0);
+}
+#endif
+
 /* First line of every GL test: a current context with no pending errors, or FAIL (skip only
    with GIMANY_SKIP_GL=1). */
 #define GLTEST_BEGIN()                                                                          \

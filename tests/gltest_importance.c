@@ -87,20 +87,7 @@ static GLuint texture_rgba32f(int w, int h, const float *rgb, const float *alpha
     return tex;
 }
 
-static GLuint ssbo(size_t bytes, const void *data) {
-    GLuint b = 0;
-    glGenBuffers(1, &b);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
-    return b;
-}
 
-static void read_ssbo(GLuint b, size_t bytes, void *out) {
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, (GLsizeiptr)bytes, out);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
-}
 
 /* View samples as the GPU pass takes them: {vec4 position; vec4 normal}. */
 static GLuint view_sample_buffer(const gim_view_sample *s, int n) {
@@ -111,45 +98,19 @@ static GLuint view_sample_buffer(const gim_view_sample *s, int n) {
         v[i * 8] = s[i].position.x; v[i * 8 + 1] = s[i].position.y; v[i * 8 + 2] = s[i].position.z;
         v[i * 8 + 4] = s[i].normal.x; v[i * 8 + 5] = s[i].normal.y; v[i * 8 + 6] = s[i].normal.z;
     }
-    b = ssbo((size_t)n * 32, v);
+    b = gltest_ssbo((size_t)n * 32, v);
     free(v);
     return b;
 }
 
-typedef struct fixture {
-    test_alloc_stats stats;
-    test_log log;
-    gim_env env;
-    gim_context *ctx;
-    gim__gl_state before;
-} fixture;
 
-static void fixture_begin(fixture *f) {
-    gim_desc d;
-    memset(&d, 0, sizeof d);
-    d.get_proc_address = gltest_get_proc;
-    d.env = f->env = test_env(&f->stats, &f->log);
-    assert_int_equal(gim_create(&d, &f->ctx), GIM_OK);
-    gim__gl_state_save(&f->ctx->gl, &f->before);
-}
 
-/* After every pass: the whole state list as it was (the runtime test checks it item by item). */
-static void assert_state_unchanged(fixture *f) {
-    gim__gl_state now;
-    gim__gl_state_save(&f->ctx->gl, &now);
-    assert_memory_equal(&f->before, &now, sizeof now);
-}
 
-static void fixture_end(fixture *f) {
-    gim_destroy(f->ctx);
-    assert_int_equal(f->stats.live, 0);
-    assert_int_equal(f->log.errors, 0);
-}
 
 /* --- eq. 10-11 ------------------------------------------------------------------------------ */
 
 /* GPU map of (rsm, samples) against the twin; returns the largest relative error. */
-static double compare_map(fixture *f, const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
+static double compare_map(gltest_fixture *f, const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
                           float clamp, float *cpu_out) {
     gim_importance_desc d;
     GLuint tp, tn, tf, bvs, bmap;
@@ -174,12 +135,12 @@ static double compare_map(fixture *f, const rsm_data *r, const gim_view_sample *
     tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
     tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
     bvs = view_sample_buffer(vs, n);
-    bmap = ssbo(texels * sizeof(float), NULL);
+    bmap = gltest_ssbo(texels * sizeof(float), NULL);
     assert_int_equal(gim__gl_importance_map(f->ctx, tp, tn, tf, (uint32_t)r->w, (uint32_t)r->h, bvs, (uint32_t)n,
                                             scene_scale, clamp, bmap),
                      GIM_OK);
-    assert_state_unchanged(f);
-    read_ssbo(bmap, texels * sizeof(float), gpu);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bmap, texels * sizeof(float), gpu);
     for (i = 0; i < texels; ++i) max_cpu = cpu[i] > max_cpu ? cpu[i] : max_cpu;
     assert_true(max_cpu > 0.0);
     for (i = 0; i < texels; ++i) {
@@ -206,13 +167,13 @@ static double compare_map(fixture *f, const rsm_data *r, const gim_view_sample *
 static void map_matches_twin(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
     static const float far_away[3] = {2.0e4f, -1.0e4f, 3.0e4f};
-    fixture f;
+    gltest_fixture f;
     rsm_data r;
     gim_view_sample *vs;
     double e;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
 
     make_rsm(&r, 64, 64, 4.0f, zero, 1);
     vs = make_view_samples(48, 4.0f, zero);
@@ -257,25 +218,25 @@ static void map_matches_twin(void **state) {
     free(vs);
     free_rsm(&r);
 
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
 /* --- eq. 12 ------------------------------------------------------------------------------- */
 
 /* GPU tables of map against the twin's; returns the largest relative error of any entry. */
-static double compare_cumsum(fixture *f, const float *map, uint32_t w, uint32_t h, uint32_t block_rows) {
+static double compare_cumsum(gltest_fixture *f, const float *map, uint32_t w, uint32_t h, uint32_t block_rows) {
     size_t texels = (size_t)w * h, i;
     double *cc = (double *)malloc(texels * sizeof(double)), *cr = (double *)malloc(w * sizeof(double));
     double *gc = (double *)malloc(texels * sizeof(double)), *gr = (double *)malloc(w * sizeof(double));
-    GLuint bmap = ssbo(texels * sizeof(float), map), bc = ssbo(texels * sizeof(double), NULL),
-           br = ssbo(w * sizeof(double), NULL);
+    GLuint bmap = gltest_ssbo(texels * sizeof(float), map), bc = gltest_ssbo(texels * sizeof(double), NULL),
+           br = gltest_ssbo(w * sizeof(double), NULL);
     double worst = 0.0;
     assert_int_equal(gim_importance_cumsum(map, w, h, cc, cr, f->env), GIM_OK);
     assert_int_equal(gim__gl_importance_cumsum(f->ctx, bmap, bc, br, w, h, block_rows), GIM_OK);
-    assert_state_unchanged(f);
-    read_ssbo(bc, texels * sizeof(double), gc);
-    read_ssbo(br, w * sizeof(double), gr);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bc, texels * sizeof(double), gc);
+    gltest_read_buffer(br, w * sizeof(double), gr);
     for (i = 0; i < texels; ++i) {
         double e = fabs(gc[i] - cc[i]) / (cc[i] > 0.0 ? cc[i] : 1.0);
         if (e > worst) worst = e;
@@ -300,11 +261,11 @@ static void cumsum_matches_twin(void **state) {
         {64, 64, 0},   /* default: 16 rows, 4 blocks */
         {300, 70, 0},  /* 5 blocks of 16, the last partial; 300 columns: 2 per thread, uneven */
         {1, 1, 0}, {1, 130, 7}, {700, 3, 1}};
-    fixture f;
+    gltest_fixture f;
     size_t k, i;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     for (k = 0; k < sizeof sizes / sizeof sizes[0]; ++k) {
         uint32_t w = sizes[k][0], h = sizes[k][1];
         float *map = (float *)malloc((size_t)w * h * sizeof(float));
@@ -316,7 +277,7 @@ static void cumsum_matches_twin(void **state) {
         assert_true(e < 1e-13);
         free(map);
     }
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -325,21 +286,21 @@ static void cumsum_matches_twin(void **state) {
    the table are the map again, exactly. */
 static void cumsum_keeps_small_texels(void **state) {
     enum { W = 4, H = 4096 };
-    fixture f;
+    gltest_fixture f;
     float *map = (float *)malloc((size_t)W * H * sizeof(float));
     double *col = (double *)malloc((size_t)W * H * sizeof(double)), row[W];
     GLuint bmap, bc, br;
     int i, x, y;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     for (i = 0; i < W * H; ++i) map[i] = i < W ? 1e8f : 1.0f;
-    bmap = ssbo(sizeof(float) * W * H, map);
-    bc = ssbo(sizeof(double) * W * H, NULL);
-    br = ssbo(sizeof row, NULL);
+    bmap = gltest_ssbo(sizeof(float) * W * H, map);
+    bc = gltest_ssbo(sizeof(double) * W * H, NULL);
+    br = gltest_ssbo(sizeof row, NULL);
     assert_int_equal(gim__gl_importance_cumsum(f.ctx, bmap, bc, br, W, H, 0), GIM_OK);
-    read_ssbo(bc, sizeof(double) * W * H, col);
-    read_ssbo(br, sizeof row, row);
+    gltest_read_buffer(bc, sizeof(double) * W * H, col);
+    gltest_read_buffer(br, sizeof row, row);
     for (x = 0; x < W; ++x)
         for (y = 1; y < H; ++y) assert_true(col[y * W + x] - col[(y - 1) * W + x] == 1.0);
     assert_true(row[W - 1] == W * (1e8 + (H - 1)));
@@ -348,7 +309,7 @@ static void cumsum_keeps_small_texels(void **state) {
     glDeleteBuffers(1, &br);
     free(map);
     free(col);
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -356,19 +317,19 @@ static void cumsum_keeps_small_texels(void **state) {
 
 /* GPU selection from the given tables against the twin's; returns the number of picks that
    differ (and checks pdfs where they agree). */
-static int compare_select(fixture *f, const double *column, const double *row, GLuint bc, GLuint br, uint32_t w,
+static int compare_select(gltest_fixture *f, const double *column, const double *row, GLuint bc, GLuint br, uint32_t w,
                           uint32_t h, uint32_t count, uint32_t seed, test_log *warn_log) {
     gim_selected_val *cpu = (gim_selected_val *)malloc(count * sizeof *cpu);
     gim_selected_val *gpu = (gim_selected_val *)malloc(count * sizeof *gpu);
-    GLuint bout = ssbo(count * sizeof *gpu, NULL);
+    GLuint bout = gltest_ssbo(count * sizeof *gpu, NULL);
     gim_env env = f->env;
     uint32_t i;
     int differ = 0;
     if (warn_log) env = test_env(NULL, warn_log);
     assert_int_equal(gim_importance_select(column, row, w, h, count, seed, cpu, env), GIM_OK);
     assert_int_equal(gim__gl_importance_select(f->ctx, bc, br, w, h, count, seed, bout), GIM_OK);
-    assert_state_unchanged(f);
-    read_ssbo(bout, count * sizeof *gpu, gpu);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bout, count * sizeof *gpu, gpu);
     for (i = 0; i < count; ++i) {
         assert_true(gpu[i].x < w && gpu[i].y < h);
         assert_true(gpu[i].pdf > 0.0f && gpu[i].pdf <= 1.0f);
@@ -386,7 +347,7 @@ static int compare_select(fixture *f, const double *column, const double *row, G
    off-by-one in the search, P from the wrong differences, or the u * total == total case. */
 static void select_matches_twin(void **state) {
     enum { W = 64, H = 64, N = 256 };
-    fixture f;
+    gltest_fixture f;
     float *map = (float *)malloc(sizeof(float) * W * H);
     double *col = (double *)malloc(sizeof(double) * W * H), row[W];
     GLuint bc, br;
@@ -395,15 +356,15 @@ static void select_matches_twin(void **state) {
     test_log wl;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     /* a peaked map with empty columns and rows: the search must step over zero-width entries */
     for (i = 0; i < W * H; ++i) {
         int x = i % W, y = i / W;
         map[i] = (x % 7 == 3 || y % 5 == 1) ? 0.0f : (float)(test_rand01() * (x == 40 ? 1000.0 : 1.0));
     }
     assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
-    bc = ssbo(sizeof(double) * W * H, col);
-    br = ssbo(sizeof row, row);
+    bc = gltest_ssbo(sizeof(double) * W * H, col);
+    br = gltest_ssbo(sizeof row, row);
     for (seed = 0; seed < 4; ++seed) assert_int_equal(compare_select(&f, col, row, bc, br, W, H, N, seed, NULL), 0);
     assert_int_equal(compare_select(&f, col, row, bc, br, W, H, 1, 9, NULL), 0);
     assert_int_equal(compare_select(&f, col, row, bc, br, W, H, 1000, 9, NULL), 0);
@@ -413,15 +374,15 @@ static void select_matches_twin(void **state) {
     /* all-zero map: both select uniformly with pdf 1 / texels (the twin also warns) */
     for (i = 0; i < W * H; ++i) map[i] = 0.0f;
     assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
-    bc = ssbo(sizeof(double) * W * H, col);
-    br = ssbo(sizeof row, row);
+    bc = gltest_ssbo(sizeof(double) * W * H, col);
+    br = gltest_ssbo(sizeof row, row);
     assert_int_equal(compare_select(&f, col, row, bc, br, W, H, N, 3, &wl), 0);
     assert_int_equal(wl.warnings, 1);
     glDeleteBuffers(1, &bc);
     glDeleteBuffers(1, &br);
     free(map);
     free(col);
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -431,7 +392,7 @@ static void select_matches_twin(void **state) {
 static void chain_matches_twin(void **state) {
     enum { W = 64, H = 64, S = 32, N = 512 };
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
-    fixture f;
+    gltest_fixture f;
     rsm_data r;
     gim_view_sample *vs;
     float *map = (float *)malloc(sizeof(float) * W * H);
@@ -441,7 +402,7 @@ static void chain_matches_twin(void **state) {
     int i, differ = 0;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     make_rsm(&r, W, H, 3.0f, zero, 1);
     vs = make_view_samples(S, 3.0f, zero);
     assert_true(compare_map(&f, &r, vs, S, 5.0f, 0.0f, map) < 1e-4);
@@ -452,15 +413,15 @@ static void chain_matches_twin(void **state) {
     tn = texture_rgba32f(W, H, r.normal, NULL);
     tf = texture_rgba32f(W, H, r.flux, NULL);
     bvs = view_sample_buffer(vs, S);
-    bmap = ssbo(sizeof(float) * W * H, NULL);
-    bc = ssbo(sizeof(double) * W * H, NULL);
-    br = ssbo(sizeof row, NULL);
-    bout = ssbo(sizeof gpu, NULL);
+    bmap = gltest_ssbo(sizeof(float) * W * H, NULL);
+    bc = gltest_ssbo(sizeof(double) * W * H, NULL);
+    br = gltest_ssbo(sizeof row, NULL);
+    bout = gltest_ssbo(sizeof gpu, NULL);
     assert_int_equal(gim__gl_importance_map(f.ctx, tp, tn, tf, W, H, bvs, S, 5.0f, 0.0f, bmap), GIM_OK);
     assert_int_equal(gim__gl_importance_cumsum(f.ctx, bmap, bc, br, W, H, 0), GIM_OK);
     assert_int_equal(gim__gl_importance_select(f.ctx, bc, br, W, H, N, 11, bout), GIM_OK);
-    assert_state_unchanged(&f);
-    read_ssbo(bout, sizeof gpu, gpu);
+    gltest_state_unchanged(&f);
+    gltest_read_buffer(bout, sizeof gpu, gpu);
     for (i = 0; i < N; ++i) {
         if (gpu[i].x != cpu[i].x || gpu[i].y != cpu[i].y) { ++differ; continue; }
         assert_true(fabs((double)gpu[i].pdf - cpu[i].pdf) <= 1e-4 * cpu[i].pdf);
@@ -479,16 +440,16 @@ static void chain_matches_twin(void **state) {
     free_rsm(&r);
     free(map);
     free(col);
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
 /* Bad arguments: an error through the logger, no GL touched, no GL error. */
 static void pass_arguments(void **state) {
-    fixture f;
+    gltest_fixture f;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     assert_int_equal(gim__gl_importance_map(f.ctx, 0, 1, 1, 4, 4, 1, 1, 1.0f, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 4, 4, 1, 0, 1.0f, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_importance_map(f.ctx, 1, 1, 1, 4, 4, 1, 1, NAN, 0.0f, 1), GIM_ERROR_INVALID_ARGUMENT);
@@ -500,8 +461,8 @@ static void pass_arguments(void **state) {
     assert_int_equal(gim__gl_importance_select(f.ctx, 1, 0, 4, 4, 8, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(f.log.errors, 9);
     f.log.errors = 0;
-    assert_state_unchanged(&f);
-    fixture_end(&f);
+    gltest_state_unchanged(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 

@@ -103,50 +103,11 @@ static void free_config(config *c) {
 
 /* --- GL objects -------------------------------------------------------------------------- */
 
-static GLuint ssbo(size_t bytes, const void *data) {
-    GLuint b = 0;
-    glGenBuffers(1, &b);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-    glBufferData(GL_SHADER_STORAGE_BUFFER, (GLsizeiptr)bytes, data, GL_DYNAMIC_COPY);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
-    return b;
-}
 
-static void read_ssbo(GLuint b, size_t bytes, void *out) {
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, b);
-    glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, (GLsizeiptr)bytes, out);
-    glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
-}
 
-typedef struct fixture {
-    test_alloc_stats stats;
-    test_log log;
-    gim_env env;
-    gim_context *ctx;
-    gim__gl_state before;
-} fixture;
 
-static void fixture_begin(fixture *f) {
-    gim_desc d;
-    memset(&d, 0, sizeof d);
-    d.get_proc_address = gltest_get_proc;
-    d.env = f->env = test_env(&f->stats, &f->log);
-    assert_int_equal(gim_create(&d, &f->ctx), GIM_OK);
-    gim__gl_state_save(&f->ctx->gl, &f->before);
-}
 
-/* After every pass: the whole state list as it was (the runtime test checks it item by item). */
-static void assert_state_unchanged(fixture *f) {
-    gim__gl_state now;
-    gim__gl_state_save(&f->ctx->gl, &now);
-    assert_memory_equal(&f->before, &now, sizeof now);
-}
 
-static void fixture_end(fixture *f) {
-    gim_destroy(f->ctx);
-    assert_int_equal(f->stats.live, 0);
-    assert_int_equal(f->log.errors, 0);
-}
 
 /* --- comparison ------------------------------------------------------------------------------ */
 
@@ -202,7 +163,7 @@ static void compare(const config *c, const gim_proxy_light *cpu, const gim_proxy
 
 /* Run the twin and the pass on c; errors of the diffuse set in ed, of the glossy set (k >= 0)
    in eg (k < 0: diffuse only, no glossy buffer). */
-static void run_both(fixture *f, const config *c, gim_vec3 eye, float k, errors *ed, errors *eg) {
+static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, errors *ed, errors *eg) {
     gim_proxy_desc d;
     size_t n = c->cache_count;
     gim_proxy_light *cd = (gim_proxy_light *)calloc(n, sizeof *cd), *cg = (gim_proxy_light *)calloc(n, sizeof *cg);
@@ -218,18 +179,18 @@ static void run_both(fixture *f, const config *c, gim_vec3 eye, float k, errors 
     d.scene_scale = c->scale;
     d.env = f->env;
     assert_int_equal(gim_proxy_lights(&d, cd, k >= 0.0f ? cg : NULL), GIM_OK);
-    bc = ssbo(n * sizeof(gim_cache), c->caches);
-    bv = ssbo((size_t)c->val_count * sizeof(gim_val), c->vals);
-    bd = ssbo(n * sizeof(gim_proxy_light), NULL);
-    if (k >= 0.0f) bg = ssbo(n * sizeof(gim_proxy_light), NULL);
+    bc = gltest_ssbo(n * sizeof(gim_cache), c->caches);
+    bv = gltest_ssbo((size_t)c->val_count * sizeof(gim_val), c->vals);
+    bd = gltest_ssbo(n * sizeof(gim_proxy_light), NULL);
+    if (k >= 0.0f) bg = gltest_ssbo(n * sizeof(gim_proxy_light), NULL);
     assert_int_equal(gim__gl_proxy_lights(f->ctx, bc, c->cache_count, bv, c->val_count, eye, k < 0.0f ? 0.0f : k,
                                           c->scale, bd, bg),
                      GIM_OK);
-    assert_state_unchanged(f);
-    read_ssbo(bd, n * sizeof(gim_proxy_light), gd);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bd, n * sizeof(gim_proxy_light), gd);
     compare(c, cd, gd, c->scale, ed);
     if (k >= 0.0f) {
-        read_ssbo(bg, n * sizeof(gim_proxy_light), gg);
+        gltest_read_buffer(bg, n * sizeof(gim_proxy_light), gg);
         compare(c, cg, gg, c->scale, eg);
     }
     glDeleteBuffers(1, &bc);
@@ -261,11 +222,11 @@ static void matches_twin(void **state) {
     static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {2.0e3f, -1.0e3f, 3.0e3f}};
     static const float ks[3] = {1.0f, 20.0f, 1000.0f};
     static const double tol_g[3] = {1e-3, 1e-3, 3e-2}, tol_gp[3] = {1e-4, 1e-4, 2e-3};
-    fixture f;
+    gltest_fixture f;
     int brsm, o, ki;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     for (o = 0; o < 2; ++o)
         for (brsm = 0; brsm < 2; ++brsm) {
             config c;
@@ -290,7 +251,7 @@ static void matches_twin(void **state) {
             }
             free_config(&c);
         }
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -299,13 +260,13 @@ static void matches_twin(void **state) {
    VALs at all (every cache dark: x_p = c, flux 0). */
 static void edges(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
-    fixture f;
+    gltest_fixture f;
     config c;
     errors ed, eg;
     gim_vec3 eye;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     make_config(&c, 130, 200, 1.0f, zero, 1);
     eye = gim_v3(c.caches[5].position[0], c.caches[5].position[1], c.caches[5].position[2]);
     run_both(&f, &c, eye, 0.0f, &ed, &eg);
@@ -317,7 +278,7 @@ static void edges(void **state) {
     run_both(&f, &c, eye, 20.0f, &ed, &eg);
     assert_true(ed.lit == 0 && eg.lit == 0 && ed.position == 0.0 && eg.position == 0.0);
     free_config(&c);
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -325,11 +286,11 @@ static void edges(void **state) {
 static void unit_free(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
     static const float units[2] = {4e-3f, 4e3f};
-    fixture f;
+    gltest_fixture f;
     int u;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     for (u = 0; u < 2; ++u) {
         config c;
         errors ed, eg;
@@ -340,7 +301,7 @@ static void unit_free(void **state) {
         assert_true(eg.position < TOL_POS && eg.flux < 1e-3);
         free_config(&c);
     }
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -348,7 +309,7 @@ static void unit_free(void **state) {
    the output equals the twin's with those VALs zeroed, and stays finite. */
 static void broken_vals_add_nothing(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
-    fixture f;
+    gltest_fixture f;
     config c;
     gim_proxy_desc d;
     gim_proxy_light *cpu, *gpu;
@@ -356,18 +317,18 @@ static void broken_vals_add_nothing(void **state) {
     errors e;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     make_config(&c, 64, 128, 1.0f, zero, 0);
     cpu = (gim_proxy_light *)calloc(64, sizeof *cpu);
     gpu = (gim_proxy_light *)calloc(64, sizeof *gpu);
     c.vals[10].position[1] = NAN;
     c.vals[11].flux[2] = INFINITY;
     c.vals[12].weight = -1.0f;
-    bc = ssbo(64 * sizeof(gim_cache), c.caches);
-    bv = ssbo(128 * sizeof(gim_val), c.vals);
-    bd = ssbo(64 * sizeof(gim_proxy_light), NULL);
+    bc = gltest_ssbo(64 * sizeof(gim_cache), c.caches);
+    bv = gltest_ssbo(128 * sizeof(gim_val), c.vals);
+    bd = gltest_ssbo(64 * sizeof(gim_proxy_light), NULL);
     assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 64, bv, 128, gim_v3(0, 0, 0), 0.0f, c.scale, bd, 0), GIM_OK);
-    read_ssbo(bd, 64 * sizeof(gim_proxy_light), gpu);
+    gltest_read_buffer(bd, 64 * sizeof(gim_proxy_light), gpu);
     memset(c.vals + 10, 0, 3 * sizeof(gim_val));
     memset(&d, 0, sizeof d);
     d.caches = c.caches; d.cache_count = 64; d.vals = c.vals; d.val_count = 128; d.scene_scale = c.scale; d.env = f.env;
@@ -377,8 +338,8 @@ static void broken_vals_add_nothing(void **state) {
     glDeleteBuffers(1, &bc); glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bd);
     free(cpu); free(gpu);
     free_config(&c);
-    assert_state_unchanged(&f);
-    fixture_end(&f);
+    gltest_state_unchanged(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 
@@ -386,22 +347,22 @@ static void broken_vals_add_nothing(void **state) {
    error, the state restored. */
 static void pass_arguments(void **state) {
     static const float sentinel = 12345.0f;
-    fixture f;
+    gltest_fixture f;
     GLuint bc, bv, bd, bg, small;
     float back[12];
     gim_vec3 eye = gim_v3(0, 1, 2);
     int i;
     (void)state;
     GLTEST_BEGIN();
-    fixture_begin(&f);
+    gltest_fixture_begin(&f);
     {
         float fill[16 * 12];
         for (i = 0; i < 16 * 12; ++i) fill[i] = sentinel;
-        bc = ssbo(16 * sizeof(gim_cache), NULL);
-        bv = ssbo(16 * sizeof(gim_val), NULL);
-        bd = ssbo(16 * sizeof(gim_proxy_light), fill);
-        bg = ssbo(16 * sizeof(gim_proxy_light), fill);
-        small = ssbo(15 * sizeof(gim_proxy_light), NULL);
+        bc = gltest_ssbo(16 * sizeof(gim_cache), NULL);
+        bv = gltest_ssbo(16 * sizeof(gim_val), NULL);
+        bd = gltest_ssbo(16 * sizeof(gim_proxy_light), fill);
+        bg = gltest_ssbo(16 * sizeof(gim_proxy_light), fill);
+        small = gltest_ssbo(15 * sizeof(gim_proxy_light), NULL);
     }
     assert_int_equal(gim__gl_proxy_lights(f.ctx, 0, 16, bv, 16, eye, 1.0f, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 0, bv, 16, eye, 1.0f, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
@@ -423,14 +384,14 @@ static void pass_arguments(void **state) {
                      GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(f.log.errors, 16);
     f.log.errors = 0;
-    assert_state_unchanged(&f);
-    read_ssbo(bd, sizeof back, back); /* nothing dispatched: the outputs keep their sentinel */
+    gltest_state_unchanged(&f);
+    gltest_read_buffer(bd, sizeof back, back); /* nothing dispatched: the outputs keep their sentinel */
     for (i = 0; i < 12; ++i) assert_true(back[i] == sentinel);
-    read_ssbo(bg, sizeof back, back);
+    gltest_read_buffer(bg, sizeof back, back);
     for (i = 0; i < 12; ++i) assert_true(back[i] == sentinel);
     glDeleteBuffers(1, &bc); glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bd); glDeleteBuffers(1, &bg);
     glDeleteBuffers(1, &small);
-    fixture_end(&f);
+    gltest_fixture_end(&f);
     GLTEST_END();
 }
 

@@ -177,11 +177,6 @@ static void read_texture(GLuint tex, GLenum format, int comps, int w, int h, flo
     (void)comps; (void)w; (void)h;
 }
 
-static void read_buffer(GLuint b, size_t bytes, void *out) {
-    glBindBuffer(GL_COPY_READ_BUFFER, b);
-    glGetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)bytes, out);
-    glBindBuffer(GL_COPY_READ_BUFFER, 0);
-}
 
 static gim_frame default_frame(float s, const float offset[3], int w, int h) {
     gim_frame fr;
@@ -479,7 +474,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
             gim_rotation_offsets(off, 2, 5);
         }
         assert_int_equal(o.view_sample_count, 256);
-        read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
+        gltest_read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_view_sample_pixels(256, W, H, round ? off : NULL, pixels), GIM_OK);
         assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pixels, 256, vs_twin), GIM_OK);
         usable = 0;
@@ -509,11 +504,11 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
         gim_frame hf = fr;
         hf.gbuffer_depth = o.gbuffer_depth;
         hf.gbuffer_normal = o.gbuffer_normal;
-        read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
+        gltest_read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_update(f.ctx, &hf), GIM_OK);
         o = gim_outputs(f.ctx);
         assert_int_equal(o.gbuffer_albedo, 0);
-        read_buffer(o.view_samples, sizeof again, again);
+        gltest_read_buffer(o.view_samples, sizeof again, again);
         assert_memory_equal(vs_gpu, again, sizeof again);
         hf.width = W + 1; /* larger than the host's textures */
         assert_int_equal(gim_update(f.ctx, &hf), GIM_ERROR_INVALID_ARGUMENT);
@@ -555,9 +550,9 @@ static void importance_chain_matches_twin(void **state) {
     read_texture(o.lights[0].rsm_position, GL_RGBA, 4, N, N, pos);
     read_texture(o.lights[0].rsm_normal, GL_RGBA, 4, N, N, nrm);
     read_texture(o.lights[0].rsm_flux, GL_RGBA, 4, N, N, flux);
-    read_buffer(o.view_samples, sizeof vsb, vsb);
-    read_buffer(o.lights[0].importance, sizeof map_gpu, map_gpu);
-    read_buffer(o.lights[0].selected, sizeof sel, sel);
+    gltest_read_buffer(o.view_samples, sizeof vsb, vsb);
+    gltest_read_buffer(o.lights[0].importance, sizeof map_gpu, map_gpu);
+    gltest_read_buffer(o.lights[0].selected, sizeof sel, sel);
     for (i = 0; i < N * N; ++i) {
         for (k = 0; k < 3; ++k) { p3[i * 3 + k] = pos[i * 4 + k]; n3[i * 3 + k] = nrm[i * 4 + k]; f3[i * 3 + k] = flux[i * 4 + k]; }
         valid[i] = pos[i * 4 + 3];
