@@ -234,14 +234,7 @@ int main(int argc, char **argv) {
         }
         gim_cache_desc d;
         std::memset(&d, 0, sizeof d);
-        d.mesh.positions = sm.positions;
-        d.mesh.normals = sm.normals;
-        d.mesh.vertex_count = sm.vertex_count;
-        d.mesh.indices = sm.indices;
-        d.mesh.index_count = sm.triangle_count * 3;
-        d.mesh.triangle_material = sm.triangle_material;
-        d.mesh.material_reflectance = sm.reflectance;
-        d.mesh.material_count = sm.material_count;
+        d.mesh = street_mesh_data(&sm);
         ok &= run("street 1M (default)", d, sm.triangle_count, runs);
         d.d_eps = 1.0f;
         ok &= run("street 1M (d_eps 1 m)", d, sm.triangle_count, runs);

@@ -109,6 +109,23 @@ static void street_free(street_mesh *m) {
     memset(m, 0, sizeof *m);
 }
 
+#ifdef GIMANY_H
+/* The street as gimany's mesh input: positions, flat normals, indices, materials. */
+static inline gim_mesh_data street_mesh_data(const street_mesh *m) {
+    gim_mesh_data d;
+    memset(&d, 0, sizeof d);
+    d.positions = m->positions;
+    d.normals = m->normals;
+    d.vertex_count = m->vertex_count;
+    d.indices = m->indices;
+    d.index_count = m->triangle_count * 3;
+    d.triangle_material = m->triangle_material;
+    d.material_reflectance = m->reflectance;
+    d.material_count = m->material_count;
+    return d;
+}
+#endif
+
 static int street_build(const street_params *p, street_mesh *m) {
     static const float albedo[STREET_MATERIAL_COUNT][3] = {
         {0.35f, 0.35f, 0.33f}, {0.08f, 0.08f, 0.09f}, {0.72f, 0.63f, 0.50f}, {0.80f, 0.80f, 0.78f},

@@ -805,14 +805,7 @@ static void determinism(void **state) {
     sp.seed = 7;
     assert_int_equal(street_build(&sp, &sm), 0);
     memset(&d, 0, sizeof d);
-    d.mesh.positions = sm.positions;
-    d.mesh.normals = sm.normals;
-    d.mesh.vertex_count = sm.vertex_count;
-    d.mesh.indices = sm.indices;
-    d.mesh.index_count = sm.triangle_count * 3;
-    d.mesh.triangle_material = sm.triangle_material;
-    d.mesh.material_reflectance = sm.reflectance;
-    d.mesh.material_count = sm.material_count;
+    d.mesh = street_mesh_data(&sm);
     d.d_eps = 1.5f;
     assert_int_equal(gim_cache_generate(&d, &a), GIM_OK);
     d.d_eps = 2.5f;
