@@ -54,6 +54,10 @@ $(B)/plain/%: tests/%.c $(HDRS)
 $(B)/gl/%: tests/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) $< -o $@ -lcmocka -lEGL -lGL -lm
+# The whole-frame test loads its scenes through the scene layer of the examples (C++ inside).
+$(B)/gl/gltest_frame: tests/gltest_frame.c $(B)/ref/asan/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O1 -g $(SAN) $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lEGL -lGL -lm -lstdc++
 # C++11 with g++ and clang++, and two translation units (implementation in one).
 $(B)/cxx/two_tu_gcc: tests/cxx_impl.cpp tests/cxx_user.cpp $(HDRS) 
 	@mkdir -p $(@D)
@@ -122,6 +126,11 @@ $(B)/bench/%: tests/%.c $(HDRS)
 $(B)/bench/%: tests/%.cpp $(HDRS) 
 	@mkdir -p $(@D)
 	g++ -std=c++11 -O2 -march=native -DNDEBUG $(INC) -I/usr/include/stb $< -o $@ -lm
+
+# The frame benchmark loads the street through the scene layer of the examples.
+$(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
 bench: deps
 	@$(DEPS) examples

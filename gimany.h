@@ -380,7 +380,12 @@ GIMANY_API void gim_cache_set_free(gim_cache_set *set);
    - fewer than n compatible caches anywhere: count < n, the rest of the row UINT32_MAX;
    - a vertex normal that is zero or not finite (or, with normals NULL, a vertex on no
      non-degenerate triangle): the n nearest caches of any normal; a vertex position that is
-     not finite: count 0, d_cmax 0. Both are counted in one warning, neither is an error.
+     not finite: count 0, d_cmax 0. Both are counted in one warning, neither is an error;
+   - max_distance > 0: exactly the unlimited row cut to the caches whose squared distance (the
+     double the order uses) is <= max_distance^2, so the n nearest compatible caches within
+     the radius, ties included; a vertex with none: count 0, d_cmax 0, row all UINT32_MAX.
+   A receiver may be any point with a normal, not only a mesh vertex (a G-buffer pixel, a
+   probe): with normals given, indices are not read and may be NULL (index_count 0).
    The set's caches must have finite positions and non-zero finite normals. */
 typedef struct gim_neighbour_desc {
     gim_mesh_data mesh;          /* positions and normals (normals NULL: area-weighted face normals) */
@@ -389,6 +394,9 @@ typedef struct gim_neighbour_desc {
     float theta_eps;             /* (0, pi]; default: 2 x caches->theta_eps (30 degrees if 0), at most 90
                                     degrees, so smooth-shaded edges and corners find caches */
     gim_env env;
+    float max_distance;          /* > 0: only caches within this distance count (a receiver far from
+                                    every compatible cache gets fewer, or none); 0: no limit. In the
+                                    mesh's units, finite */
 } gim_neighbour_desc;
 
 /* Caller-owned output of gim_cache_neighbours, sized by the mesh's vertex count; all three
@@ -400,8 +408,9 @@ typedef struct gim_neighbour_result {
 } gim_neighbour_result;
 
 /* Per-vertex neighbour caches through a k-d tree over the caches (not O(V x C)): median splits
-   adapt to any density with no unit; nodes farther than the n-th best found, or whose normal
-   bounds admit no compatible normal, are skipped. Exact: the O(V x C) answer, bit for bit. */
+   adapt to any density with no unit; nodes farther than the n-th best found (or than
+   max_distance), or whose normal bounds admit no compatible normal, are skipped. Exact: the
+   O(V x C) answer, bit for bit. */
 GIMANY_API gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_neighbour_result *out);
 
 /* Versioned, checksummed byte blob of a cache set (little-endian, CRC-32; layout at @impl
@@ -705,6 +714,15 @@ typedef struct gim_lightskin_desc {
    radiance_out[receiver_count * 3]. */
 GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
 
+/* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
+   position through model, the normal through its inverse transpose (normalised), the area
+   scaled as the surface element is, |det M| |M^-T n| for the 3x3 M of model, so the areas of
+   a mesh's caches still sum to the area of the placed mesh under any non-uniform scale or
+   shear; reflectance kept. out may be in. A model that is not finite or singular, or a
+   result that is not finite, is GIM_ERROR_INVALID_ARGUMENT (out partly written then). */
+GIMANY_API gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, gim_mat4 model, gim_cache *out,
+                                          gim_env env);
+
 
 /* twins of the scene passes: RSM texel, G-buffer, view samples ------------------------------
    The scene description the GL runtime takes (gim_set_materials, gim_set_lights) and the CPU
@@ -844,6 +862,7 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
          md.data.positions = p; md.data.vertex_count = nv;
          md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
          md.data.triangle_material = mat_ids;         NULL: material 0
+         md.caches = &caches;                         from gim_cache_generate(&cd, &caches), model space
          gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
          gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
          gim_instance in = {mesh, model};
@@ -851,10 +870,14 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
          gim_light sun = {0}; sun.irradiance = 3.0f; sun.direction = towards_sun; sun.rsm_size = 1024;
          gim_set_lights(ctx, &sun, 1);
          gim_frame f = {0}; f.view = v; f.proj = p; f.width = w; f.height = h;
-         gim_update(ctx, &f);                         RSM, G-buffer, view samples, importance, selection
+         gim_update(ctx, &f);                         RSM, G-buffer, importance, VALs, proxy lights, shading
          gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
-         ...
-         gim_destroy(ctx); */
+         ... sample o.indirect in the host's shading: add it to the direct light, then tone-map
+         gim_destroy(ctx);
+   Caches come from gim_cache_generate (or a blob) once per mesh, handed over in
+   gim_mesh_desc.caches; without caches a frame runs the shared passes only. f.method picks
+   LightSkin + BRSM (default) or FULL; f.val_count, f.view_sample_count, the lights' rsm_size,
+   f.occlusion and f.neighbour_count trade speed for accuracy at run time. */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -922,6 +945,13 @@ GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 
 /* --- the frame ------------------------------------------------------------------------------ */
 
+/* Which method lights the frame (DESIGN.md sec. 5); each is one setting of the same runtime. */
+typedef enum gim_method {
+    GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
+    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs per light drawn by importance (paper 000 sec. 4) */
+    GIM_METHOD_LIGHTSKIN_FULL       /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
+} gim_method;
+
 /* Input of gim_update; zero means default. */
 typedef struct gim_frame {
     gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
@@ -937,13 +967,26 @@ typedef struct gim_frame {
     float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
                                    bounds of the instances */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
+    gim_method method;          /* LightSkin with BRSM (default) or FULL */
+    int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
+    int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
+    uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
+    int timing;                 /* 1: GL timer queries around every pass, read by gim_frame_stats */
 } gim_frame;
 
-/* Run the frame's passes. Today the shared passes of DESIGN.md sec. 5 and the importance
-   sampling of paper 000 sec. 4: RSM per light -> G-buffer (or the host's) -> view samples ->
-   per light: importance map (eq. 10-11) -> cumulative sums (eq. 12) -> selection of val_count
-   VALs. Needs at least one instance; every material id of an instanced mesh must be below the
-   material count. */
+/* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
+   host's) -> view samples -> per light (BRSM only): importance map (eq. 10-11) -> cumulative
+   sums (eq. 12) -> selection of val_count VALs; then, when an instanced mesh has caches:
+   caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
+   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> diffuse proxy lights
+   per cache (eq. 3-7, 13-15), glossy ones too when a material has a glossy colour (one lobe
+   exponent for all caches: the smallest of those materials, the widest lobe) -> occlusion
+   (when on) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
+   degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
+   caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
+   texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
+   and no indirect texture. Needs at least one instance; every material id of an instanced
+   mesh must be below the material count. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -967,16 +1010,59 @@ typedef struct gim_frame_outputs {
     uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
     uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
     uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
+    uint32_t gbuffer_material;  /* R32F material id (0 with the host's G-buffer) */
     uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} */
     uint32_t view_sample_count;
     float scene_scale;
     float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
     uint32_t light_count;
     gim_light_outputs lights[GIM_MAX_LIGHTS];
+    /* LightSkin (0 when the scene has no caches) */
+    uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
+                                   surface towards the eye (diffuse + glossy, albedo applied; with the
+                                   host's G-buffer albedo 1 and no glossy term), a = 1 where a surface is */
+    uint32_t caches;            /* SSBO: cache_count world-space gim_cache, in hash-grid order */
+    uint32_t cache_count;
+    uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
+    uint32_t val_count;
+    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light (visibility from occlusion) */
+    uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
+    float glossy_exponent;      /* the lobe exponent of the glossy proxy lights */
+    uint32_t neighbour_count;   /* n of the interpolation */
+    float neighbour_cos;        /* cosine of the normal compatibility angle */
+    float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
 } gim_frame_outputs;
 
 /* The outputs of the last gim_update (all zero for NULL). */
 GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
+
+/* The passes a frame may run, for the timings of gim_frame_stats. */
+typedef enum gim_pass {
+    GIM_PASS_RSM = 0,
+    GIM_PASS_GBUFFER,
+    GIM_PASS_VIEW_SAMPLES,
+    GIM_PASS_IMPORTANCE_MAP,    /* eq. 10-11 */
+    GIM_PASS_CUMSUM,            /* eq. 12 */
+    GIM_PASS_SELECT,
+    GIM_PASS_CACHES,            /* caches to world space and the hash grid (CPU work + upload) */
+    GIM_PASS_VALS,
+    GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
+    GIM_PASS_OCCLUSION,
+    GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading */
+    GIM_PASS_COUNT
+} gim_pass;
+
+/* What the last gim_update did and cost. */
+typedef struct gim_stats {
+    int timed;                  /* 1: the frame ran with gim_frame.timing, pass_ms is measured */
+    double pass_ms[GIM_PASS_COUNT]; /* GPU time per pass (GL timestamps between passes), summed over lights */
+    double frame_ms;            /* GPU time from the first pass to the last */
+    uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
+    uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
+} gim_stats;
+
+/* Stats of the last successful gim_update; waits for the GPU when it was timed. */
+GIMANY_API gim_result gim_frame_stats(gim_context *ctx, gim_stats *out);
 
 #ifdef __cplusplus
 }
@@ -3017,7 +3103,7 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
     const gim_cache_set *set;
     uint32_t n, v, c, pstride, nstride, no_normal = 0, no_position = 0;
     gim__nb_tree tree;
-    double theta, cos_theta;
+    double theta, cos_theta, radius2;
     float *vn = NULL, *cn = NULL;
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
@@ -3031,6 +3117,12 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "n = %u, not in 1..%d", n, GIM_MAX_NEIGHBOUR_CACHES);
     if (!set || !set->caches || set->count == 0)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no caches");
+    if (!(desc->max_distance >= 0.0f) || !gim__isfinitef(desc->max_distance))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "max_distance %g must be finite and >= 0",
+                         (double)desc->max_distance);
+    /* the radius as a squared distance: a float squared is exact in double, so d2 <= r2 is
+       exactly |p - c| <= max_distance for the d2 the order uses */
+    radius2 = desc->max_distance > 0.0f ? (double)desc->max_distance * (double)desc->max_distance : HUGE_VAL;
     if (!m->positions || m->vertex_count == 0)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "no vertex positions");
     pstride = m->position_stride ? m->position_stride : 12u;
@@ -3086,7 +3178,9 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
         uint32_t *oi = out->index + (size_t)v * n;
         int any;
         if (gim_v3_isfinite(p)) {
-            double bound = HUGE_VAL;
+            /* max_distance starts the pruning bound: a node or cache beyond it is never
+               visited, and the n best inside it are the unlimited row's first entries */
+            double bound = radius2;
             pd[0] = p.x; pd[1] = p.y; pd[2] = p.z;
             nd[0] = vn[(size_t)v * 3u]; nd[1] = vn[(size_t)v * 3u + 1u]; nd[2] = vn[(size_t)v * 3u + 2u];
             any = nd[0] == 0.0 && nd[1] == 0.0 && nd[2] == 0.0;
@@ -3103,7 +3197,7 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
                     if (!any && nd[0] * cq[0] + nd[1] * cq[1] + nd[2] * cq[2] < cos_theta) break;
                     if (k == 0 || d2 > bound) bound = d2;
                 }
-                if (k < n) bound = HUGE_VAL;
+                if (k < n || bound > radius2) bound = radius2;
             }
             found = gim__nb_query(&tree, pd, nd, any, cos_theta, n, bound, bd, bi);
         } else {
@@ -4075,6 +4169,38 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
 }
 
 
+GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, gim_mat4 model, gim_cache *out,
+                                          gim_env env) {
+    static const char fn[] = "gim_caches_to_world";
+    gim_mat4 nm;
+    double det;
+    const float *m = model.m;
+    uint32_t i;
+    if (count && (!in || !out)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "in or out is NULL");
+    det = (double)m[0] * ((double)m[5] * m[10] - (double)m[9] * m[6]) -
+          (double)m[4] * ((double)m[1] * m[10] - (double)m[9] * m[2]) +
+          (double)m[8] * ((double)m[1] * m[6] - (double)m[5] * m[2]);
+    if (!gim_mat4_isfinite(model) || !(fabs(det) > 0.0) || !gim_mat4_invert(model, &nm))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "model is not finite or its 3x3 is singular");
+    nm = gim_mat4_normal(model);
+    for (i = 0; i < count; ++i) {
+        gim_cache c = in[i];
+        gim_vec3 p = gim_mat4_point(model, gim_v3(c.position[0], c.position[1], c.position[2]));
+        gim_vec3 n = gim_mat4_dir(nm, gim_v3(c.normal[0], c.normal[1], c.normal[2]));
+        double len = sqrt((double)n.x * n.x + (double)n.y * n.y + (double)n.z * n.z);
+        double len0 = sqrt((double)c.normal[0] * c.normal[0] + (double)c.normal[1] * c.normal[1] +
+                           (double)c.normal[2] * c.normal[2]);
+        double area = (double)c.area * fabs(det) * len / len0;   /* det M M^-T maps area vectors */
+        if (!gim_v3_isfinite(p) || !(len > 0.0) || !(len0 > 0.0) || !(area < (double)FLT_MAX) || !(area >= 0.0))
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "cache %u: not finite in world space", i);
+        c.position[0] = p.x; c.position[1] = p.y; c.position[2] = p.z;
+        c.normal[0] = (float)(n.x / len); c.normal[1] = (float)(n.y / len); c.normal[2] = (float)(n.z / len);
+        c.area = (float)area;
+        out[i] = c;
+    }
+    return GIM_OK;
+}
+
 /* twins of the scene passes: RSM texel, G-buffer, view samples ---------------------------- */
 
 /* A light the runtime and the twins accept; index names it in the message. */
@@ -4592,7 +4718,12 @@ enum {
     GIM__GL_MAX_TEXTURE_SIZE = 0x0D33,
     GIM__GL_MAX_VIEWPORT_DIMS = 0x0D3A,
     GIM__GL_CLIP_DISTANCE0 = 0x3000,
-    GIM__GL_POLYGON_SMOOTH = 0x0B41
+    GIM__GL_POLYGON_SMOOTH = 0x0B41,
+    GIM__GL_WRITE_ONLY = 0x88B9,
+    GIM__GL_TIMESTAMP = 0x8E28,
+    GIM__GL_QUERY_RESULT = 0x8866,
+    GIM__GL_DYNAMIC_DRAW = 0x88E8,
+    GIM__GL_TEXTURE_UPDATE_BARRIER_BIT = 0x00000100
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -4656,6 +4787,7 @@ enum {
     X(void, Uniform1ui, (gim__GLint location, gim__GLuint v0))                                   \
     X(void, Uniform1f, (gim__GLint location, gim__GLfloat v0))                                   \
     X(void, Uniform2ui, (gim__GLint location, gim__GLuint v0, gim__GLuint v1))                   \
+    X(void, Uniform3i, (gim__GLint location, gim__GLint v0, gim__GLint v1, gim__GLint v2))       \
     X(void, Uniform2d, (gim__GLint location, double v0, double v1))                              \
     X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
     X(gim__GLboolean, IsBuffer, (gim__GLuint buffer))                                           \
@@ -4706,7 +4838,11 @@ enum {
                          gim__GLboolean a))                                                      \
     X(void, BlendFuncSeparatei, (gim__GLuint buf, gim__GLenum src_rgb, gim__GLenum dst_rgb,      \
                                  gim__GLenum src_alpha, gim__GLenum dst_alpha))                  \
-    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha))
+    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha)) \
+    X(void, GenQueries, (gim__GLsizei n, gim__GLuint *ids))                                      \
+    X(void, DeleteQueries, (gim__GLsizei n, const gim__GLuint *ids))                             \
+    X(void, QueryCounter, (gim__GLuint id, gim__GLenum target))                                  \
+    X(void, GetQueryObjectui64v, (gim__GLuint id, gim__GLenum pname, uint64_t *params))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -4971,6 +5107,9 @@ typedef enum gim__program_id {
     GIM__PROGRAM_GBUFFER,            /* G-buffer: normal, albedo, depth */
     GIM__PROGRAM_VIEW_SAMPLES,       /* G-buffer at the Halton pixels -> view samples */
     GIM__PROGRAM_PROXY_LIGHTS,       /* LightSkin proxy lights per cache (eq. 3-7, 13-15) */
+    GIM__PROGRAM_LIGHTSKIN_SHADE,    /* neighbours, interpolation (eq. 8-9) and shading per pixel */
+    GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
+    GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -4984,7 +5123,10 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"scene.vert", "rsm.frag"},
     {"scene.vert", "gbuffer.frag"},
     {"view_samples.comp", NULL},
-    {"proxy_lights.comp", NULL}};
+    {"proxy_lights.comp", NULL},
+    {"lightskin_shade.comp", NULL},
+    {"proxy_occlusion.comp", NULL},
+    {"vals_gather.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -4997,6 +5139,8 @@ typedef struct gim__mesh {
     float bmin[3], bmax[3];       /* model-space bounds */
     gim_cache *caches;            /* the host's model-space caches (copied), for later passes */
     uint32_t cache_count;
+    float theta_eps;              /* of the cache set (0: the generator's default) */
+    uint64_t bytes;               /* of its GL buffers */
 } gim__mesh;
 
 /* One light's GL objects, sized to its last frame. */
@@ -5007,6 +5151,14 @@ typedef struct gim__light_gpu {
     uint64_t map_bytes, column_bytes, row_bytes, selected_bytes;
     gim_mat4 view, proj;
 } gim__light_gpu;
+
+/* The LightSkin buffers, sized to the last frame that used them. */
+typedef struct gim__lightskin_gpu {
+    gim__GLuint caches, cells, buckets, vals, diffuse, glossy;
+    uint64_t caches_bytes, cells_bytes, buckets_bytes, vals_bytes, diffuse_bytes, glossy_bytes;
+} gim__lightskin_gpu;
+
+#define GIM__MAX_STAMPS 96   /* timestamps a frame may take: 1 + 4 per light + 7 */
 
 struct gim_context {
     gim_env env;
@@ -5028,13 +5180,24 @@ struct gim_context {
     uint32_t light_count;
     gim__GLuint materials;        /* SSBO: per material vec4 diffuse, vec4 (glossy, k) */
     uint32_t material_count;
+    uint32_t glossy_material_count; /* materials with a glossy colour: the glossy pass runs */
+    float glossy_min_exponent;    /* the widest of their lobes (the glossy proxy lights' k) */
     /* the frame's resources, sized to what the last frame used */
     gim__light_gpu light_gpu[GIM_MAX_LIGHTS];
     uint32_t gbuffer_width, gbuffer_height;
-    gim__GLuint gbuffer_depth, gbuffer_normal, gbuffer_albedo, gbuffer_fbo;
+    gim__GLuint gbuffer_depth, gbuffer_normal, gbuffer_albedo, gbuffer_material, gbuffer_fbo;
     gim__GLuint nearest_sampler;  /* texelFetch of a depth texture needs compare mode NONE */
     gim__GLuint view_sample_pixels, view_samples;
     uint64_t view_sample_pixels_bytes, view_samples_bytes;
+    gim__GLuint indirect;         /* the LightSkin output (see "the LightSkin frame") */
+    uint32_t indirect_width, indirect_height;
+    gim__GLenum indirect_format;
+    gim__lightskin_gpu ls;
+    /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
+    gim__GLuint queries[GIM__MAX_STAMPS];
+    uint32_t query_count, stamp_count;
+    unsigned char stamp_pass[GIM__MAX_STAMPS];
+    gim_stats stats;
     gim_frame_outputs outputs;
 };
 
@@ -5497,6 +5660,143 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
+/* Occlusion of the proxy lights on the GPU (paper 000 "Occlusion"), the twin of
+   gim_proxy_occlusion (same projections, squares, special cases and clamp; see there).
+   caches: SSBO of cache_count gim_cache (32 bytes; world space, unit normals), the blockers
+   and the targets. lights: SSBO of cache_count gim_proxy_light (48 bytes), light i the proxy
+   of cache i (gim__gl_proxy_lights' output); only .visibility is written, in [0,1].
+   scene_scale > 0 sets the 1e-6 scene_scale nearness of "strictly between". Cost O(C^2):
+   every cache against every cache (a cache whose light is occluded 1 stops early). In float,
+   not double: the overlap is taken centred on the light's square, so the float error is that
+   of the unit directions (~1e-7 on the unit disk) against the squares' sides; visibilities
+   agree with the twin to ~2e-6 (tests/gltest_occlusion.c, rooms of up to 2000 caches), except
+   where a blocker sits within float rounding of a threshold (d = D - r, d = 1e-6 scene_scale,
+   a point light on a square's edge): that blocker may count on one side and not the other.
+   A cache or light the twin rejects (not finite, negative area or radius) adds nothing as a
+   blocker and keeps visibility 1 as a target. Run it once per proxy light set (diffuse,
+   glossy). */
+static GIM__UNUSED gim_result gim__gl_proxy_occlusion(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
+                                                      gim__GLuint lights, float scene_scale) {
+    static const char where[] = "proxy occlusion (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim_result r;
+    if (!caches || !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
+    if (caches == lights)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is also the caches buffer");
+    if (cache_count > 65535u * GIM__PROXY_GROUP)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cache_count %u above %u", (unsigned)cache_count,
+                         65535u * GIM__PROXY_GROUP);
+    if ((uint64_t)cache_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%u caches exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)cache_count,
+                         (long long)ctx->max_ssbo_bytes);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lights", lights, (uint64_t)cache_count * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PROXY_OCCLUSION, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, lights);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, cache_count);
+    gl->Uniform1f(1, GIM__TWINS_COINCIDENT * scene_scale);
+    gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+
+#define GIM__GATHER_GROUP 64u   /* local_size_x of vals_gather.comp */
+
+/* The VAL list on the GPU, the twin of gim_vals_gather (paper 000 sec. 3, eq. 13-15).
+   rsm_position, rsm_normal, rsm_flux: RGBA32F 2D textures of size x size as gim__gl_rsm writes
+   them (position.w > 0 where lit: the twin's valid; normal.w = area A; flux.rgb), read on image
+   units 0-2 as rgba32ui, so every value reaches the VAL bit for bit (texelFetch would also need
+   a sampler, and a GPU's float path may flush denormals the twin's memcpy keeps). They must be
+   complete by their own state (glTexStorage2D, or no mipmap min filter): an image unit on an
+   incomplete texture reads zeros, every VAL then weight 0. selected == 0 (FULL): size^2 VALs,
+   texel (x, y) at first + y * size + x, weight 1, and selected_count must be 0. Else (BRSM):
+   selected is an SSBO of selected_count gim_selected_val (12 bytes; gim__gl_importance_select
+   writes it), VAL first + i from selected[i] with weight 1 / (selected_count * pdf), in double
+   as the twin, so the weights agree to the rounding of GLSL's double division and conversion.
+   vals_out: SSBO of at least (first + count) gim_val (48 bytes), only [first, first + count)
+   written, so the runtime can lay several lights' lists end to end. An invalid texel (not lit,
+   a NaN/Inf, negative area or flux) is an all-zero VAL, as in the twin; so is a selected entry
+   outside the RSM or whose pdf is not finite and > 0, which the twin returns as
+   GIM_ERROR_INVALID_ARGUMENT and a shader cannot report (gim__gl_importance_select writes
+   pdf 0 for a pick from broken tables: it lights nothing). Cost: count texel reads. */
+static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                  gim__GLuint rsm_flux, uint32_t size, gim__GLuint selected,
+                                                  uint32_t selected_count, gim__GLuint vals_out, uint32_t first) {
+    static const char where[] = "VAL gather (GL)";
+    enum { TEXTURE_INTERNAL_FORMAT = 0x1003, RGBA32UI = 0x8D70 };   /* GL_TEXTURE_INTERNAL_FORMAT, GL_RGBA32UI */
+    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3];
+    uint64_t count, groups;
+    uint32_t gx, gy;
+    gim_result r = GIM_OK;
+    unsigned i;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !vals_out)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or vals_out is 0");
+    if (size == 0 || size > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %u outside 1..%u", (unsigned)size,
+                         GIM__SCAN_MAX_SIZE);
+    if (selected && selected_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "selected_count is 0");
+    if (!selected && selected_count != 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "selected_count %u without a selected buffer (FULL takes every texel)", (unsigned)selected_count);
+    count = selected ? (uint64_t)selected_count : (uint64_t)size * size;
+    if ((uint64_t)first + count > (uint64_t)UINT32_MAX ||
+        ((uint64_t)first + count) * 48u > (uint64_t)ctx->max_ssbo_bytes ||
+        (uint64_t)selected_count * 12u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "VALs %u..%llu exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)first,
+                         (unsigned long long)((uint64_t)first + count), (long long)ctx->max_ssbo_bytes);
+    if (selected && selected == vals_out)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "selected is also vals_out");
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < 3 && r == GIM_OK; ++i) {
+        gim__GLint format = 0;
+        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
+        if (r != GIM_OK) break;
+        gl->GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, TEXTURE_INTERNAL_FORMAT, &format);
+        if (format != GIM__GL_RGBA32F)
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
+                          (unsigned)format);
+    }
+    if (r == GIM_OK && selected) r = gim__gl_check_buffer(ctx, where, "selected", selected, (uint64_t)selected_count * 12u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vals_out", vals_out, ((uint64_t)first + count) * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_VALS_GATHER, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    for (i = 0; i < 3; ++i)
+        gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, RGBA32UI);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, selected ? selected : vals_out); /* never read in FULL */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vals_out);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, size);
+    gl->Uniform1ui(1, (gim__GLuint)count);
+    gl->Uniform1ui(2, first);
+    gl->Uniform1ui(3, selected ? 1u : 0u);
+    /* up to 16384^2 VALs: rows of at most 65535 groups (GL 4.3's minimum per dimension) */
+    groups = (count + GIM__GATHER_GROUP - 1u) / GIM__GATHER_GROUP;
+    gx = (uint32_t)(groups < 65535u ? groups : 65535u);
+    gy = (uint32_t)((groups + gx - 1u) / gx);
+    gl->DispatchCompute(gx, gy, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+
 /* --- the scene (DESIGN.md sec. 2) ----------------------------------------------------------
    Meshes live in GL buffers (one VAO each); instances, lights and materials are small CPU
    copies (materials also an SSBO). Every setter checks all of its input first, so an error
@@ -5654,10 +5954,17 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
         for (i = 0; i < desc->caches->count; ++i) {
             const gim_cache *c = &desc->caches->caches[i];
             if (!gim__all_finite(c->position, 3) || !gim__all_finite(c->normal, 3) || !gim__isfinitef(c->area) ||
-                !gim__isfinitef(c->reflectance)) {
-                r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache %u is not finite", (unsigned)i);
+                !gim__isfinitef(c->reflectance) || !(c->area >= 0.0f) ||
+                (c->normal[0] == 0.0f && c->normal[1] == 0.0f && c->normal[2] == 0.0f)) {
+                r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                              "cache %u: not finite, negative area or zero normal", (unsigned)i);
                 goto done;
             }
+        }
+        if (!(desc->caches->theta_eps >= 0.0f && desc->caches->theta_eps <= 1.5707964f)) {
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "caches->theta_eps %g not in [0, pi/2]",
+                          (double)desc->caches->theta_eps);
+            goto done;
         }
         memcpy(caches, desc->caches->caches, (size_t)desc->caches->count * sizeof(gim_cache));
     }
@@ -5703,6 +6010,8 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
         r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGen* returned 0");
     m.caches = caches;
     m.cache_count = caches ? desc->caches->count : 0u;
+    m.theta_eps = caches ? desc->caches->theta_eps : 0.0f;
+    m.bytes = (uint64_t)d->vertex_count * 24u + index_bytes + (uint64_t)tri_count * 4u;
     if (r != GIM_OK) {
         gl->BindVertexArray(0); /* not the host's: leave restores it */
         gim__mesh_release(ctx, &m); /* frees caches too */
@@ -5747,15 +6056,16 @@ GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *ma
         const gim_material *m = &materials[i];
         if (!gim__all_finite(m->diffuse, 3) || !gim__all_finite(m->glossy, 3) || !gim__isfinitef(m->exponent) ||
             m->diffuse[0] < 0.0f || m->diffuse[1] < 0.0f || m->diffuse[2] < 0.0f || m->glossy[0] < 0.0f ||
-            m->glossy[1] < 0.0f || m->glossy[2] < 0.0f || m->exponent < 0.0f)
-            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "material %u: values must be finite and >= 0",
-                             (unsigned)i);
+            m->glossy[1] < 0.0f || m->glossy[2] < 0.0f || m->exponent < 0.0f || m->exponent > GIM__TWINS_MAX_EXPONENT)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "material %u: values must be finite and >= 0, the exponent at most 1e6", (unsigned)i);
     }
     if (count == 0) {
         gim__gl_enter(ctx, where);
         if (ctx->materials) ctx->gl.DeleteBuffers(1, &ctx->materials);
         ctx->materials = 0;
         ctx->material_count = 0;
+        ctx->glossy_material_count = 0;
         return gim__gl_leave(ctx, gim__gl_check(ctx, where));
     }
     packed = (float *)gim__alloc_array(&ctx->env, count, 8u * sizeof(float));
@@ -5766,6 +6076,14 @@ GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *ma
         p[3] = 0.0f;
         memcpy(p + 4, materials[i].glossy, 3 * sizeof(float));
         p[7] = materials[i].exponent;
+    }
+    ctx->glossy_material_count = 0;
+    ctx->glossy_min_exponent = 0.0f;
+    for (i = 0; i < count; ++i) {
+        const gim_material *m = &materials[i];
+        if (!(m->glossy[0] > 0.0f || m->glossy[1] > 0.0f || m->glossy[2] > 0.0f)) continue;
+        if (ctx->glossy_material_count++ == 0 || m->exponent < ctx->glossy_min_exponent)
+            ctx->glossy_min_exponent = m->exponent > GIM__TWINS_MAX_EXPONENT ? GIM__TWINS_MAX_EXPONENT : m->exponent;
     }
     gim__gl_enter(ctx, where);
     if (!ctx->materials) ctx->gl.GenBuffers(1, &ctx->materials);
@@ -5847,14 +6165,19 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i;
-    gim__GLuint t[3];
+    gim__GLuint t[5], b[6];
     for (i = 0; i < ctx->mesh_slots; ++i)
         if (ctx->meshes[i].used) gim__mesh_release(ctx, &ctx->meshes[i]);
     gim__free(&ctx->env, ctx->meshes);
     gim__free(&ctx->env, ctx->instances);
     for (i = 0; i < GIM_MAX_LIGHTS; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
     t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
-    gl->DeleteTextures(3, t);
+    t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
+    gl->DeleteTextures(5, t);
+    b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets;
+    b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse; b[5] = ctx->ls.glossy;
+    gl->DeleteBuffers(6, b);
+    if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
     if (ctx->nearest_sampler) gl->DeleteSamplers(1, &ctx->nearest_sampler);
     if (ctx->materials) gl->DeleteBuffers(1, &ctx->materials);
@@ -6029,7 +6352,7 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const float bmin[3],
 }
 
 /* gimany's own G-buffer: depth (32-bit float), world normal towards the eye (RGBA16F, w = 1
-   where drawn), diffuse albedo (RGBA8). */
+   where drawn), diffuse albedo (RGBA8), material id (R32F). */
 static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "G-buffer (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -6038,22 +6361,23 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_GBUFFER, &program);
     if (r != GIM_OK) return r;
     if (ctx->gbuffer_width != f->width || ctx->gbuffer_height != f->height || !ctx->gbuffer_fbo) {
-        gim__GLuint color[2];
+        gim__GLuint color[3];
         gim__gl_texture(ctx, &ctx->gbuffer_depth, GIM__GL_DEPTH_COMPONENT32F, f->width, f->height);
-        /* 12 bytes a pixel: half normals (~5e-4) are plenty for the cosines of eq. 10, 8-bit
-           albedo is what engines keep; positions come from the 32-bit depth */
+        /* 20 bytes a pixel: half normals (~5e-4) are plenty for the cosines of eq. 8-10, 8-bit
+           albedo is what engines keep, a float material id; positions come from the 32-bit depth */
         gim__gl_texture(ctx, &ctx->gbuffer_normal, GIM__GL_RGBA16F, f->width, f->height);
         gim__gl_texture(ctx, &ctx->gbuffer_albedo, GIM__GL_RGBA8, f->width, f->height);
-        color[0] = ctx->gbuffer_normal; color[1] = ctx->gbuffer_albedo;
+        gim__gl_texture(ctx, &ctx->gbuffer_material, GIM__GL_R32F, f->width, f->height);
+        color[0] = ctx->gbuffer_normal; color[1] = ctx->gbuffer_albedo; color[2] = ctx->gbuffer_material;
         ctx->gbuffer_width = ctx->gbuffer_height = 0;
-        r = gim__gl_framebuffer(ctx, &ctx->gbuffer_fbo, color, 2, ctx->gbuffer_depth, where);
+        r = gim__gl_framebuffer(ctx, &ctx->gbuffer_fbo, color, 3, ctx->gbuffer_depth, where);
         if (r != GIM_OK) return r;
         ctx->gbuffer_width = f->width;
         ctx->gbuffer_height = f->height;
     }
     gim__camera_eye(f->view, f->proj, eye);
     gim__gl_raster_state(gl, ctx->gbuffer_fbo, f->width, f->height);
-    gim__gl_clear_targets(gl, 2);
+    gim__gl_clear_targets(gl, 3);
     gl->UseProgram(program);
     gl->Uniform1ui(3, ctx->material_count);
     gl->Uniform4f(4, eye[0], eye[1], eye[2], eye[3]);
@@ -6113,6 +6437,344 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     return gim__gl_check(ctx, where);
 }
 
+/* --- the LightSkin frame (paper 000 sec. 3-4) ----------------------------------------------
+   After the shared passes: caches to world space (CPU, gim_caches_to_world) sorted into a hash
+   grid -> the lights' VALs -> proxy lights -> occlusion (when on) -> per pixel neighbours,
+   interpolation and shading into the indirect texture. */
+
+#define GIM__NEIGHBOUR_RINGS 3   /* grid shells a pixel searches: neighbours within 3 cells */
+
+/* The hash grid over the world-space caches that lightskin_shade.comp searches. */
+typedef struct gim__grid {
+    float origin[3], h;          /* cell (i, j, k) covers origin + h [i, i+1) x ... */
+    int32_t dims[3];             /* cells per axis over the caches' bounds */
+    uint32_t bucket_count;       /* a power of two >= 2 cache_count */
+} gim__grid;
+
+/* Bucket of a cell before the mask; the shader's cell_hash, in the same uint arithmetic. */
+static uint32_t gim__grid_hash(int32_t x, int32_t y, int32_t z) {
+    return ((uint32_t)x * 73856093u) ^ ((uint32_t)y * 19349663u) ^ ((uint32_t)z * 83492791u);
+}
+
+/* Sort count > 0 world-space caches into a hash grid: *out (count, in bucket order), *cells
+   (4 int32 per cache: its cell), *buckets (bucket_count + 1 starts), all allocated through env
+   (the caller frees them, also on error). The cell side h is twice the caches' mean spacing,
+   the square root of their mean area (the areas tile the surfaces, so each cache stands for
+   about spacing^2): the n = 16 nearest of a cache on a plane lie within ~2.3 spacings, two
+   shells. fallback_h serves caches of zero area; h grows where the bounds would need more
+   than 2^20 cells per axis. Buckets are hashed, so memory is linear in the caches whatever
+   the extent of the scene (an open world has most of its volume empty). */
+static gim_result gim__grid_build(const gim_env *env, const gim_cache *in, uint32_t count, float fallback_h, gim__grid *g,
+                                  gim_cache **out, int32_t **cells, uint32_t **buckets) {
+    static const char where[] = "caches to world (grid)";
+    double area = 0.0, ext = 0.0;
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    uint32_t i, t = 1, *key = NULL, *fill = NULL;
+    int k;
+    *out = NULL; *cells = NULL; *buckets = NULL;
+    GIMANY_ASSERT(count > 0);
+    while (t < 2u * count && t < 0x80000000u) t <<= 1;
+    for (i = 0; i < count; ++i) {
+        area += in[i].area;
+        for (k = 0; k < 3; ++k) {
+            if (in[i].position[k] < lo[k]) lo[k] = in[i].position[k];
+            if (in[i].position[k] > hi[k]) hi[k] = in[i].position[k];
+        }
+    }
+    for (k = 0; k < 3; ++k) if ((double)hi[k] - lo[k] > ext) ext = (double)hi[k] - lo[k];
+    g->h = (float)(2.0 * sqrt(area / count));
+    if (!(g->h > 0.0f) || !gim__isfinitef(g->h)) g->h = fallback_h;
+    if ((double)g->h < ext / 1048576.0) g->h = (float)(ext / 1048576.0);
+    for (k = 0; k < 3; ++k) {
+        g->origin[k] = lo[k];
+        g->dims[k] = (int32_t)floor(((double)hi[k] - lo[k]) / g->h) + 1;
+        if (g->dims[k] > 1048577) g->dims[k] = 1048577;
+    }
+    g->bucket_count = t;
+    *out = (gim_cache *)gim__alloc_array(env, count, sizeof(gim_cache));
+    *cells = (int32_t *)gim__alloc_array(env, count, 4u * sizeof(int32_t));
+    *buckets = (uint32_t *)gim__alloc_array(env, (size_t)t + 1u, sizeof(uint32_t));
+    key = (uint32_t *)gim__alloc_array(env, count, sizeof(uint32_t));
+    fill = (uint32_t *)gim__alloc_array(env, t, sizeof(uint32_t));
+    if (!*out || !*cells || !*buckets || !key || !fill) {
+        gim__free(env, key);
+        gim__free(env, fill);
+        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "a grid of %u caches", (unsigned)count);
+    }
+    memset(*buckets, 0, ((size_t)t + 1u) * sizeof(uint32_t));
+    for (i = 0; i < count; ++i) {
+        int32_t c[3];
+        for (k = 0; k < 3; ++k) {
+            float f = (in[i].position[k] - g->origin[k]) / g->h;   /* float, as the shader */
+            c[k] = (int32_t)floorf(f);
+            if (c[k] < 0) c[k] = 0;
+            if (c[k] > g->dims[k] - 1) c[k] = g->dims[k] - 1;
+        }
+        key[i] = gim__grid_hash(c[0], c[1], c[2]) & (t - 1u);
+        ++(*buckets)[key[i] + 1u];
+        (*cells)[i * 4u] = c[0]; (*cells)[i * 4u + 1u] = c[1]; (*cells)[i * 4u + 2u] = c[2]; (*cells)[i * 4u + 3u] = 0;
+    }
+    for (i = 0; i < t; ++i) (*buckets)[i + 1u] += (*buckets)[i];
+    memcpy(fill, *buckets, (size_t)t * sizeof(uint32_t));
+    {   /* counting sort, stable: the caches of a bucket keep their order */
+        int32_t *sorted_cells = (int32_t *)gim__alloc_array(env, count, 4u * sizeof(int32_t));
+        if (!sorted_cells) {
+            gim__free(env, key);
+            gim__free(env, fill);
+            return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "a grid of %u caches", (unsigned)count);
+        }
+        for (i = 0; i < count; ++i) {
+            uint32_t d = fill[key[i]]++;
+            (*out)[d] = in[i];
+            memcpy(sorted_cells + (size_t)d * 4u, *cells + (size_t)i * 4u, 4u * sizeof(int32_t));
+        }
+        gim__free(env, *cells);
+        *cells = sorted_cells;
+    }
+    gim__free(env, key);
+    gim__free(env, fill);
+    return GIM_OK;
+}
+
+/* What the shading pass reads and writes. */
+typedef struct gim__shade_args {
+    gim__GLuint depth, normal;   /* the G-buffer (gimany's or the host's) */
+    gim__GLuint albedo, material; /* gimany's G-buffer; both 0 with the host's: albedo 1, no glossy */
+    uint32_t width, height;
+    gim_mat4 view, proj;
+    gim__GLuint caches, cells, buckets, diffuse, glossy; /* glossy 0: no glossy term */
+    uint32_t cache_count;
+    gim__grid grid;
+    uint32_t n;                  /* neighbours, 1..GIM_MAX_NEIGHBOUR_CACHES */
+    float cos_theta;             /* normal compatibility */
+    float scene_scale;
+    gim__GLuint indirect;        /* width x height texture of format */
+    gim__GLenum format;          /* RGBA16F or RGBA32F */
+} gim__shade_args;
+
+/* Per pixel neighbours (the n nearest compatible caches within GIM__NEIGHBOUR_RINGS h),
+   interpolation (eq. 8-9) and shading: the twin is gim_cache_neighbours (max_distance =
+   rings h) then gim_lightskin_shade, on receivers unprojected from the G-buffer (see
+   lightskin_shade.comp). Cost: pixels x (cells of up to 4 shells + their caches + 2 n). */
+static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
+    static const char where[] = "LightSkin shading (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, tex[4];
+    gim_mat4 inv_view, inv_proj;
+    float eye[4];
+    int host = a->albedo == 0, i;
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_LIGHTSKIN_SHADE, &program);
+    if (r != GIM_OK) return r;
+    if (!gim_mat4_invert(a->view, &inv_view) || !gim_mat4_invert(a->proj, &inv_proj))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
+    if (!host && ctx->material_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no materials");
+    gim__camera_eye(a->view, a->proj, eye);
+    tex[0] = a->depth; tex[1] = a->normal; tex[2] = host ? a->normal : a->albedo; tex[3] = host ? a->normal : a->material;
+    for (i = 0; i < 4; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + (gim__GLenum)i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
+        gl->BindSampler((gim__GLuint)i, ctx->nearest_sampler);
+    }
+    gl->BindImageTexture(0, a->indirect, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, a->format);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, a->caches);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, a->diffuse);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, a->glossy ? a->glossy : a->diffuse); /* never read then */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, a->buckets);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, a->cells);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, host ? a->caches : ctx->materials);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, a->width, a->height);
+    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
+    gl->Uniform4f(3, eye[0], eye[1], eye[2], eye[3]);
+    gl->Uniform1ui(4, a->n);
+    gl->Uniform1f(5, a->cos_theta);
+    gl->Uniform4f(6, a->grid.origin[0], a->grid.origin[1], a->grid.origin[2], a->grid.h);
+    gl->Uniform3i(7, a->grid.dims[0], a->grid.dims[1], a->grid.dims[2]);
+    gl->Uniform1ui(8, a->grid.bucket_count - 1u);
+    gl->Uniform1i(9, GIM__NEIGHBOUR_RINGS);
+    gl->Uniform1f(10, GIM__TWINS_COINCIDENT * a->scene_scale);
+    gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u));
+    gl->Uniform1ui(12, host ? 1u : ctx->material_count);
+    gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* A GL timestamp after pass (GIM_PASS_COUNT: the frame's start), when the frame is timed. */
+static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
+    if (!timed || ctx->stamp_count >= GIM__MAX_STAMPS) return;
+    if (ctx->query_count == 0) {
+        ctx->gl.GenQueries(GIM__MAX_STAMPS, ctx->queries);
+        ctx->query_count = GIM__MAX_STAMPS;
+    }
+    ctx->gl.QueryCounter(ctx->queries[ctx->stamp_count], GIM__GL_TIMESTAMP);
+    ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
+}
+
+static void gim__lightskin_release(gim_context *ctx) {
+    gim__lightskin_gpu *ls = &ctx->ls;
+    gim__GLuint b[6];
+    b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
+    ctx->gl.DeleteBuffers(6, b);
+    memset(ls, 0, sizeof *ls);
+    if (ctx->indirect) ctx->gl.DeleteTextures(1, &ctx->indirect);
+    ctx->indirect = 0;
+    ctx->indirect_width = ctx->indirect_height = 0;
+}
+
+/* Upload bytes into a buffer sized by gim__gl_sized_buffer. */
+static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
+                                 const char *where) {
+    gim_result r;
+    if (bytes > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%llu bytes exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
+                         (unsigned long long)bytes);
+    r = gim__gl_sized_buffer(ctx, b, have, bytes, where);
+    if (r != GIM_OK) return r;
+    if (data) {
+        ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, *b);
+        ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)bytes, data);
+    }
+    return GIM_OK;
+}
+
+/* The LightSkin passes of gim_update (see there); fills the LightSkin part of o. */
+static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                    float scale, uint32_t val_count, gim_frame_outputs *o) {
+    static const char where[] = "gim_update (LightSkin)";
+    gim__lightskin_gpu *ls = &ctx->ls;
+    gim_cache *world = NULL, *sorted = NULL;
+    int32_t *cells = NULL;
+    uint32_t *buckets = NULL;
+    uint32_t i, total = 0, off = 0, vals_total = 0, n;
+    double theta = 0.0;
+    float k_glossy, eye[4];
+    gim__grid grid;
+    gim__shade_args sa;
+    gim__GLenum format = f->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F;
+    gim_result r = GIM_OK;
+    int glossy = 0;
+    for (i = 0; i < ctx->instance_count; ++i) total += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    if (total == 0 || ctx->light_count == 0) { /* nothing to light with: no passes, no buffers */
+        gim__lightskin_release(ctx);
+        return GIM_OK;
+    }
+    n = f->neighbour_count ? f->neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
+    /* caches to world space, the compatibility angle (2 theta_eps of the sets, at most 90 degrees) */
+    world = (gim_cache *)gim__alloc_array(&ctx->env, total, sizeof(gim_cache));
+    if (!world) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", (unsigned)total);
+    for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i) {
+        const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
+        double t = 2.0 * (m->theta_eps > 0.0f ? m->theta_eps : 0.52359877559829887);
+        if (!m->cache_count) continue;
+        r = gim_caches_to_world(m->caches, m->cache_count, ctx->instances[i].model, world + off, ctx->env);
+        off += m->cache_count;
+        if (t > theta) theta = t;
+    }
+    if (theta > 1.5707963267948966) theta = 1.5707963267948966;
+    if (r == GIM_OK) r = gim__grid_build(&ctx->env, world, total, scale / 32.0f, &grid, &sorted, &cells, &buckets);
+    if (r == GIM_OK) r = gim__gl_upload(ctx, &ls->caches, &ls->caches_bytes, sorted, (uint64_t)total * 32u, where);
+    if (r == GIM_OK) r = gim__gl_upload(ctx, &ls->cells, &ls->cells_bytes, cells, (uint64_t)total * 16u, where);
+    if (r == GIM_OK)
+        r = gim__gl_upload(ctx, &ls->buckets, &ls->buckets_bytes, buckets, ((uint64_t)grid.bucket_count + 1u) * 4u, where);
+    gim__free(&ctx->env, world);
+    gim__free(&ctx->env, sorted);
+    gim__free(&ctx->env, cells);
+    gim__free(&ctx->env, buckets);
+    if (r != GIM_OK) return r;
+    gim__stamp(ctx, f->timing, GIM_PASS_CACHES);
+    /* the VALs of every light, one after the other */
+    for (i = 0; i < ctx->light_count; ++i) {
+        uint64_t c = f->method == GIM_METHOD_LIGHTSKIN_FULL ? (uint64_t)ctx->light_gpu[i].size * ctx->light_gpu[i].size
+                                                            : (uint64_t)val_count;
+        if ((uint64_t)vals_total + c > 0xFFFFFFFFu / 48u)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "too many VALs");
+        vals_total += (uint32_t)c;
+    }
+    r = gim__gl_upload(ctx, &ls->vals, &ls->vals_bytes, NULL, (uint64_t)vals_total * 48u, where);
+    for (i = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        int full = f->method == GIM_METHOD_LIGHTSKIN_FULL;
+        r = gim__gl_vals_gather(ctx, g->position, g->normal, g->flux, g->size, full ? 0u : g->selected,
+                                full ? 0u : val_count, ls->vals, off);
+        off += full ? g->size * g->size : val_count;
+    }
+    if (r != GIM_OK) return r;
+    gim__stamp(ctx, f->timing, GIM_PASS_VALS);
+    /* glossy proxy lights only when a material has a glossy colour; one lobe for all caches */
+    k_glossy = ctx->glossy_min_exponent;
+    glossy = ctx->glossy_material_count > 0;
+    r = gim__gl_upload(ctx, &ls->diffuse, &ls->diffuse_bytes, NULL, (uint64_t)total * 48u, where);
+    if (r == GIM_OK && glossy) r = gim__gl_upload(ctx, &ls->glossy, &ls->glossy_bytes, NULL, (uint64_t)total * 48u, where);
+    if (r == GIM_OK && !glossy && ls->glossy) {
+        ctx->gl.DeleteBuffers(1, &ls->glossy);
+        ls->glossy = 0;
+        ls->glossy_bytes = 0;
+    }
+    if (r != GIM_OK) return r;
+    gim__camera_eye(f->view, f->proj, eye);
+    if (eye[3] == 0.0f) { /* orthographic: a point far along the direction to the eye */
+        float c[3];
+        int k;
+        for (k = 0; k < 3; ++k) c[k] = 0.5f * (o->bounds_min[k] + o->bounds_max[k]) + eye[k] * 1e4f * scale;
+        eye[0] = c[0]; eye[1] = c[1]; eye[2] = c[2];
+    }
+    r = gim__gl_proxy_lights(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
+                             scale, ls->diffuse, glossy ? ls->glossy : 0u);
+    if (r != GIM_OK) return r;
+    gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
+    if (f->occlusion) {
+        r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->diffuse, scale);
+        if (r == GIM_OK && glossy) r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->glossy, scale);
+        if (r != GIM_OK) return r;
+        gim__stamp(ctx, f->timing, GIM_PASS_OCCLUSION);
+    }
+    /* the indirect texture, (re)made when its size or format changes */
+    if (!ctx->indirect || ctx->indirect_width != f->width || ctx->indirect_height != f->height ||
+        ctx->indirect_format != format) {
+        gim__gl_texture(ctx, &ctx->indirect, format, f->width, f->height);
+        ctx->indirect_width = f->width;
+        ctx->indirect_height = f->height;
+        ctx->indirect_format = format;
+    }
+    memset(&sa, 0, sizeof sa);
+    sa.depth = depth;
+    sa.normal = normal;
+    sa.albedo = f->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
+    sa.material = f->gbuffer_depth ? 0u : ctx->gbuffer_material;
+    sa.width = f->width;
+    sa.height = f->height;
+    sa.view = f->view;
+    sa.proj = f->proj;
+    sa.caches = ls->caches; sa.cells = ls->cells; sa.buckets = ls->buckets;
+    sa.diffuse = ls->diffuse; sa.glossy = glossy ? ls->glossy : 0u;
+    sa.cache_count = total;
+    sa.grid = grid;
+    sa.n = n;
+    sa.cos_theta = (float)cos(theta);
+    sa.scene_scale = scale;
+    sa.indirect = ctx->indirect;
+    sa.format = format;
+    r = gim__gl_lightskin_shade(ctx, &sa);
+    if (r != GIM_OK) return r;
+    gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
+    o->indirect = ctx->indirect;
+    o->caches = ls->caches;
+    o->cache_count = total;
+    o->vals = ls->vals;
+    o->val_count = vals_total;
+    o->proxy_diffuse = ls->diffuse;
+    o->proxy_glossy = glossy ? ls->glossy : 0u;
+    o->glossy_exponent = glossy ? k_glossy : 0.0f;
+    o->neighbour_count = n;
+    o->neighbour_cos = sa.cos_theta;
+    o->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
+    return GIM_OK;
+}
+
 /* Argument checks of gim_update that need no GL. */
 static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
     static const char where[] = "gim_update";
@@ -6138,6 +6800,11 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     if (!gim__isfinitef(f->scene_scale) || f->scene_scale < 0.0f || !gim__isfinitef(f->importance_clamp) ||
         f->importance_clamp < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
+    if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
+    if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->neighbour_count,
+                         GIM_MAX_NEIGHBOUR_CACHES);
     if (ctx->instance_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no instances");
     for (i = 0; i < 3; ++i) { bmin[i] = FLT_MAX; bmax[i] = -FLT_MAX; }
     for (i = 0; i < ctx->instance_count; ++i) {
@@ -6175,6 +6842,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     gim__GLuint depth, normal;
     gim_result r;
     double diag;
+    int full;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     r = gim__frame_check(ctx, frame, bmin, bmax);
@@ -6187,9 +6855,15 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
     vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
     val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
+    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL;
     ctx->outputs.valid = 0;
+    ctx->stamp_count = 0;
     gim__gl_enter(ctx, where);
-    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) r = gim__gl_rsm(ctx, i, bmin, bmax);
+    gim__stamp(ctx, frame->timing, GIM_PASS_COUNT);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+        r = gim__gl_rsm(ctx, i, bmin, bmax);
+        gim__stamp(ctx, frame->timing, GIM_PASS_RSM);
+    }
     if (r == GIM_OK && frame->gbuffer_depth) {
         depth = frame->gbuffer_depth;
         normal = frame->gbuffer_normal;
@@ -6199,11 +6873,23 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         r = gim__gl_gbuffer(ctx, frame);
         depth = ctx->gbuffer_depth;
         normal = ctx->gbuffer_normal;
+        gim__stamp(ctx, frame->timing, GIM_PASS_GBUFFER);
     } else {
         depth = normal = 0;
     }
-    if (r == GIM_OK) r = gim__gl_view_samples(ctx, frame, depth, normal, vs_count);
-    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+    if (r == GIM_OK && !full) {
+        r = gim__gl_view_samples(ctx, frame, depth, normal, vs_count);
+        gim__stamp(ctx, frame->timing, GIM_PASS_VIEW_SAMPLES);
+    }
+    for (i = 0; i < ctx->light_count && r == GIM_OK && full; ++i) { /* FULL needs no importance: free it */
+        gim__light_gpu *g = &ctx->light_gpu[i];
+        gim__GLuint b[4];
+        b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
+        ctx->gl.DeleteBuffers(4, b);
+        g->map = g->column = g->row = g->selected = 0;
+        g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = 0;
+    }
+    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
         uint64_t texels = (uint64_t)g->size * g->size;
         if (texels * 8u > (uint64_t)ctx->max_ssbo_bytes)
@@ -6216,24 +6902,29 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         if (r == GIM_OK)
             r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
                                        scale, frame->importance_clamp, g->map);
+        gim__stamp(ctx, frame->timing, GIM_PASS_IMPORTANCE_MAP);
         if (r == GIM_OK) r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
+        gim__stamp(ctx, frame->timing, GIM_PASS_CUMSUM);
         if (r == GIM_OK)
             r = gim__gl_importance_select(ctx, g->column, g->row, g->size, g->size, val_count,
                                           frame->frame_index * GIM_MAX_LIGHTS + i, g->selected);
+        gim__stamp(ctx, frame->timing, GIM_PASS_SELECT);
     }
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
     memset(&o, 0, sizeof o);
+    memcpy(o.bounds_min, bmin, sizeof bmin);
+    memcpy(o.bounds_max, bmax, sizeof bmax);
+    if (r == GIM_OK) r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
     o.valid = 1;
     o.width = frame->width;
     o.height = frame->height;
     o.gbuffer_depth = depth;
     o.gbuffer_normal = normal;
     o.gbuffer_albedo = frame->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
-    o.view_samples = ctx->view_samples;
-    o.view_sample_count = vs_count;
+    o.gbuffer_material = frame->gbuffer_depth ? 0u : ctx->gbuffer_material;
+    o.view_samples = full ? 0u : ctx->view_samples;
+    o.view_sample_count = full ? 0u : vs_count;
     o.scene_scale = scale;
-    memcpy(o.bounds_min, bmin, sizeof bmin);
-    memcpy(o.bounds_max, bmax, sizeof bmax);
     o.light_count = ctx->light_count;
     for (i = 0; i < ctx->light_count; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
@@ -6249,9 +6940,16 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         lo->column = g->column;
         lo->row = g->row;
         lo->selected = g->selected;
-        lo->selected_count = val_count;
+        lo->selected_count = full ? 0u : val_count;
     }
     ctx->outputs = o;
+    memset(&ctx->stats, 0, sizeof ctx->stats);
+    ctx->stats.timed = frame->timing ? 1 : 0;
+    ctx->stats.light_count = ctx->light_count;
+    ctx->stats.view_sample_count = o.view_sample_count;
+    ctx->stats.cache_count = o.cache_count;
+    ctx->stats.val_count = o.val_count;
+    ctx->stats.pixel_count = frame->width * frame->height;
     return gim__gl_leave(ctx, GIM_OK);
 }
 
@@ -6260,6 +6958,43 @@ GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
     if (ctx) return ctx->outputs;
     memset(&o, 0, sizeof o);
     return o;
+}
+
+/* GL bytes of a buffer or texture set the context owns. */
+static uint64_t gim__context_bytes(const gim_context *ctx) {
+    uint64_t b = ctx->scan_blocks_bytes + ctx->view_sample_pixels_bytes + ctx->view_samples_bytes +
+                 (uint64_t)ctx->material_count * 32u;
+    uint32_t i;
+    for (i = 0; i < ctx->mesh_slots; ++i)
+        if (ctx->meshes[i].used) b += ctx->meshes[i].bytes;
+    for (i = 0; i < GIM_MAX_LIGHTS; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes;
+    }
+    b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u;
+    b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
+    b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
+         ctx->ls.glossy_bytes;
+    return b;
+}
+
+GIMANY_DEF gim_result gim_frame_stats(gim_context *ctx, gim_stats *out) {
+    static const char where[] = "gim_frame_stats";
+    uint64_t t[GIM__MAX_STAMPS];
+    uint32_t i;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
+    if (!ctx->outputs.valid) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no successful gim_update yet");
+    *out = ctx->stats;
+    out->gpu_bytes = gim__context_bytes(ctx);
+    if (!ctx->stats.timed || ctx->stamp_count < 2) return GIM_OK;
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < ctx->stamp_count; ++i) ctx->gl.GetQueryObjectui64v(ctx->queries[i], GIM__GL_QUERY_RESULT, &t[i]);
+    for (i = 1; i < ctx->stamp_count; ++i)
+        if (ctx->stamp_pass[i] < GIM_PASS_COUNT && t[i] >= t[i - 1])
+            out->pass_ms[ctx->stamp_pass[i]] += (double)(t[i] - t[i - 1]) * 1e-6;
+    out->frame_ms = t[ctx->stamp_count - 1] >= t[0] ? (double)(t[ctx->stamp_count - 1] - t[0]) * 1e-6 : 0.0;
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
 /* --- create / destroy ------------------------------------------------------------------ */

@@ -1,10 +1,12 @@
 /* gimany's own G-buffer: the world normal turned towards the eye (two-sided; w = 1 where a
-   surface was drawn) and the diffuse albedo; depth goes to the depth attachment. */
+   surface was drawn), the diffuse albedo and the material id (for the glossy colour and
+   exponent of the shading pass); depth goes to the depth attachment. */
 in vec3 world_position;
 in vec3 world_normal;
 
 layout(location = 0) out vec4 out_normal;
 layout(location = 1) out vec4 out_albedo;
+layout(location = 2) out float out_material;   /* R32F: ids up to 2^24 are exact */
 
 struct Material { vec4 diffuse; vec4 glossy; };
 layout(std430, binding = 0) readonly buffer Materials { Material material[]; };
@@ -19,4 +21,5 @@ void main() {
     vec3 n = normalize(world_normal);
     out_normal = vec4(dot(n, toward) < 0.0 ? -n : n, 1.0);
     out_albedo = vec4(material[id].diffuse.rgb, 1.0);
+    out_material = float(id);
 }

@@ -174,6 +174,17 @@ static GIM__UNUSED void gltest_read_buffer(GLuint b, size_t bytes, void *out) {
     glBindBuffer(GL_COPY_READ_BUFFER, 0);
 }
 
+/* Read a whole texture back as floats (format GL_RGBA, GL_RED or GL_DEPTH_COMPONENT). */
+static GIM__UNUSED void gltest_read_texture(GLuint tex, GLenum format, float *out) {
+    GLint pack = 4;
+    glGetIntegerv(GL_PACK_ALIGNMENT, &pack);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glBindTexture(GL_TEXTURE_2D, tex);
+    glGetTexImage(GL_TEXTURE_2D, 0, format, GL_FLOAT, out);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    glPixelStorei(GL_PACK_ALIGNMENT, pack);
+}
+
 #ifndef GIMANY_EXTERNAL_GL
 /* A context with the counting allocator and the log catcher, and the GL state it started
    with, for tests of single passes. */

@@ -713,12 +713,29 @@ static void scene_state_restored(void **state) {
     md.data.index_count = 6;
     assert_int_equal(gim_add_mesh(ctx, &md, &mesh), GIM_OK);
     check_distinctive_state(&h);
+    { /* the second mesh has caches: the LightSkin passes run too */
+        static gim_cache caches[4];
+        static gim_cache_set set;
+        int k;
+        for (k = 0; k < 4; ++k) {
+            caches[k].position[0] = (k & 1) ? 0.5f : -0.5f;
+            caches[k].position[2] = (k & 2) ? 0.5f : -0.5f;
+            caches[k].normal[1] = 1.0f;
+            caches[k].area = 1.0f;
+            caches[k].reflectance = 0.5f;
+        }
+        set.caches = caches;
+        set.count = 4;
+        md.caches = &set;
+    }
     assert_int_equal(gim_add_mesh(ctx, &md, &box), GIM_OK);
+    md.caches = NULL;
     md.data.index_count = 4;
     assert_int_equal(gim_add_mesh(ctx, &md, &box), GIM_ERROR_INVALID_ARGUMENT);
     check_distinctive_state(&h);
     memset(&mat, 0, sizeof mat);
     mat.diffuse[0] = mat.diffuse[1] = mat.diffuse[2] = 0.5f;
+    mat.glossy[0] = 0.2f; mat.exponent = 8.0f;   /* the glossy passes run too */
     assert_int_equal(gim_set_materials(ctx, &mat, 1), GIM_OK);
     check_distinctive_state(&h);
     inst[0].mesh = mesh;
@@ -745,10 +762,24 @@ static void scene_state_restored(void **state) {
     fr.height = 16;
     fr.view_sample_count = 32;
     fr.val_count = 16;
+    fr.occlusion = 1;
+    fr.timing = 1;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     check_distinctive_state(&h);
     o = gim_outputs(ctx);
     assert_true(o.valid && o.light_count == 2);
+    assert_true(o.indirect != 0 && o.proxy_glossy != 0 && o.cache_count == 4);
+    {
+        gim_stats st;
+        assert_int_equal(gim_frame_stats(ctx, &st), GIM_OK);
+        check_distinctive_state(&h);
+        assert_true(st.timed && st.frame_ms > 0.0);
+    }
+    fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    assert_int_equal(gim_update(ctx, &fr), GIM_OK);
+    check_distinctive_state(&h);
+    fr.method = GIM_METHOD_DEFAULT;
+    fr.timing = 0;
     fr.gbuffer_depth = o.gbuffer_depth; /* the host's G-buffer path */
     fr.gbuffer_normal = o.gbuffer_normal;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);

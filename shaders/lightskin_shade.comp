@@ -1,0 +1,193 @@
+/* LightSkin interpolation and shading per pixel (paper 000 "Interpolation using the Proxy
+   Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
+   gim_lightskin_shade: one invocation per G-buffer pixel
+   1. finds its n nearest caches whose normal is within the compatibility angle, within
+      `radius`, through a hash grid over the world-space caches: shells of cells around the
+      pixel's cell, nearest first, until the n-th found is nearer than any unvisited cell
+      (ties by cache index, as the twin);
+   2. interpolates the diffuse (and glossy) proxy lights of those caches and shades the pixel
+      with them, with the formulas, weights and guards of gim_lightskin_shade (read there).
+   Sums in float (double in the twin). Writes rgb radiance, a = 1 where a surface is. */
+layout(local_size_x = 8, local_size_y = 8) in;
+
+#define MAX_N 16
+
+layout(binding = 0) uniform sampler2D gbuffer_depth;
+layout(binding = 1) uniform sampler2D gbuffer_normal;    /* world normal in xyz, w = 1 where drawn */
+layout(binding = 2) uniform sampler2D gbuffer_albedo;    /* diffuse rgb (unused with host_gbuffer) */
+layout(binding = 3) uniform sampler2D gbuffer_material;  /* material id (unused with host_gbuffer) */
+layout(binding = 0) writeonly uniform image2D indirect;  /* RGBA16F or RGBA32F, set by the runtime */
+
+struct Cache { vec4 position_area; vec4 normal_reflectance; };             /* gim_cache */
+struct Proxy { vec4 position_radius; vec4 flux_visibility; vec4 sigma; };  /* gim_proxy_light */
+struct Material { vec4 diffuse; vec4 glossy; };                            /* rgb, (rgb, k) */
+layout(std430, binding = 0) readonly buffer Caches { Cache cache[]; };
+layout(std430, binding = 1) readonly buffer Diffuse { Proxy diffuse[]; };
+layout(std430, binding = 2) readonly buffer Glossy { Proxy glossy[]; };
+layout(std430, binding = 3) readonly buffer BucketStart { uint bucket_start[]; };  /* bucket_count + 1 */
+layout(std430, binding = 4) readonly buffer CacheCell { ivec4 cache_cell[]; };     /* grid cell of each cache */
+layout(std430, binding = 5) readonly buffer Materials { Material material[]; };
+
+layout(location = 0) uniform uvec2 size;
+layout(location = 1) uniform mat4 inv_proj;
+layout(location = 2) uniform mat4 inv_view;
+layout(location = 3) uniform vec4 eye;          /* perspective: (position, 1); orthographic: (direction, 0) */
+layout(location = 4) uniform uint n;            /* neighbours, 1..MAX_N */
+layout(location = 5) uniform float cos_theta;   /* normal compatibility */
+layout(location = 6) uniform vec4 grid;         /* origin xyz, cell side h */
+layout(location = 7) uniform ivec3 dims;        /* cells per axis (the caches lie in 0..dims-1) */
+layout(location = 8) uniform uint bucket_mask;  /* bucket_count - 1 (a power of two) */
+layout(location = 9) uniform int rings;         /* shells searched: radius = rings h */
+layout(location = 10) uniform float near_;      /* 1e-6 scene_scale */
+layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: host G-buffer */
+layout(location = 12) uniform uint material_count;
+
+const float PI = 3.14159265358979323846;
+const float FLT_MAX = 3.402823466e+38;
+const vec3 LUM = vec3(0.2126, 0.7152, 0.0722);
+
+bool finite3(vec3 v) {
+    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
+    return all(notEqual(e, uvec3(0xffu)));
+}
+
+uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */
+    return (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
+}
+
+float best_d[MAX_N];
+uint best_i[MAX_N];
+uint found;
+
+/* Keep the n nearest (distance, index) pairs, sorted. */
+void offer(float d, uint idx) {
+    if (found == n && (d > best_d[n - 1u] || (d == best_d[n - 1u] && idx > best_i[n - 1u]))) return;
+    uint j = found < n ? found : n - 1u;
+    if (found < n) ++found;
+    while (j > 0u && (best_d[j - 1u] > d || (best_d[j - 1u] == d && best_i[j - 1u] > idx))) {
+        best_d[j] = best_d[j - 1u];
+        best_i[j] = best_i[j - 1u];
+        --j;
+    }
+    best_d[j] = d;
+    best_i[j] = idx;
+}
+
+void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
+    uint b = cell_hash(c) & bucket_mask;
+    for (uint k = bucket_start[b]; k < bucket_start[b + 1u]; ++k) {
+        if (cache_cell[k].xyz != c) continue;   /* another cell in the same bucket */
+        vec3 p = cache[k].position_area.xyz;
+        if (dot(nx, cache[k].normal_reflectance.xyz) < cos_theta) continue;
+        float d = length(x - p);
+        if (d <= radius) offer(d, k);
+    }
+}
+
+/* One proxy light set interpolated at x (eq. 8-9): the irradiance E there and the unit
+   direction l towards the light (gim__interp_light). */
+void interp_light(bool is_glossy, vec3 x, vec3 nx, float dcmax, out vec3 e_out, out vec3 l_out) {
+    float sw[2] = float[2](0.0, 0.0), sp[2] = float[2](0.0, 0.0), dq[2] = float[2](0.0, 0.0);
+    vec3 o[2] = vec3[2](vec3(0.0), vec3(0.0)), phi[2] = vec3[2](vec3(0.0), vec3(0.0));
+    e_out = vec3(0.0);
+    l_out = vec3(0.0);
+    for (uint j = 0u; j < found; ++j) {
+        uint k = best_i[j];
+        vec3 c = cache[k].position_area.xyz, nc = cache[k].normal_reflectance.xyz;
+        Proxy p = is_glossy ? glossy[k] : diffuse[k];
+        vec3 op = p.position_radius.xyz - c;             /* the proxy's offset */
+        float dp2 = dot(op, op);
+        vec3 fl = p.flux_visibility.xyz * p.flux_visibility.w;
+        float dist = length(x - c);
+        float tent = dcmax > near_ ? max(1.0 - dist / dcmax, 0.0) : 1.0;   /* eq. 8 distance term */
+        float lp = sqrt(dp2), nterm;
+        if (is_glossy && lp > 0.0) {   /* r_x . r_c: the direction to the proxy mirrored at n_x and n_c */
+            vec3 w = op / lp;
+            nterm = dot(2.0 * dot(nx, w) * nx - w, 2.0 * dot(nc, w) * nc - w);
+        } else {
+            nterm = dot(nx, nc);
+        }
+        nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
+        float lum = dot(LUM, fl);
+        for (int pass = 0; pass < 2; ++pass) {
+            float w = pass == 0 ? tent * nterm : nterm;
+            if (!(w > 0.0)) continue;
+            sw[pass] += w;
+            sp[pass] += w * lum;
+            dq[pass] += w * lum * dp2;
+            o[pass] += w * lum * op;
+            phi[pass] += w * fl;
+        }
+    }
+    int use = sw[0] > 0.0 ? 0 : 1;
+    if (!(sw[use] > 0.0) || !(sp[use] > 0.0)) return;        /* no neighbour, or all dark */
+    vec3 ov = o[use] / sp[use];                              /* eq. 9 */
+    vec3 ph = phi[use] / sw[use];
+    float lo2 = dot(ov, ov);
+    if (!(lo2 > 0.0)) return;                                /* no direction: dark */
+    l_out = ov / sqrt(lo2);
+    float cos_x = dot(nx, l_out);
+    if (!(cos_x > 0.0)) { l_out = vec3(0.0); return; }
+    lo2 = max(lo2, 0.25 * dq[use] / sp[use]);                /* no spike where offsets cancel */
+    lo2 = max(lo2, near_ * near_);
+    e_out = ph * (cos_x / (4.0 * PI * lo2));
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= int(size.x) || px.y >= int(size.y)) return;
+    float depth = texelFetch(gbuffer_depth, px, 0).r;
+    vec4 nw = texelFetch(gbuffer_normal, px, 0);
+    if (!(depth < 1.0) || !finite3(nw.xyz) || !(dot(nw.xyz, nw.xyz) > 0.0)) {
+        imageStore(indirect, px, vec4(0.0));
+        return;
+    }
+    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+    vec4 v = inv_proj * ndc;
+    v /= v.w;
+    vec3 x = (inv_view * vec4(v.xyz, 1.0)).xyz;
+    vec3 nx = normalize(nw.xyz);
+    vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+
+    /* 1. neighbours: shell r holds the cells at Chebyshev distance r from the pixel's; every
+       cache outside shells 0..r is farther than r h */
+    float h = grid.w, radius = float(rings) * h;
+    ivec3 pc = ivec3(floor((x - grid.xyz) / h));
+    found = 0u;
+    for (int r = 0; r <= rings; ++r) {
+        ivec3 lo = max(pc - r, ivec3(0)), hi = min(pc + r, dims - 1);
+        for (int cz = lo.z; cz <= hi.z; ++cz)
+            for (int cy = lo.y; cy <= hi.y; ++cy) {
+                bool face = abs(cz - pc.z) == r || abs(cy - pc.y) == r;
+                if (face) {
+                    for (int cx = lo.x; cx <= hi.x; ++cx) visit(ivec3(cx, cy, cz), x, nx, radius);
+                } else {   /* inside the shell's faces in y and z: only its two x ends */
+                    if (pc.x - r >= 0 && pc.x - r < dims.x) visit(ivec3(pc.x - r, cy, cz), x, nx, radius);
+                    if (r > 0 && pc.x + r >= 0 && pc.x + r < dims.x) visit(ivec3(pc.x + r, cy, cz), x, nx, radius);
+                }
+            }
+        if (found == n && best_d[n - 1u] <= float(r) * h) break;
+    }
+    float dcmax = found > 0u ? best_d[found - 1u] : 0.0;
+
+    /* 2. interpolation (eq. 8-9) and shading */
+    vec3 albedo = vec3(1.0), gcol = vec3(0.0);
+    float k = 0.0;
+    if ((flags & 2u) == 0u) {
+        albedo = texelFetch(gbuffer_albedo, px, 0).rgb;
+        uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
+        gcol = material[id].glossy.rgb;
+        k = material[id].glossy.w;
+    }
+    vec3 ed, ld;
+    interp_light(false, x, nx, dcmax, ed, ld);
+    vec3 outc = albedo / PI * ed;
+    if ((flags & 1u) != 0u) {
+        vec3 eg, lg;
+        interp_light(true, x, nx, dcmax, eg, lg);
+        float re = dot(2.0 * dot(nx, lg) * nx - lg, view);
+        float lobe = k == 0.0 ? 1.0 : (re > 0.0 ? pow(re, k) : 0.0);
+        outc += gcol * ((k + 2.0) / (2.0 * PI) * lobe) * eg;
+    }
+    imageStore(indirect, px, vec4(min(outc, vec3(FLT_MAX)), 1.0));
+}

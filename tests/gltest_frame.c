@@ -1,0 +1,394 @@
+/* The whole LightSkin frame of gim_update on the Cornell box (paper 000 end to end): the GPU
+   frame against the CPU frame (gim_lightskin_cpu on the frame's own VALs, caches and pixels),
+   colour bleeding, BRSM converging to FULL as N_sVAL grows, occlusion, glossy only when a
+   material is glossy, what FULL frees, stats, no NaN, zero GL errors. Runs on the measured
+   Cornell box of ../shared/scenes when present and always on the built-in one. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+#include "scene_gimany.h"
+
+#define W 96
+#define H 96
+#define CORNELL_GLTF "../shared/scenes/cornell_box/CornellBox.gltf"
+
+typedef struct frame_fixture {
+    gltest_fixture f;
+    scene s;
+    scene_gimany g;
+    gim_frame fr;
+} frame_fixture;
+
+/* 0: loaded; 1: the file is absent (skip) */
+static int frame_begin(frame_fixture *ff, const char *gltf, uint32_t rsm_size) {
+    char err[256];
+    memset(ff, 0, sizeof *ff);
+    if (gltf) {
+        FILE *fp = fopen(gltf, "rb");
+        if (!fp) return 1;
+        fclose(fp);
+        assert_int_equal(scene_load_gltf(gltf, &ff->s, err, sizeof err), 0);
+    } else {
+        assert_int_equal(scene_builtin("cornell", &ff->s, err, sizeof err), 0);
+    }
+    ff->s.camera.width = W;
+    ff->s.camera.height = H;
+    gltest_fixture_begin(&ff->f);
+    assert_int_equal(scene_gimany_load(ff->f.ctx, &ff->s, 1.0f / 24.0f, rsm_size, ff->f.env, &ff->g), GIM_OK);
+    assert_true(ff->g.light_count >= 1 && ff->g.lights[0].type == GIM_LIGHT_SPOT);
+    memset(&ff->fr, 0, sizeof ff->fr);
+    scene_gimany_camera(&ff->s, &ff->fr.view, &ff->fr.proj);
+    ff->fr.width = W;
+    ff->fr.height = H;
+    ff->fr.view_sample_count = 128;
+    ff->fr.indirect_float32 = 1;   /* RGBA16F rounds to 2^-11: compared once, in its own case */
+    return 0;
+}
+
+static void frame_end(frame_fixture *ff) {
+    scene_gimany_free(ff->f.ctx, &ff->g);
+    scene_free(&ff->s);
+    gltest_fixture_end(&ff->f);
+}
+
+static void read_indirect(const gim_frame_outputs *o, float *rgba) {
+    int i;
+    assert_true(o->indirect != 0);
+    gltest_read_texture(o->indirect, GL_RGBA, rgba);
+    for (i = 0; i < W * H * 4; ++i) assert_true(isfinite(rgba[i]) && rgba[i] >= 0.0f);
+}
+
+/* The CPU frame on the GPU frame's inputs: its VALs and world caches (read back), the pixels
+   of its G-buffer; neighbours by gim_cache_neighbours truncated at the pass's radius. Returns
+   the largest relative difference (floored at 1e-3 of the image's largest value) over the
+   pixels, and how many exceed tol. */
+static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int occlusion, double tol, double *max_rel) {
+    gim_frame_outputs o = gim_outputs(ff->f.ctx);
+    uint32_t n = o.neighbour_count, nrec = 0, i, bad = 0, *pix, *map, *nb_idx, *nb_cnt;
+    float *depth = (float *)malloc(W * H * 4), *nrm = (float *)malloc(W * H * 16), *alb = (float *)malloc(W * H * 16),
+          *mat = (float *)malloc(W * H * 4), *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu;
+    gim_view_sample *vs = (gim_view_sample *)malloc(W * H * sizeof *vs);
+    gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
+    gim_cache *caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
+    gim_val *vals = (gim_val *)malloc((size_t)o.val_count * sizeof *vals);
+    gim_cache_set set;
+    gim_neighbour_desc nd;
+    gim_neighbour_result nr;
+    gim_lightskin_desc ld;
+    gim_mat4 inv;
+    gim_vec3 eye;
+    double ref_max = 0.0;
+    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
+    gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *vals, vals);
+    gltest_read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, depth);
+    gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
+    gltest_read_texture(o.gbuffer_albedo, GL_RGBA, alb);
+    gltest_read_texture(o.gbuffer_material, GL_RED, mat);
+    assert_true(gim_mat4_invert(ff->fr.view, &inv));
+    eye = gim_v3(inv.m[12], inv.m[13], inv.m[14]);
+    pix = (uint32_t *)malloc(W * H * 8);
+    map = (uint32_t *)malloc(W * H * 4);
+    for (i = 0; i < W * H; ++i) { pix[i * 2] = i % W; pix[i * 2 + 1] = i / W; }
+    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, ff->fr.view, ff->fr.proj, pix, W * H, vs), GIM_OK);
+    for (i = 0; i < W * H; ++i) {
+        gim_receiver *rc = rec + nrec;
+        double v[3], l;
+        const scene_material *m;
+        int a;
+        if (vs[i].normal.x == 0.0f && vs[i].normal.y == 0.0f && vs[i].normal.z == 0.0f) continue;
+        rc->position[0] = vs[i].position.x; rc->position[1] = vs[i].position.y; rc->position[2] = vs[i].position.z;
+        rc->normal[0] = vs[i].normal.x; rc->normal[1] = vs[i].normal.y; rc->normal[2] = vs[i].normal.z;
+        v[0] = (double)eye.x - rc->position[0]; v[1] = (double)eye.y - rc->position[1]; v[2] = (double)eye.z - rc->position[2];
+        l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (a = 0; a < 3; ++a) rc->view[a] = (float)(v[a] / l);
+        memcpy(rc->albedo, alb + i * 4, 12);
+        m = &ff->s.materials[(int)mat[i]];
+        memcpy(rc->glossy, m->glossy, 12);
+        rc->exponent = m->exponent;
+        memcpy(pos_nrm + nrec * 6, rc->position, 12);
+        memcpy(pos_nrm + nrec * 6 + 3, rc->normal, 12);
+        map[nrec++] = i;
+    }
+    nb_idx = (uint32_t *)malloc((size_t)nrec * n * 4);
+    nb_cnt = (uint32_t *)malloc(nrec * 4);
+    dcmax = (float *)malloc(nrec * 4);
+    cpu = (float *)malloc(nrec * 12);
+    memset(&set, 0, sizeof set);
+    set.caches = caches;
+    set.count = o.cache_count;
+    memset(&nd, 0, sizeof nd);
+    nd.mesh.positions = pos_nrm; nd.mesh.position_stride = 24;
+    nd.mesh.normals = pos_nrm + 3; nd.mesh.normal_stride = 24;
+    nd.mesh.vertex_count = nrec;
+    nd.caches = &set;
+    nd.n = n;
+    nd.theta_eps = (float)acos((double)o.neighbour_cos);
+    nd.env = ff->f.env;
+    nr.index = nb_idx; nr.count = nb_cnt; nr.d_cmax = dcmax;
+    assert_int_equal(gim_cache_neighbours(&nd, &nr), GIM_OK);
+    for (i = 0; i < nrec; ++i) { /* truncate at the pass's radius */
+        uint32_t k, keep = 0;
+        float far_ = 0.0f;
+        for (k = 0; k < nb_cnt[i]; ++k) {
+            const float *c = caches[nb_idx[i * n + k]].position, *x = rec[i].position;
+            double d = sqrt(((double)x[0] - c[0]) * ((double)x[0] - c[0]) + ((double)x[1] - c[1]) * ((double)x[1] - c[1]) +
+                            ((double)x[2] - c[2]) * ((double)x[2] - c[2]));
+            if (d > (double)o.neighbour_radius) break;
+            keep = k + 1;
+            far_ = (float)d;
+        }
+        for (k = keep; k < n; ++k) nb_idx[i * n + k] = UINT32_MAX;
+        nb_cnt[i] = keep;
+        dcmax[i] = far_;
+    }
+    memset(&ld, 0, sizeof ld);
+    ld.caches = caches; ld.cache_count = o.cache_count;
+    ld.vals = vals; ld.val_count = o.val_count;
+    ld.eye = eye;
+    ld.glossy = o.proxy_glossy != 0;
+    ld.glossy_exponent = o.glossy_exponent;
+    ld.occlusion = occlusion;
+    ld.receivers = rec; ld.receiver_count = nrec;
+    ld.neighbour_index = nb_idx; ld.neighbour_count = nb_cnt; ld.neighbour_stride = n; ld.d_cmax = dcmax;
+    ld.scene_scale = o.scene_scale;
+    ld.env = ff->f.env;
+    assert_int_equal(gim_lightskin_cpu(&ld, cpu), GIM_OK);
+    for (i = 0; i < nrec * 3; ++i) if (cpu[i] > ref_max) ref_max = cpu[i];
+    assert_true(ref_max > 0.0);
+    *max_rel = 0.0;
+    for (i = 0; i < nrec; ++i) {
+        int a;
+        double e = 0.0;
+        for (a = 0; a < 3; ++a) {
+            double ref = cpu[i * 3 + a], den = ref > 1e-3 * ref_max ? ref : 1e-3 * ref_max;
+            double rel = fabs((double)gpu[map[i] * 4 + a] - ref) / den;
+            if (rel > e) e = rel;
+        }
+        if (e > tol) bad++;
+        else if (e > *max_rel) *max_rel = e;
+    }
+    free(depth); free(nrm); free(alb); free(mat); free(pos_nrm); free(vs); free(rec); free(caches); free(vals);
+    free(pix); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
+    return bad;
+}
+
+/* Mean R / G of the floor pixels (normal up) in the left and the right third of the image. */
+static void floor_redness(const float *rgba, const float *nrm, double *left, double *right) {
+    double s[2][2] = {{0, 0}, {0, 0}};
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            int i = y * W + x, side = x < W / 3 ? 0 : (x >= 2 * W / 3 ? 1 : -1);
+            if (side < 0 || nrm[i * 4 + 3] != 1.0f || nrm[i * 4 + 1] < 0.99f) continue;
+            s[side][0] += rgba[i * 4];
+            s[side][1] += rgba[i * 4 + 1];
+        }
+    assert_true(s[0][1] > 0.0 && s[1][1] > 0.0);
+    *left = s[0][0] / s[0][1];
+    *right = s[1][0] / s[1][1];
+}
+
+/* Mean |a - b| / mean b over the pixels with a surface. */
+static double mean_rel_diff(const float *a, const float *b) {
+    double d = 0.0, m = 0.0;
+    int i, c;
+    for (i = 0; i < W * H; ++i) {
+        if (b[i * 4 + 3] != 1.0f) continue;
+        for (c = 0; c < 3; ++c) { d += fabs((double)a[i * 4 + c] - b[i * 4 + c]); m += b[i * 4 + c]; }
+    }
+    assert_true(m > 0.0);
+    return d / m;
+}
+
+static void cornell_frame(const char *gltf) {
+    frame_fixture ff;
+    float *full = (float *)malloc(W * H * 16), *brsm = (float *)malloc(W * H * 16), *nrm = (float *)malloc(W * H * 16);
+    gim_frame_outputs o;
+    gim_stats st;
+    double left, right, err[3], max_rel;
+    static const uint32_t counts[3] = {128, 512, 2048};
+    uint32_t bad, k, seed;
+    if (frame_begin(&ff, gltf, 48)) {
+        print_message("%s absent: skipped\n", gltf);
+        free(full); free(brsm); free(nrm);
+        return;
+    }
+    /* FULL: every RSM texel a VAL */
+    ff.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    ff.fr.timing = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    gltest_state_unchanged(&ff.f);
+    o = gim_outputs(ff.f.ctx);
+    assert_int_equal(o.val_count, 48u * 48u);
+    assert_int_equal(o.cache_count, ff.g.cache_count);
+    assert_int_equal(o.lights[0].importance, 0);    /* FULL has no importance buffers */
+    assert_int_equal(o.lights[0].selected, 0);
+    assert_int_equal(o.proxy_glossy, 0);             /* no glossy material in the box */
+    read_indirect(&o, full);
+    gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
+    bad = compare_with_cpu_frame(&ff, full, 0, 5e-4, &max_rel);
+    print_message("%s FULL: %u caches, GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n",
+                  gltf ? "glTF" : "builtin", o.cache_count, max_rel, bad);
+    assert_true(bad <= W * H / 200);
+    /* colour bleeding: the white floor is redder near the red (left) wall */
+    floor_redness(full, nrm, &left, &right);
+    print_message("floor R/G: left %.3f, right %.3f\n", left, right);
+    assert_true(left > 1.15 * right);
+    /* stats of a timed frame */
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    assert_true(st.timed && st.frame_ms > 0.0);
+    assert_true(st.pass_ms[GIM_PASS_PROXY_LIGHTS] > 0.0 && st.pass_ms[GIM_PASS_SHADE] > 0.0);
+    assert_true(st.pass_ms[GIM_PASS_IMPORTANCE_MAP] == 0.0);
+    assert_int_equal(st.cache_count, o.cache_count);
+    assert_int_equal(st.val_count, o.val_count);
+    assert_true(st.gpu_bytes > (uint64_t)o.cache_count * 32u + (uint64_t)W * H * 8u);
+
+    /* BRSM converges to FULL as N_sVAL grows (each error the mean of two frames) */
+    ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    ff.fr.timing = 0;
+    for (k = 0; k < 3; ++k) {
+        err[k] = 0.0;
+        for (seed = 0; seed < 2; ++seed) {
+            ff.fr.val_count = counts[k];
+            ff.fr.frame_index = seed + 1;
+            assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+            o = gim_outputs(ff.f.ctx);
+            assert_int_equal(o.val_count, counts[k]);
+            assert_true(o.lights[0].importance != 0);
+            read_indirect(&o, brsm);
+            err[k] += 0.5 * mean_rel_diff(brsm, full);
+        }
+        print_message("BRSM %u VALs: mean relative difference to FULL %.4f\n", counts[k], err[k]);
+    }
+    assert_true(err[2] < err[0]);
+    assert_true(err[2] < 0.5 * err[0]);
+    assert_true(err[2] < 0.1);
+    bad = compare_with_cpu_frame(&ff, brsm, 0, 5e-4, &max_rel);
+    print_message("BRSM 2048: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
+    assert_true(bad <= W * H / 200);
+
+    /* occlusion darkens (the blocks shadow the indirect light) and still matches the CPU frame */
+    ff.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    ff.fr.occlusion = 1;
+    ff.fr.timing = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    read_indirect(&o, brsm);
+    {
+        double sum_on = 0.0, sum_off = 0.0;
+        int i;
+        for (i = 0; i < W * H * 4; ++i) if (i % 4 != 3) { sum_on += brsm[i]; sum_off += full[i]; }
+        print_message("occlusion: image sum %.4g of %.4g without\n", sum_on, sum_off);
+        assert_true(sum_on < sum_off && sum_on > 0.3 * sum_off);
+    }
+    bad = compare_with_cpu_frame(&ff, brsm, 1, 5e-4, &max_rel);
+    print_message("FULL + occlusion: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
+    assert_true(bad <= W * H / 100);
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    assert_true(st.pass_ms[GIM_PASS_OCCLUSION] > 0.0);
+    gltest_state_unchanged(&ff.f);
+    frame_end(&ff);
+    free(full); free(brsm); free(nrm);
+}
+
+static void cornell_builtin(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    cornell_frame(NULL);
+    GLTEST_END();
+}
+
+static void cornell_gltf(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    cornell_frame(CORNELL_GLTF);
+    GLTEST_END();
+}
+
+/* Glossy proxy lights exist exactly when a material is glossy; the GPU frame still matches
+   the CPU frame; sizes change between frames without a new context; no caches: no LightSkin. */
+static void glossy_sizes_and_no_caches(void **state) {
+    frame_fixture ff;
+    gim_material *m;
+    gim_frame_outputs o;
+    float *img = (float *)malloc(W * H * 16);
+    double max_rel;
+    uint32_t i, bad;
+    (void)state;
+    GLTEST_BEGIN();
+    frame_begin(&ff, NULL, 32);
+    /* make the back wall's material glossy */
+    m = (gim_material *)calloc(ff.s.material_count, sizeof *m);
+    for (i = 0; i < ff.s.material_count; ++i) {
+        memcpy(m[i].diffuse, ff.s.materials[i].diffuse, 12);
+        if (i == 0) {
+            m[i].glossy[0] = m[i].glossy[1] = m[i].glossy[2] = 0.3f;
+            m[i].exponent = 30.0f;
+            ff.s.materials[i].glossy[0] = ff.s.materials[i].glossy[1] = ff.s.materials[i].glossy[2] = 0.3f;
+            ff.s.materials[i].exponent = 30.0f;
+        }
+    }
+    assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
+    ff.fr.val_count = 512;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_true(o.proxy_glossy != 0);
+    assert_true(o.glossy_exponent == 30.0f);
+    read_indirect(&o, img);
+    bad = compare_with_cpu_frame(&ff, img, 0, 5e-4, &max_rel);
+    print_message("glossy BRSM: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
+    assert_true(bad <= W * H / 200);
+    /* the default RGBA16F output: the same frame within half precision (2^-11 relative) */
+    ff.fr.indirect_float32 = 0;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    read_indirect(&o, img);
+    bad = compare_with_cpu_frame(&ff, img, 0, 1.1e-3, &max_rel);
+    print_message("glossy BRSM, RGBA16F: GPU vs CPU frame max rel %.2e, %u pixels above 1.1e-3\n", max_rel, bad);
+    assert_true(bad <= W * H / 200);
+    /* back to diffuse only: the glossy buffer goes */
+    for (i = 0; i < ff.s.material_count; ++i) { m[i].glossy[0] = m[i].glossy[1] = m[i].glossy[2] = 0.0f; }
+    assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
+    ff.fr.indirect_float32 = 1;
+    ff.fr.neighbour_count = 6;
+    ff.fr.val_count = 300;
+    ff.g.lights[0].rsm_size = 40;
+    assert_int_equal(gim_set_lights(ff.f.ctx, ff.g.lights, 1), GIM_OK);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_int_equal(o.proxy_glossy, 0);
+    assert_int_equal(ff.f.ctx->ls.glossy, 0);
+    assert_int_equal(o.neighbour_count, 6);
+    assert_int_equal(o.val_count, 300);
+    assert_int_equal(o.lights[0].rsm_size, 40);
+    read_indirect(&o, img);
+    /* no lights: no LightSkin passes, and what they owned is freed */
+    assert_int_equal(gim_set_lights(ff.f.ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_int_equal(o.indirect, 0);
+    assert_int_equal(ff.f.ctx->ls.vals, 0);
+    assert_int_equal(ff.f.ctx->ls.diffuse, 0);
+    /* bad frame settings */
+    ff.fr.method = (gim_method)7;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_INVALID_ARGUMENT);
+    ff.fr.method = GIM_METHOD_DEFAULT;
+    ff.fr.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES + 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
+    ff.f.log.errors = 0;
+    gltest_state_unchanged(&ff.f);
+    free(m);
+    free(img);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(cornell_builtin),
+        cmocka_unit_test(cornell_gltf),
+        cmocka_unit_test(glossy_sizes_and_no_caches),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
