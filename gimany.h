@@ -960,7 +960,9 @@ typedef struct gim_frame {
                                    the same view (window depth in [0, 1], 1 = nothing) ... */
     uint32_t gbuffer_normal;    /* ... and a 2D float texture with the world normal in .xyz;
                                    both >= width x height, or both 0 (gimany draws one) */
-    uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 65536 */
+    uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
+                                   importance-map invocation loops over them all; llvmpipe stops
+                                   a loop after 65535 iterations) */
     uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
     uint32_t val_count;         /* VALs selected per light (paper 000 sec. 4); 0: 2048 */
@@ -5170,6 +5172,9 @@ struct gim_context {
     gim__GLuint programs[GIM__PROGRAM_COUNT];
     gim__GLuint scan_blocks;      /* eq. 12 scratch: per-block column totals, then offsets */
     size_t scan_blocks_bytes;
+    gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache */
+    uint64_t proxy_state_bytes;
+    uint32_t proxy_chunk;         /* VALs per proxy-light dispatch, caches per occlusion dispatch */
     gim__GLint max_texture_size, max_viewport[2];
     /* the scene (see "the scene" below) */
     gim__mesh *meshes;            /* slots; a handle is slot + 1 | generation << 16 */
@@ -5352,6 +5357,18 @@ static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLu
     r = gim__gl_build_program(ctx, gim__program_files[id][0], stages, n, &ctx->programs[id]);
     if (r == GIM_OK) *out = ctx->programs[id];
     return r;
+}
+
+/* A buffer of at least bytes (exactly bytes when it grows or shrinks by half or more). */
+static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_t *have, uint64_t bytes, const char *where) {
+    if (*b && *have >= bytes && *have / 2u < bytes) return GIM_OK;
+    if (!*b) ctx->gl.GenBuffers(1, b);
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, *b);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
+    *have = 0; /* unknown until the check passes (a failed glBufferData leaves the store undefined) */
+    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
+    *have = bytes;
+    return GIM_OK;
 }
 
 /* --- importance sampling passes (paper 000 sec. 4) -----------------------------------
@@ -5589,6 +5606,10 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
 /* --- LightSkin passes (paper 000 sec. 3) --------------------------------------------------- */
 
 #define GIM__PROXY_GROUP 64u   /* TILE of proxy_lights.comp */
+/* VALs (caches for occlusion) per dispatch: under 65535 loop iterations per invocation, the
+   bound of Mesa's llvmpipe over all loops of one invocation (it stops them silently there),
+   and short enough for a desktop GPU's watchdog */
+#define GIM__PROXY_CHUNK 32768u
 
 /* Proxy lights on the GPU, the twin of gim_proxy_lights (same formulas, guards and clamps;
    see there). caches: SSBO of cache_count gim_cache (32 bytes: vec4 position + area, vec4
@@ -5603,7 +5624,8 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
    that is not finite or has negative area, weight or flux adds nothing (the twin rejects it),
    and a sum that overflows float gives the proxy x_p = c and zero flux, so every output is
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
-   no VAL lights). */
+   no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
+   a scratch buffer of 96 bytes a cache between them. */
 static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                    gim__GLuint vals, uint32_t val_count, gim_vec3 eye, float exponent,
                                                    float scene_scale, gim__GLuint diffuse_out,
@@ -5612,6 +5634,7 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
+    uint32_t mode;
     gim_result r;
     if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
@@ -5648,6 +5671,9 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, val_count > 0 ? vals : caches); /* never read then */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, diffuse_out);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, glossy_out ? glossy_out : diffuse_out); /* never written then */
+    r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)cache_count * 96u, where);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, ctx->proxy_state);
     gl->UseProgram(program);
     gl->Uniform1ui(0, cache_count);
     gl->Uniform1ui(1, val_count);
@@ -5655,7 +5681,20 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     gl->Uniform1f(3, glossy_out ? exponent : 0.0f);
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
-    gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+    /* sums over the VALs chunk by chunk (mode 0), the dark caches' positions (mode 1), the
+       proxy lights (mode 2); one dispatch each, the sums kept in proxy_state between them */
+    for (mode = 0; mode < 3u; ++mode) {
+        uint32_t first = 0;
+        do {
+            uint32_t n = mode == 2u ? 0u : (val_count - first < ctx->proxy_chunk ? val_count - first : ctx->proxy_chunk);
+            gl->Uniform1ui(6, first);
+            gl->Uniform1ui(7, n);
+            gl->Uniform1ui(8, mode);
+            gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+            first += n;
+        } while (mode != 2u && first < val_count);
+    }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
@@ -5705,7 +5744,18 @@ static GIM__UNUSED gim_result gim__gl_proxy_occlusion(gim_context *ctx, gim__GLu
     gl->UseProgram(program);
     gl->Uniform1ui(0, cache_count);
     gl->Uniform1f(1, GIM__TWINS_COINCIDENT * scene_scale);
-    gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+    {   /* the blockers in chunks of ctx->proxy_chunk, one dispatch each (see GIM__PROXY_CHUNK);
+           each goes on from the visibility the last one left */
+        uint32_t first = 0;
+        do {
+            uint32_t n = cache_count - first < ctx->proxy_chunk ? cache_count - first : ctx->proxy_chunk;
+            gl->Uniform1ui(2, first);
+            gl->Uniform1ui(3, n);
+            gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+            first += n;
+        } while (first < cache_count);
+    }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
@@ -5803,7 +5853,7 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    leaves the scene as it was. */
 
 #define GIM__MAX_MESHES 65535u
-#define GIM__MAX_VIEW_SAMPLES 65536u
+#define GIM__MAX_VIEW_SAMPLES 32768u
 #define GIM__DEFAULT_VIEW_SAMPLES 256u
 #define GIM__DEFAULT_VAL_COUNT 2048u
 
@@ -6224,18 +6274,6 @@ static gim_result gim__gl_framebuffer(gim_context *ctx, gim__GLuint *fbo, const 
     if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "framebuffer incomplete (0x%04x)", (unsigned)status);
     return gim__gl_check(ctx, where);
-}
-
-/* A buffer of at least bytes (exactly bytes when it grows or shrinks by half or more). */
-static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_t *have, uint64_t bytes, const char *where) {
-    if (*b && *have >= bytes && *have / 2u < bytes) return GIM_OK;
-    if (!*b) ctx->gl.GenBuffers(1, b);
-    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, *b);
-    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)bytes, NULL, GIM__GL_DYNAMIC_COPY);
-    *have = 0; /* unknown until the check passes (a failed glBufferData leaves the store undefined) */
-    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
-    *have = bytes;
-    return GIM_OK;
 }
 
 /* Raster state of the RSM and G-buffer passes, everything from the state list. */
@@ -6962,7 +7000,7 @@ GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
 
 /* GL bytes of a buffer or texture set the context owns. */
 static uint64_t gim__context_bytes(const gim_context *ctx) {
-    uint64_t b = ctx->scan_blocks_bytes + ctx->view_sample_pixels_bytes + ctx->view_samples_bytes +
+    uint64_t b = ctx->scan_blocks_bytes + ctx->proxy_state_bytes + ctx->view_sample_pixels_bytes + ctx->view_samples_bytes +
                  (uint64_t)ctx->material_count * 32u;
     uint32_t i;
     for (i = 0; i < ctx->mesh_slots; ++i)
@@ -7057,6 +7095,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
     gl.GetIntegerv(GIM__GL_MAX_TEXTURE_SIZE, &ctx->max_texture_size);
     gl.GetIntegerv(GIM__GL_MAX_VIEWPORT_DIMS, ctx->max_viewport);
+    ctx->proxy_chunk = GIM__PROXY_CHUNK;
     *out = ctx;
     return GIM_OK;
 }
@@ -7068,6 +7107,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
     for (i = 0; i < GIM__PROGRAM_COUNT; ++i)
         if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
+    if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
     gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);

@@ -21,6 +21,17 @@ layout(location = 2) uniform vec3 eye;
 layout(location = 3) uniform float exponent;     /* Phong k of the glossy lobe */
 layout(location = 4) uniform float coincident2;  /* (1e-6 scene_scale)^2: no direction nearer */
 layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out untouched */
+layout(location = 6) uniform uint first;         /* this dispatch's VALs: [first, first + chunk) */
+layout(location = 7) uniform uint chunk;
+layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 1: the
+                                                    form-factor positions of dark caches; 2: write
+                                                    the proxy lights */
+/* The sums of every cache between dispatches, 6 vec4 each: (s, w), (mean, E_n), (m2, dark) of
+   the diffuse sums, (s, w), (mean, shift), (m2, 0) of the glossy ones. The VALs are taken in
+   chunks, each its own dispatch: a driver may bound the loop iterations of one invocation
+   (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
+   length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
+layout(std430, binding = 4) buffer State { vec4 state[]; };
 
 shared vec4 tile_pa[TILE];    /* position, area */
 shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
@@ -133,7 +144,8 @@ void main() {
     uint i = gl_GlobalInvocationID.x;
     uint local = gl_LocalInvocationIndex;
     bool inside = i < cache_count;
-    Cache cc = cache[min(i, cache_count - 1u)];
+    uint ii = min(i, cache_count - 1u);
+    Cache cc = cache[ii];
     vec3 c = cc.position_area.xyz, n = cc.normal_reflectance.xyz;
     bool glossy = with_glossy != 0u;
     vec3 te = eye - c;
@@ -141,67 +153,92 @@ void main() {
     vec3 v = glossy && le > 0.0 ? te / sqrt(le) : vec3(0.0);   /* eye at the cache: only k = 0 lights */
     Sums sd = Sums(vec3(0.0), 0.0, vec3(0.0), vec3(0.0));
     Sums sg = sd;
-    float en = 0.0;   /* lum(E_n) = sum lum(Phi) e / cos theta_x */
+    float en = 0.0;       /* lum(E_n) = sum lum(Phi) e / cos theta_x */
     float shift = -200.0; /* the glossy sums are scaled by 2^-shift */
-    for (uint base = 0u; base < val_count; base += uint(TILE)) {
-        load(base + local, local);
-        barrier();
-        uint count = min(uint(TILE), val_count - base);
-        if (inside)
-            for (uint t = 0u; t < count; ++t) {
-                vec3 d = tile_pa[t].xyz - c;
-                float d2 = dot(d, d);
-                float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;   /* no direction: no light */
-                float cos_x = max(dot(n, d) * inv, 0.0);
-                float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
-                float den = tile_pa[t].w + PI * d2;
-                float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
-                float e = e_n * cos_x;
-                if (!(e > 0.0)) continue;   /* behind, grazing, coincident or weight 0 */
-                vec3 phi = tile_flux[t];
-                float lphi = dot(LUM, phi);
-                float wgt = lphi * e;       /* W_j: what the VAL adds */
-                add(sd, d, wgt, phi, e);
-                en += lphi * e_n;
-                if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
-                    float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), exponent);   /* eq. 4/15 */
-                    if (l != NO_LOBE) {
-                        if (l > shift) rescale(sg, shift, l);
-                        float g = exp2(l - shift);
-                        add(sg, d, wgt * g, phi, e * g);
-                    }
-                }
-            }
-        barrier();
+    float dark = 0.0;
+    if (mode != 0u || first != 0u) {
+        uint b = ii * 6u;
+        vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
+        sd = Sums(a0.xyz, a0.w, a1.xyz, a2.xyz);
+        en = a1.w;
+        dark = a2.w;
+        sg = Sums(g0.xyz, g0.w, g1.xyz, g2.xyz);
+        shift = g1.w;
     }
-    /* a dark cache: the form-factor weights of eq. 6 place the proxy; the second loop runs in
-       the work groups that hold one (barrier() needs the whole group) */
-    if (local == 0u) any_dark = 0u;
-    barrier();
-    if (inside && !(sd.w > 0.0)) any_dark = 1u;
-    barrier();
-    if (any_dark != 0u) {
-        bool dark = inside && !(sd.w > 0.0);
-        for (uint base = 0u; base < val_count; base += uint(TILE)) {
+    uint end = first + chunk;
+    if (mode == 0u) {
+        for (uint base = first; base < end; base += uint(TILE)) {
             load(base + local, local);
             barrier();
-            uint count = min(uint(TILE), val_count - base);
-            if (dark)
+            uint count = min(uint(TILE), end - base);
+            if (inside)
                 for (uint t = 0u; t < count; ++t) {
                     vec3 d = tile_pa[t].xyz - c;
                     float d2 = dot(d, d);
-                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;   /* no direction: no light */
                     float cos_x = max(dot(n, d) * inv, 0.0);
                     float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
                     float den = tile_pa[t].w + PI * d2;
-                    float f = den > 0.0 ? tile_nw[t].w * tile_pa[t].w * cos_l * cos_x / den : 0.0;   /* F */
-                    if (!(f > 0.0)) continue;
-                    add_position(sd, d, f);
+                    float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
+                    float e = e_n * cos_x;
+                    if (!(e > 0.0)) continue;   /* behind, grazing, coincident or weight 0 */
+                    vec3 phi = tile_flux[t];
+                    float lphi = dot(LUM, phi);
+                    float wgt = lphi * e;       /* W_j: what the VAL adds */
+                    add(sd, d, wgt, phi, e);
+                    en += lphi * e_n;
+                    if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
+                        float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), exponent);   /* eq. 4/15 */
+                        if (l != NO_LOBE) {
+                            if (l > shift) rescale(sg, shift, l);
+                            float g = exp2(l - shift);
+                            add(sg, d, wgt * g, phi, e * g);
+                        }
+                    }
                 }
             barrier();
         }
+    } else if (mode == 1u) {
+        /* a dark cache (no VAL lit it: decided at the first chunk): the form-factor weights of
+           eq. 6 place the proxy; the loop runs in the work groups that hold one (barrier()
+           needs the whole group) */
+        if (first == 0u) dark = inside && !(sd.w > 0.0) ? 1.0 : 0.0;
+        if (local == 0u) any_dark = 0u;
+        barrier();
+        if (dark > 0.0) any_dark = 1u;
+        barrier();
+        if (any_dark != 0u) {
+            for (uint base = first; base < end; base += uint(TILE)) {
+                load(base + local, local);
+                barrier();
+                uint count = min(uint(TILE), end - base);
+                if (dark > 0.0)
+                    for (uint t = 0u; t < count; ++t) {
+                        vec3 d = tile_pa[t].xyz - c;
+                        float d2 = dot(d, d);
+                        float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+                        float cos_x = max(dot(n, d) * inv, 0.0);
+                        float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                        float den = tile_pa[t].w + PI * d2;
+                        float f = den > 0.0 ? tile_nw[t].w * tile_pa[t].w * cos_l * cos_x / den : 0.0;   /* F */
+                        if (!(f > 0.0)) continue;
+                        add_position(sd, d, f);
+                    }
+                barrier();
+            }
+        }
     }
     if (!inside) return;
+    if (mode != 2u) {
+        uint b = i * 6u;
+        state[b] = vec4(sd.s, sd.w);
+        state[b + 1u] = vec4(sd.mean, en);
+        state[b + 2u] = vec4(sd.m2, dark);
+        state[b + 3u] = vec4(sg.s, sg.w);
+        state[b + 4u] = vec4(sg.mean, shift);
+        state[b + 5u] = vec4(sg.m2, 0.0);
+        return;
+    }
     diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0);
     if (glossy) {
         if (!(sg.w > 0.0)) {   /* the lobe sees no light: the diffuse proxy's place, flux 0 */

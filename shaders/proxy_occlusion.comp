@@ -20,6 +20,8 @@ layout(std430, binding = 1) buffer Lights { Proxy light[]; };
 
 layout(location = 0) uniform uint cache_count;
 layout(location = 1) uniform float near_;   /* 1e-6 scene_scale: no direction nearer */
+layout(location = 2) uniform uint first;    /* the blockers of this dispatch: [first, first + chunk); */
+layout(location = 3) uniform uint chunk;    /* first > 0 goes on from the visibility written before */
 
 shared vec4 tile_pa[TILE];   /* position, area (area 0: skipped) */
 shared vec3 tile_n[TILE];    /* normal */
@@ -78,11 +80,12 @@ void main() {
     /* sphere form factor (r / D)^2 cos_p as an equal-area square of side ps = sqrt(pi F) */
     float ps = sqrt(PI * cos_p) * (r / dist);
     float far_ = dist - r;                              /* blockers strictly nearer than this */
-    float occ = 0.0;
-    for (uint base = 0u; base < cache_count; base += uint(TILE)) {
+    float occ = first > 0u && occludable ? 1.0 - light[ii].flux_visibility.w : 0.0;
+    uint end = first + chunk;
+    for (uint base = first; base < end; base += uint(TILE)) {
         load(base + local, local);
         barrier();
-        uint count = min(uint(TILE), cache_count - base);
+        uint count = min(uint(TILE), end - base);
         if (occludable)
             for (uint k = 0u; k < count && occ < 1.0; ++k) {
                 if (base + k == i) continue;

@@ -217,6 +217,36 @@ static void matches_twin(void **state) {
     GLTEST_END();
 }
 
+/* The blockers in several dispatches (chunks of 100 and of 64 caches, each going on from the
+   visibility the last left) give the one-dispatch answer. */
+static void chunked(void **state) {
+    static const uint32_t chunks[2] = {100, 64};
+    gltest_fixture f;
+    int k;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    for (k = 0; k < 2; ++k) {
+        config c;
+        errors e;
+        float *cpu = (float *)malloc(1000 * sizeof(float)), *gpu = (float *)malloc(1000 * sizeof(float));
+        f.ctx->proxy_chunk = chunks[k];
+        make_config(&c, 1000, 4.0f, f.env);
+        run_both(&f, &c, cpu, gpu);
+        compare(cpu, gpu, c.count, TOL, &e, "chunked");
+        print_message("occlusion in chunks of %u: max |GPU - twin| %.3g (%u outliers), %u occluded\n", chunks[k], e.max_err,
+                      (unsigned)e.outliers, (unsigned)e.occluded);
+        assert_true(e.outliers <= MAX_OUTLIERS);
+        assert_true(e.max_err < TOL);
+        assert_true(e.occluded > c.count / 10u);
+        free(cpu);
+        free(gpu);
+        free_config(&c);
+    }
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* The same room in millimetres and in kilometres, shifted far from the origin (the unit-free
    nearness 1e-6 scene_scale): the pass still matches the twin on it (TOL), and both match the
    room's own visibilities to TOL_SHIFT = 1e-3, with the same outlier bound. The looser bound:
@@ -451,6 +481,7 @@ static void pass_arguments(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(matches_twin),
+        cmocka_unit_test(chunked),
         cmocka_unit_test(unit_free),
         cmocka_unit_test(special_cases),
         cmocka_unit_test(broken_inputs),

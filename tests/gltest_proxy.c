@@ -255,6 +255,42 @@ static void matches_twin(void **state) {
     GLTEST_END();
 }
 
+/* The VALs in several dispatches: chunks of 100 and of 64 (a whole number of tiles), FULL and
+   BRSM, with glossy, give the twin's answer; and 70000 VALs at the default chunk (32768: three
+   dispatches), past the 65535 loop iterations after which llvmpipe silently stops every loop
+   of an invocation (one dispatch over them read only the first 65536 VALs). */
+static void chunked(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    static const uint32_t chunks[2] = {100, 64};
+    gltest_fixture f;
+    config c;
+    errors ed, eg;
+    int k;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_config(&c, 130, 500, 4.0f, zero, 1);
+    for (k = 0; k < 2; ++k) {
+        f.ctx->proxy_chunk = chunks[k];
+        run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
+        print_message("chunks of %u VALs: diffuse position %.3g flux %.3g; glossy flux %.3g\n", chunks[k], ed.position,
+                      ed.flux, eg.flux);
+        assert_true(ed.lit > 60);
+        assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+        assert_true(eg.position < 1e-4 && eg.sigma < 1e-4 && eg.flux < 1e-3);
+    }
+    free_config(&c);
+    f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    make_config(&c, 64, 70000, 4.0f, zero, 0);
+    run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), -1.0f, &ed, &eg);
+    print_message("70000 VALs: diffuse position %.3g flux %.3g (%u lit)\n", ed.position, ed.flux, ed.lit);
+    assert_true(ed.lit > 30);
+    assert_true(ed.position < TOL_POS && ed.sigma < 1e-3 && ed.flux < 1e-3);
+    free_config(&c);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* More than one work group and one VAL tile with partial last ones (caches 130 = 2 groups of
    64 + 2, VALs 200 = 3 tiles of 64 + 8), k = 0 (the constant lobe), an eye at a cache, and no
    VALs at all (every cache dark: x_p = c, flux 0). */
@@ -398,6 +434,7 @@ static void pass_arguments(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(matches_twin),
+        cmocka_unit_test(chunked),
         cmocka_unit_test(edges),
         cmocka_unit_test(unit_free),
         cmocka_unit_test(broken_vals_add_nothing),
