@@ -80,7 +80,7 @@ $(B)/cxx/static_cxx: tests/static_tu.c $(HDRS)
 	clang++ -x c++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $< -o $@ -lm
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
-REF_BINS := $(B)/ref/test_reference
+REF_BINS := $(B)/ref/test_reference $(B)/ref/test_compare
 
 test: deps check-shaders
 	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
@@ -109,6 +109,12 @@ $(B)/gimany-reference: $(B)/ref/scene.o $(B)/ref/reference.o $(B)/ref/main.o
 $(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o $(B)/gimany-reference $(REF_HDRS)
 	gcc $(CSTD) $(WARN) -fsyntax-only -Iexamples -x c examples/scene.h tools/reference/reference.h
 	$(REF_CXX) -O1 -g $(SAN) -DREF_BIN='"$(B)/gimany-reference"' $< $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o -o $@ -lcmocka -lembree3 -pthread
+
+# gimany-compare (tools/compare.c): error metrics of a method's image against a reference.
+$(B)/gimany-compare: tools/compare.c tools/compare.h $(B)/ref/scene.o examples/scene.h
+	gcc $(CSTD) $(WARN) -Iexamples -Itools -isystem /usr/include/stb -O2 $< $(B)/ref/scene.o -o $@ -lm -lstdc++
+$(B)/ref/test_compare: tests/test_compare.c tools/compare.c tools/compare.h $(B)/ref/asan/scene.o $(B)/gimany-compare
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O1 -g $(SAN) -DCOMPARE_BIN='"$(B)/gimany-compare"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
 
 $(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h tests/street.h
 	@mkdir -p $(@D)

@@ -973,7 +973,10 @@ typedef struct gim_frame {
     int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
-    int timing;                 /* 1: GL timer queries around every pass, read by gim_frame_stats */
+    int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
+                                   2: also glFinish before each, so a driver that runs queued work
+                                   at the next flush (llvmpipe) charges it to its pass; it
+                                   serialises the frame, for profiling only */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -4844,6 +4847,7 @@ enum {
     X(void, GenQueries, (gim__GLsizei n, gim__GLuint *ids))                                      \
     X(void, DeleteQueries, (gim__GLsizei n, const gim__GLuint *ids))                             \
     X(void, QueryCounter, (gim__GLuint id, gim__GLenum target))                                  \
+    X(void, Finish, (void))                                                                      \
     X(void, GetQueryObjectui64v, (gim__GLuint id, gim__GLenum pname, uint64_t *params))
 
 /* The function table, filled by gim__gl_load. */
@@ -6648,6 +6652,7 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
         ctx->gl.GenQueries(GIM__MAX_STAMPS, ctx->queries);
         ctx->query_count = GIM__MAX_STAMPS;
     }
+    if (timed == 2) ctx->gl.Finish();
     ctx->gl.QueryCounter(ctx->queries[ctx->stamp_count], GIM__GL_TIMESTAMP);
     ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
 }
