@@ -134,13 +134,13 @@ $(B)/bench/%: tests/%.cpp $(HDRS)
 	g++ -std=c++11 -O2 -march=native -DNDEBUG $(INC) -I/usr/include/stb $< -o $@ -lm
 
 # The frame benchmark loads the street through the scene layer of the examples.
-$(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+$(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h tools/compare.c $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
 bench: deps
-	@$(DEPS) examples
-	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES))
+	@$(DEPS) examples reference
+	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES)) $(B)/gimany-reference
 	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
 
 # --- fuzzing (libFuzzer) ------------------------------------------------------------------

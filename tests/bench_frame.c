@@ -10,9 +10,12 @@
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "scene_gimany.h"
+#define COMPARE_NO_MAIN
+#include "../tools/compare.c"
 
 #define W 320
 #define H 180
+#define REF_SPP 1024
 
 static double frame_ms(gim_context *ctx, const gim_frame *f, int runs, gim_stats *st) {
     double t[9];
@@ -36,6 +39,20 @@ static void read_image(gim_context *ctx, float *rgba) {
     gltest_read_texture(gim_outputs(ctx).indirect, GL_RGBA, rgba);
 }
 
+/* rel. MAE of the indirect image (RGBA, GL rows bottom first) against the reference (RGB, top
+   row first); -1 without a reference */
+static double error_vs(const float *rgba, const float *ref) {
+    static float rgb[W * H * 3];
+    compare_result r;
+    int x, y, c;
+    if (!ref) return -1.0;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x)
+            for (c = 0; c < 3; ++c) rgb[(y * W + x) * 3 + c] = rgba[((H - 1 - y) * W + x) * 4 + c];
+    compare_images(rgb, ref, W, H, &r, NULL);
+    return r.rel_mae;
+}
+
 static double mean_rel_diff(const float *a, const float *b) {
     double d = 0.0, m = 0.0;
     int i, c;
@@ -44,6 +61,38 @@ static double mean_rel_diff(const float *a, const float *b) {
         for (c = 0; c < 3; ++c) { d += fabs((double)a[i * 4 + c] - b[i * 4 + c]); m += b[i * 4 + c]; }
     }
     return m > 0.0 ? d / m : 0.0;
+}
+
+/* Temporal flicker (issue 7): K frames while the sun turns by STEP_DEG about the vertical per
+   frame; the mean absolute frame-to-frame change of the image over its mean. FULL has no
+   sampling noise, so its change is what the moving light itself causes; a method's flicker is
+   its change minus FULL's. The reference's own change would need far more paths per pixel
+   than its noise allows at this step. */
+#define FLICKER_FRAMES 8
+#define STEP_DEG 0.25
+static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
+    static float prev[W * H * 4], cur[W * H * 4];
+    gim_vec3 d0 = g->lights[0].direction;
+    double change = 0.0;
+    int k, i;
+    for (k = 0; k < FLICKER_FRAMES; ++k) {
+        double a = k * STEP_DEG * 3.14159265358979 / 180.0, num = 0.0, den = 0.0;
+        g->lights[0].direction = gim_v3((float)(cos(a) * d0.x + sin(a) * d0.z), d0.y, (float)(-sin(a) * d0.x + cos(a) * d0.z));
+        gim_set_lights(ctx, g->lights, g->light_count);
+        f.frame_index = (uint32_t)k + 1u;
+        f.rotate_view_samples = 1;
+        gim_update(ctx, &f);
+        read_image(ctx, cur);
+        if (k > 0) {
+            for (i = 0; i < W * H * 4; ++i)
+                if (i % 4 != 3) { num += fabs((double)cur[i] - prev[i]); den += cur[i]; }
+            change += den > 0.0 ? num / den : 0.0;
+        }
+        memcpy(prev, cur, sizeof cur);
+    }
+    g->lights[0].direction = d0;
+    gim_set_lights(ctx, g->lights, g->light_count);
+    return change / (FLICKER_FRAMES - 1);
 }
 
 int main(int argc, char **argv) {
@@ -56,7 +105,7 @@ int main(int argc, char **argv) {
     gim_frame f;
     gim_stats st;
     char err[256];
-    float *full = (float *)malloc(W * H * 16), *img = (float *)malloc(W * H * 16);
+    float *full = (float *)malloc(W * H * 16), *img = (float *)malloc(W * H * 16), *ref = NULL;
     int ri, vi, si;
     if (!gltest_init()) {
         const char *skip = getenv("GIMANY_SKIP_GL");
@@ -81,18 +130,34 @@ int main(int argc, char **argv) {
         for (m = 0; m < s.mesh_count; ++m) tris += s.meshes[m].triangle_count;
         printf("scene: street, %u triangles, %u caches, %ux%u pixels, sun\n", tris, g.cache_count, W, H);
     }
-    printf("| RSM | method | VALs | view samples | frame ms (median) | FULL : this | mean rel. diff to FULL | importance ms | proxy ms | shade ms |\n");
-    printf("|---|---|---|---|---|---|---|---|---|---|\n");
+    /* the ground truth of the same view (Embree, tools/reference), when it is built */
+    {
+        FILE *fp = fopen("build/gimany-reference", "rb");
+        char cmd[256];
+        uint32_t rw, rh;
+        if (fp) {
+            fclose(fp);
+            snprintf(cmd, sizeof cmd, "build/gimany-reference --scene street --size %dx%d --spp %d --out build/bench_frame_ref >/dev/null",
+                     W, H, REF_SPP);
+            if (system(cmd) == 0 && scene_read_pfm("build/bench_frame_ref/reference.pfm", &ref, &rw, &rh, err, sizeof err) == 0 &&
+                rw == W && rh == H)
+                printf("reference: build/gimany-reference, %d paths per pixel\n", REF_SPP);
+            else { free(ref); ref = NULL; }
+        }
+        if (!ref) printf("reference: none (make reference builds it)\n");
+    }
+    printf("| RSM | method | VALs | view samples | frame ms (median) | FULL : this | mean rel. diff to FULL | rel. MAE vs reference | importance ms | proxy ms | shade ms |\n");
+    printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (ri = 0; ri < 3 && rsm_sizes[ri] <= max_rsm; ++ri) {
         double t_full;
-        int runs = rsm_sizes[ri] >= 1024 ? 3 : 5;
+        int runs = 3;
         g.lights[0].rsm_size = rsm_sizes[ri];
         gim_set_lights(ctx, g.lights, g.light_count);
         f.method = GIM_METHOD_LIGHTSKIN_FULL;
         t_full = frame_ms(ctx, &f, runs, &st);
         read_image(ctx, full);
-        printf("| %u^2 | FULL | %u | - | %.1f | 1.0 | 0 | - | %.1f | %.1f |\n", rsm_sizes[ri], st.val_count, t_full,
-               st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
+        printf("| %u^2 | FULL | %u | - | %.1f | 1.0 | 0 | %.3f | - | %.1f | %.1f |\n", rsm_sizes[ri], st.val_count, t_full,
+               error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
         fflush(stdout);
         f.method = GIM_METHOD_LIGHTSKIN_BRSM;
         for (vi = 0; vi < 3; ++vi)
@@ -102,19 +167,38 @@ int main(int argc, char **argv) {
                 f.view_sample_count = vs_counts[si];
                 t = frame_ms(ctx, &f, runs, &st);
                 read_image(ctx, img);
-                printf("| %u^2 | BRSM | %u | %u | %.1f | %.1f | %.4f | %.1f | %.1f | %.1f |\n", rsm_sizes[ri], val_counts[vi],
-                       vs_counts[si], t, t_full / t, mean_rel_diff(img, full),
+                printf("| %u^2 | BRSM | %u | %u | %.1f | %.1f | %.4f | %.3f | %.1f | %.1f | %.1f |\n", rsm_sizes[ri], val_counts[vi],
+                       vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
                        st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
                        st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
                 fflush(stdout);
             }
     }
     printf("GPU memory of the last frame: %.1f MiB\n", (double)st.gpu_bytes / 1048576.0);
+    {   /* flicker at RSM 256^2 */
+        double c_full, c;
+        static const uint32_t fv[3] = {2048, 4096, 8192};
+        int k;
+        g.lights[0].rsm_size = 256;
+        f.method = GIM_METHOD_LIGHTSKIN_FULL;
+        c_full = image_change(ctx, &g, f);
+        printf("flicker (sun turning %.2f deg a frame, %d frames, RSM 256^2): FULL's own change %.4f of the mean; "
+               "BRSM minus FULL:", STEP_DEG, FLICKER_FRAMES, c_full);
+        f.method = GIM_METHOD_LIGHTSKIN_BRSM;
+        f.view_sample_count = 256;
+        for (k = 0; k < 3; ++k) {
+            f.val_count = fv[k];
+            c = image_change(ctx, &g, f);
+            printf(" %u VALs %.4f;", fv[k], c - c_full);
+        }
+        printf("\n");
+    }
     scene_gimany_free(ctx, &g);
     scene_free(&s);
     gim_destroy(ctx);
     free(full);
     free(img);
+    free(ref);
     gltest_shutdown();
     return 0;
 }
