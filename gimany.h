@@ -771,6 +771,9 @@ typedef struct gim_light {
     float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
                                0: the radius of the scene bounds' sphere, so it covers the scene */
     uint32_t rsm_size;      /* RSM side in texels; 0: 512 */
+    int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
+                               (gim_light_fit_view), the open-world case: its texels go where the
+                               view is, not over the whole world; 0: the scene bounds */
 } gim_light;
 
 /* One material; zero is black. Diffuse and glossy albedo rgb, Phong-like exponent k. */
@@ -787,6 +790,18 @@ typedef struct gim_material {
    bounds' centre, the bounds' sphere inside its depth range. The GL runtime uses the same. */
 GIMANY_API gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj);
+
+/* The bounds and light gim_light_camera takes for a fit_view sun: the part of the camera's
+   frustum (near plane to min(far plane, view_distance); view_distance 0: the far plane) inside
+   the scene bounds is the focus; out_light's extent is the focus' bounding radius (or the
+   light's own extent when > 0), and out_min/out_max are the focus stretched along the light
+   direction by the scene's diagonal both ways, so the orthographic window covers the focus
+   while its depth range still holds every caster of the scene. A focus that is empty (the
+   camera looks out of the scene) falls back to the scene bounds. Other lights are copied
+   with the scene bounds. view, proj: the host's camera (finite, invertible). */
+GIMANY_API gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
+                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
+                                         float out_min[3], float out_max[3]);
 
 /* A world-space triangle soup for the twins. */
 typedef struct gim_twin_scene {
@@ -973,6 +988,7 @@ typedef struct gim_frame {
     int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
+    float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
     int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
                                    2: also glFinish before each, so a driver that runs queued work
                                    at the next flush (llvmpipe) charges it to its pass; it
@@ -4321,6 +4337,65 @@ static void gim__mat4_apply_d(const gim_mat4 *m, const double v[4], double out[4
         out[r] = m->m[r] * v[0] + m->m[4 + r] * v[1] + m->m[8 + r] * v[2] + m->m[12 + r] * v[3];
 }
 
+GIMANY_DEF gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
+                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
+                                         float out_min[3], float out_max[3]) {
+    static const char where[] = "gim_light_fit_view";
+    gim_mat4 inv_view, inv_proj;
+    double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, diag = 0.0, rad = 0.0, eye[3];
+    gim_vec3 l;
+    int k, a;
+    if (!light || !scene_min || !scene_max || !out_light || !out_min || !out_max)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
+    if (!gim__all_finite(scene_min, 3) || !gim__all_finite(scene_max, 3) || !gim_mat4_isfinite(view) ||
+        !gim_mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) || !gim_mat4_invert(proj, &inv_proj) ||
+        !gim__isfinitef(view_distance) || view_distance < 0.0f)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "bounds, camera or view_distance not finite or invalid");
+    *out_light = *light;
+    memcpy(out_min, scene_min, 3 * sizeof(float));
+    memcpy(out_max, scene_max, 3 * sizeof(float));
+    if (light->type == GIM_LIGHT_SPOT || !light->fit_view) return GIM_OK;
+    for (a = 0; a < 3; ++a) eye[a] = inv_view.m[12 + a];
+    for (k = 0; k < 8; ++k) { /* the frustum's corners, the far ones pulled in to view_distance */
+        double ndc[4], v[4], w[4];
+        ndc[0] = (k & 1) ? 1.0 : -1.0; ndc[1] = (k & 2) ? 1.0 : -1.0; ndc[2] = (k & 4) ? 1.0 : -1.0; ndc[3] = 1.0;
+        gim__mat4_apply_d(&inv_proj, ndc, v);
+        if (!(v[3] != 0.0)) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "proj maps a corner to infinity");
+        for (a = 0; a < 3; ++a) v[a] /= v[3];
+        v[3] = 1.0;
+        gim__mat4_apply_d(&inv_view, v, w);
+        if (view_distance > 0.0f) {
+            double d = 0.0, t;
+            for (a = 0; a < 3; ++a) d += (w[a] - eye[a]) * (w[a] - eye[a]);
+            d = sqrt(d);
+            t = d > view_distance ? view_distance / d : 1.0;
+            for (a = 0; a < 3; ++a) w[a] = eye[a] + (w[a] - eye[a]) * t;
+        }
+        for (a = 0; a < 3; ++a) {
+            if (w[a] < lo[a]) lo[a] = w[a];
+            if (w[a] > hi[a]) hi[a] = w[a];
+        }
+    }
+    for (a = 0; a < 3; ++a) { /* clipped to the scene */
+        if (lo[a] < scene_min[a]) lo[a] = scene_min[a];
+        if (hi[a] > scene_max[a]) hi[a] = scene_max[a];
+        diag += ((double)scene_max[a] - scene_min[a]) * ((double)scene_max[a] - scene_min[a]);
+        if (!(lo[a] <= hi[a])) return GIM_OK; /* the camera looks out of the scene: the scene bounds */
+        rad += 0.25 * (hi[a] - lo[a]) * (hi[a] - lo[a]);
+    }
+    diag = sqrt(diag);
+    rad = sqrt(rad);
+    if (!(rad > 0.0)) return GIM_OK;
+    l = gim_v3_normalize(light->direction);
+    for (a = 0; a < 3; ++a) {
+        double la = fabs(a == 0 ? l.x : a == 1 ? l.y : l.z) * diag;
+        out_min[a] = (float)(lo[a] - la);
+        out_max[a] = (float)(hi[a] + la);
+    }
+    if (!(light->extent > 0.0f)) out_light->extent = (float)rad;
+    return GIM_OK;
+}
+
 /* Nearest hit of the ray through the centre of pixel (x, y) of a width x height view with
    view * proj. Returns 1 on a hit between the near and far planes, 0 on none, -1 when the
    camera's rays or the hit leave the float range (a degenerate camera); p: hit point, n: the
@@ -6342,10 +6417,9 @@ static void gim__camera_eye(gim_mat4 view, gim_mat4 proj, float eye[4]) {
 
 /* RSM of light i (paper 000 sec. 3; units in @section twins): position (w = lit),
    normal (w = A), flux, depth. */
-static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const float bmin[3], const float bmax[3]) {
+static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, const float bmin[3], const float bmax[3]) {
     static const char where[] = "RSM (GL)";
     const gim__gl *gl = &ctx->gl;
-    const gim_light *l = &ctx->lights[i];
     gim__light_gpu *g = &ctx->light_gpu[i];
     uint32_t size = gim__light_rsm_size(l);
     gim__GLuint program = 0;
@@ -6845,6 +6919,8 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
     if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
+    if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view_distance must be finite and >= 0");
     if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
@@ -6904,7 +6980,10 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     gim__gl_enter(ctx, where);
     gim__stamp(ctx, frame->timing, GIM_PASS_COUNT);
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
-        r = gim__gl_rsm(ctx, i, bmin, bmax);
+        gim_light fl;
+        float fmin[3], fmax[3];
+        r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, frame->view, frame->proj, frame->view_distance, &fl, fmin, fmax);
+        if (r == GIM_OK) r = gim__gl_rsm(ctx, i, &fl, fmin, fmax);
         gim__stamp(ctx, frame->timing, GIM_PASS_RSM);
     }
     if (r == GIM_OK && frame->gbuffer_depth) {
