@@ -139,9 +139,10 @@ $(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h ex
 	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
 bench: deps
-	@$(DEPS) examples reference
+	@$(DEPS) examples reference plots
 	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES)) $(B)/gimany-reference
 	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
+	@tools/bench-plots.sh
 
 # --- fuzzing (libFuzzer) ------------------------------------------------------------------
 $(B)/fuzz/%: tests/%.c $(HDRS) 

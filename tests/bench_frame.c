@@ -69,6 +69,7 @@ static double mean_rel_diff(const float *a, const float *b) {
    its change minus FULL's. The reference's own change would need far more paths per pixel
    than its noise allows at this step. */
 #define FLICKER_FRAMES 8
+static FILE *csv;   /* bench/results.csv: one row per configuration */
 #define STEP_DEG 0.25
 static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
     static float prev[W * H * 4], cur[W * H * 4];
@@ -146,6 +147,10 @@ int main(int argc, char **argv) {
         }
         if (!ref) printf("reference: none (make reference builds it)\n");
     }
+    if (scene_make_dir("bench", err, sizeof err) == 0) csv = fopen("bench/results.csv", "w");
+    if (csv)
+        fprintf(csv, "scene,method,rsm,vals,view_samples,frame_ms,full_over_this,rel_diff_full,rel_mae_reference,"
+                     "importance_ms,proxy_ms,shade_ms,flicker,renderer\n");
     printf("| RSM | method | VALs | view samples | frame ms (median) | FULL : this | mean rel. diff to FULL | rel. MAE vs reference | importance ms | proxy ms | shade ms |\n");
     printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (ri = 0; ri < 3 && rsm_sizes[ri] <= max_rsm; ++ri) {
@@ -158,6 +163,10 @@ int main(int argc, char **argv) {
         read_image(ctx, full);
         printf("| %u^2 | FULL | %u | - | %.1f | 1.0 | 0 | %.3f | - | %.1f | %.1f |\n", rsm_sizes[ri], st.val_count, t_full,
                error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
+        if (csv)
+            fprintf(csv, "street,full,%u,%u,0,%.2f,1,0,%.5f,0,%.2f,%.2f,,%s\n", rsm_sizes[ri], st.val_count, t_full,
+                    error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE],
+                    (const char *)glGetString(GL_RENDERER));
         fflush(stdout);
         f.method = GIM_METHOD_LIGHTSKIN_BRSM;
         for (vi = 0; vi < 3; ++vi)
@@ -171,6 +180,11 @@ int main(int argc, char **argv) {
                        vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
                        st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
                        st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
+                if (csv)
+                    fprintf(csv, "street,brsm,%u,%u,%u,%.2f,%.3f,%.5f,%.5f,%.2f,%.2f,%.2f,,%s\n", rsm_sizes[ri], val_counts[vi],
+                            vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
+                            st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
+                            st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE], (const char *)glGetString(GL_RENDERER));
                 fflush(stdout);
             }
     }
@@ -190,9 +204,12 @@ int main(int argc, char **argv) {
             f.val_count = fv[k];
             c = image_change(ctx, &g, f);
             printf(" %u VALs %.4f;", fv[k], c - c_full);
+            if (csv) fprintf(csv, "street,brsm-flicker,256,%u,256,,,,,,,,%.5f,%s\n", fv[k], c - c_full, (const char *)glGetString(GL_RENDERER));
         }
         printf("\n");
+        if (csv) fprintf(csv, "street,full-change,256,65536,0,,,,,,,,%.5f,%s\n", c_full, (const char *)glGetString(GL_RENDERER));
     }
+    if (csv) { fclose(csv); printf("wrote bench/results.csv\n"); }
     scene_gimany_free(ctx, &g);
     scene_free(&s);
     gim_destroy(ctx);
