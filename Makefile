@@ -150,9 +150,18 @@ fuzz: deps $(addprefix $(B)/fuzz/,$(FUZZERS))
 	@for f in $(FUZZERS); do tools/run-fuzzer.sh $(B)/fuzz/$$f $(FUZZ_SECONDS) || exit 1; done
 
 # --- main job -----------------------------------------------------------------------------
+# build/gimany-demo (headless, EGL) and build/gimany-viewer (GLFW window) on the scene layer.
+EX_HDRS := gimany.h shaders_embedded.h examples/scene.h examples/scene_gimany.h examples/display.h
+EX_CC   := gcc $(CSTD) $(WARN) -Iexamples -I. -isystem /usr/include/stb -O2
+$(B)/gimany-demo: examples/demo.c examples/egl_headless.h $(EX_HDRS) $(B)/ref/scene.o
+	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+$(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
+	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lglfw -lGL -lm -lstdc++
+
 demo:
-	@echo "make demo: the headless demo (build/gimany-demo, issue 'Examples and the main job') is not built yet."
-	@echo "It will render the default street scene with LightSkin + BRSM into out/demo/. Today: 'make test' and 'make bench'."
+	@$(DEPS) build gl examples
+	@$(MAKE) --no-print-directory $(B)/gimany-demo
+	$(B)/gimany-demo
 
 clean:
 	rm -rf $(B)
