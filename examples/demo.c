@@ -15,6 +15,7 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +23,7 @@
 #include "egl_headless.h"
 #include "scene_gimany.h"
 #include "display.h"
+#include "options.h"
 #if defined(__GNUC__) || defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmissing-prototypes"
@@ -34,121 +36,6 @@
 #endif
 
 #define PROG "gimany-demo"
-
-/* The demo's own options; the scene, light, camera, size, out and bounces options go to
-   scene_parse_args. */
-typedef struct demo_options {
-    const char *method;      /* gather|full|brsm|clustered|ssvp|none */
-    uint32_t rsm;            /* RSM side per light */
-    uint32_t vals;           /* VALs per light (BRSM) */
-    uint32_t view_samples;
-    uint32_t vpls, clusters; /* for the later methods (gather, clustered, ssvp) */
-    int occlusion;
-    int glossy;
-    uint32_t frames;
-    float exposure;          /* 0: automatic */
-} demo_options;
-
-static const char demo_usage[] =
-    "usage: gimany-demo [options]\n"
-    "  --method M            brsm (default: LightSkin + bidirectional RSM importance sampling), full (LightSkin,\n"
-    "                        every RSM texel a VAL), none (direct light only); gather, clustered, ssvp: later\n"
-    "  --rsm N               RSM side per light in texels (default 256)\n"
-    "  --vals N              VALs per light for brsm (default 2048)\n"
-    "  --view-samples N      view samples for the importance map (default 128)\n"
-    "  --vpls N, --clusters N  VPLs and clusters of the later methods (default 1024, 32)\n"
-    "  --no-occlusion        no occlusion of the proxy lights (default: on)\n"
-    "  --no-glossy           every material's glossy colour set to 0\n"
-    "  --frames N            frames to render; timings are medians over them (default 3)\n"
-    "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n";
-
-static void demo_defaults(demo_options *d) {
-    memset(d, 0, sizeof *d);
-    d->method = "brsm";
-    d->rsm = 256;
-    d->vals = 2048;
-    d->view_samples = 128;
-    d->vpls = 1024;
-    d->clusters = 32;
-    d->occlusion = 1;
-    d->glossy = 1;
-    d->frames = 3;
-}
-
-static int parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
-    char *end;
-    unsigned long long v;
-    if (!s || *s < '0' || *s > '9') return 0;
-    errno = 0;
-    v = strtoull(s, &end, 10);
-    if (*end || errno == ERANGE || v < lo || v > hi) return 0;
-    *out = (uint32_t)v;
-    return 1;
-}
-
-/* Takes the demo's options out of argv; what is left (argv[0] first) goes to *rest for
-   scene_parse_args. 0 on success; -1 with err set; 1 for --help. */
-static int demo_parse(int argc, char **argv, demo_options *d, char **rest, int *rest_count, char *err, size_t cap) {
-    static const struct { const char *name; uint32_t lo, hi; } nums[] = {
-        {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
-        {"--vpls", 1, 1u << 20}, {"--clusters", 1, 4096}, {"--frames", 1, 1000}};
-    int i, n = 0;
-    rest[n++] = argv[0];
-    for (i = 1; i < argc; ++i) {
-        const char *a = argv[i], *eq = strchr(a, '='), *v = NULL;
-        size_t len = eq ? (size_t)(eq - a) : strlen(a);
-        size_t k;
-        int flag = -1, num = -1;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (len == 14 && !strncmp(a, "--no-occlusion", 14)) flag = 0;
-        else if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
-        if (flag >= 0) {
-            if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
-            if (flag == 0) d->occlusion = 0; else d->glossy = 0;
-            continue;
-        }
-        for (k = 0; k < sizeof nums / sizeof nums[0]; ++k)
-            if (strlen(nums[k].name) == len && !strncmp(a, nums[k].name, len)) num = (int)k;
-        if (num >= 0 || (len == 8 && !strncmp(a, "--method", 8)) || (len == 10 && !strncmp(a, "--exposure", 10))) {
-            if (eq) v = eq + 1;
-            else if (i + 1 < argc) v = argv[++i];
-            else { snprintf(err, cap, "option %.*s needs a value (see --help)", (int)len, a); return -1; }
-            if (num >= 0) {
-                uint32_t x, *dst[6];
-                dst[0] = &d->rsm; dst[1] = &d->vals; dst[2] = &d->view_samples;
-                dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames;
-                if (!parse_u32(v, nums[num].lo, nums[num].hi, &x)) {
-                    snprintf(err, cap, "%s wants an integer in %u..%u, got '%s'", nums[num].name, (unsigned)nums[num].lo,
-                             (unsigned)nums[num].hi, v);
-                    return -1;
-                }
-                *dst[num] = x;
-            } else if (a[2] == 'm') {
-                static const char *methods[] = {"gather", "full", "brsm", "clustered", "ssvp", "none"};
-                int ok = 0;
-                for (k = 0; k < 6; ++k) ok |= !strcmp(v, methods[k]);
-                if (!ok) { snprintf(err, cap, "--method wants gather|full|brsm|clustered|ssvp|none, got '%s'", v); return -1; }
-                d->method = v;
-            } else {
-                char *end;
-                double e;
-                errno = 0;
-                e = strtod(v, &end);
-                if (end == v || *end || errno == ERANGE || !(e > 0.0) || e > 1e30) {
-                    snprintf(err, cap, "--exposure wants a finite number > 0, got '%s'", v);
-                    return -1;
-                }
-                d->exposure = (float)e;
-            }
-            continue;
-        }
-        /* the scene layer's: every one of them takes one value */
-        rest[n++] = argv[i];
-        if (!strncmp(a, "--", 2) && !eq && i + 1 < argc) rest[n++] = argv[++i];
-    }
-    *rest_count = n;
-    return 0;
-}
 
 /* Log only warnings and errors of gimany, one line each. */
 static void demo_log(gim_log_level level, const char *message, void *user) {
@@ -428,13 +315,13 @@ done:
 }
 
 /* A scene with no triangles: black images, zero counts, and a warning. */
-static int demo_black(demo_run *r, char *err, size_t cap) {
+static int demo_black(demo_run *r, const char *why, char *err, size_t cap) {
     size_t npx = (size_t)r->o.width * r->o.height;
     float *zero = (float *)calloc(npx * 3, sizeof *zero);
     unsigned char *black = (unsigned char *)calloc(npx * 3, 1);
     int rc;
     if (!zero || !black) { free(zero); free(black); snprintf(err, cap, "out of memory"); return 1; }
-    fprintf(stderr, PROG ": warning: scene '%s' has no triangles: the images are black\n", r->o.scene);
+    fprintf(stderr, PROG ": warning: %s: the images are black\n", why);
     r->renderer = "none (nothing to draw)";
     r->exposure = 1.0f;
     rc = write_outputs(r, zero, zero, black, err, cap);
@@ -449,13 +336,15 @@ int main(int argc, char **argv) {
     int rest_count = 0, pr;
     uint32_t i;
     memset(&r, 0, sizeof r);
-    demo_defaults(&r.d);
+    demo_defaults(&r.d, 0);
     scene_options_defaults(&r.o, "out/demo");
     rest = (char **)calloc((size_t)argc + 1u, sizeof *rest);
     if (!rest) return 1;
-    pr = demo_parse(argc, argv, &r.d, rest, &rest_count, err, sizeof err);
+    pr = demo_parse(argc, argv, 0, &r.d, rest, &rest_count, err, sizeof err);
     if (pr == 1) {
-        fputs(demo_usage, stdout);
+        fputs("usage: gimany-demo [options]\n", stdout);
+        fputs(demo_usage_text, stdout);
+        fputs("  --frames N            frames to render; timings are medians over them (default 3)\n", stdout);
         fputs(scene_usage(0), stdout);
         free(rest);
         return 0;
@@ -463,20 +352,29 @@ int main(int argc, char **argv) {
     if (pr == 0) pr = scene_parse_args(rest_count, rest, 0, &r.o, err, sizeof err) == SCENE_ARGS_OK ? 0 : -1;
     free(rest);
     if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 2; }
-    if (!strcmp(r.d.method, "gather") || !strcmp(r.d.method, "clustered") || !strcmp(r.d.method, "ssvp")) {
-        fprintf(stderr, PROG ": method %s is not available yet (brsm, full and none are)\n", r.d.method);
+    if (demo_method_unavailable(&r.d)) {
+        fprintf(stderr, PROG ": method %s %s\n", r.d.method, demo_method_unavailable(&r.d));
         return 2;
     }
     if (r.o.bounces != 1) {
         fprintf(stderr, PROG ": --bounces %d is not available yet (LightSkin gives one bounce)\n", r.o.bounces);
         return 2;
     }
-    if (scene_load(&r.o, &r.s, err, sizeof err)) { fprintf(stderr, PROG ": %s\n", err); return 1; }
+    pr = scene_load(&r.o, &r.s, err, sizeof err);
+    if (pr == SCENE_NO_TRIANGLES) { /* loads, but nothing to draw: black, with a warning */
+        char why[512];
+        memcpy(why, err, sizeof why);
+        pr = demo_black(&r, why, err, sizeof err);
+        if (pr != 0) fprintf(stderr, PROG ": %s\n", err);
+        else printf("wrote %s/final.png, indirect.pfm, direct.pfm, stats.json (black)\n", r.o.out_dir);
+        return pr != 0;
+    }
+    if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 1; }
     if (r.s.warning_count) fprintf(stderr, PROG ": warning: %s\n", r.s.warning);
     for (i = 0; i < r.s.mesh_count; ++i) r.triangles += r.s.meshes[i].triangle_count;
     if (!r.d.glossy)
         for (i = 0; i < r.s.material_count; ++i) memset(r.s.materials[i].glossy, 0, sizeof r.s.materials[i].glossy);
-    pr = r.triangles == 0 ? demo_black(&r, err, sizeof err) : demo_render(&r, err, sizeof err);
+    pr = r.triangles == 0 ? demo_black(&r, "the scene has no triangles", err, sizeof err) : demo_render(&r, err, sizeof err);
     if (pr != 0) fprintf(stderr, PROG ": %s\n", err);
     else print_table(&r);
     scene_free(&r.s);
