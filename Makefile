@@ -85,10 +85,10 @@ CLI_CC := gcc $(CSTD) $(WARN) -Iexamples -Itests -isystem /usr/include/stb -O1 -
 $(B)/cli/cli_demo: tests/cli_demo.c tests/cliutil.h examples/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
 	@mkdir -p $(@D)
 	$(CLI_CC) -DDEMO_BIN='"$(B)/gimany-demo"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
-$(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer
+$(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
 	@mkdir -p $(@D)
-	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' $< -o $@ -lcmocka -lm
-CLI_BINS := $(B)/cli/cli_demo
+	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' -DDEMO_BIN='"$(B)/gimany-demo"' $< -o $@ -lcmocka -lm
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 REF_BINS := $(B)/ref/test_reference

@@ -212,19 +212,10 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
         plain = (gim_mesh *)calloc(g.mesh_count + 1u, sizeof *plain);
         plain_inst = (gim_instance *)calloc(g.mesh_count + 1u, sizeof *plain_inst);
         if (!plain || !plain_inst) { snprintf(err, cap, "out of memory"); goto done; }
-        for (i = 0; i < g.mesh_count; ++i) {
-            gim_mesh_desc md;
-            const scene_mesh *m = &r->s.meshes[i];
-            memset(&md, 0, sizeof md);
-            md.data.positions = m->positions;
-            md.data.normals = m->normals;
-            md.data.vertex_count = m->vertex_count;
-            md.data.indices = m->indices;
-            md.data.index_count = m->triangle_count * 3u;
-            md.data.triangle_material = m->triangle_material;
-            if (gim_add_mesh(ctx, &md, &plain[i]) != GIM_OK) { snprintf(err, cap, "cannot upload a mesh"); goto done; }
-            plain_inst[i].mesh = plain[i];
-            plain_inst[i].model = gim_mat4_identity();
+        if (scene_gimany_add_plain(ctx, &r->s, plain, plain_inst) != GIM_OK) {
+            memset(plain, 0, (g.mesh_count + 1u) * sizeof *plain);
+            snprintf(err, cap, "cannot upload the meshes (logged above)");
+            goto done;
         }
         if (gim_set_instances(ctx, plain_inst, g.mesh_count) != GIM_OK) { snprintf(err, cap, "cannot set instances"); goto done; }
         r->cache_count = 0;

@@ -10,6 +10,11 @@
 #include <sys/wait.h>
 
 #define CLI_PI 3.14159265358979323846
+#if defined(__GNUC__) || defined(__clang__)
+#define CLI_FN static __attribute__((unused))
+#else
+#define CLI_FN static
+#endif
 
 /* stb_image: the implementation comes from examples/scene.cpp (tinygltf) when the test links
    scene.o; a test without it defines CLI_STB_IMAGE_IMPLEMENTATION first. */
@@ -21,7 +26,7 @@
 
 /* Runs cmd through the shell with stderr joined to stdout; *out gets what it printed (malloc'ed,
    NUL-terminated). Returns the exit status, or -1 when it did not exit normally. */
-static int cli_run(const char *cmd, char **out) {
+CLI_FN int cli_run(const char *cmd, char **out) {
     char full[4096], buf[1024];
     size_t len = 0, cap = 4096, n;
     int st;
@@ -48,13 +53,13 @@ static int cli_run(const char *cmd, char **out) {
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
-static int cli_exists(const char *path) {
+CLI_FN int cli_exists(const char *path) {
     struct stat s;
     return stat(path, &s) == 0;
 }
 
 /* The whole file, NUL-terminated (malloc'ed), or NULL. */
-static char *cli_read_file(const char *path) {
+CLI_FN char *cli_read_file(const char *path) {
     FILE *f = fopen(path, "rb");
     char *s;
     long n;
@@ -69,7 +74,7 @@ static char *cli_read_file(const char *path) {
 }
 
 /* A PNG as 8-bit RGB (malloc'ed) or NULL. */
-static unsigned char *cli_read_png(const char *path, uint32_t *w, uint32_t *h) {
+CLI_FN unsigned char *cli_read_png(const char *path, uint32_t *w, uint32_t *h) {
     int x = 0, y = 0, c = 0;
     unsigned char *px = stbi_load(path, &x, &y, &c, 3);
     unsigned char *copy;
@@ -83,7 +88,7 @@ static unsigned char *cli_read_png(const char *path, uint32_t *w, uint32_t *h) {
 }
 
 /* Mean of every 8-bit value of an RGB image. */
-static double cli_png_mean(const unsigned char *rgb, uint32_t w, uint32_t h) {
+CLI_FN double cli_png_mean(const unsigned char *rgb, uint32_t w, uint32_t h) {
     double s = 0.0;
     size_t i;
     for (i = 0; i < (size_t)w * h * 3; ++i) s += rgb[i];
