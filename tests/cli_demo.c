@@ -95,6 +95,20 @@ static void cornell_default(void **state) {
     assert_non_null(strstr(js, "\"vals\": 2048"));
     assert_non_null(strstr(js, "\"frames\": 2"));
     free(js);
+    /* deterministic: the same command gives the same files, bit for bit */
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 2", OUT "/a2", &out), 0);
+    free(out);
+    {
+        static const char *files[] = {"indirect.pfm", "direct.pfm", "final.png"};
+        for (i = 0; i < 3; ++i) {
+            char cmd[300], *c1 = NULL;
+            int rc;
+            snprintf(cmd, sizeof cmd, "cmp " OUT "/a/%s " OUT "/a2/%s", files[i], files[i]);
+            rc = cli_run(cmd, &c1);
+            if (rc != 0) fail_msg("%s differs between two runs: %s", files[i], c1);
+            free(c1);
+        }
+    }
     /* the PNG is not black */
     {
         uint32_t w, h;
