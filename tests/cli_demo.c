@@ -129,7 +129,7 @@ static void sky_is_zero(void **state) {
     static const uint32_t corners[4][2] = {{0, 0}, {63, 0}, {0, 47}, {63, 47}};
     uint32_t k, x, y, zero = 0;
     (void)state;
-    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --camera 0.278,0.27,3,0.278,0.27,-0.28,30", OUT "/b", &out), 0);
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --rsm 64 --vals 256 --camera 0.278,0.27,3,0.278,0.27,-0.28,30", OUT "/b", &out), 0);
     free(out);
     ind = read_image(OUT "/b", "indirect.pfm", 64, 48);
     dir = read_image(OUT "/b", "direct.pfm", 64, 48);
@@ -165,7 +165,7 @@ static void direct_closed_form(void **state) {
     assert_int_equal(scene_builtin("cornell", &s, err, sizeof err), 0);
     for (c = 0; c < 3; ++c) expect[c] = s.materials[0].diffuse[c] / CLI_PI * 0.5 / (0.5 * 0.5);
     scene_free(&s);
-    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --spot 0.12,0.5,-0.12,0,-1,0,60,0.5 "
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --vals 64 --spot 0.12,0.5,-0.12,0,-1,0,60,0.5 "
                           "--camera 0.12,0.5,-0.12,0.12,0,-0.12,20", OUT "/c", &out), 0);
     free(out);
     dir = read_image(OUT "/c", "direct.pfm", 64, 48);
@@ -179,7 +179,7 @@ static void direct_closed_form(void **state) {
     free(dir);
     /* a 10 degree cone lights a disc of radius 0.5 tan(10 deg) = 8.8 cm: the image (+-8.8 cm
        across at fovy 20) is lit in the middle, dark in the corners */
-    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --spot 0.12,0.5,-0.12,0,-1,0,10,0.5 "
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 1 --vals 64 --spot 0.12,0.5,-0.12,0,-1,0,10,0.5 "
                           "--camera 0.12,0.5,-0.12,0.12,0,-0.12,20", OUT "/c", &out), 0);
     free(out);
     dir = read_image(OUT "/c", "direct.pfm", 64, 48);
@@ -195,12 +195,12 @@ static void methods(void **state) {
     uint32_t i;
     double sum = 0.0;
     (void)state;
-    assert_int_equal(demo("--scene cornell --size 64x48 --frames 2 --method full --rsm 32 --no-occlusion", OUT "/d", &out), 0);
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 2 --method full --rsm 16 --no-occlusion", OUT "/d", &out), 0);
     free(out);
     js = cli_read_file(OUT "/d/stats.json");
     assert_non_null(js);
     assert_non_null(strstr(js, "\"method\": \"full\""));
-    assert_non_null(strstr(js, "\"vals\": 1024"));      /* FULL: every texel of the 32^2 RSM */
+    assert_non_null(strstr(js, "\"vals\": 256"));       /* FULL: every texel of the 16^2 RSM */
     assert_non_null(strstr(js, "\"occlusion\": false"));
     free(js);
     ind = read_image(OUT "/d", "indirect.pfm", 64, 48);
@@ -327,7 +327,7 @@ static void cornell_gltf(void **state) {
         print_message("%s absent: skipped\n", CORNELL_GLTF);
         skip();
     }
-    assert_int_equal(demo("--scene " CORNELL_GLTF " --size 64x48 --frames 1", OUT "/g", &out), 0);
+    assert_int_equal(demo("--scene " CORNELL_GLTF " --size 64x48 --frames 1 --rsm 64 --vals 256", OUT "/g", &out), 0);
     free(out);
     ind = read_image(OUT "/g", "indirect.pfm", 64, 48);
     for (i = 0; i < 64 * 48 * 3; ++i) sum += ind[i];
