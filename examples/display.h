@@ -133,8 +133,9 @@ static const char display_direct_src[] =
     "        if (material_count > 0u) {\n"
     "            vec4 g = material[id].glossy;\n"
     "            vec3 r = 2.0 * cn * n - l;\n"                 /* l mirrored at n */
-    "            float cr = max(dot(r, normalize(eye - x)), 0.0);\n"
-    "            f += g.rgb * (g.w + 2.0) / (2.0 * PI) * pow(cr, g.w);\n"
+    "            float cr = dot(r, normalize(eye - x));\n"
+    /* cos+^k as the reference takes it: 0 when cr <= 0 (also for k = 0; pow(0, 0) is undefined) */
+    "            f += g.rgb * (cr > 0.0 ? (g.w + 2.0) / (2.0 * PI) * pow(min(cr, 1.0), g.w) : 0.0);\n"
     "        }\n"
     "        rgb = f * e * cn * visibility(x, n);\n"
     "    }\n"

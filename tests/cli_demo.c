@@ -188,6 +188,39 @@ static void direct_closed_form(void **state) {
     free(dir);
 }
 
+/* The glossy lobe of the direct light: a grey plane (baseColor 0.5, metallic 0, roughness 0.5:
+   rho_d = 0.5, rho_g = F0 = 0.04, k = 2 / 0.25^2 - 2 = 30, examples/scene.cpp's mapping) under
+   a spot of I = 1 at height 1, seen from the spot: the mirror direction is the view direction, so
+   L = (rho_d / pi + rho_g (k + 2) / (2 pi)) I / d^2; with --no-glossy only rho_d / pi I / d^2. */
+static const char glossy_plane[] = "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":0}]}],\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.5,0.5,1],\"metallicFactor\":0,\"roughnessFactor\":0.5}}],\"buffers\":[{\"byteLength\":60,\"uri\":\"data:application/octet-stream;base64,AACAvwAAAAAAAIC/AACAvwAAAAAAAIA/AACAPwAAAAAAAIA/AACAPwAAAAAAAIC/AAABAAIAAAACAAMA\"}],\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48},{\"buffer\":0,\"byteOffset\":48,\"byteLength\":12}],\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\",\"min\":[-1,0,-1],\"max\":[1,0,1]},{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"}]}";
+static void direct_glossy(void **state) {
+    static const char *variants[2] = {"", " --no-glossy"};
+    double rho_d = 128.0 / 255.0;   /* the G-buffer albedo is RGBA8 */
+    int v;
+    FILE *f;
+    (void)state;
+    mkdir("build", 0777);
+    mkdir(OUT, 0777);
+    f = fopen(OUT "/glossy.gltf", "w");
+    assert_non_null(f);
+    fputs(glossy_plane, f);
+    fclose(f);
+    for (v = 0; v < 2; ++v) {
+        char args[512], *out = NULL;
+        float *dir;
+        double expect = (rho_d / CLI_PI + (v == 0 ? 0.04 * 32.0 / (2.0 * CLI_PI) : 0.0)) * 1.0, got;
+        snprintf(args, sizeof args, "--scene " OUT "/glossy.gltf --size 64x48 --frames 1 --rsm 64 --vals 64 "
+                                    "--spot 0,1,0,0,-1,0,60,1 --camera 0,1,0,0,0,0,20%s", variants[v]);
+        assert_int_equal(demo(args, OUT "/gl", &out), 0);
+        free(out);
+        dir = read_image(OUT "/gl", "direct.pfm", 64, 48);
+        got = dir[(24 * 64 + 32) * 3 + 1];
+        print_message("glossy plane%s: direct %.5f, expected %.5f\n", variants[v], got, expect);
+        assert_true(fabs(got - expect) < 0.005 * expect);
+        free(dir);
+    }
+}
+
 /* FULL and none run; none has no indirect light; --no-occlusion and --no-glossy are taken. */
 static void methods(void **state) {
     char *out = NULL, *js;
@@ -338,7 +371,7 @@ static void cornell_gltf(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),   cmocka_unit_test(direct_closed_form),
-        cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
+        cmocka_unit_test(direct_glossy),   cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
         cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
