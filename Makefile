@@ -79,13 +79,24 @@ $(B)/cxx/static_cxx: tests/static_tu.c $(HDRS)
 	@mkdir -p $(@D)
 	clang++ -x c++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $< -o $@ -lm
 
+# Command-line tests of the examples: they run build/gimany-demo and build/gimany-viewer
+# (the viewer under Xvfb) and read back what they wrote.
+CLI_CC := gcc $(CSTD) $(WARN) -Iexamples -Itests -isystem /usr/include/stb -O1 -g $(SAN)
+$(B)/cli/cli_demo: tests/cli_demo.c tests/cliutil.h examples/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
+	@mkdir -p $(@D)
+	$(CLI_CC) -DDEMO_BIN='"$(B)/gimany-demo"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
+$(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
+	@mkdir -p $(@D)
+	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' -DDEMO_BIN='"$(B)/gimany-demo"' $< -o $@ -lcmocka -lm
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer
+
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 REF_BINS := $(B)/ref/test_reference $(B)/ref/test_compare
 
 test: deps check-shaders
-	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
+	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS) $(CLI_BINS)
 	@$(MAKE) --no-print-directory fuzz-short
-	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS)
+	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS) $(CLI_BINS)
 
 # --- ground truth: tools/reference (Embree) on the shared scene layer examples/scene.* ----------
 REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -Itests -isystem /usr/include/stb
@@ -157,9 +168,18 @@ fuzz: deps $(addprefix $(B)/fuzz/,$(FUZZERS))
 	@for f in $(FUZZERS); do tools/run-fuzzer.sh $(B)/fuzz/$$f $(FUZZ_SECONDS) || exit 1; done
 
 # --- main job -----------------------------------------------------------------------------
+# build/gimany-demo (headless, EGL) and build/gimany-viewer (GLFW window) on the scene layer.
+EX_HDRS := gimany.h shaders_embedded.h examples/scene.h examples/scene_gimany.h examples/display.h examples/options.h
+EX_CC   := gcc $(CSTD) $(WARN) -Iexamples -I. -isystem /usr/include/stb -O2
+$(B)/gimany-demo: examples/demo.c examples/egl_headless.h $(EX_HDRS) $(B)/ref/scene.o
+	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+$(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
+	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lglfw -lGL -lm -lstdc++
+
 demo:
-	@echo "make demo: the headless demo (build/gimany-demo, issue 'Examples and the main job') is not built yet."
-	@echo "It will render the default street scene with LightSkin + BRSM into out/demo/. Today: 'make test' and 'make bench'."
+	@$(DEPS) build gl examples
+	@$(MAKE) --no-print-directory $(B)/gimany-demo
+	$(B)/gimany-demo
 
 clean:
 	rm -rf $(B)

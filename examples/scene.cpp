@@ -69,6 +69,7 @@ void set_err(char *err, size_t cap, const char *fmt, ...) {
 /* A failure inside the loaders: one line, thrown to the C boundary. */
 struct scene_error {
     std::string msg;
+    int code; /* what the C functions return: 1, or SCENE_NO_TRIANGLES */
 };
 [[noreturn]] void fail(const char *fmt, ...) {
     char buf[512];
@@ -76,7 +77,7 @@ struct scene_error {
     va_start(ap, fmt);
     vsnprintf(buf, sizeof buf, fmt, ap);
     va_end(ap);
-    throw scene_error{buf};
+    throw scene_error{buf, 1};
 }
 
 struct vec3 {
@@ -859,8 +860,10 @@ struct gltf_loader {
         size_t tris = 0;
         for (auto &m : b.meshes) tris += m.idx.size() / 3;
         if (tris == 0) {
-            if (skipped_primitives) fail("the file has no triangles in its scene (%u primitives of points or lines skipped)", skipped_primitives);
-            fail("the file has no triangles in its scene");
+            char buf[160];
+            std::snprintf(buf, sizeof buf, "the file has no triangles in its scene (%u primitives of points or lines skipped)",
+                          skipped_primitives);
+            throw scene_error{skipped_primitives ? buf : "the file has no triangles in its scene", SCENE_NO_TRIANGLES};
         }
         if (tris > 0xffffffffu) fail("too many triangles");
         vec3 lo, hi;
@@ -959,6 +962,8 @@ int guarded(scene *out, char *err, size_t cap, const char *prefix, void (*fn)(vo
         return 0;
     } catch (const scene_error &e) {
         set_err(err, cap, "%s: %s", prefix, e.msg.c_str());
+        std::memset(out, 0, sizeof *out);
+        return e.code;
     } catch (const std::bad_alloc &) {
         set_err(err, cap, "%s: out of memory", prefix);
     } catch (const std::exception &e) {

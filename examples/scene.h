@@ -128,7 +128,10 @@ const char *scene_usage(unsigned flags);
 
 /* ---- scenes ------------------------------------------------------------------------------ */
 /* Every function returns 0 on success; on failure it returns non-zero, writes one line into
-   err (when err_cap > 0) and leaves *out zeroed (nothing to free). */
+   err (when err_cap > 0) and leaves *out zeroed (nothing to free). The glTF loaders (and
+   scene_load with a glTF) return SCENE_NO_TRIANGLES for a well-formed file whose scene holds no
+   triangle: nothing to render, which the demo draws as a black image rather than an error. */
+#define SCENE_NO_TRIANGLES 2
 
 /* Loads opt->scene and applies the light, camera and size options:
    lights: none of --sun-dir/--sun-irradiance/--spot -> the scene's own lights;

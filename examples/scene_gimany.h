@@ -117,6 +117,35 @@ SCENE_GIMANY_FN void scene_gimany_free(gim_context *ctx, scene_gimany *g) {
     memset(g, 0, sizeof *g);
 }
 
+/* The meshes of s once more WITHOUT caches (meshes[i], instances[i] for scene mesh i, arrays of
+   s->mesh_count): instancing them instead of scene_gimany_load's runs only the shared passes,
+   no LightSkin (the demo's and viewer's method "none"). On error what was added is removed. */
+SCENE_GIMANY_FN gim_result scene_gimany_add_plain(gim_context *ctx, const scene *s, gim_mesh *meshes,
+                                                  gim_instance *instances) {
+    gim_result r = GIM_OK;
+    uint32_t i;
+    for (i = 0; i < s->mesh_count && r == GIM_OK; ++i) {
+        const scene_mesh *m = &s->meshes[i];
+        gim_mesh_desc md;
+        memset(&md, 0, sizeof md);
+        md.data.positions = m->positions;
+        md.data.normals = m->normals;
+        md.data.vertex_count = m->vertex_count;
+        md.data.indices = m->indices;
+        md.data.index_count = m->triangle_count * 3u;
+        md.data.triangle_material = m->triangle_material;
+        r = gim_add_mesh(ctx, &md, &meshes[i]);
+        instances[i].mesh = meshes[i];
+        instances[i].model = gim_mat4_identity();
+    }
+    if (r != GIM_OK)
+        while (i-- > 1u) {
+            gim_remove_mesh(ctx, meshes[i - 1u]);
+            meshes[i - 1u].id = 0;
+        }
+    return r;
+}
+
 /* The camera of s as a gim_frame's view and proj (near and far from the scene's bounds). */
 SCENE_GIMANY_FN void scene_gimany_camera(const scene *s, gim_mat4 *view, gim_mat4 *proj) {
     float zfar = 0.0f, znear;
