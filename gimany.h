@@ -714,6 +714,35 @@ typedef struct gim_lightskin_desc {
    radiance_out[receiver_count * 3]. */
 GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
 
+/* RSM gather (Dachsbacher and Stamminger 2005), the baseline method: each receiver gathers a
+   fixed pattern of RSM texels around its own projection into the RSM, no caches, no
+   visibility. Sample i at polar offset (r_i, phi_i) = (radius u_i, 2 pi v_i) texels from the
+   receiver's texel-space projection p, (u_i, v_i) from samples (e.g. gim_hammersley_points):
+   denser near p, as the paper's pattern. Each sampled texel is a VAL of the units above with
+   the weight 1 / (N pdf) = 2 pi r_i radius / N, the inverse of the pattern's density per
+   texel, so the sum is an unbiased estimate of the sum over every texel within radius of p
+   (the FULL sum when the disk holds the RSM); the receiver's own texel (r -> 0) weighs ~0,
+   which removes the singularity of the paper's weighting. A receiver behind a perspective
+   light's eye (w <= 0) or a texel outside the RSM or unlit gets nothing.
+     L = rho_d / pi sum e_j + rho_g (k+2) / (2 pi) sum g_j e_j, e_j as in gim_proxy_lights with
+     x for c, g_j = ((r_j . view)+)^k, r_j the direction to the VAL mirrored at the normal. */
+typedef struct gim_gather_desc {
+    const gim_rsm_data *rsm;          /* one light's RSM (valid: the lit flag) */
+    gim_mat4 light_view_proj;         /* its camera: proj x view (gim_light_camera) */
+    const float *samples;             /* sample_count x 2 values in [0, 1) */
+    uint32_t sample_count;            /* > 0 */
+    float radius;                     /* in texels, > 0 */
+    const gim_receiver *receivers;
+    uint32_t receiver_count;
+    float scene_scale;                /* > 0: VALs nearer than 1e-6 of it add nothing */
+    gim_env env;
+} gim_gather_desc;
+
+/* The gathered radiance of one light, rgb into radiance_out[receiver_count * 3] (one light:
+   sum the calls of several). Errors: NULL arrays, zero counts, a radius or scale that is not
+   finite and > 0, a receiver as gim_lightskin_shade rejects it. */
+GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radiance_out);
+
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
    scaled as the surface element is, |det M| |M^-T n| for the 3x3 M of model, so the areas of
@@ -964,7 +993,9 @@ GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 typedef enum gim_method {
     GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
     GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs per light drawn by importance (paper 000 sec. 4) */
-    GIM_METHOD_LIGHTSKIN_FULL       /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
+    GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
+    GIM_METHOD_RSM_GATHER           /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
+                                       gim_rsm_gather): the baseline, no caches, no visibility */
 } gim_method;
 
 /* Input of gim_update; zero means default. */
@@ -989,6 +1020,8 @@ typedef struct gim_frame {
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
     float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
+    uint32_t gather_samples;    /* RSM_GATHER: texels per pixel and light; 0: 256; at most 16384 */
+    float gather_radius;        /* RSM_GATHER: pattern radius as a fraction of the RSM side; 0: 0.15 */
     int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
                                    2: also glFinish before each, so a driver that runs queued work
                                    at the next flush (llvmpipe) charges it to its pass; it
@@ -4190,6 +4223,94 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
 }
 
 
+/* Sample j of the gather pattern: its texel offset (r cos phi, r sin phi), r = radius u,
+   phi = 2 pi v, and its weight 1 / (N pdf) = 2 pi r radius / N, as floats: the GPU pass reads
+   the same three numbers, so both sample the same texels. */
+static void gim__gather_offset(const float uv[2], float radius, uint32_t n, float out[3]) {
+    double r = (double)radius * uv[0], phi = 2.0 * GIM__PI * uv[1];
+    out[0] = (float)(r * cos(phi));
+    out[1] = (float)(r * sin(phi));
+    out[2] = (float)(2.0 * GIM__PI * r * radius / n);
+}
+
+GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_out) {
+    static const char fn[] = "gim_rsm_gather";
+    const gim_rsm_data *m;
+    uint32_t i, j;
+    double near2;
+    if (!d) return GIM_ERROR_INVALID_ARGUMENT;
+    m = d->rsm;
+    if (!radiance_out || !m || !d->samples || !d->receivers)
+        return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "NULL rsm, samples, receivers or output");
+    if (!m->position || !m->normal || !m->flux || !m->area || m->width == 0 || m->height == 0)
+        return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm position, normal, flux, area and a size are required");
+    if (d->sample_count == 0 || d->receiver_count == 0)
+        return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "no samples or no receivers");
+    if (!gim__isfinitef(d->radius) || !(d->radius > 0.0f) || !gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f) ||
+        !gim_mat4_isfinite(d->light_view_proj))
+        return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "radius, scene_scale or the light's matrix invalid");
+    if (!gim__all_finite(d->samples, (size_t)d->sample_count * 2u))
+        return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "samples not finite");
+    for (i = 0; i < d->receiver_count; ++i) {
+        const gim_receiver *rc = d->receivers + i;
+        if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->albedo, 3) || !gim__all_finite(rc->glossy, 3) ||
+            !gim__unit_or_zero(rc->normal, 0) || !gim__unit_or_zero(rc->view, 0) ||
+            !(rc->albedo[0] >= 0.0f && rc->albedo[1] >= 0.0f && rc->albedo[2] >= 0.0f) ||
+            !(rc->glossy[0] >= 0.0f && rc->glossy[1] >= 0.0f && rc->glossy[2] >= 0.0f) ||
+            !(rc->exponent >= 0.0f && rc->exponent <= GIM__TWINS_MAX_EXPONENT))
+            return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver %u: not finite, not unit or out of range", i);
+    }
+    near2 = (double)GIM__TWINS_COINCIDENT * d->scene_scale * ((double)GIM__TWINS_COINCIDENT * d->scene_scale);
+    for (i = 0; i < d->receiver_count; ++i) {
+        const gim_receiver *rc = d->receivers + i;
+        const float *mm = d->light_view_proj.m;
+        double clip[4], px, py, sd[3] = {0, 0, 0}, sg[3] = {0, 0, 0};
+        int a;
+        for (a = 0; a < 4; ++a)
+            clip[a] = mm[a] * (double)rc->position[0] + mm[4 + a] * (double)rc->position[1] + mm[8 + a] * (double)rc->position[2] +
+                      mm[12 + a];
+        radiance_out[i * 3] = radiance_out[i * 3 + 1] = radiance_out[i * 3 + 2] = 0.0f;
+        if (!(clip[3] > 0.0)) continue;
+        px = (clip[0] / clip[3] * 0.5 + 0.5) * m->width;   /* texel space: texel t covers [t, t + 1) */
+        py = (clip[1] / clip[3] * 0.5 + 0.5) * m->height;
+        for (j = 0; j < d->sample_count; ++j) {
+            float o[3];
+            double tx, ty, w, dd[3], d2 = 0.0, inv, cx = 0.0, cl = 0.0, e;
+            size_t t;
+            const float *xl, *nl, *fl;
+            float al;
+            gim__gather_offset(d->samples + j * 2, d->radius, d->sample_count, o);
+            tx = floor((double)((float)px + o[0]));   /* in float, as the pass adds them */
+            ty = floor((double)((float)py + o[1]));
+            if (!(tx >= 0.0 && ty >= 0.0 && tx < (double)m->width && ty < (double)m->height)) continue;
+            t = (size_t)ty * m->width + (size_t)tx;
+            if (m->valid && !(m->valid[t] > 0.0f)) continue;
+            xl = m->position + t * 3; nl = m->normal + t * 3; fl = m->flux + t * 3; al = m->area[t];
+            if (!gim__all_finite(xl, 3) || !gim__all_finite(nl, 3) || !gim__all_finite(fl, 3) || !gim__isfinitef(al) ||
+                !(al >= 0.0f) || !(fl[0] >= 0.0f && fl[1] >= 0.0f && fl[2] >= 0.0f))
+                continue;
+            for (a = 0; a < 3; ++a) { dd[a] = (double)xl[a] - rc->position[a]; d2 += dd[a] * dd[a]; }
+            if (!(d2 > near2)) continue;
+            inv = 1.0 / sqrt(d2);
+            for (a = 0; a < 3; ++a) { cx += rc->normal[a] * dd[a] * inv; cl -= nl[a] * dd[a] * inv; }
+            if (!(cx > 0.0) || !(cl > 0.0)) continue;
+            w = o[2];   /* 1 / (N pdf) */
+            e = w * cl * cx / ((double)al + GIM__PI * d2);
+            for (a = 0; a < 3; ++a) sd[a] += e * fl[a];
+            if (rc->glossy[0] > 0.0f || rc->glossy[1] > 0.0f || rc->glossy[2] > 0.0f) {
+                double re = 0.0, g;
+                for (a = 0; a < 3; ++a) re += (2.0 * cx * rc->normal[a] - dd[a] * inv) * rc->view[a];
+                g = gim__lobe((float)re, rc->exponent);
+                for (a = 0; a < 3; ++a) sg[a] += g * e * fl[a];
+            }
+        }
+        for (a = 0; a < 3; ++a)
+            radiance_out[i * 3 + a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
+                                                     rc->glossy[a] * (rc->exponent + 2.0) / (2.0 * GIM__PI) * sg[a]);
+    }
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, gim_mat4 model, gim_cache *out,
                                           gim_env env) {
     static const char fn[] = "gim_caches_to_world";
@@ -4803,7 +4924,8 @@ enum {
     GIM__GL_TIMESTAMP = 0x8E28,
     GIM__GL_QUERY_RESULT = 0x8866,
     GIM__GL_DYNAMIC_DRAW = 0x88E8,
-    GIM__GL_TEXTURE_UPDATE_BARRIER_BIT = 0x00000100
+    GIM__GL_TEXTURE_UPDATE_BARRIER_BIT = 0x00000100,
+    GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT = 0x90DF
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -5190,6 +5312,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_PROXY_LIGHTS,       /* LightSkin proxy lights per cache (eq. 3-7, 13-15) */
     GIM__PROGRAM_LIGHTSKIN_SHADE,    /* neighbours, interpolation (eq. 8-9) and shading per pixel */
     GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
+    GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
     GIM__PROGRAM_COUNT
 } gim__program_id;
@@ -5207,6 +5330,7 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"proxy_lights.comp", NULL},
     {"lightskin_shade.comp", NULL},
     {"proxy_occlusion.comp", NULL},
+    {"rsm_gather.comp", NULL},
     {"vals_gather.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
@@ -5254,6 +5378,7 @@ struct gim_context {
     gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache */
     uint64_t proxy_state_bytes;
     uint32_t proxy_chunk;         /* VALs per proxy-light dispatch, caches per occlusion dispatch */
+    gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
     /* the scene (see "the scene" below) */
     gim__mesh *meshes;            /* slots; a handle is slot + 1 | generation << 16 */
@@ -5277,6 +5402,8 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
+    gim__GLuint gather_samples, gather_sum;  /* RSM gather: the pattern, the per-pixel sum over lights */
+    uint64_t gather_samples_bytes, gather_sum_bytes;
     /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
     gim__GLuint queries[GIM__MAX_STAMPS];
     uint32_t query_count, stamp_count;
@@ -6306,6 +6433,8 @@ static void gim__scene_destroy(gim_context *ctx) {
     b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets;
     b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse; b[5] = ctx->ls.glossy;
     gl->DeleteBuffers(6, b);
+    b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
+    gl->DeleteBuffers(2, b);
     if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
     if (ctx->nearest_sampler) gl->DeleteSamplers(1, &ctx->nearest_sampler);
@@ -6892,6 +7021,106 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
     return GIM_OK;
 }
 
+/* --- RSM gather (Dachsbacher 2005) ---------------------------------------------------------- */
+
+#define GIM__GATHER_DEFAULT_SAMPLES 256u
+#define GIM__GATHER_DEFAULT_RADIUS 0.15f
+
+/* The sample pattern of RSM gather: Hammersley points (u = i / N stratifies the radius),
+   the same for every pixel and frame; the twin takes the same floats. */
+static gim_result gim__gather_pattern(const gim_env *env, uint32_t n, float **out) {
+    *out = (float *)gim__alloc_array(env, n, 2u * sizeof(float));
+    if (!*out) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, "RSM gather", "%u samples", (unsigned)n);
+    return gim_hammersley_points(*out, n, 2u, NULL);
+}
+
+/* RSM gather of every light into the indirect texture (twin: gim_rsm_gather per light, summed). */
+static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                     float scale, gim__GLenum format) {
+    static const char where[] = "RSM gather (GL)";
+    const gim__gl *gl = &ctx->gl;
+    uint32_t n = f->gather_samples ? f->gather_samples : GIM__GATHER_DEFAULT_SAMPLES, i;
+    float frac = f->gather_radius > 0.0f ? f->gather_radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL,
+          eye[4];
+    int host = f->gbuffer_depth != 0;
+    gim__GLuint program = 0, tex[4];
+    gim_mat4 inv_view, inv_proj;
+    uint64_t stride;
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_RSM_GATHER, &program);
+    if (r != GIM_OK) return r;
+    if (!gim_mat4_invert(f->view, &inv_view) || !gim_mat4_invert(f->proj, &inv_proj))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
+    r = gim__gather_pattern(&ctx->env, n, &pattern);
+    if (r == GIM_OK) {
+        offsets = (float *)gim__alloc_array(&ctx->env, n, 16u);
+        if (!offsets) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u samples", (unsigned)n);
+    }
+    stride = ((uint64_t)n * 16u + (uint64_t)ctx->ssbo_align - 1u) / (uint64_t)ctx->ssbo_align * (uint64_t)ctx->ssbo_align;
+    if (r == GIM_OK)
+        r = gim__gl_sized_buffer(ctx, &ctx->gather_samples, &ctx->gather_samples_bytes, stride * ctx->light_count, where);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) { /* each light's offsets: its radius in its texels */
+        uint32_t j;
+        for (j = 0; j < n; ++j) {
+            gim__gather_offset(pattern + j * 2, frac * (float)ctx->light_gpu[i].size, n, offsets + j * 4);
+            offsets[j * 4 + 3] = 0.0f;
+        }
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->gather_samples);
+        gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLintptr)(i * stride), (gim__GLsizeiptr)n * 16, offsets);
+    }
+    gim__free(&ctx->env, pattern);
+    gim__free(&ctx->env, offsets);
+    if (r == GIM_OK && ctx->light_count > 1)
+        r = gim__gl_sized_buffer(ctx, &ctx->gather_sum, &ctx->gather_sum_bytes, (uint64_t)f->width * f->height * 16u, where);
+    if (r != GIM_OK) return r;
+    if (!ctx->indirect || ctx->indirect_width != f->width || ctx->indirect_height != f->height ||
+        ctx->indirect_format != format) {
+        gim__gl_texture(ctx, &ctx->indirect, format, f->width, f->height);
+        ctx->indirect_width = f->width;
+        ctx->indirect_height = f->height;
+        ctx->indirect_format = format;
+    }
+    gim__camera_eye(f->view, f->proj, eye);
+    tex[0] = depth; tex[1] = normal; tex[2] = host ? normal : ctx->gbuffer_albedo; tex[3] = host ? normal : ctx->gbuffer_material;
+    for (i = 0; i < 4; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + (gim__GLenum)i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
+        gl->BindSampler(i, ctx->nearest_sampler);
+    }
+    gl->BindImageTexture(0, ctx->indirect, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, format);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->light_count > 1 ? ctx->gather_sum : ctx->gather_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, host ? ctx->gather_samples : ctx->materials);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, f->width, f->height);
+    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
+    gl->Uniform4f(3, eye[0], eye[1], eye[2], eye[3]);
+    gl->Uniform1ui(5, n);
+    gl->Uniform1f(7, (GIM__TWINS_COINCIDENT * scale) * (GIM__TWINS_COINCIDENT * scale));
+    gl->Uniform1ui(9, host ? 1u : ctx->material_count);
+    gl->Uniform1f(10, format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    for (i = 0; i < ctx->light_count; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        gim_mat4 vp = gim_mat4_mul(g->proj, g->view);
+        gim__GLuint rt[3];
+        uint32_t k;
+        rt[0] = g->position; rt[1] = g->normal; rt[2] = g->flux;
+        for (k = 0; k < 3; ++k) {
+            gl->ActiveTexture(GIM__GL_TEXTURE0 + 4u + k);
+            gl->BindTexture(GIM__GL_TEXTURE_2D, rt[k]);
+            gl->BindSampler(4u + k, ctx->nearest_sampler);
+        }
+        gl->UniformMatrix4fv(4, 1, GIM__GL_FALSE, vp.m);
+        gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->gather_samples, (gim__GLintptr)(i * stride),
+                            (gim__GLsizeiptr)n * 16);
+        gl->Uniform1ui(8, (i == 0 ? 1u : 0u) | (i + 1 == ctx->light_count ? 2u : 0u) | (host ? 4u : 0u));
+        gl->DispatchCompute((f->width + 7u) / 8u, (f->height + 7u) / 8u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+    }
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
 /* Argument checks of gim_update that need no GL. */
 static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
     static const char where[] = "gim_update";
@@ -6917,8 +7146,11 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     if (!gim__isfinitef(f->scene_scale) || f->scene_scale < 0.0f || !gim__isfinitef(f->importance_clamp) ||
         f->importance_clamp < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
-    if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL)
+    if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL &&
+        f->method != GIM_METHOD_RSM_GATHER)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
+    if (f->gather_samples > 16384u || !gim__isfinitef(f->gather_radius) || f->gather_radius < 0.0f || f->gather_radius > 2.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view_distance must be finite and >= 0");
     if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
@@ -6961,7 +7193,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     gim__GLuint depth, normal;
     gim_result r;
     double diag;
-    int full;
+    int full, gather;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     r = gim__frame_check(ctx, frame, bmin, bmax);
@@ -6974,7 +7206,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
     vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
     val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
-    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL;
+    gather = frame->method == GIM_METHOD_RSM_GATHER;
+    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather;   /* neither needs importance */
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
     gim__gl_enter(ctx, where);
@@ -7035,7 +7268,27 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     memset(&o, 0, sizeof o);
     memcpy(o.bounds_min, bmin, sizeof bmin);
     memcpy(o.bounds_max, bmax, sizeof bmax);
-    if (r == GIM_OK) r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+    if (r == GIM_OK && gather) {
+        gim__GLuint b[6];   /* no LightSkin buffers in a gather frame */
+        b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets; b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse;
+        b[5] = ctx->ls.glossy;
+        ctx->gl.DeleteBuffers(6, b);
+        memset(&ctx->ls, 0, sizeof ctx->ls);
+        r = ctx->light_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
+                                                  frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
+                             : GIM_OK;
+        if (r == GIM_OK && ctx->light_count) {
+            o.indirect = ctx->indirect;
+            gim__stamp(ctx, frame->timing, GIM_PASS_SHADE);
+        }
+    } else if (r == GIM_OK) {
+        gim__GLuint b[2];   /* no gather buffers in a LightSkin frame */
+        b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
+        ctx->gl.DeleteBuffers(2, b);
+        ctx->gather_samples = ctx->gather_sum = 0;
+        ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
+        r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+    }
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     o.valid = 1;
     o.width = frame->width;
@@ -7096,7 +7349,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
-         ctx->ls.glossy_bytes;
+         ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     return b;
 }
 
@@ -7180,6 +7433,8 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gl.GetIntegerv(GIM__GL_MAX_TEXTURE_SIZE, &ctx->max_texture_size);
     gl.GetIntegerv(GIM__GL_MAX_VIEWPORT_DIMS, ctx->max_viewport);
     ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    gl.GetIntegerv(GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT, &ctx->ssbo_align);
+    if (ctx->ssbo_align < 1) ctx->ssbo_align = 256;
     *out = ctx;
     return GIM_OK;
 }

@@ -237,7 +237,9 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     scene_gimany_camera(&r->s, &f.view, &f.proj);
     f.width = w;
     f.height = h;
-    f.method = !strcmp(r->d.method, "full") ? GIM_METHOD_LIGHTSKIN_FULL : GIM_METHOD_LIGHTSKIN_BRSM;
+    f.method = !strcmp(r->d.method, "full")     ? GIM_METHOD_LIGHTSKIN_FULL
+               : !strcmp(r->d.method, "gather") ? GIM_METHOD_RSM_GATHER
+                                                : GIM_METHOD_LIGHTSKIN_BRSM;
     f.val_count = r->d.vals;
     f.view_sample_count = r->d.view_samples;
     f.occlusion = r->d.occlusion;

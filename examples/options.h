@@ -35,7 +35,8 @@ typedef struct demo_options {
 
 static const char demo_usage_text[] =
     "  --method M            brsm (default: LightSkin + bidirectional RSM importance sampling), full (LightSkin,\n"
-    "                        every RSM texel a VAL), none (direct light only); gather, clustered, ssvp: later\n"
+    "                        every RSM texel a VAL), gather (RSM gather, Dachsbacher 2005: the baseline),\n"
+    "                        none (direct light only); clustered, ssvp: later\n"
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
@@ -141,8 +142,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
 
 /* One line naming a method the library does not have yet, or NULL when it runs. */
 DEMO_OPTIONS_FN const char *demo_method_unavailable(const demo_options *d) {
-    if (!strcmp(d->method, "gather") || !strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp"))
-        return "is not available yet (brsm, full and none are)";
+    if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp"))
+        return "is not available yet (brsm, full, gather and none are)";
     return NULL;
 }
 

@@ -217,7 +217,9 @@ static int run(viewer *v, GLFWwindow *w) {
         scene_gimany_camera(&v->s, &f.view, &f.proj);
         f.width = (uint32_t)fw;
         f.height = (uint32_t)fh;
-        f.method = !strcmp(v->d.method, "full") ? GIM_METHOD_LIGHTSKIN_FULL : GIM_METHOD_LIGHTSKIN_BRSM;
+        f.method = !strcmp(v->d.method, "full")     ? GIM_METHOD_LIGHTSKIN_FULL
+                   : !strcmp(v->d.method, "gather") ? GIM_METHOD_RSM_GATHER
+                                                    : GIM_METHOD_LIGHTSKIN_BRSM;
         f.val_count = v->d.vals;
         f.view_sample_count = v->d.view_samples;
         f.occlusion = v->d.occlusion;

@@ -240,6 +240,18 @@ static void methods(void **state) {
     for (i = 0; i < 64 * 48 * 3; ++i) sum += ind[i];
     assert_true(sum > 0.0);
     free(ind);
+    /* RSM gather: the baseline, lit where the others are */
+    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --method gather --rsm 16", OUT "/g", &out), 0);
+    free(out);
+    js = cli_read_file(OUT "/g/stats.json");
+    assert_non_null(js);
+    assert_non_null(strstr(js, "\"method\": \"gather\""));
+    free(js);
+    ind = read_image(OUT "/g", "indirect.pfm", 32, 24);
+    sum = 0.0;
+    for (i = 0; i < 32 * 24 * 3; ++i) { assert_true(isfinite(ind[i]) && ind[i] >= 0.0f); sum += ind[i]; }
+    assert_true(sum > 0.0);
+    free(ind);
     assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --method none --no-glossy", OUT "/e", &out), 0);
     free(out);
     ind = read_image(OUT "/e", "indirect.pfm", 32, 24);
@@ -262,7 +274,6 @@ static void bad_input(void **state) {
         {"--frames 0", "--frames"},
         {"--view-samples -4", "--view-samples"},
         {"--method nope", "--method"},
-        {"--method gather", "method gather is not available yet"},
         {"--method clustered", "method clustered is not available yet"},
         {"--method ssvp", "method ssvp is not available yet"},
         {"--bounces 2", "--bounces 2"},

@@ -61,32 +61,22 @@ static void read_indirect(const gim_frame_outputs *o, float *rgba) {
    of its G-buffer; neighbours by gim_cache_neighbours truncated at the pass's radius. Returns
    the largest relative difference (floored at 1e-3 of the image's largest value) over the
    pixels, and how many exceed tol. */
-static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int occlusion, double tol, double *max_rel) {
+/* The frame's pixels with a surface as gim_receivers (unprojected from its G-buffer, albedo and
+   material from it, the view towards the eye): rec[nrec], map[k] = its pixel. */
+static uint32_t frame_receivers(frame_fixture *ff, gim_receiver *rec, uint32_t *map, gim_vec3 *eye_out) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
-    uint32_t n = o.neighbour_count, nrec = 0, i, bad = 0, *pix, *map, *nb_idx, *nb_cnt;
     float *depth = (float *)malloc(W * H * 4), *nrm = (float *)malloc(W * H * 16), *alb = (float *)malloc(W * H * 16),
-          *mat = (float *)malloc(W * H * 4), *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu;
+          *mat = (float *)malloc(W * H * 4);
     gim_view_sample *vs = (gim_view_sample *)malloc(W * H * sizeof *vs);
-    gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
-    gim_cache *caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
-    gim_val *vals = (gim_val *)malloc((size_t)o.val_count * sizeof *vals);
-    gim_cache_set set;
-    gim_neighbour_desc nd;
-    gim_neighbour_result nr;
-    gim_lightskin_desc ld;
+    uint32_t *pix = (uint32_t *)malloc(W * H * 8), i, nrec = 0;
     gim_mat4 inv;
     gim_vec3 eye;
-    double ref_max = 0.0;
-    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
-    gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *vals, vals);
     gltest_read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, depth);
     gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
     gltest_read_texture(o.gbuffer_albedo, GL_RGBA, alb);
     gltest_read_texture(o.gbuffer_material, GL_RED, mat);
     assert_true(gim_mat4_invert(ff->fr.view, &inv));
     eye = gim_v3(inv.m[12], inv.m[13], inv.m[14]);
-    pix = (uint32_t *)malloc(W * H * 8);
-    map = (uint32_t *)malloc(W * H * 4);
     for (i = 0; i < W * H; ++i) { pix[i * 2] = i % W; pix[i * 2 + 1] = i / W; }
     assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, ff->fr.view, ff->fr.proj, pix, W * H, vs), GIM_OK);
     for (i = 0; i < W * H; ++i) {
@@ -95,6 +85,7 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
         const scene_material *m;
         int a;
         if (vs[i].normal.x == 0.0f && vs[i].normal.y == 0.0f && vs[i].normal.z == 0.0f) continue;
+        memset(rc, 0, sizeof *rc);
         rc->position[0] = vs[i].position.x; rc->position[1] = vs[i].position.y; rc->position[2] = vs[i].position.z;
         rc->normal[0] = vs[i].normal.x; rc->normal[1] = vs[i].normal.y; rc->normal[2] = vs[i].normal.z;
         v[0] = (double)eye.x - rc->position[0]; v[1] = (double)eye.y - rc->position[1]; v[2] = (double)eye.z - rc->position[2];
@@ -104,9 +95,54 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
         m = &ff->s.materials[(int)mat[i]];
         memcpy(rc->glossy, m->glossy, 12);
         rc->exponent = m->exponent;
-        memcpy(pos_nrm + nrec * 6, rc->position, 12);
-        memcpy(pos_nrm + nrec * 6 + 3, rc->normal, 12);
         map[nrec++] = i;
+    }
+    free(depth); free(nrm); free(alb); free(mat); free(vs); free(pix);
+    *eye_out = eye;
+    return nrec;
+}
+
+/* Largest relative difference of gpu (RGBA pixels) against cpu (rgb per receiver), floored at
+   1e-3 of cpu's largest value, and how many receivers exceed tol. */
+static uint32_t compare_pixels(const float *gpu, const float *cpu, const uint32_t *map, uint32_t nrec, double tol,
+                               double *max_rel) {
+    double ref_max = 0.0;
+    uint32_t i, bad = 0;
+    for (i = 0; i < nrec * 3; ++i) if (cpu[i] > ref_max) ref_max = cpu[i];
+    assert_true(ref_max > 0.0);
+    *max_rel = 0.0;
+    for (i = 0; i < nrec; ++i) {
+        int a;
+        double e = 0.0;
+        for (a = 0; a < 3; ++a) {
+            double ref = cpu[i * 3 + a], den = ref > 1e-3 * ref_max ? ref : 1e-3 * ref_max;
+            double rel = fabs((double)gpu[map[i] * 4 + a] - ref) / den;
+            if (rel > e) e = rel;
+        }
+        if (e > tol) bad++;
+        else if (e > *max_rel) *max_rel = e;
+    }
+    return bad;
+}
+
+static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int occlusion, double tol, double *max_rel) {
+    gim_frame_outputs o = gim_outputs(ff->f.ctx);
+    uint32_t n = o.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt;
+    gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
+    gim_cache *caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
+    gim_val *vals = (gim_val *)malloc((size_t)o.val_count * sizeof *vals);
+    float *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu;
+    gim_cache_set set;
+    gim_neighbour_desc nd;
+    gim_neighbour_result nr;
+    gim_lightskin_desc ld;
+    gim_vec3 eye;
+    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
+    gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *vals, vals);
+    nrec = frame_receivers(ff, rec, map, &eye);
+    for (i = 0; i < nrec; ++i) {
+        memcpy(pos_nrm + i * 6, rec[i].position, 12);
+        memcpy(pos_nrm + i * 6 + 3, rec[i].normal, 12);
     }
     nb_idx = (uint32_t *)malloc((size_t)nrec * n * 4);
     nb_cnt = (uint32_t *)malloc(nrec * 4);
@@ -122,24 +158,10 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
     nd.caches = &set;
     nd.n = n;
     nd.theta_eps = (float)acos((double)o.neighbour_cos);
+    nd.max_distance = o.neighbour_radius;   /* the pass searches within this radius */
     nd.env = ff->f.env;
     nr.index = nb_idx; nr.count = nb_cnt; nr.d_cmax = dcmax;
     assert_int_equal(gim_cache_neighbours(&nd, &nr), GIM_OK);
-    for (i = 0; i < nrec; ++i) { /* truncate at the pass's radius */
-        uint32_t k, keep = 0;
-        float far_ = 0.0f;
-        for (k = 0; k < nb_cnt[i]; ++k) {
-            const float *c = caches[nb_idx[i * n + k]].position, *x = rec[i].position;
-            double d = sqrt(((double)x[0] - c[0]) * ((double)x[0] - c[0]) + ((double)x[1] - c[1]) * ((double)x[1] - c[1]) +
-                            ((double)x[2] - c[2]) * ((double)x[2] - c[2]));
-            if (d > (double)o.neighbour_radius) break;
-            keep = k + 1;
-            far_ = (float)d;
-        }
-        for (k = keep; k < n; ++k) nb_idx[i * n + k] = UINT32_MAX;
-        nb_cnt[i] = keep;
-        dcmax[i] = far_;
-    }
     memset(&ld, 0, sizeof ld);
     ld.caches = caches; ld.cache_count = o.cache_count;
     ld.vals = vals; ld.val_count = o.val_count;
@@ -152,22 +174,8 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
     ld.scene_scale = o.scene_scale;
     ld.env = ff->f.env;
     assert_int_equal(gim_lightskin_cpu(&ld, cpu), GIM_OK);
-    for (i = 0; i < nrec * 3; ++i) if (cpu[i] > ref_max) ref_max = cpu[i];
-    assert_true(ref_max > 0.0);
-    *max_rel = 0.0;
-    for (i = 0; i < nrec; ++i) {
-        int a;
-        double e = 0.0;
-        for (a = 0; a < 3; ++a) {
-            double ref = cpu[i * 3 + a], den = ref > 1e-3 * ref_max ? ref : 1e-3 * ref_max;
-            double rel = fabs((double)gpu[map[i] * 4 + a] - ref) / den;
-            if (rel > e) e = rel;
-        }
-        if (e > tol) bad++;
-        else if (e > *max_rel) *max_rel = e;
-    }
-    free(depth); free(nrm); free(alb); free(mat); free(pos_nrm); free(vs); free(rec); free(caches); free(vals);
-    free(pix); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
+    bad = compare_pixels(gpu, cpu, map, nrec, tol, max_rel);
+    free(pos_nrm); free(rec); free(caches); free(vals); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
     return bad;
 }
 
@@ -290,6 +298,73 @@ static void cornell_frame(const char *gltf) {
     free(full); free(brsm); free(nrm);
 }
 
+/* RSM gather (GIM_METHOD_RSM_GATHER) against its twin gim_rsm_gather on the frame's own RSM and
+   pixels; a wider pattern gathers more of the RSM. */
+static void rsm_gather_matches_twin(void **state) {
+    frame_fixture ff;
+    gim_frame_outputs o;
+    gim_rsm_data rsm;
+    gim_gather_desc gd;
+    float *gpu = (float *)malloc(W * H * 16), *pos, *nrm, *flux, *cpu, *area, *valid, *pattern;
+    gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
+    uint32_t *map = (uint32_t *)malloc(W * H * 4), nrec, n, i, bad;
+    gim_vec3 eye;
+    double max_rel, sum_narrow = 0.0, sum_wide = 0.0;
+    (void)state;
+    GLTEST_BEGIN();
+    frame_begin(&ff, NULL, 32);
+    ff.fr.method = GIM_METHOD_RSM_GATHER;
+    ff.fr.gather_samples = 64;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    gltest_state_unchanged(&ff.f);
+    o = gim_outputs(ff.f.ctx);
+    assert_int_equal(o.cache_count, 0);          /* no LightSkin passes in a gather frame */
+    assert_int_equal(o.lights[0].importance, 0);
+    read_indirect(&o, gpu);
+    for (i = 0; i < W * H; ++i) sum_narrow += gpu[i * 4];
+    n = o.lights[0].rsm_size;
+    pos = (float *)malloc(n * n * 16); nrm = (float *)malloc(n * n * 16); flux = (float *)malloc(n * n * 16);
+    gltest_read_texture(o.lights[0].rsm_position, GL_RGBA, pos);
+    gltest_read_texture(o.lights[0].rsm_normal, GL_RGBA, nrm);
+    gltest_read_texture(o.lights[0].rsm_flux, GL_RGBA, flux);
+    area = (float *)malloc(n * n * 4); valid = (float *)malloc(n * n * 4);
+    for (i = 0; i < n * n; ++i) { /* RGBA -> the twin's arrays */
+        area[i] = nrm[i * 4 + 3]; valid[i] = pos[i * 4 + 3];
+        memmove(pos + i * 3, pos + i * 4, 12); memmove(nrm + i * 3, nrm + i * 4, 12); memmove(flux + i * 3, flux + i * 4, 12);
+    }
+    rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.valid = valid; rsm.width = rsm.height = n;
+    nrec = frame_receivers(&ff, rec, map, &eye);
+    pattern = (float *)malloc(64 * 8);
+    assert_int_equal(gim_hammersley_points(pattern, 64, 2, NULL), GIM_OK);
+    cpu = (float *)malloc(nrec * 12);
+    memset(&gd, 0, sizeof gd);
+    gd.rsm = &rsm; gd.light_view_proj = gim_mat4_mul(o.lights[0].proj, o.lights[0].view);
+    gd.samples = pattern; gd.sample_count = 64; gd.radius = 0.15f * (float)n;
+    gd.receivers = rec; gd.receiver_count = nrec; gd.scene_scale = o.scene_scale; gd.env = ff.f.env;
+    assert_int_equal(gim_rsm_gather(&gd, cpu), GIM_OK);
+    /* a sample whose texel index floor(p + offset) falls on the other side of a texel edge with
+       the GPU's float unprojection than with the twin's double one reads a neighbouring texel:
+       one sample of 64 differs there, which near a contact (a texel at a few texels' distance,
+       e ~ 1 / d^2) moves the pixel by up to ~25% (2 pixels of 8591 here) */
+    bad = compare_pixels(gpu, cpu, map, nrec, 1e-3, &max_rel);
+    print_message("RSM gather: GPU vs twin max rel %.2e, %u of %u pixels above 1e-3\n", max_rel, bad, nrec);
+    assert_true(bad <= nrec / 30);
+    bad = compare_pixels(gpu, cpu, map, nrec, 0.15, &max_rel);
+    print_message("RSM gather: max rel %.2e, %u pixels above 0.15\n", max_rel, bad);
+    assert_true(bad <= nrec / 1000);
+    /* a wider pattern gathers more of the light */
+    ff.fr.gather_radius = 1.0f;
+    ff.fr.gather_samples = 1024;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&o, gpu);
+    for (i = 0; i < W * H; ++i) sum_wide += gpu[i * 4];
+    print_message("RSM gather: image sum %.4g at radius 0.15, %.4g at 1\n", sum_narrow, sum_wide);
+    assert_true(sum_wide > sum_narrow);
+    free(gpu); free(pos); free(nrm); free(flux); free(cpu); free(area); free(valid); free(pattern); free(rec); free(map);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
 static void cornell_builtin(void **state) {
     (void)state;
     GLTEST_BEGIN();
@@ -387,6 +462,7 @@ int main(void) {
         cmocka_unit_test(cornell_builtin),
         cmocka_unit_test(cornell_gltf),
         cmocka_unit_test(glossy_sizes_and_no_caches),
+        cmocka_unit_test(rsm_gather_matches_twin),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
