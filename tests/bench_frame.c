@@ -2,7 +2,8 @@
    BRSM against LightSkin FULL at equal settings, side by side in one run, on the procedural
    street (the paper's open-world case) lit by its sun: RSM 256^2, 512^2, 1024^2; 2048, 4096,
    8192 VALs; 256 and 512 view samples. Per configuration: the median frame time (wall clock
-   around gim_update + glFinish), the per-pass GPU times of the median frame's configuration
+   around gim_update + glFinish) and RSM gather (the baseline) at each RSM size, the per-pass
+   GPU times of the median frame's configuration
    (GL timestamps), the FULL : BRSM ratio and the mean relative difference of the indirect
    image to FULL's. On llvmpipe only the ratios mean anything.
    Usage: bench_frame [max_rsm] (default 1024; CI-sized machines may pass 512). */
@@ -96,6 +97,16 @@ static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
     return change / (FLICKER_FRAMES - 1);
 }
 
+/* The renderer's name without commas (a CSV field). */
+static const char *renderer_name(void) {
+    static char name[256];
+    const char *r = (const char *)glGetString(GL_RENDERER);
+    size_t i;
+    snprintf(name, sizeof name, "%s", r ? r : "?");
+    for (i = 0; name[i]; ++i) if (name[i] == ',') name[i] = ';';
+    return name;
+}
+
 int main(int argc, char **argv) {
     static const uint32_t rsm_sizes[3] = {256, 512, 1024}, val_counts[3] = {2048, 4096, 8192}, vs_counts[2] = {256, 512};
     uint32_t max_rsm = argc > 1 ? (uint32_t)atoi(argv[1]) : 1024u;
@@ -125,7 +136,7 @@ int main(int argc, char **argv) {
     scene_gimany_camera(&s, &f.view, &f.proj);
     f.width = W;
     f.height = H;
-    printf("renderer: %s\n", (const char *)glGetString(GL_RENDERER));
+    printf("renderer: %s\n", renderer_name());
     {
         uint32_t tris = 0, m;
         for (m = 0; m < s.mesh_count; ++m) tris += s.meshes[m].triangle_count;
@@ -166,8 +177,21 @@ int main(int argc, char **argv) {
         if (csv)
             fprintf(csv, "street,full,%u,%u,0,%.2f,1,0,%.5f,0,%.2f,%.2f,,%s\n", rsm_sizes[ri], st.val_count, t_full,
                     error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE],
-                    (const char *)glGetString(GL_RENDERER));
+                    renderer_name());
         fflush(stdout);
+        {   /* the baseline at the same RSM: RSM gather, 256 samples over 0.15 of the RSM */
+            double t;
+            f.method = GIM_METHOD_RSM_GATHER;
+            f.gather_samples = 256;
+            t = frame_ms(ctx, &f, runs, &st);
+            read_image(ctx, img);
+            printf("| %u^2 | gather | 256 | - | %.1f | %.1f | %.4f | %.3f | - | - | %.1f |\n", rsm_sizes[ri], t, t_full / t,
+                   mean_rel_diff(img, full), error_vs(img, ref), st.pass_ms[GIM_PASS_SHADE]);
+            if (csv)
+                fprintf(csv, "street,gather,%u,256,0,%.2f,%.3f,%.5f,%.5f,0,0,%.2f,,%s\n", rsm_sizes[ri], t, t_full / t,
+                        mean_rel_diff(img, full), error_vs(img, ref), st.pass_ms[GIM_PASS_SHADE],
+                        renderer_name());
+        }
         f.method = GIM_METHOD_LIGHTSKIN_BRSM;
         for (vi = 0; vi < 3; ++vi)
             for (si = 0; si < 2; ++si) {
@@ -184,7 +208,7 @@ int main(int argc, char **argv) {
                     fprintf(csv, "street,brsm,%u,%u,%u,%.2f,%.3f,%.5f,%.5f,%.2f,%.2f,%.2f,,%s\n", rsm_sizes[ri], val_counts[vi],
                             vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
                             st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
-                            st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE], (const char *)glGetString(GL_RENDERER));
+                            st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE], renderer_name());
                 fflush(stdout);
             }
     }
@@ -204,10 +228,10 @@ int main(int argc, char **argv) {
             f.val_count = fv[k];
             c = image_change(ctx, &g, f);
             printf(" %u VALs %.4f;", fv[k], c - c_full);
-            if (csv) fprintf(csv, "street,brsm-flicker,256,%u,256,,,,,,,,%.5f,%s\n", fv[k], c - c_full, (const char *)glGetString(GL_RENDERER));
+            if (csv) fprintf(csv, "street,brsm-flicker,256,%u,256,,,,,,,,%.5f,%s\n", fv[k], c - c_full, renderer_name());
         }
         printf("\n");
-        if (csv) fprintf(csv, "street,full-change,256,65536,0,,,,,,,,%.5f,%s\n", c_full, (const char *)glGetString(GL_RENDERER));
+        if (csv) fprintf(csv, "street,full-change,256,65536,0,,,,,,,,%.5f,%s\n", c_full, renderer_name());
     }
     if (csv) { fclose(csv); printf("wrote bench/results.csv\n"); }
     scene_gimany_free(ctx, &g);

@@ -11,7 +11,8 @@ csv=bench/results.csv
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # per-series data files: "x y" lines
-awk -F, 'NR > 1 && ($2 == "brsm" || $2 == "full") && $9 != "" && $9 >= 0 { print $6, $9 > "'"$tmp"'/pareto_" $2 ".dat" }' "$csv"
+awk -F, 'NR > 1 && ($2 == "brsm" || $2 == "full" || $2 == "gather") && $9 != "" && $9 >= 0 { print $6, $9 > "'"$tmp"'/pareto_" $2 ".dat" }' "$csv"
+touch "$tmp/pareto_gather.dat"
 for v in 2048 4096 8192; do
   awk -F, -v v="$v" 'NR > 1 && $2 == "brsm" && $4 == v && $5 == 256 { print $3, $7 }' "$csv" > "$tmp/fig3_$v.dat"
 done
@@ -28,7 +29,7 @@ set output "bench/pareto.png"
 set title "street, 320x180: error against the ground truth vs frame time ($renderer)"
 set xlabel "frame time, ms (median)"; set ylabel "relative mean absolute error vs reference"
 set logscale x
-plot "$tmp/pareto_brsm.dat" with points pt 7 title "LightSkin + BRSM", "$tmp/pareto_full.dat" with points pt 5 ps 1.5 title "LightSkin FULL"
+plot "$tmp/pareto_brsm.dat" with points pt 7 title "LightSkin + BRSM", "$tmp/pareto_full.dat" with points pt 5 ps 1.5 title "LightSkin FULL", "$tmp/pareto_gather.dat" with points pt 9 ps 1.5 title "RSM gather (256 samples)"
 unset logscale
 set output "bench/fig3.png"
 set title "FULL : BRSM frame-time ratio vs RSM size (256 view samples; paper 000 Fig. 3)"
@@ -49,8 +50,8 @@ table="$tmp/table.md"
 {
   echo "| RSM | method | VALs | view samples | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference |"
   echo "|---|---|---|---|---|---|---|---|"
-  awk -F, 'NR > 1 && ($2 == "full" || $2 == "brsm") {
-    printf "| %s^2 | %s | %s | %s | %.0f | %.1f | %.4f | %s |\n", $3, ($2 == "full" ? "FULL" : "BRSM"), $4,
+  awk -F, 'NR > 1 && ($2 == "full" || $2 == "brsm" || $2 == "gather") {
+    printf "| %s^2 | %s | %s | %s | %.0f | %.1f | %.4f | %s |\n", $3, ($2 == "full" ? "FULL" : ($2 == "brsm" ? "BRSM" : "gather")), $4,
            ($5 == 0 ? "-" : $5), $6, $7, $8, ($9 < 0 ? "-" : sprintf("%.3f", $9)) }' "$csv"
 } > "$table"
 if grep -q '<!-- bench:frame -->' README.md; then
