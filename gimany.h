@@ -6631,6 +6631,17 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     return gim__gl_check(ctx, where);
 }
 
+/* The sampler the passes read textures through: nearest, no depth comparison (texelFetch of a
+   host's depth texture with compare mode on is undefined). */
+static void gim__gl_nearest_sampler(gim_context *ctx) {
+    const gim__gl *gl = &ctx->gl;
+    if (ctx->nearest_sampler) return;
+    gl->GenSamplers(1, &ctx->nearest_sampler);
+    gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MIN_FILTER, GIM__GL_NEAREST);
+    gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MAG_FILTER, GIM__GL_NEAREST);
+    gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_COMPARE_MODE, GIM__GL_NONE);
+}
+
 /* View samples (paper 000 sec. 4): the G-buffer at count Halton pixels (gim_view_sample_pixels,
    computed here and uploaded: the same pixels as the twin, bit for bit), unprojected. */
 static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
@@ -6658,12 +6669,7 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     }
     gim__free(&ctx->env, pixels);
     if (r != GIM_OK) return r;
-    if (!ctx->nearest_sampler) {
-        gl->GenSamplers(1, &ctx->nearest_sampler);
-        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MIN_FILTER, GIM__GL_NEAREST);
-        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_MAG_FILTER, GIM__GL_NEAREST);
-        gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_COMPARE_MODE, GIM__GL_NONE);
-    }
+    gim__gl_nearest_sampler(ctx);
     gl->ActiveTexture(GIM__GL_TEXTURE0);
     gl->BindTexture(GIM__GL_TEXTURE_2D, depth);
     gl->BindSampler(0, ctx->nearest_sampler);
@@ -6686,6 +6692,47 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
    After the shared passes: caches to world space (CPU, gim_caches_to_world) sorted into a hash
    grid -> the lights' VALs -> proxy lights -> occlusion (when on) -> per pixel neighbours,
    interpolation and shading into the indirect texture. */
+
+/* The indirect texture at width x height of format, made anew when either changes. */
+static void gim__gl_indirect_texture(gim_context *ctx, uint32_t width, uint32_t height, gim__GLenum format) {
+    if (ctx->indirect && ctx->indirect_width == width && ctx->indirect_height == height && ctx->indirect_format == format)
+        return;
+    gim__gl_texture(ctx, &ctx->indirect, format, width, height);
+    ctx->indirect_width = width;
+    ctx->indirect_height = height;
+    ctx->indirect_format = format;
+}
+
+/* What the per-pixel passes (lightskin_shade.comp, rsm_gather.comp) share: the G-buffer on
+   texture units 0-3 (albedo and material 0: the host's G-buffer, unit 2-3 get the normal,
+   never read), the output image on unit 0, the program, and uniforms 0-3: size, the inverses
+   of proj and view, the eye. */
+static gim_result gim__gl_pixel_pass(gim_context *ctx, gim__GLuint program, gim__GLuint depth, gim__GLuint normal,
+                                     gim__GLuint albedo, gim__GLuint material, uint32_t width, uint32_t height, gim_mat4 view,
+                                     gim_mat4 proj, gim__GLuint output, gim__GLenum format, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    gim_mat4 inv_view, inv_proj;
+    gim__GLuint tex[4];
+    float eye[4];
+    int i;
+    if (!gim_mat4_invert(view, &inv_view) || !gim_mat4_invert(proj, &inv_proj))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
+    gim__camera_eye(view, proj, eye);
+    gim__gl_nearest_sampler(ctx);
+    tex[0] = depth; tex[1] = normal; tex[2] = albedo ? albedo : normal; tex[3] = material ? material : normal;
+    for (i = 0; i < 4; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + (gim__GLenum)i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
+        gl->BindSampler((gim__GLuint)i, ctx->nearest_sampler);
+    }
+    gl->BindImageTexture(0, output, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, format);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
+    gl->Uniform4f(3, eye[0], eye[1], eye[2], eye[3]);
+    return GIM_OK;
+}
 
 #define GIM__NEIGHBOUR_RINGS 3   /* grid shells a pixel searches: neighbours within 3 cells */
 
@@ -6804,35 +6851,21 @@ typedef struct gim__shade_args {
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0, tex[4];
-    gim_mat4 inv_view, inv_proj;
-    float eye[4];
-    int host = a->albedo == 0, i;
+    gim__GLuint program = 0;
+    int host = a->albedo == 0;
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_LIGHTSKIN_SHADE, &program);
     if (r != GIM_OK) return r;
-    if (!gim_mat4_invert(a->view, &inv_view) || !gim_mat4_invert(a->proj, &inv_proj))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
     if (!host && ctx->material_count == 0)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no materials");
-    gim__camera_eye(a->view, a->proj, eye);
-    tex[0] = a->depth; tex[1] = a->normal; tex[2] = host ? a->normal : a->albedo; tex[3] = host ? a->normal : a->material;
-    for (i = 0; i < 4; ++i) {
-        gl->ActiveTexture(GIM__GL_TEXTURE0 + (gim__GLenum)i);
-        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
-        gl->BindSampler((gim__GLuint)i, ctx->nearest_sampler);
-    }
-    gl->BindImageTexture(0, a->indirect, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, a->format);
+    r = gim__gl_pixel_pass(ctx, program, a->depth, a->normal, a->albedo, a->material, a->width, a->height, a->view, a->proj,
+                           a->indirect, a->format, where);
+    if (r != GIM_OK) return r;
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, a->caches);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, a->diffuse);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, a->glossy ? a->glossy : a->diffuse); /* never read then */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, a->buckets);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, a->cells);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, host ? a->caches : ctx->materials);
-    gl->UseProgram(program);
-    gl->Uniform2ui(0, a->width, a->height);
-    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
-    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
-    gl->Uniform4f(3, eye[0], eye[1], eye[2], eye[3]);
     gl->Uniform1ui(4, a->n);
     gl->Uniform1f(5, a->cos_theta);
     gl->Uniform4f(6, a->grid.origin[0], a->grid.origin[1], a->grid.origin[2], a->grid.h);
@@ -6979,13 +7012,7 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
         gim__stamp(ctx, f->timing, GIM_PASS_OCCLUSION);
     }
     /* the indirect texture, (re)made when its size or format changes */
-    if (!ctx->indirect || ctx->indirect_width != f->width || ctx->indirect_height != f->height ||
-        ctx->indirect_format != format) {
-        gim__gl_texture(ctx, &ctx->indirect, format, f->width, f->height);
-        ctx->indirect_width = f->width;
-        ctx->indirect_height = f->height;
-        ctx->indirect_format = format;
-    }
+    gim__gl_indirect_texture(ctx, f->width, f->height, format);
     memset(&sa, 0, sizeof sa);
     sa.depth = depth;
     sa.normal = normal;
@@ -7040,16 +7067,12 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     static const char where[] = "RSM gather (GL)";
     const gim__gl *gl = &ctx->gl;
     uint32_t n = f->gather_samples ? f->gather_samples : GIM__GATHER_DEFAULT_SAMPLES, i;
-    float frac = f->gather_radius > 0.0f ? f->gather_radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL,
-          eye[4];
+    float frac = f->gather_radius > 0.0f ? f->gather_radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL;
     int host = f->gbuffer_depth != 0;
-    gim__GLuint program = 0, tex[4];
-    gim_mat4 inv_view, inv_proj;
+    gim__GLuint program = 0;
     uint64_t stride;
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_RSM_GATHER, &program);
     if (r != GIM_OK) return r;
-    if (!gim_mat4_invert(f->view, &inv_view) || !gim_mat4_invert(f->proj, &inv_proj))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
     r = gim__gather_pattern(&ctx->env, n, &pattern);
     if (r == GIM_OK) {
         offsets = (float *)gim__alloc_array(&ctx->env, n, 16u);
@@ -7072,28 +7095,12 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     if (r == GIM_OK && ctx->light_count > 1)
         r = gim__gl_sized_buffer(ctx, &ctx->gather_sum, &ctx->gather_sum_bytes, (uint64_t)f->width * f->height * 16u, where);
     if (r != GIM_OK) return r;
-    if (!ctx->indirect || ctx->indirect_width != f->width || ctx->indirect_height != f->height ||
-        ctx->indirect_format != format) {
-        gim__gl_texture(ctx, &ctx->indirect, format, f->width, f->height);
-        ctx->indirect_width = f->width;
-        ctx->indirect_height = f->height;
-        ctx->indirect_format = format;
-    }
-    gim__camera_eye(f->view, f->proj, eye);
-    tex[0] = depth; tex[1] = normal; tex[2] = host ? normal : ctx->gbuffer_albedo; tex[3] = host ? normal : ctx->gbuffer_material;
-    for (i = 0; i < 4; ++i) {
-        gl->ActiveTexture(GIM__GL_TEXTURE0 + (gim__GLenum)i);
-        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
-        gl->BindSampler(i, ctx->nearest_sampler);
-    }
-    gl->BindImageTexture(0, ctx->indirect, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, format);
+    gim__gl_indirect_texture(ctx, f->width, f->height, format);
+    r = gim__gl_pixel_pass(ctx, program, depth, normal, host ? 0u : ctx->gbuffer_albedo, host ? 0u : ctx->gbuffer_material,
+                           f->width, f->height, f->view, f->proj, ctx->indirect, format, where);
+    if (r != GIM_OK) return r;
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->light_count > 1 ? ctx->gather_sum : ctx->gather_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, host ? ctx->gather_samples : ctx->materials);
-    gl->UseProgram(program);
-    gl->Uniform2ui(0, f->width, f->height);
-    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
-    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
-    gl->Uniform4f(3, eye[0], eye[1], eye[2], eye[3]);
     gl->Uniform1ui(5, n);
     gl->Uniform1f(7, (GIM__TWINS_COINCIDENT * scale) * (GIM__TWINS_COINCIDENT * scale));
     gl->Uniform1ui(9, host ? 1u : ctx->material_count);
