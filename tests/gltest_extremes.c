@@ -1,0 +1,675 @@
+/* The extremes suite (issue 8) for the LightSkin frame of gim_update (GPU, headless): the same
+   room scaled from 1e-4 to 1e4 and moved far from the origin, grazing and parallel suns and
+   a sun below the horizon, surfaces edge-on to the camera, a near plane cutting the scene,
+   coincident caches, exponents 0 / 1 / 1e4, albedo 0 and 1, glossy without diffuse, RSMs of
+   1^2 and 2048^2, more VALs than texels, one view sample, one neighbour, one triangle, meshes
+   without caches, a non-uniformly scaled instance, lights of 0, 1e-30 and 1e30, a light the
+   camera does not see; and hostile arguments to every public GL entry point.
+
+   Every frame's outputs are read back in full (indirect texture, RSM textures, importance
+   map, eq. 12 tables, selection, VALs, caches, both proxy light sets) and must be finite and
+   non-negative where they are radiometric; where the answer is known the image is compared
+   with it, tolerances stated at each case. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+
+#define W 64
+#define H 48
+#define NPIX (W * H)
+
+/* --- geometry: quads --------------------------------------------------------------------- */
+
+#define MAX_Q 24
+typedef struct geo {
+    float pos[MAX_Q * 12], nrm[MAX_Q * 12];
+    uint32_t idx[MAX_Q * 6], mat[MAX_Q * 2];
+    uint32_t quads;
+} geo;
+
+/* A quad at corner c spanned by u and v (normal u x v), in double so far offsets round once. */
+static void geo_quad(geo *g, const double c[3], const double u[3], const double v[3], uint32_t material) {
+    uint32_t q = g->quads++, k;
+    double n[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    double l = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    assert_true(q < MAX_Q);
+    for (k = 0; k < 3; ++k) {
+        g->pos[q * 12 + k] = (float)c[k];
+        g->pos[q * 12 + 3 + k] = (float)(c[k] + u[k]);
+        g->pos[q * 12 + 6 + k] = (float)(c[k] + u[k] + v[k]);
+        g->pos[q * 12 + 9 + k] = (float)(c[k] + v[k]);
+    }
+    for (k = 0; k < 12; ++k) g->nrm[q * 12 + k] = (float)(n[k % 3] / l);
+    g->idx[q * 6 + 0] = q * 4; g->idx[q * 6 + 1] = q * 4 + 1; g->idx[q * 6 + 2] = q * 4 + 2;
+    g->idx[q * 6 + 3] = q * 4; g->idx[q * 6 + 4] = q * 4 + 2; g->idx[q * 6 + 5] = q * 4 + 3;
+    g->mat[q * 2] = g->mat[q * 2 + 1] = material;
+}
+
+#define SET3(a, x, y, z) ((a)[0] = (x), (a)[1] = (y), (a)[2] = (z))
+
+/* The room of side L with its corner at o: floor y = 0 (material 0), left wall x = 0 (1),
+   right wall x = L (2), back wall z = 0 (3), a block 0.3 L high on the floor (0). Open at
+   the top and the front. */
+static void geo_room(geo *g, double L, const double o[3]) {
+    double c[3], u[3], v[3], b0 = 0.35 * L, b1 = 0.65 * L, bh = 0.3 * L;
+    memset(g, 0, sizeof *g);
+    SET3(c, o[0], o[1], o[2]); SET3(u, 0, 0, L); SET3(v, L, 0, 0); geo_quad(g, c, u, v, 0);
+    SET3(c, o[0], o[1], o[2]); SET3(u, 0, L, 0); SET3(v, 0, 0, L); geo_quad(g, c, u, v, 1);
+    SET3(c, o[0] + L, o[1], o[2]); SET3(u, 0, 0, L); SET3(v, 0, L, 0); geo_quad(g, c, u, v, 2);
+    SET3(c, o[0], o[1], o[2]); SET3(u, L, 0, 0); SET3(v, 0, L, 0); geo_quad(g, c, u, v, 3);
+    SET3(c, o[0] + b0, o[1] + bh, o[2] + b0); SET3(u, 0, 0, b1 - b0); SET3(v, b1 - b0, 0, 0); geo_quad(g, c, u, v, 0);
+    SET3(c, o[0] + b0, o[1], o[2] + b1); SET3(u, b1 - b0, 0, 0); SET3(v, 0, bh, 0); geo_quad(g, c, u, v, 0);
+    SET3(c, o[0] + b0, o[1], o[2] + b0); SET3(u, 0, 0, b1 - b0); SET3(v, 0, bh, 0); geo_quad(g, c, u, v, 0);
+    SET3(c, o[0] + b1, o[1], o[2] + b0); SET3(u, 0, bh, 0); SET3(v, 0, 0, b1 - b0); geo_quad(g, c, u, v, 0);
+}
+
+static gim_mesh_data geo_mesh(const geo *g) {
+    gim_mesh_data m;
+    memset(&m, 0, sizeof m);
+    m.positions = g->pos;
+    m.normals = g->nrm;
+    m.vertex_count = g->quads * 4;
+    m.indices = g->idx;
+    m.index_count = g->quads * 6;
+    m.triangle_material = g->mat;
+    return m;
+}
+
+static const gim_material room_materials[4] = {
+    {{0.8f, 0.8f, 0.8f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.8f, 0.1f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.1f, 0.8f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.6f, 0.6f, 0.6f}, {0.0f, 0.0f, 0.0f}, 0.0f}};
+
+/* --- a scene of up to 4 meshes and instances -------------------------------------------- */
+
+typedef struct ex {
+    gltest_fixture f;
+    gim_mesh mesh[4];
+    gim_cache_set set[4];
+    int has_set[4];
+    uint32_t mesh_count;
+    gim_instance inst[4];
+    uint32_t inst_count;
+    gim_frame fr;
+    gim_light light;
+} ex;
+
+static void ex_begin(ex *e) {
+    memset(e, 0, sizeof *e);
+    gltest_fixture_begin(&e->f);
+}
+
+/* Add g as a mesh; caches (d_eps = cache_d) when cache_d > 0; an identity instance of it. */
+static uint32_t ex_add(ex *e, const geo *g, double cache_d) {
+    gim_mesh_desc md;
+    uint32_t k = e->mesh_count++;
+    memset(&md, 0, sizeof md);
+    md.data = geo_mesh(g);
+    if (cache_d > 0.0) {
+        gim_cache_desc cd;
+        memset(&cd, 0, sizeof cd);
+        cd.mesh = geo_mesh(g);
+        cd.d_eps = (float)cache_d;
+        cd.env = e->f.env;
+        assert_int_equal(gim_cache_generate(&cd, &e->set[k]), GIM_OK);
+        e->has_set[k] = 1;
+        md.caches = &e->set[k];
+    }
+    assert_int_equal(gim_add_mesh(e->f.ctx, &md, &e->mesh[k]), GIM_OK);
+    e->inst[e->inst_count].mesh = e->mesh[k];
+    e->inst[e->inst_count].model = gim_mat4_identity();
+    e->inst_count++;
+    return k;
+}
+
+static void ex_end(ex *e) {
+    uint32_t i;
+    for (i = 0; i < e->mesh_count; ++i) {
+        assert_int_equal(gim_remove_mesh(e->f.ctx, e->mesh[i]), GIM_OK);
+        if (e->has_set[i]) gim_cache_set_free(&e->set[i]);
+    }
+    gltest_fixture_end(&e->f);
+}
+
+/* look_at(eye, eye + dir, up) with the translation in double: a host far from the origin
+   must not round eye + dir to the eye's ulp (the camera would turn by ulp(|eye|) / |dir|). */
+static gim_mat4 look_along(const double eye[3], const double dir[3]) {
+    gim_mat4 v = gim_mat4_look_at(gim_v3(0, 0, 0), gim_v3((float)dir[0], (float)dir[1], (float)dir[2]), gim_v3(0, 1, 0));
+    int r;
+    for (r = 0; r < 3; ++r) v.m[12 + r] = (float)-(v.m[r] * eye[0] + v.m[4 + r] * eye[1] + v.m[8 + r] * eye[2]);
+    return v;
+}
+
+/* The room's camera: from the open front, a little above, looking at the back wall. */
+static void room_camera(gim_frame *fr, double L, const double o[3]) {
+    double eye[3], dir[3];
+    SET3(eye, o[0] + 0.5 * L, o[1] + 0.55 * L, o[2] + 1.9 * L);
+    SET3(dir, 0.0, -0.25, -1.9);
+    fr->view = look_along(eye, dir);
+    fr->proj = gim_mat4_perspective(1.0f, (float)W / H, (float)(0.05 * L), (float)(5.0 * L));
+    fr->width = W;
+    fr->height = H;
+}
+
+static gim_light sun(float irradiance, gim_vec3 towards, uint32_t rsm) {
+    gim_light l;
+    memset(&l, 0, sizeof l);
+    l.type = GIM_LIGHT_DIRECTIONAL;
+    l.irradiance = irradiance;
+    l.direction = towards;
+    l.rsm_size = rsm;
+    return l;
+}
+
+static gim_light spot(double I, double L, const double o[3], uint32_t rsm) {
+    gim_light l;
+    memset(&l, 0, sizeof l);
+    l.type = GIM_LIGHT_SPOT;
+    l.intensity = (float)I;
+    l.position = gim_v3((float)(o[0] + 0.5 * L), (float)(o[1] + 0.95 * L), (float)(o[2] + 0.8 * L));
+    l.direction = gim_v3(-0.1f, -1.0f, -0.5f);
+    l.cone_angle = 1.0f;
+    l.rsm_size = rsm;
+    return l;
+}
+
+/* --- the frame and what it left: every output read back ------------------------------------ */
+
+typedef struct ex_out {
+    float img[NPIX * 4];        /* indirect (zero when there is none) */
+    float nrm[NPIX * 4];        /* G-buffer normal, w = 1 where drawn */
+    float depth[NPIX];          /* G-buffer window depth */
+    double max;                 /* largest rgb value of img */
+    double sum;                 /* sum of rgb over img */
+    uint32_t drawn, lit;        /* pixels with a surface, and with some indirect light */
+    double val_flux, proxy_flux; /* sums over the VALs (times weight) and the diffuse proxies */
+    uint32_t warnings;          /* log warnings during the frame */
+} ex_out;
+
+static int finite_nonneg(float v) { return isfinite(v) && v >= 0.0f; }
+
+/* Check every buffer and texture the last frame wrote. */
+static void ex_read(ex *e, ex_out *out) {
+    gim_frame_outputs o = gim_outputs(e->f.ctx);
+    uint32_t i, l, k;
+    assert_true(o.valid);
+    memset(out, 0, sizeof *out);
+    gltest_read_texture(o.gbuffer_normal, GL_RGBA, out->nrm);
+    for (i = 0; i < NPIX * 4; ++i) assert_true(isfinite(out->nrm[i]));
+    gltest_read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, out->depth);
+    for (i = 0; i < NPIX; ++i) {
+        assert_true(out->depth[i] >= 0.0f && out->depth[i] <= 1.0f);
+        if (out->nrm[i * 4 + 3] == 1.0f) out->drawn++;
+    }
+    if (o.indirect) {
+        gltest_read_texture(o.indirect, GL_RGBA, out->img);
+        for (i = 0; i < NPIX; ++i) {
+            float s = 0.0f;
+            for (k = 0; k < 3; ++k) {
+                float v = out->img[i * 4 + k];
+                if (!finite_nonneg(v)) fail_msg("indirect pixel %u channel %u is %g", (unsigned)i, (unsigned)k, (double)v);
+                if (v > out->max) out->max = v;
+                out->sum += v;
+                s += v;
+            }
+            assert_true(out->img[i * 4 + 3] == 0.0f || out->img[i * 4 + 3] == 1.0f);
+            if (s > 0.0f) out->lit++;
+        }
+    }
+    for (l = 0; l < o.light_count; ++l) {
+        const gim_light_outputs *lo = &o.lights[l];
+        uint32_t n = lo->rsm_size * lo->rsm_size;
+        float *t = (float *)malloc((size_t)n * 16u);
+        gltest_read_texture(lo->rsm_position, GL_RGBA, t);
+        for (i = 0; i < n * 4; ++i) assert_true(isfinite(t[i]));
+        gltest_read_texture(lo->rsm_normal, GL_RGBA, t);
+        for (i = 0; i < n; ++i) assert_true(isfinite(t[i * 4]) && isfinite(t[i * 4 + 1]) && isfinite(t[i * 4 + 2]) &&
+                                            finite_nonneg(t[i * 4 + 3]));
+        gltest_read_texture(lo->rsm_flux, GL_RGBA, t);
+        for (i = 0; i < n * 4; ++i) assert_true(finite_nonneg(t[i]));
+        if (lo->importance) {
+            double *d = (double *)malloc((size_t)n * 8u), prev;
+            gim_selected_val *s = (gim_selected_val *)malloc((size_t)lo->selected_count * sizeof *s);
+            gltest_read_buffer(lo->importance, (size_t)n * 4u, t);
+            for (i = 0; i < n; ++i) assert_true(finite_nonneg(t[i]));
+            gltest_read_buffer(lo->column, (size_t)n * 8u, d);   /* cumulative down each column */
+            for (i = 0; i < n; ++i) {
+                assert_true(isfinite(d[i]) && d[i] >= 0.0);
+                if (i >= lo->rsm_size) assert_true(d[i] >= d[i - lo->rsm_size]);
+            }
+            gltest_read_buffer(lo->row, (size_t)lo->rsm_size * 8u, d);
+            for (i = 0, prev = 0.0; i < lo->rsm_size; ++i) {
+                if (!(isfinite(d[i]) && d[i] >= prev))
+                    fail_msg("light %u: row[%u] = %.17g after %.17g", (unsigned)l, (unsigned)i, d[i], prev);
+                prev = d[i];
+            }
+            gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
+            for (i = 0; i < lo->selected_count; ++i)
+                assert_true(s[i].x < lo->rsm_size && s[i].y < lo->rsm_size && isfinite(s[i].pdf) && s[i].pdf > 0.0f &&
+                            s[i].pdf <= 1.0f);
+            free(d);
+            free(s);
+        }
+        free(t);
+    }
+    if (o.vals) {
+        gim_val *v = (gim_val *)malloc((size_t)o.val_count * sizeof *v);
+        gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *v, v);
+        for (i = 0; i < o.val_count; ++i) {
+            assert_true(gim__all_finite(v[i].position, 3) && gim__all_finite(v[i].normal, 3));
+            assert_true(finite_nonneg(v[i].area) && finite_nonneg(v[i].weight));
+            for (k = 0; k < 3; ++k) {
+                assert_true(finite_nonneg(v[i].flux[k]));
+                out->val_flux += (double)v[i].flux[k] * v[i].weight;
+            }
+        }
+        free(v);
+    }
+    if (o.caches) {
+        gim_cache *c = (gim_cache *)malloc((size_t)o.cache_count * sizeof *c);
+        gim_proxy_light *p = (gim_proxy_light *)malloc((size_t)o.cache_count * sizeof *p);
+        gltest_read_buffer(o.caches, (size_t)o.cache_count * sizeof *c, c);
+        for (i = 0; i < o.cache_count; ++i)
+            assert_true(gim__all_finite(c[i].position, 3) && gim__all_finite(c[i].normal, 3) && finite_nonneg(c[i].area));
+        for (k = 0; k < 2; ++k) {
+            uint32_t b = k == 0 ? o.proxy_diffuse : o.proxy_glossy;
+            if (!b) continue;
+            gltest_read_buffer(b, (size_t)o.cache_count * sizeof *p, p);
+            for (i = 0; i < o.cache_count; ++i) {
+                int a;
+                assert_true(gim__all_finite(p[i].position, 3) && finite_nonneg(p[i].radius));
+                assert_true(p[i].visibility >= 0.0f && p[i].visibility <= 1.0f);
+                for (a = 0; a < 3; ++a) {
+                    if (!finite_nonneg(p[i].flux[a]) || !finite_nonneg(p[i].sigma[a]))
+                        fail_msg("proxy %u (%s): flux %g sigma %g", (unsigned)i, k ? "glossy" : "diffuse",
+                                 (double)p[i].flux[a], (double)p[i].sigma[a]);
+                    if (k == 0) out->proxy_flux += p[i].flux[a];
+                }
+            }
+        }
+        free(c);
+        free(p);
+    }
+}
+
+/* Set the scene's instances and light, run the frame, read it all back. */
+static void ex_frame(ex *e, ex_out *out) {
+    int warnings = e->f.log.warnings;
+    assert_int_equal(gim_set_instances(e->f.ctx, e->inst, e->inst_count), GIM_OK);
+    assert_int_equal(gim_set_lights(e->f.ctx, &e->light, 1), GIM_OK);
+    assert_int_equal(gim_update(e->f.ctx, &e->fr), GIM_OK);
+    gltest_state_unchanged(&e->f);
+    ex_read(e, out);
+    out->warnings = (uint32_t)(e->f.log.warnings - warnings);
+}
+
+/* Differences of image a against the reference b over the pixels drawn in both: the largest
+   per-pixel relative difference (relative to the pixel, floored at floor_rel of b's largest
+   value), how many pixels exceed tol, and the mean relative difference sum|a-b| / sum b. */
+typedef struct ex_diff { double max_rel, mean_rel; uint32_t above, pixels; } ex_diff;
+
+static ex_diff ex_compare(const ex_out *a, const ex_out *b, double floor_rel, double tol) {
+    ex_diff d;
+    double num = 0.0, den = 0.0;
+    uint32_t i, k;
+    memset(&d, 0, sizeof d);
+    for (i = 0; i < NPIX; ++i) {
+        double e = 0.0;
+        if (a->nrm[i * 4 + 3] != 1.0f || b->nrm[i * 4 + 3] != 1.0f) continue;
+        d.pixels++;
+        for (k = 0; k < 3; ++k) {
+            double x = a->img[i * 4 + k], r = b->img[i * 4 + k];
+            double fl = floor_rel * b->max, rel = fabs(x - r) / (r > fl ? r : fl);
+            num += fabs(x - r);
+            den += r;
+            if (rel > e) e = rel;
+        }
+        if (e > tol) d.above++;
+        if (e > d.max_rel) d.max_rel = e;
+    }
+    d.mean_rel = den > 0.0 ? num / den : (num > 0.0 ? 1.0 : 0.0);
+    return d;
+}
+
+/* --- scale and position ----------------------------------------------------------------- */
+
+/* The room at side s (caches d_eps = s / 12), a light that gives the same irradiance at every
+   scale, the camera scaled with it. */
+static void room_at(ex *e, double s, const double o[3], int use_spot, gim_method method, ex_out *out) {
+    geo g;
+    ex_begin(e);
+    geo_room(&g, s, o);
+    ex_add(e, &g, s / 12.0);
+    assert_int_equal(gim_set_materials(e->f.ctx, room_materials, 4), GIM_OK);
+    /* the spot's intensity goes with s^2: irradiance I cos / d^2 stays; the sun's E is per area */
+    e->light = use_spot ? spot(40.0 * s * s, s, o, 32) : sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+    room_camera(&e->fr, s, o);
+    e->fr.method = method;
+    e->fr.val_count = 512;
+    e->fr.view_sample_count = 64;
+    e->fr.indirect_float32 = 1;
+    ex_frame(e, out);
+}
+
+/* One bounce is scale-invariant in radiance: the same room at 1e-4 ... 1e4 (and at 2^+-13)
+   gives the image of side 1. FULL: every texel a VAL, so only float rounding differs (a
+   decimal scale is not exact in binary): mean relative difference < 1e-4 (measured <= 3e-6),
+   at most 1% of the pixels above 1e-3 (measured: none; max 6e-5). BRSM at a power-of-two
+   scale: the importance map, the picks and the weights are the same (the map is bit for bit
+   scale-free there), so the same bound; at a decimal scale a rounding in the map can move a
+   few of the 512 picks, each worth ~1/512 of some caches' light: mean < 5e-3. */
+static void scale_invariance(void **state) {
+    static const double scales[7] = {1e-4, 1e-2, 1e2, 1e4, 1.0 / 8192.0, 8192.0, 1.0};
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    ex e;
+    ex_out *ref = (ex_out *)malloc(sizeof *ref), *cur = (ex_out *)malloc(sizeof *cur);
+    int light, method, k;
+    (void)state;
+    GLTEST_BEGIN();
+    for (light = 0; light < 2; ++light)
+        for (method = 0; method < 2; ++method) {
+            gim_method m = method ? GIM_METHOD_LIGHTSKIN_BRSM : GIM_METHOD_LIGHTSKIN_FULL;
+            room_at(&e, 1.0, o0, light, m, ref);
+            ex_end(&e);
+            assert_true(ref->lit > ref->drawn / 2 && ref->max > 0.0);
+            for (k = 0; k < 6; ++k) {
+                ex_diff d;
+                int exact = !method || k >= 4;
+                room_at(&e, scales[k], o0, light, m, cur);
+                ex_end(&e);
+                d = ex_compare(cur, ref, 1e-3, 1e-3);
+                print_message("scale %-9.3g %s %s: %u pixels, max rel %.2e, mean rel %.2e, %u above 1e-3\n", scales[k],
+                              light ? "spot" : "sun ", method ? "BRSM" : "FULL", d.pixels, d.max_rel, d.mean_rel, d.above);
+                assert_true(d.pixels > NPIX / 2);
+                assert_true(d.mean_rel < (exact ? 1e-4 : 5e-3));
+                if (exact) assert_true(d.above <= d.pixels / 100);
+            }
+        }
+    free(ref);
+    free(cur);
+    GLTEST_END();
+}
+
+/* The room moved far from the origin. Float positions there are quantised to ulp(|o|)
+   (2^-7 = 0.0078 at 1e5): vertices, caches, RSM texels and the pixels unprojected from the
+   G-buffer each carry an absolute error of that order, so the image differs from the room at
+   the origin by about ulp(|o|) / L relative (the tent weights of eq. 8 move by the position
+   error over d_c,max ~ L / 10). Measured at |o| = 1e5 (mean / max per pixel): L = 1000:
+   5e-5 / 9e-4, L = 200: 2e-4 / 4e-3; L = 60 (960 diagonals out) 7e-4 / 1e-2; from L = 40
+   (1400 diagonals) the spot inside the room loses its depth order (clip z and w are rounded
+   separately by ~ulp(|o|), its near plane is 1e-4 of its far plane): 2.4% mean, 58% max, and
+   L = 25: 11% mean. gim_update refuses scenes more than 1024 diagonals from the origin. */
+static void far_from_origin(void **state) {
+    static const double sides[3] = {1000.0, 200.0, 60.0};
+    static const double o0[3] = {0.0, 0.0, 0.0}, ofar[3] = {1e5, 2e4, -5e4};
+    ex e;
+    ex_out *ref = (ex_out *)malloc(sizeof *ref), *cur = (ex_out *)malloc(sizeof *cur);
+    int k, light;
+    (void)state;
+    GLTEST_BEGIN();
+    for (light = 0; light < 2; ++light)
+        for (k = 0; k < 3; ++k) {
+            ex_diff d;
+            double q = 0.0078125 / sides[k];   /* ulp(1e5) / L */
+            room_at(&e, sides[k], o0, light, GIM_METHOD_LIGHTSKIN_FULL, ref);
+            ex_end(&e);
+            room_at(&e, sides[k], ofar, light, GIM_METHOD_LIGHTSKIN_FULL, cur);
+            ex_end(&e);
+            d = ex_compare(cur, ref, 1e-3, 1e-2);
+            print_message("offset 1e5, side %-5g %s (ulp/L %.1e): %u pixels, max rel %.2e, mean rel %.2e, %u above 1e-2\n",
+                          sides[k], light ? "spot" : "sun ", q, d.pixels, d.max_rel, d.mean_rel, d.above);
+            assert_true(d.pixels > NPIX / 2);
+            assert_true(d.mean_rel < 10.0 * q);        /* measured 3-7 ulp / L */
+            assert_true(d.above <= d.pixels / 100);
+        }
+    /* farther than 1024 diagonals: refused, logged, and the context still renders */
+    {
+        geo g;
+        int errors;
+        ex_begin(&e);
+        geo_room(&g, 50.0, ofar);       /* 87 across at 1e5: 1150 diagonals */
+        ex_add(&e, &g, 50.0 / 12.0);
+        assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
+        e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+        room_camera(&e.fr, 50.0, ofar);
+        assert_int_equal(gim_set_instances(e.f.ctx, e.inst, 1), GIM_OK);
+        assert_int_equal(gim_set_lights(e.f.ctx, &e.light, 1), GIM_OK);
+        errors = e.f.log.errors;
+        assert_int_equal(gim_update(e.f.ctx, &e.fr), GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(e.f.log.errors, errors + 1);
+        assert_true(strstr(e.f.log.last, "origin") != NULL);
+        assert_false(gim_outputs(e.f.ctx).valid);
+        gltest_state_unchanged(&e.f);
+        e.inst[0].model.m[12] = -1e5f; e.inst[0].model.m[13] = -2e4f; e.inst[0].model.m[14] = 5e4f; /* moved home */
+        room_camera(&e.fr, 50.0, o0);
+        ex_frame(&e, cur);
+        assert_true(cur->lit > cur->drawn / 2);
+        e.f.log.errors = 0;
+        ex_end(&e);
+    }
+    free(ref);
+    free(cur);
+    GLTEST_END();
+}
+
+/* --- angles ------------------------------------------------------------------------------ */
+
+/* A floor 2L x 2L (y = 0) and a wall (z = 0, normal +z) standing on it; the sun's direction
+   lies in the wall's plane, so only the floor is lit and the wall's light is the floor's
+   bounce: proportional to cos(theta) of the sun on the floor. */
+static void floor_wall(ex *e, double theta_deg, uint32_t rsm, ex_out *out) {
+    static const gim_material m[2] = {{{0.7f, 0.7f, 0.7f}, {0, 0, 0}, 0.0f}, {{0.5f, 0.6f, 0.7f}, {0, 0, 0}, 0.0f}};
+    geo g;
+    double c[3], u[3], v[3], t = theta_deg * 3.14159265358979323846 / 180.0, eye[3], dir[3];
+    ex_begin(e);
+    memset(&g, 0, sizeof g);
+    SET3(c, -1, 0, 0); SET3(u, 0, 0, 2); SET3(v, 2, 0, 0); geo_quad(&g, c, u, v, 0);
+    SET3(c, -1, 0, 0); SET3(u, 2, 0, 0); SET3(v, 0, 1, 0); geo_quad(&g, c, u, v, 1);
+    ex_add(e, &g, 2.0 / 16.0);
+    assert_int_equal(gim_set_materials(e->f.ctx, m, 2), GIM_OK);
+    e->light = sun(2.0f, gim_v3((float)sin(t), (float)cos(t), 0.0f), rsm);
+    SET3(eye, 0.0, 0.9, 2.6); SET3(dir, 0.0, -0.5, -2.0);
+    e->fr.view = look_along(eye, dir);
+    e->fr.proj = gim_mat4_perspective(1.1f, (float)W / H, 0.05f, 10.0f);
+    e->fr.width = W;
+    e->fr.height = H;
+    e->fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    e->fr.indirect_float32 = 1;
+    ex_frame(e, out);
+}
+
+/* Mean rgb of the pixels whose normal is close to n (the wall: +z, the floor: +y). */
+static double mean_where(const ex_out *o, int axis, uint32_t *count) {
+    double s = 0.0;
+    uint32_t i, c = 0;
+    for (i = 0; i < NPIX; ++i)
+        if (o->nrm[i * 4 + 3] == 1.0f && o->nrm[i * 4 + axis] > 0.99f) {
+            s += o->img[i * 4] + o->img[i * 4 + 1] + o->img[i * 4 + 2];
+            c++;
+        }
+    if (count) *count = c;
+    return c ? s / (3.0 * c) : 0.0;
+}
+
+/* The sun at 60, 80 and 89.9 degrees from the floor's normal, exactly parallel to it (90) and
+   below the horizon (100); a camera that sees the floor edge-on. The wall's light goes with
+   cos(theta): at 80 degrees within 5% of 60's times the cosine ratio (measured 3%: the RSM
+   samples the floor at 64^2 texels either way); at 89.9 the floor is 0.15 texel rows high in
+   the RSM, so its texels are all or nothing: below 3x the cosine law, measured 0 (no texel
+   centre falls on it; an RSM misses a surface thinner than a texel, here 0.35% of the
+   bounce at 60 degrees). At 90
+   nothing is lit (no RSM texel: the floor and the wall are edge-on to the light) and below
+   the horizon the lit underside of the floor faces away from the wall: all zero. */
+static void grazing_sun(void **state) {
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    double wall60, wall80, wall899, r80, r899;
+    uint32_t nw;
+    (void)state;
+    GLTEST_BEGIN();
+    floor_wall(&e, 60.0, 64, a);
+    ex_end(&e);
+    wall60 = mean_where(a, 2, &nw);
+    assert_true(nw > NPIX / 8 && wall60 > 0.0);
+    floor_wall(&e, 80.0, 64, b);
+    ex_end(&e);
+    wall80 = mean_where(b, 2, NULL);
+    r80 = wall80 / wall60 / (cos(80.0 * 3.14159265358979323846 / 180.0) / cos(60.0 * 3.14159265358979323846 / 180.0));
+    floor_wall(&e, 89.9, 64, b);
+    ex_end(&e);
+    wall899 = mean_where(b, 2, NULL);
+    r899 = wall899 / wall60 / (cos(89.9 * 3.14159265358979323846 / 180.0) / cos(60.0 * 3.14159265358979323846 / 180.0));
+    print_message("wall radiance / cosine law: 80 deg %.4f, 89.9 deg %.4f (wall at 60: %.4g)\n", r80, r899, wall60);
+    assert_true(fabs(r80 - 1.0) < 0.05);
+    assert_true(r899 >= 0.0 && r899 < 3.0);
+    floor_wall(&e, 90.0, 64, b);
+    ex_end(&e);
+    print_message("parallel sun: max %g, VAL flux %g\n", b->max, b->val_flux);
+    assert_true(b->max == 0.0 && b->val_flux == 0.0);
+    floor_wall(&e, 100.0, 64, b);
+    ex_end(&e);
+    print_message("sun below the horizon: max %g (at 60: %g), VAL flux %g\n", b->max, a->max, b->val_flux);
+    assert_true(b->val_flux > 0.0);            /* the floor's underside is lit (two-sided) ... */
+    assert_true(b->max <= 1e-6 * a->max);      /* ... and lights nothing above it */
+    /* the floor seen exactly edge-on (eye at its height) and nearly so (1e-6 above) */
+    {
+        double eye[3], dir[3];
+        int k;
+        for (k = 0; k < 2; ++k) {
+            floor_wall(&e, 60.0, 64, b);
+            SET3(eye, 0.0, k ? 1e-6 : 0.0, 2.6); SET3(dir, 0.0, 0.0, -1.0);
+            e.fr.view = look_along(eye, dir);
+            ex_frame(&e, b);
+            print_message("floor edge-on (eye %g above): %u pixels drawn, %u lit, max %g\n", eye[1], b->drawn, b->lit, b->max);
+            assert_true(b->lit > NPIX / 8);      /* the wall, lit by the floor */
+            ex_end(&e);
+        }
+    }
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* --- distances --------------------------------------------------------------------------- */
+
+/* A near plane that cuts the room: the surfaces behind it are the same points, so where a
+   pixel sees the same surface (same normal, depth of the same point) its light is the same;
+   the unprojected positions differ only by the depth buffer's rounding (< 1e-3 relative).
+   Two identical instances (every cache doubled, d_c,max ties, hash buckets twice as full)
+   with n = 16 neighbours give the image of one instance with n = 8: each cache counts twice
+   in both sums of eq. 9. */
+static void near_plane_and_coincident_caches(void **state) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    ex_diff d;
+    uint32_t i, same = 0, cut = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    gim_mat4 pa, pb;
+    room_at(&e, 1.0, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
+    pa = e.fr.proj;
+    pb = e.fr.proj = gim_mat4_perspective(1.0f, (float)W / H, 1.3f, 5.0f);   /* cuts the block and the floor */
+    ex_frame(&e, b);
+    ex_end(&e);
+    for (i = 0; i < NPIX; ++i) {   /* keep the pixels that see the same point in both: view depth within 1e-4 */
+        double za = -pa.m[14] / (2.0 * a->depth[i] - 1.0 + pa.m[10]), zb = -pb.m[14] / (2.0 * b->depth[i] - 1.0 + pb.m[10]);
+        if (a->nrm[i * 4 + 3] == 1.0f && b->nrm[i * 4 + 3] == 1.0f && fabs(za - zb) < 1e-4 * fabs(za)) same++;
+        else if (a->nrm[i * 4 + 3] == 1.0f) { a->nrm[i * 4 + 3] = 0.0f; cut++; }
+    }
+    d = ex_compare(b, a, 1e-3, 1e-3);
+    print_message("near plane at 1.3 L: %u pixels changed surface, %u compared: max rel %.2e, mean rel %.2e, %u above 1e-3\n",
+                  cut, d.pixels, d.max_rel, d.mean_rel, d.above);
+    assert_true(cut > 50 && d.pixels == same && same > NPIX / 4);
+    assert_true(d.mean_rel < 1e-3 && d.above <= d.pixels / 50);
+
+    room_at(&e, 1.0, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
+    e.fr.neighbour_count = 8;
+    ex_frame(&e, a);
+    e.inst[1] = e.inst[0];
+    e.inst_count = 2;
+    e.fr.neighbour_count = 16;
+    ex_frame(&e, b);
+    assert_int_equal(gim_outputs(e.f.ctx).cache_count, 2u * e.set[0].count);
+    ex_end(&e);
+    d = ex_compare(b, a, 1e-3, 1e-4);
+    print_message("coincident caches (n 16, doubled) vs n 8: max rel %.2e, mean rel %.2e, %u above 1e-4\n", d.max_rel,
+                  d.mean_rel, d.above);
+    assert_true(d.mean_rel < 1e-5 && d.above <= d.pixels / 200);
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* VALs at a cache (d = 0), inside and just outside its 1e-6 scene-scale coincidence radius
+   with zero area (eq. 3's A + pi d^2 -> 0), of flux up to 1e30: the GPU proxy pass is finite
+   and agrees with its twin (which sums in double). */
+static void val_on_cache(void **state) {
+    enum { NC = 3, NV = 5 };
+    gltest_fixture f;
+    gim_cache c[NC];
+    gim_val v[NV];
+    gim_proxy_light gd[NC], gg[NC], cd[NC], cg[NC];
+    gim_proxy_desc pd;
+    GLuint bc, bv, bd, bg;
+    uint32_t i, k;
+    float s = 1.0f;   /* scene scale */
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    memset(c, 0, sizeof c);
+    memset(v, 0, sizeof v);
+    for (i = 0; i < NC; ++i) {
+        c[i].position[0] = 0.3f * (float)i;
+        c[i].normal[1] = 1.0f;
+        c[i].area = 0.01f;
+        c[i].reflectance = 1.0f;
+    }
+    for (i = 0; i < NV; ++i) {   /* above cache 0, facing it (normal -y): at 0, 0.5e-6, 1.5e-6, 1e-3, 0.2 */
+        static const float dy[NV] = {0.0f, 0.5e-6f, 1.5e-6f, 1e-3f, 0.2f};
+        v[i].position[0] = i == 4 ? 0.25f : 0.0f;
+        v[i].position[1] = dy[i];
+        v[i].normal[1] = -1.0f;
+        v[i].area = i < 4 ? 0.0f : 1e-4f;                         /* eq. 3's A + pi d^2 -> 0 */
+        v[i].weight = 1.0f;
+        v[i].flux[0] = v[i].flux[1] = v[i].flux[2] = i == 3 ? 1e30f : 1.0f;   /* e ~ 3e35 at 1e-3 */
+    }
+    memset(&pd, 0, sizeof pd);
+    pd.caches = c; pd.cache_count = NC; pd.vals = v; pd.val_count = NV;
+    pd.eye = gim_v3(0.0f, 2.0f, 3.0f); pd.glossy_exponent = 20.0f; pd.scene_scale = s; pd.env = f.env;
+    assert_int_equal(gim_proxy_lights(&pd, cd, cg), GIM_OK);
+    bc = gltest_ssbo(sizeof c, c);
+    bv = gltest_ssbo(sizeof v, v);
+    bd = gltest_ssbo(sizeof gd, NULL);
+    bg = gltest_ssbo(sizeof gg, NULL);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, NC, bv, NV, pd.eye, 20.0f, s, bd, bg), GIM_OK);
+    gltest_read_buffer(bd, sizeof gd, gd);
+    gltest_read_buffer(bg, sizeof gg, gg);
+    for (i = 0; i < NC; ++i)
+        for (k = 0; k < 3; ++k) {
+            double rd = fabs((double)gd[i].flux[k] - cd[i].flux[k]) / (cd[i].flux[k] > 0.0f ? cd[i].flux[k] : 1.0);
+            double rg = fabs((double)gg[i].flux[k] - cg[i].flux[k]) / (cg[i].flux[k] > 0.0f ? cg[i].flux[k] : 1.0);
+            assert_true(finite_nonneg(gd[i].flux[k]) && finite_nonneg(gg[i].flux[k]));
+            assert_true(isfinite(gd[i].position[k]) && isfinite(gg[i].position[k]));
+            if (k == 0) print_message("cache %u: diffuse flux GPU %g twin %g (rel %.1e), glossy %g / %g (rel %.1e)\n",
+                                      (unsigned)i, (double)gd[i].flux[0], (double)cd[i].flux[0], rd, (double)gg[i].flux[0],
+                                      (double)cg[i].flux[0], rg);
+            assert_true(rd < 1e-3 && rg < 1e-3);
+        }
+    glDeleteBuffers(1, &bc); glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bd); glDeleteBuffers(1, &bg);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(scale_invariance),
+        cmocka_unit_test(far_from_origin),
+        cmocka_unit_test(grazing_sun),
+        cmocka_unit_test(near_plane_and_coincident_caches),
+        cmocka_unit_test(val_on_cache),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
