@@ -6619,6 +6619,7 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1f(10, GIM__TWINS_COINCIDENT * a->scene_scale);
     gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u));
     gl->Uniform1ui(12, host ? 1u : ctx->material_count);
+    gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);

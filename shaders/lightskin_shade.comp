@@ -41,6 +41,7 @@ layout(location = 9) uniform int rings;         /* shells searched: radius = rin
 layout(location = 10) uniform float near_;      /* 1e-6 scene_scale */
 layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: host G-buffer */
 layout(location = 12) uniform uint material_count;
+layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -189,5 +190,7 @@ void main() {
         float lobe = k == 0.0 ? 1.0 : (re > 0.0 ? pow(re, k) : 0.0);
         outc += gcol * ((k + 2.0) / (2.0 * PI) * lobe) * eg;
     }
-    imageStore(indirect, px, vec4(min(outc, vec3(FLT_MAX)), 1.0));
+    /* clamped to the format: GL leaves a float beyond RGBA16F's range to the implementation
+       (llvmpipe stores 65504, others Inf) */
+    imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
 }

@@ -333,13 +333,13 @@ static ex_diff ex_compare(const ex_out *a, const ex_out *b, double floor_rel, do
 
 /* --- scale and position ----------------------------------------------------------------- */
 
-/* The room at side s (caches d_eps = s / 12), a light that gives the same irradiance at every
+/* The room at side s (caches d_eps = s / 8), a light that gives the same irradiance at every
    scale, the camera scaled with it. */
 static void room_at(ex *e, double s, const double o[3], int use_spot, gim_method method, ex_out *out) {
     geo g;
     ex_begin(e);
     geo_room(&g, s, o);
-    ex_add(e, &g, s / 12.0);
+    ex_add(e, &g, s / 8.0);
     assert_int_equal(gim_set_materials(e->f.ctx, room_materials, 4), GIM_OK);
     /* the spot's intensity goes with s^2: irradiance I cos / d^2 stays; the sun's E is per area */
     e->light = use_spot ? spot(40.0 * s * s, s, o, 32) : sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
@@ -354,10 +354,12 @@ static void room_at(ex *e, double s, const double o[3], int use_spot, gim_method
 /* One bounce is scale-invariant in radiance: the same room at 1e-4 ... 1e4 (and at 2^+-13)
    gives the image of side 1. FULL: every texel a VAL, so only float rounding differs (a
    decimal scale is not exact in binary): mean relative difference < 1e-4 (measured <= 3e-6),
-   at most 1% of the pixels above 1e-3 (measured: none; max 6e-5). BRSM at a power-of-two
-   scale: the importance map, the picks and the weights are the same (the map is bit for bit
-   scale-free there), so the same bound; at a decimal scale a rounding in the map can move a
-   few of the 512 picks, each worth ~1/512 of some caches' light: mean < 5e-3. */
+   at most 1% of the pixels above 1e-3 (measured: none; max 7e-5). At a power-of-two scale
+   everything is bit for bit the same (measured 0), BRSM included (the map is scale-free).
+   BRSM at a decimal scale: a rounding in the importance map can move one of the 512 picks
+   (seen: one), worth ~1/512 of the light of the caches near it: mean < 5e-3 (measured up to
+   1.9e-3, max 1.6e-2). Before gim_light_camera built the light's view in double, the spot at
+   1e4 (its axis rounded by ulp(1e4) / 1) gave mean 2.1e-4 and 115 pixels above 1e-3 in FULL. */
 static void scale_invariance(void **state) {
     static const double scales[7] = {1e-4, 1e-2, 1e2, 1e4, 1.0 / 8192.0, 8192.0, 1.0};
     static const double o0[3] = {0.0, 0.0, 0.0};
@@ -395,10 +397,12 @@ static void scale_invariance(void **state) {
    G-buffer each carry an absolute error of that order, so the image differs from the room at
    the origin by about ulp(|o|) / L relative (the tent weights of eq. 8 move by the position
    error over d_c,max ~ L / 10). Measured at |o| = 1e5 (mean / max per pixel): L = 1000:
-   5e-5 / 9e-4, L = 200: 2e-4 / 4e-3; L = 60 (960 diagonals out) 7e-4 / 1e-2; from L = 40
+   4e-5 / 5e-4, L = 200: 2e-4 / 2.4e-3; L = 60 (960 diagonals out) 5e-4 / 1e-2; from L = 40
    (1400 diagonals) the spot inside the room loses its depth order (clip z and w are rounded
    separately by ~ulp(|o|), its near plane is 1e-4 of its far plane): 2.4% mean, 58% max, and
-   L = 25: 11% mean. gim_update refuses scenes more than 1024 diagonals from the origin. */
+   L = 25: 11% mean. gim_update refuses scenes more than 1024 diagonals from the origin.
+   (The camera here is built with its translation in double, as a host far from the origin
+   must: a float look_at(eye, eye + dir) turns the view by ulp(|eye|) / |dir|.) */
 static void far_from_origin(void **state) {
     static const double sides[3] = {1000.0, 200.0, 60.0};
     static const double o0[3] = {0.0, 0.0, 0.0}, ofar[3] = {1e5, 2e4, -5e4};
@@ -428,7 +432,7 @@ static void far_from_origin(void **state) {
         int errors;
         ex_begin(&e);
         geo_room(&g, 50.0, ofar);       /* 87 across at 1e5: 1150 diagonals */
-        ex_add(&e, &g, 50.0 / 12.0);
+        ex_add(&e, &g, 50.0 / 8.0);
         assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
         e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
         room_camera(&e.fr, 50.0, ofar);
@@ -661,6 +665,422 @@ static void val_on_cache(void **state) {
     GLTEST_END();
 }
 
+/* --- materials ---------------------------------------------------------------------------- */
+
+/* The room (side 1, sun) with its materials replaced. */
+static void room_with(ex *e, const gim_material *m, uint32_t count, ex_out *out) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    geo g;
+    ex_begin(e);
+    geo_room(&g, 1.0, o0);
+    ex_add(e, &g, 1.0 / 8.0);
+    assert_int_equal(gim_set_materials(e->f.ctx, m, count), GIM_OK);
+    e->light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+    room_camera(&e->fr, 1.0, o0);
+    e->fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    e->fr.indirect_float32 = 1;
+    ex_frame(e, out);
+}
+
+/* Keep only the back wall's pixels (normal +z) of o, for comparisons. */
+static uint32_t back_wall_only(ex_out *o) {
+    uint32_t i, n = 0;
+    for (i = 0; i < NPIX; ++i) {
+        if (o->nrm[i * 4 + 2] > 0.999f) n++;
+        else o->nrm[i * 4 + 3] = 0.0f;
+    }
+    return n;
+}
+
+/* Albedo 0 everywhere: no flux anywhere, an image of exact zeros. Albedo 1 against 0.2: the
+   bounce is linear in the albedo at both ends (RSM flux and receiver), so 25 times the image
+   (51/255 = 0.2 is exact in the RGBA8 G-buffer), within float rounding (1e-5). A glossy
+   colour without diffuse, exponent 0: the lobe is the constant 1 and (k + 2) / (2 pi) = 1 /
+   pi, so the glossy proxy lights are the diffuse ones and the back wall (coplanar caches and
+   pixels: the mirrored directions of eq. 8 equal the normals' cosine 1) shows exactly the
+   image of the same colour as diffuse albedo (measured 5e-7). Exponents 1 and 1e4: finite and
+   non-negative everywhere, proxies included. */
+static void materials_at_the_ends(void **state) {
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    gim_material m[4];
+    ex_diff d;
+    uint32_t i, k;
+    (void)state;
+    GLTEST_BEGIN();
+    memset(m, 0, sizeof m);
+    room_with(&e, m, 4, a);
+    ex_end(&e);
+    print_message("albedo 0: max %g, VAL flux %g, proxy flux %g\n", a->max, a->val_flux, a->proxy_flux);
+    assert_true(a->max == 0.0 && a->val_flux == 0.0 && a->proxy_flux == 0.0);
+    for (i = 0; i < 4; ++i) m[i].diffuse[0] = m[i].diffuse[1] = m[i].diffuse[2] = 0.2f;
+    room_with(&e, m, 4, a);
+    ex_end(&e);
+    for (i = 0; i < 4; ++i) m[i].diffuse[0] = m[i].diffuse[1] = m[i].diffuse[2] = 1.0f;
+    room_with(&e, m, 4, b);
+    ex_end(&e);
+    for (i = 0; i < NPIX * 4; ++i) a->img[i] *= 25.0f;
+    a->max *= 25.0;
+    d = ex_compare(b, a, 1e-3, 1e-4);
+    print_message("albedo 1 vs 25 x albedo 0.2: max rel %.2e, mean rel %.2e, %u above 1e-4\n", d.max_rel, d.mean_rel, d.above);
+    assert_true(b->lit > b->drawn / 2);
+    assert_true(d.mean_rel < 1e-5 && d.above == 0);
+
+    memcpy(m, room_materials, sizeof m);
+    room_with(&e, m, 4, a);                                /* back wall: diffuse 0.6 */
+    ex_end(&e);
+    m[3].diffuse[0] = m[3].diffuse[1] = m[3].diffuse[2] = 0.0f;
+    m[3].glossy[0] = m[3].glossy[1] = m[3].glossy[2] = 0.6f;
+    m[3].exponent = 0.0f;
+    room_with(&e, m, 4, b);                                /* back wall: glossy 0.6, k = 0 */
+    assert_true(gim_outputs(e.f.ctx).proxy_glossy != 0 && gim_outputs(e.f.ctx).glossy_exponent == 0.0f);
+    ex_end(&e);
+    k = back_wall_only(a);
+    back_wall_only(b);
+    d = ex_compare(b, a, 1e-3, 1e-4);
+    print_message("glossy without diffuse, k = 0, vs diffuse (%u back wall pixels): max rel %.2e, mean rel %.2e\n", k,
+                  d.max_rel, d.mean_rel);
+    assert_true(k > NPIX / 8 && a->max > 0.0);
+    assert_true(d.mean_rel < 1e-5 && d.above == 0);
+    {
+        static const float ks[3] = {1.0f, 1e4f, 1e6f};
+        for (i = 0; i < 3; ++i) {
+            m[3].exponent = ks[i];
+            m[3].diffuse[0] = m[3].diffuse[1] = m[3].diffuse[2] = 0.2f;
+            room_with(&e, m, 4, b);
+            assert_true(gim_outputs(e.f.ctx).glossy_exponent == ks[i]);
+            ex_end(&e);
+            print_message("glossy exponent %g: %u lit of %u, max %g\n", (double)ks[i], b->lit, b->drawn, b->max);
+            assert_true(b->lit > b->drawn / 2);
+        }
+    }
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* --- sizes and counts ------------------------------------------------------------------------ */
+
+/* RSMs of 1^2 (one VAL for the whole light) and 2048^2 (BRSM; 4M texels); more VALs than
+   texels, where BRSM's picks repeat with weights 1 / (N P) and the mean approaches FULL;
+   one view sample; one neighbour; a one-triangle mesh (a plane cannot light itself: zero). */
+static void sizes_and_counts(void **state) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    ex_diff d;
+    int light;
+    (void)state;
+    GLTEST_BEGIN();
+    for (light = 0; light < 2; ++light) {
+        room_at(&e, 1.0, o0, light, GIM_METHOD_LIGHTSKIN_FULL, a);
+        e.light.rsm_size = 1;
+        ex_frame(&e, a);
+        assert_int_equal(gim_outputs(e.f.ctx).val_count, 1);
+        e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+        e.fr.val_count = 100;
+        ex_frame(&e, b);
+        print_message("RSM 1^2 %s: FULL %u lit, max %g; BRSM x100 %u lit, max %g\n", light ? "spot" : "sun", a->lit, a->max,
+                      b->lit, b->max);
+        d = ex_compare(b, a, 1e-3, 1e-4);      /* 100 picks of the one texel, weight 1 / 100 each */
+        assert_true(d.mean_rel < 1e-5);
+        ex_end(&e);
+    }
+    /* more VALs than texels: 8^2 texels, 8192 picks */
+    room_at(&e, 1.0, o0, 1, GIM_METHOD_LIGHTSKIN_FULL, a);
+    e.light.rsm_size = 8;
+    ex_frame(&e, a);
+    e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    e.fr.val_count = 8192;
+    ex_frame(&e, b);
+    d = ex_compare(b, a, 1e-3, 1e-2);
+    print_message("RSM 8^2, 8192 VALs vs FULL: max rel %.2e, mean rel %.2e, %u above 1e-2\n", d.max_rel, d.mean_rel, d.above);
+    assert_true(d.mean_rel < 5e-3);
+    /* one view sample, one neighbour */
+    e.fr.val_count = 256;
+    e.fr.view_sample_count = 1;
+    ex_frame(&e, b);
+    print_message("1 view sample: %u lit, max %g, warnings %u\n", b->lit, b->max, b->warnings);
+    e.fr.view_sample_count = 64;
+    e.fr.neighbour_count = 1;
+    ex_frame(&e, b);
+    print_message("1 neighbour: %u lit, max %g\n", b->lit, b->max);
+    assert_true(b->lit > b->drawn / 2);
+    /* 2048^2, BRSM: the largest RSM llvmpipe holds quickly (4M texels x 52 bytes + 48 MB of tables) */
+    e.light.rsm_size = 2048;
+    e.fr.neighbour_count = 0;
+    e.fr.view_sample_count = 16;
+    e.fr.val_count = 1024;
+    ex_frame(&e, b);
+    print_message("RSM 2048^2 BRSM: %u lit, max %g\n", b->lit, b->max);
+    assert_true(b->lit > b->drawn / 2);
+    {   /* beyond the GL limit: refused, logged, nothing changed */
+        GLint max_tex = 0;
+        int errors = e.f.log.errors;
+        glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
+        e.light.rsm_size = (uint32_t)max_tex + 1u;
+        if (max_tex < 16384) {
+            assert_int_equal(gim_set_lights(e.f.ctx, &e.light, 1), GIM_ERROR_OUT_OF_RANGE);
+            assert_int_equal(e.f.log.errors, errors + 1);
+            e.f.log.errors = errors;
+        }
+        assert_int_equal(gim_update(e.f.ctx, &e.fr), GIM_OK);
+        assert_int_equal(gim_outputs(e.f.ctx).lights[0].rsm_size, 2048);
+    }
+    ex_end(&e);
+    /* one triangle with its caches: it cannot light itself */
+    {
+        geo g;
+        double c[3], u[3], v[3];
+        ex_begin(&e);
+        memset(&g, 0, sizeof g);
+        SET3(c, 0, 0, 0); SET3(u, 0, 0, 1); SET3(v, 1, 0, 0); geo_quad(&g, c, u, v, 0);
+        g.quads = 0;
+        {
+            gim_mesh_desc md;
+            gim_cache_desc cd;
+            memset(&cd, 0, sizeof cd);
+            cd.mesh = geo_mesh(&g);
+            cd.mesh.vertex_count = 4;
+            cd.mesh.index_count = 3;
+            cd.env = e.f.env;
+            assert_int_equal(gim_cache_generate(&cd, &e.set[0]), GIM_OK);
+            e.has_set[0] = 1;
+            memset(&md, 0, sizeof md);
+            md.data = cd.mesh;
+            md.caches = &e.set[0];
+            assert_int_equal(gim_add_mesh(e.f.ctx, &md, &e.mesh[0]), GIM_OK);
+            e.mesh_count = 1;
+            e.inst[0].mesh = e.mesh[0];
+            e.inst[0].model = gim_mat4_identity();
+            e.inst_count = 1;
+        }
+        assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 1), GIM_OK);
+        e.light = sun(3.0f, gim_v3(0.2f, 1.0f, 0.3f), 16);
+        SET3(c, 0.3, 1.0, 1.5); SET3(u, 0.0, -1.0, -1.3);
+        e.fr.view = look_along(c, u);
+        e.fr.proj = gim_mat4_perspective(1.0f, (float)W / H, 0.05f, 10.0f);
+        e.fr.width = W; e.fr.height = H;
+        ex_frame(&e, b);
+        print_message("one triangle: %u caches, %u pixels drawn, max %g, VAL flux %g\n", e.set[0].count, b->drawn, b->max,
+                      b->val_flux);
+        assert_true(b->drawn > 100 && b->val_flux > 0.0 && b->max == 0.0);
+        ex_end(&e);
+    }
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* A room whose walls have no caches next to a floor that has: the floor still
+   gathers the walls' light (their VALs are in the RSM) and matches the all-cached room where
+   its neighbours are the same floor caches (within 1e-3 on 95% of the floor pixels: the cell
+   of the hash grid, hence the search radius, follows the caches' mean area); the walls, with
+   no compatible cache near, stay dark. And an instance with a non-uniform scale and a rotation
+   (normals through the inverse transpose, cache areas through |det M| |M^-T n|) against the
+   same room transformed on the CPU: the same image within float rounding. */
+static void partial_caches_and_nonuniform_scale(void **state) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    ex_diff d;
+    geo g, floor_g, walls_g;
+    uint32_t i, q, floor_px = 0, wall_lit = 0, wall_px = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    geo_room(&g, 1.0, o0);
+    g.quads = 4;                      /* the floor and the three walls, no block */
+    ex_begin(&e);
+    ex_add(&e, &g, 1.0 / 8.0);
+    assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
+    e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+    room_camera(&e.fr, 1.0, o0);
+    e.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    e.fr.indirect_float32 = 1;
+    ex_frame(&e, a);
+    ex_end(&e);
+    memset(&floor_g, 0, sizeof floor_g);
+    memset(&walls_g, 0, sizeof walls_g);
+    for (q = 0; q < g.quads; ++q) {   /* quads 1-3 are the walls */
+        geo *t = (q >= 1 && q <= 3) ? &walls_g : &floor_g;
+        double c[3], u[3], v[3];
+        int k;
+        for (k = 0; k < 3; ++k) {
+            c[k] = g.pos[q * 12 + k];
+            u[k] = (double)g.pos[q * 12 + 3 + k] - g.pos[q * 12 + k];
+            v[k] = (double)g.pos[q * 12 + 9 + k] - g.pos[q * 12 + k];
+        }
+        geo_quad(t, c, u, v, g.mat[q * 2]);
+    }
+    ex_begin(&e);
+    ex_add(&e, &floor_g, 1.0 / 8.0);
+    ex_add(&e, &walls_g, 0.0);
+    assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
+    e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+    room_camera(&e.fr, 1.0, o0);
+    e.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    e.fr.indirect_float32 = 1;
+    ex_frame(&e, b);
+    ex_end(&e);
+    for (i = 0; i < NPIX; ++i) {
+        if (b->nrm[i * 4 + 3] != 1.0f) continue;
+        if (b->nrm[i * 4 + 1] > 0.999f) { floor_px++; continue; }
+        a->nrm[i * 4 + 3] = 0.0f;   /* compare the floor only */
+        wall_px++;
+        if (b->img[i * 4] + b->img[i * 4 + 1] + b->img[i * 4 + 2] > 0.0f) wall_lit++;
+    }
+    d = ex_compare(b, a, 1e-3, 1e-3);
+    print_message("walls without caches: %u wall pixels (%u lit), %u floor pixels: max rel %.2e, mean rel %.2e, %u above 1e-3\n",
+                  wall_px, wall_lit, floor_px, d.max_rel, d.mean_rel, d.above);
+    assert_true(floor_px > NPIX / 8 && wall_px > NPIX / 8);
+    assert_int_equal(wall_lit, 0);
+    assert_true(d.above <= d.pixels / 20 && d.mean_rel < 1e-2);
+
+    {   /* non-uniform scale and rotation */
+        gim_mat4 rot = gim_mat4_identity(), sc = gim_mat4_identity(), model;
+        gim_cache *wc;
+        gim_cache_set ws;
+        float ca = cosf(0.4f), sa = sinf(0.4f);
+        rot.m[0] = ca; rot.m[2] = -sa; rot.m[8] = sa; rot.m[10] = ca;
+        sc.m[0] = 1.5f; sc.m[5] = 0.8f; sc.m[10] = 1.1f;
+        model = gim_mat4_mul(sc, rot);
+        ex_begin(&e);
+        ex_add(&e, &g, 1.0 / 8.0);
+        e.inst[0].model = model;
+        assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
+        e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+        room_camera(&e.fr, 1.2, o0);
+        e.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+        e.fr.indirect_float32 = 1;
+        ex_frame(&e, a);
+        /* the same room placed on the CPU: positions, normals (M^-T) and caches in world space */
+        wc = (gim_cache *)malloc(e.set[0].count * sizeof *wc);
+        assert_int_equal(gim_caches_to_world(e.set[0].caches, e.set[0].count, model, wc, e.f.env), GIM_OK);
+        {
+            gim_mat4 nm = gim_mat4_normal(model);
+            gim_mesh_desc md;
+            for (i = 0; i < g.quads * 4; ++i) {
+                gim_vec3 p = gim_mat4_point(model, gim_v3(g.pos[i * 3], g.pos[i * 3 + 1], g.pos[i * 3 + 2]));
+                gim_vec3 n = gim_v3_normalize(gim_mat4_dir(nm, gim_v3(g.nrm[i * 3], g.nrm[i * 3 + 1], g.nrm[i * 3 + 2])));
+                g.pos[i * 3] = p.x; g.pos[i * 3 + 1] = p.y; g.pos[i * 3 + 2] = p.z;
+                g.nrm[i * 3] = n.x; g.nrm[i * 3 + 1] = n.y; g.nrm[i * 3 + 2] = n.z;
+            }
+            ws = e.set[0];
+            ws.caches = wc;
+            memset(&md, 0, sizeof md);
+            md.data = geo_mesh(&g);
+            md.caches = &ws;
+            assert_int_equal(gim_add_mesh(e.f.ctx, &md, &e.mesh[1]), GIM_OK);
+            e.mesh_count = 2;
+            e.inst[0].mesh = e.mesh[1];
+            e.inst[0].model = gim_mat4_identity();
+        }
+        ex_frame(&e, b);
+        ex_end(&e);
+        free(wc);
+        d = ex_compare(a, b, 1e-3, 1e-3);
+        print_message("non-uniform scale instance vs placed on the CPU: %u pixels, %u lit, max rel %.2e, mean rel %.2e, %u above 1e-3\n",
+                      d.pixels, a->lit, d.max_rel, d.mean_rel, d.above);
+        assert_true(a->lit > a->drawn / 2 && d.pixels > NPIX / 4);
+        assert_true(d.mean_rel < 1e-4 && d.above <= d.pixels / 200);
+    }
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* --- the light ---------------------------------------------------------------------------- */
+
+/* Zero power: every output exactly zero (the importance map too: the selection goes uniform).
+   1e-30 and 1e30 (E and I): one bounce is linear in the light, so the image is the image of
+   power 1 times the power, within 1e-4 relative (float32 output), until a sum leaves the float
+   range. The default RGBA16F output holds at most 65504: the 1e30 frame must not store Inf. */
+static void light_power_range(void **state) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    static const float powers[3] = {1e-30f, 1e30f, 0.0f};
+    ex e;
+    ex_out *a = (ex_out *)malloc(sizeof *a), *b = (ex_out *)malloc(sizeof *b);
+    int light, k;
+    (void)state;
+    GLTEST_BEGIN();
+    for (light = 0; light < 2; ++light) {
+        room_at(&e, 1.0, o0, light, GIM_METHOD_LIGHTSKIN_BRSM, a);   /* the reference, power 1 */
+        if (light) e.light.intensity = 1.0f; else e.light.irradiance = 1.0f;
+        ex_frame(&e, a);
+        for (k = 0; k < 3; ++k) {
+            ex_diff d;
+            uint32_t i;
+            if (light) e.light.intensity = powers[k]; else e.light.irradiance = powers[k];
+            ex_frame(&e, b);
+            if (powers[k] == 0.0f) {
+                print_message("%s power 0: max %g, VAL flux %g, proxy flux %g\n", light ? "spot" : "sun", b->max, b->val_flux,
+                              b->proxy_flux);
+                assert_true(b->max == 0.0 && b->val_flux == 0.0 && b->proxy_flux == 0.0);
+                continue;
+            }
+            for (i = 0; i < NPIX * 4; ++i) b->img[i] = (float)((double)b->img[i] / powers[k]);
+            b->max /= powers[k];
+            d = ex_compare(b, a, 1e-3, 1e-4);
+            print_message("%s power %g / %g: max rel %.2e, mean rel %.2e, %u above 1e-4\n", light ? "spot" : "sun",
+                          (double)powers[k], 1.0, d.max_rel, d.mean_rel, d.above);
+            assert_true(d.mean_rel < 1e-5 && d.above <= d.pixels / 200);
+        }
+        /* RGBA16F at 1e30: clamped to the format's largest value, never Inf */
+        e.fr.indirect_float32 = 0;
+        if (light) e.light.intensity = 1e30f; else e.light.irradiance = 1e30f;
+        ex_frame(&e, b);
+        print_message("%s 1e30 into RGBA16F: max %g, %u lit\n", light ? "spot" : "sun", b->max, b->lit);
+        assert_true(b->max == 65504.0 && b->lit > b->drawn / 2);
+        ex_end(&e);
+    }
+    free(a);
+    free(b);
+    GLTEST_END();
+}
+
+/* A sun lights a roof the camera, below it, never sees: every texel faces away from every
+   view sample (importance 0 everywhere), the selection goes uniform, and the roof's light
+   goes up, away from the floor below: a finite frame of zeros. */
+static void light_unseen(void **state) {
+    ex e;
+    ex_out *o = (ex_out *)malloc(sizeof *o);
+    geo g;
+    double c[3], u[3], v[3];
+    (void)state;
+    GLTEST_BEGIN();
+    ex_begin(&e);
+    memset(&g, 0, sizeof g);
+    SET3(c, -1, 0, -1); SET3(u, 0, 0, 2); SET3(v, 2, 0, 0); geo_quad(&g, c, u, v, 0);    /* floor */
+    SET3(c, -2, 1, -2); SET3(u, 0, 0, 4); SET3(v, 4, 0, 0); geo_quad(&g, c, u, v, 0);    /* roof over it */
+    ex_add(&e, &g, 0.2);
+    assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 1), GIM_OK);
+    e.light = sun(5.0f, gim_v3(0.1f, 1.0f, 0.2f), 32);
+    SET3(c, 0.0, 0.6, 0.0); SET3(u, 0.1, -1.0, 0.05);
+    e.fr.view = look_along(c, u);
+    e.fr.proj = gim_mat4_perspective(1.2f, (float)W / H, 0.05f, 5.0f);   /* the roof is behind the eye */
+    e.fr.width = W; e.fr.height = H;
+    e.fr.val_count = 256;
+    e.fr.view_sample_count = 64;
+    ex_frame(&e, o);
+    {
+        gim_frame_outputs fo = gim_outputs(e.f.ctx);
+        float map[32 * 32];
+        gim_selected_val sel[256];
+        uint32_t i;
+        double s = 0.0;
+        gltest_read_buffer(fo.lights[0].importance, sizeof map, map);
+        for (i = 0; i < 32 * 32; ++i) s += map[i];
+        gltest_read_buffer(fo.lights[0].selected, sizeof sel, sel);
+        print_message("unseen light: importance sum %g, pdf %g (uniform %g), VAL flux %g, image max %g\n", s,
+                      (double)sel[0].pdf, 1.0 / 1024.0, o->val_flux, o->max);
+        assert_true(s == 0.0 && o->val_flux > 0.0 && o->max == 0.0 && o->drawn > NPIX / 2);
+        for (i = 0; i < 256; ++i) assert_true(sel[i].pdf == 1.0f / 1024.0f);
+    }
+    ex_end(&e);
+    free(o);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(scale_invariance),
@@ -668,6 +1088,11 @@ int main(void) {
         cmocka_unit_test(grazing_sun),
         cmocka_unit_test(near_plane_and_coincident_caches),
         cmocka_unit_test(val_on_cache),
+        cmocka_unit_test(materials_at_the_ends),
+        cmocka_unit_test(sizes_and_counts),
+        cmocka_unit_test(partial_caches_and_nonuniform_scale),
+        cmocka_unit_test(light_power_range),
+        cmocka_unit_test(light_unseen),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
