@@ -986,9 +986,9 @@ typedef struct gim_frame {
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. Needs at least one instance; every material id of an instanced
-   mesh must be below the material count. Range: the world bounds may lie at most 1024 times
-   their diagonal from the origin (GIM_ERROR_OUT_OF_RANGE beyond: float positions are too
-   coarse there; README "Supported ranges"). */
+   mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
+   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, and the
+   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond). */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -5828,6 +5828,11 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    far plane) then loses its depth order: tests/gltest_extremes.c measured the room at 1e5
    units intact up to ~960 diagonals (0.07% mean error) and broken (2-10%) from ~1400. */
 #define GIM__MAX_ORIGIN_DIAGONALS 1024.0
+/* Scene diagonals the float passes hold: squared lengths and 1/d^2 stay normal floats, and
+   tests/gltest_extremes.c gets the image of size 1 within 4e-5 from 1e-17 to 1e17 (1e-19
+   breaks); a margin of 100 on each side. */
+#define GIM__MIN_SCENE_DIAGONAL 1e-15
+#define GIM__MAX_SCENE_DIAGONAL 1e15
 
 static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
     uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
@@ -6876,6 +6881,9 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     scale = frame->scene_scale > 0.0f ? frame->scene_scale : (float)diag;
     if (!(scale > 0.0f) || !gim__isfinitef(scale))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
+    if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the scene is %g across, outside %g..%g", diag,
+                         GIM__MIN_SCENE_DIAGONAL, GIM__MAX_SCENE_DIAGONAL);
     for (i = 0; i < 3; ++i) {
         double d = fabs((double)bmin[i]) > fabs((double)bmax[i]) ? fabs((double)bmin[i]) : fabs((double)bmax[i]);
         if (d > GIM__MAX_ORIGIN_DIAGONALS * diag)

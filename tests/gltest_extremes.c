@@ -358,10 +358,15 @@ static void room_at(ex *e, double s, const double o[3], int use_spot, gim_method
    everything is bit for bit the same (measured 0), BRSM included (the map is scale-free).
    BRSM at a decimal scale: a rounding in the importance map can move one of the 512 picks
    (seen: one), worth ~1/512 of the light of the caches near it: mean < 5e-3 (measured up to
-   1.9e-3, max 1.6e-2). Before gim_light_camera built the light's view in double, the spot at
-   1e4 (its axis rounded by ulp(1e4) / 1) gave mean 2.1e-4 and 115 pixels above 1e-3 in FULL. */
+   1.9e-3, max 1.6e-2). 1e-15 and 5e14 hold the FULL bound too (measured: 1e-10 ... 1e17 all
+   below 4e-5 max; 1e-19 breaks, 1e19 cannot be lit: I = 40 s^2 overflows); gim_update
+   refuses scenes outside 1e-15..1e15 across. Bugs this found: before gim_light_camera built
+   the light's view in double, the spot at 1e4 (its axis rounded by ulp(1e4) / 1) gave mean
+   2.1e-4 and 115 pixels above 1e-3 in FULL; before lightskin_shade.comp normalised eq. 9's
+   luminance weights, the spot room went black at 1e10 (w lum |op|^2 overflowed) and was off
+   by 25% (max 24x) at 1e-15 (it flushed to 0). */
 static void scale_invariance(void **state) {
-    static const double scales[7] = {1e-4, 1e-2, 1e2, 1e4, 1.0 / 8192.0, 8192.0, 1.0};
+    static const double scales[8] = {1e-4, 1e-2, 1e2, 1e4, 1.0 / 8192.0, 8192.0, 1e-15, 5e14};
     static const double o0[3] = {0.0, 0.0, 0.0};
     ex e;
     ex_out *ref = (ex_out *)malloc(sizeof *ref), *cur = (ex_out *)malloc(sizeof *cur);
@@ -374,9 +379,9 @@ static void scale_invariance(void **state) {
             room_at(&e, 1.0, o0, light, m, ref);
             ex_end(&e);
             assert_true(ref->lit > ref->drawn / 2 && ref->max > 0.0);
-            for (k = 0; k < 6; ++k) {
+            for (k = 0; k < 8; ++k) {
                 ex_diff d;
-                int exact = !method || k >= 4;
+                int exact = !method || k == 4 || k == 5;
                 room_at(&e, scales[k], o0, light, m, cur);
                 ex_end(&e);
                 d = ex_compare(cur, ref, 1e-3, 1e-3);
@@ -387,6 +392,25 @@ static void scale_invariance(void **state) {
                 if (exact) assert_true(d.above <= d.pixels / 100);
             }
         }
+    /* outside 1e-15..1e15 across: refused with a log line, not an image that goes dark */
+    for (k = 0; k < 2; ++k) {
+        geo g;
+        double side = k ? 1e16 : 1e-16;
+        int errors;
+        ex_begin(&e);
+        geo_room(&g, side, o0);
+        ex_add(&e, &g, side / 8.0);
+        assert_int_equal(gim_set_materials(e.f.ctx, room_materials, 4), GIM_OK);
+        e.light = sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
+        room_camera(&e.fr, side, o0);
+        assert_int_equal(gim_set_instances(e.f.ctx, e.inst, 1), GIM_OK);
+        assert_int_equal(gim_set_lights(e.f.ctx, &e.light, 1), GIM_OK);
+        errors = e.f.log.errors;
+        assert_int_equal(gim_update(e.f.ctx, &e.fr), GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(e.f.log.errors, errors + 1);
+        e.f.log.errors = 0;
+        ex_end(&e);
+    }
     free(ref);
     free(cur);
     GLTEST_END();
@@ -1081,6 +1105,173 @@ static void light_unseen(void **state) {
     GLTEST_END();
 }
 
+/* --- hostile arguments ------------------------------------------------------------------- */
+
+/* What tests/gltest_scene.c's argument_errors does not already try: Inf (not only NaN) in
+   every matrix, NaN/Inf in every float of a light, material, frame and cache, zero and
+   over-the-limit heights, a NULL context or output for every entry point. Each is an error
+   with exactly one log line (none for a NULL context: it has no logger), leaves the GL state
+   and the scene as they were, and the context renders a good frame afterwards. */
+static void hostile_arguments(void **state) {
+    static const double o0[3] = {0.0, 0.0, 0.0};
+    ex e;
+    ex_out *o = (ex_out *)malloc(sizeof *o);
+    gim_frame fr;
+    gim_light l;
+    gim_material m;
+    gim_instance in;
+    gim_mesh_desc md;
+    gim_mesh mesh;
+    gim_stats st;
+    int errors, k;
+    GLint max_tex = 0;
+    const float bad[3] = {NAN, INFINITY, -INFINITY};
+    (void)state;
+    GLTEST_BEGIN();
+    glGetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
+    ex_begin(&e);
+    /* before any frame: no stats */
+    errors = e.f.log.errors;
+#define EXPECT(call, code) do { assert_int_equal((call), (code)); assert_int_equal(e.f.log.errors, ++errors); } while (0)
+    EXPECT(gim_frame_stats(e.f.ctx, &st), GIM_ERROR_INVALID_ARGUMENT);
+    e.f.log.errors = 0;
+    ex_end(&e);
+    room_at(&e, 1.0, o0, 1, GIM_METHOD_LIGHTSKIN_BRSM, o);
+    errors = e.f.log.errors;
+    /* NULL context: an error, no crash, nothing to log through */
+    assert_int_equal(gim_update(NULL, &e.fr), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_set_lights(NULL, &e.light, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_set_materials(NULL, room_materials, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_set_instances(NULL, e.inst, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_add_mesh(NULL, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_remove_mesh(NULL, e.mesh[0]), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_frame_stats(NULL, &st), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_outputs(NULL).valid, 0);
+    gim_destroy(NULL);
+    assert_int_equal(e.f.log.errors, errors);
+    EXPECT(gim_frame_stats(e.f.ctx, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    EXPECT(gim_add_mesh(e.f.ctx, &md, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    EXPECT(gim_set_materials(e.f.ctx, NULL, 2), GIM_ERROR_INVALID_ARGUMENT);
+    EXPECT(gim_set_lights(e.f.ctx, NULL, 1), GIM_ERROR_INVALID_ARGUMENT);
+    {
+        gim_mesh none;
+        none.id = 0;
+        EXPECT(gim_remove_mesh(e.f.ctx, none), GIM_ERROR_INVALID_ARGUMENT);
+    }
+    /* frames: Inf and NaN anywhere in view and proj; zero and over-the-limit sizes; bad floats */
+    for (k = 0; k < 3; ++k) {
+        int entry;
+        for (entry = 0; entry < 16; entry += 5) {
+            fr = e.fr; fr.view.m[entry] = bad[k];
+            EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+            fr = e.fr; fr.proj.m[entry] = bad[k];
+            EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+        }
+        fr = e.fr; fr.scene_scale = bad[k];
+        EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+        fr = e.fr; fr.importance_clamp = bad[k];
+        EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+    }
+    fr = e.fr; fr.view = gim_mat4_mul(fr.view, gim_mat4_ortho(1, 1, -1, 1, -1, 1));   /* finite, not invertible */
+    EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+    fr = e.fr; fr.height = 0;
+    EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
+    fr = e.fr; fr.height = (uint32_t)max_tex + 1u;
+    EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
+    fr = e.fr; fr.width = 0xFFFFFFFFu;
+    EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
+    fr = e.fr; fr.importance_clamp = -1.0f;
+    EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+    /* instances: Inf in the model */
+    in = e.inst[0];
+    in.model.m[14] = INFINITY;
+    EXPECT(gim_set_instances(e.f.ctx, &in, 1), GIM_ERROR_INVALID_ARGUMENT);
+    /* materials: NaN/Inf in any float, negative glossy, exponent beyond 1e6 */
+    for (k = 0; k < 3; ++k) {
+        m = room_materials[0]; m.diffuse[2] = bad[k];
+        EXPECT(gim_set_materials(e.f.ctx, &m, 1), GIM_ERROR_INVALID_ARGUMENT);
+        m = room_materials[0]; m.glossy[0] = bad[k];
+        EXPECT(gim_set_materials(e.f.ctx, &m, 1), GIM_ERROR_INVALID_ARGUMENT);
+        m = room_materials[0]; m.exponent = bad[k];
+        EXPECT(gim_set_materials(e.f.ctx, &m, 1), GIM_ERROR_INVALID_ARGUMENT);
+    }
+    m = room_materials[0]; m.glossy[1] = -0.1f;
+    EXPECT(gim_set_materials(e.f.ctx, &m, 1), GIM_ERROR_INVALID_ARGUMENT);
+    m = room_materials[0]; m.exponent = 2e6f;
+    EXPECT(gim_set_materials(e.f.ctx, &m, 1), GIM_ERROR_INVALID_ARGUMENT);
+    /* lights: NaN/Inf in every float of both kinds */
+    for (k = 0; k < 3; ++k) {
+        l = e.light; l.intensity = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+        l = e.light; l.color[1] = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+        l = e.light; l.cone_angle = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+        l = e.light; l.direction.z = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+        l = sun(1.0f, gim_v3(0, 1, 0), 16); l.irradiance = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+        l = sun(1.0f, gim_v3(0, 1, 0), 16); l.extent = bad[k];
+        EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+    }
+    l = e.light; l.color[0] = -1.0f;
+    EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+    l = e.light; l.intensity = -1e-30f;
+    EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+    l = sun(1.0f, gim_v3(0, 1, 0), 16); l.extent = -1.0f;
+    EXPECT(gim_set_lights(e.f.ctx, &l, 1), GIM_ERROR_INVALID_ARGUMENT);
+    /* meshes: NaN normals, caches with a NaN area, a zero normal, theta_eps beyond pi/2 */
+    {
+        geo g;
+        double c[3], u[3], v[3];
+        gim_cache_set cs;
+        gim_cache cc[2];
+        memset(&g, 0, sizeof g);
+        SET3(c, 0, 0, 0); SET3(u, 0, 0, 1); SET3(v, 1, 0, 0); geo_quad(&g, c, u, v, 0);
+        memset(&md, 0, sizeof md);
+        md.data = geo_mesh(&g);
+        g.nrm[4] = NAN;
+        EXPECT(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        g.nrm[4] = 1.0f;
+        memset(cc, 0, sizeof cc);
+        memset(&cs, 0, sizeof cs);
+        cc[0].normal[1] = cc[1].normal[1] = 1.0f;
+        cc[0].area = cc[1].area = 0.5f;
+        cs.caches = cc;
+        cs.count = 2;
+        md.caches = &cs;
+        for (k = 0; k < 3; ++k) {
+            cc[1].area = bad[k];
+            EXPECT(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        }
+        cc[1].area = 0.5f;
+        cc[1].normal[1] = 0.0f;
+        EXPECT(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        cc[1].normal[1] = 1.0f;
+        cs.theta_eps = 2.0f;
+        EXPECT(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_ERROR_INVALID_ARGUMENT);
+        cs.theta_eps = 0.5f;
+        assert_int_equal(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_OK);
+        assert_int_equal(gim_remove_mesh(e.f.ctx, mesh), GIM_OK);
+    }
+#undef EXPECT
+    gltest_state_unchanged(&e.f);
+    /* the scene is as it was: the same frame renders, lit, with its outputs sound */
+    {
+        ex_out *again = (ex_out *)malloc(sizeof *again);
+        ex_diff d;
+        ex_frame(&e, again);
+        d = ex_compare(again, o, 1e-3, 0.0);
+        assert_true(again->lit > again->drawn / 2 && d.max_rel == 0.0);
+        assert_int_equal(gim_frame_stats(e.f.ctx, &st), GIM_OK);
+        free(again);
+    }
+    e.f.log.errors = 0;
+    ex_end(&e);
+    free(o);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(scale_invariance),
@@ -1093,6 +1284,7 @@ int main(void) {
         cmocka_unit_test(partial_caches_and_nonuniform_scale),
         cmocka_unit_test(light_power_range),
         cmocka_unit_test(light_unseen),
+        cmocka_unit_test(hostile_arguments),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
