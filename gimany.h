@@ -987,8 +987,9 @@ typedef struct gim_frame {
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. Needs at least one instance; every material id of an instanced
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
-   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, and the
-   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond). */
+   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
+   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
+   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -5833,6 +5834,10 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    breaks); a margin of 100 on each side. */
 #define GIM__MIN_SCENE_DIAGONAL 1e-15
 #define GIM__MAX_SCENE_DIAGONAL 1e15
+/* Largest power a light may bring into the scene (a sun's E times the diagonal squared, a
+   spot's 4 pi I, times its brightest colour): the proxy lights' flux and second moments must
+   stay floats. tests/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
+#define GIM__MAX_LIGHT_POWER 1e36
 
 static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
     uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
@@ -6884,6 +6889,19 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the scene is %g across, outside %g..%g", diag,
                          GIM__MIN_SCENE_DIAGONAL, GIM__MAX_SCENE_DIAGONAL);
+    for (i = 0; i < ctx->light_count; ++i) {
+        const gim_light *l = &ctx->lights[i];
+        float c[3];
+        double p;
+        gim__light_power(l, c);   /* colour times E or I */
+        p = c[0] > c[1] ? c[0] : c[1];
+        p = p > c[2] ? p : c[2];
+        p *= l->type == GIM_LIGHT_SPOT ? 4.0 * 3.14159265358979323846 : diag * diag;
+        if (p > GIM__MAX_LIGHT_POWER)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                             "light %u brings %g into the scene, above %g: its fluxes would overflow float", (unsigned)i,
+                             p, GIM__MAX_LIGHT_POWER);
+    }
     for (i = 0; i < 3; ++i) {
         double d = fabs((double)bmin[i]) > fabs((double)bmax[i]) ? fabs((double)bmin[i]) : fabs((double)bmax[i]);
         if (d > GIM__MAX_ORIGIN_DIAGONALS * diag)

@@ -493,7 +493,7 @@ static void floor_wall(ex *e, double theta_deg, uint32_t rsm, ex_out *out) {
     memset(&g, 0, sizeof g);
     SET3(c, -1, 0, 0); SET3(u, 0, 0, 2); SET3(v, 2, 0, 0); geo_quad(&g, c, u, v, 0);
     SET3(c, -1, 0, 0); SET3(u, 2, 0, 0); SET3(v, 0, 1, 0); geo_quad(&g, c, u, v, 1);
-    ex_add(e, &g, 2.0 / 16.0);
+    ex_add(e, &g, 2.0 / 10.0);
     assert_int_equal(gim_set_materials(e->f.ctx, m, 2), GIM_OK);
     e->light = sun(2.0f, gim_v3((float)sin(t), (float)cos(t), 0.0f), rsm);
     SET3(eye, 0.0, 0.9, 2.6); SET3(dir, 0.0, -0.5, -2.0);
@@ -583,6 +583,7 @@ static void grazing_sun(void **state) {
 /* A near plane that cuts the room: the surfaces behind it are the same points, so where a
    pixel sees the same surface (same normal, depth of the same point) its light is the same;
    the unprojected positions differ only by the depth buffer's rounding (< 1e-3 relative).
+   A spot light just above the floor (receivers inside its near plane): finite and lit.
    Two identical instances (every cache doubled, d_c,max ties, hash buckets twice as full)
    with n = 16 neighbours give the image of one instance with n = 8: each cache counts twice
    in both sums of eq. 9. */
@@ -610,6 +611,18 @@ static void near_plane_and_coincident_caches(void **state) {
                   cut, d.pixels, d.max_rel, d.mean_rel, d.above);
     assert_true(cut > 50 && d.pixels == same && same > NPIX / 4);
     assert_true(d.mean_rel < 1e-3 && d.above <= d.pixels / 50);
+
+    /* a spot 1e-4 above the floor: the floor under it lies inside its RSM's near plane (1e-4
+       of the far plane), the VALs next to it have areas ~1e-10 and distances ~1e-4 */
+    room_at(&e, 1.0, o0, 1, GIM_METHOD_LIGHTSKIN_FULL, a);
+    e.light.position = gim_v3(0.2f, 1e-4f, 0.6f);
+    e.light.direction = gim_v3(1.0f, -0.4f, -0.2f);
+    ex_frame(&e, b);
+    print_message("spot 1e-4 above the floor: %u lit of %u, max %g, VAL flux %g\n", b->lit, b->drawn, b->max, b->val_flux);
+    assert_true(b->lit > b->drawn / 4 && b->val_flux > 0.0);
+    e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    ex_frame(&e, b);
+    ex_end(&e);
 
     room_at(&e, 1.0, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
     e.fr.neighbour_count = 8;
@@ -1016,6 +1029,7 @@ static void partial_caches_and_nonuniform_scale(void **state) {
 /* --- the light ---------------------------------------------------------------------------- */
 
 /* Zero power: every output exactly zero (the importance map too: the selection goes uniform).
+   (gim_update refuses a light bringing more than 1e36 into the scene; tested at the end.)
    1e-30 and 1e30 (E and I): one bounce is linear in the light, so the image is the image of
    power 1 times the power, within 1e-4 relative (float32 output), until a sum leaves the float
    range. The default RGBA16F output holds at most 65504: the 1e30 frame must not store Inf. */
@@ -1057,6 +1071,30 @@ static void light_power_range(void **state) {
         assert_true(b->max == 65504.0 && b->lit > b->drawn / 2);
         ex_end(&e);
     }
+    /* the power a light brings into the scene (E diagonal^2, 4 pi I) is linear up to 1e36 and
+       refused above (measured: 1e36 within 1.1e-6; 1e38 saturates the image at FLT_MAX) */
+    room_at(&e, 1e8, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
+    e.light.irradiance = 1.0f;
+    ex_frame(&e, a);
+    e.light.irradiance = 3e19f;                          /* 3e19 x (1.7e8)^2 = 9e35 */
+    ex_frame(&e, b);
+    {
+        ex_diff d;
+        uint32_t i;
+        int errors;
+        for (i = 0; i < NPIX * 4; ++i) b->img[i] = (float)((double)b->img[i] / 3e19);
+        b->max /= 3e19;
+        d = ex_compare(b, a, 1e-3, 1e-4);
+        print_message("sun power 9e35 into a scene 1.7e8 across: max rel %.2e, mean rel %.2e\n", d.max_rel, d.mean_rel);
+        assert_true(d.mean_rel < 1e-5 && d.above <= d.pixels / 200);
+        e.light.irradiance = 1e21f;                      /* 3e37 */
+        assert_int_equal(gim_set_lights(e.f.ctx, &e.light, 1), GIM_OK);
+        errors = e.f.log.errors;
+        assert_int_equal(gim_update(e.f.ctx, &e.fr), GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(e.f.log.errors, errors + 1);
+        e.f.log.errors = 0;
+    }
+    ex_end(&e);
     free(a);
     free(b);
     GLTEST_END();
@@ -1286,7 +1324,9 @@ int main(void) {
         cmocka_unit_test(light_unseen),
         cmocka_unit_test(hostile_arguments),
     };
-    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    int r;
+    if (getenv("GIMANY_TEST_FILTER")) cmocka_set_test_filter(getenv("GIMANY_TEST_FILTER"));  /* one case while iterating */
+    r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;
 }
