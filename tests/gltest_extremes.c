@@ -636,6 +636,32 @@ static void near_plane_and_coincident_caches(void **state) {
     assert_true(cut > 50 && d.pixels == same && same > NPIX / 4);
     assert_true(d.mean_rel < 1e-3 && d.above <= d.pixels / 50);
 
+    /* an infinite far plane (m10 = -1, m14 = -2 n: engines' favourite) sees the same points
+       as far = 5 L, so the same light, within the depth buffer's rounding near 1 (measured
+       max 3e-5); an orthographic camera, with a glossy wall too: finite and lit */
+    room_at(&e, 1.0, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
+    e.fr.proj.m[10] = -1.0f;
+    e.fr.proj.m[14] = -2.0f * 0.05f;
+    ex_frame(&e, b);
+    d = ex_compare(b, a, 1e-3, 1e-3);
+    print_message("infinite far plane: %u pixels, max rel %.2e, mean rel %.2e, %u above 1e-3\n", d.pixels, d.max_rel,
+                  d.mean_rel, d.above);
+    assert_true(d.pixels > NPIX / 2 && d.mean_rel < 1e-4 && d.above <= d.pixels / 100);
+    e.fr.proj = gim_mat4_ortho(-0.8f, 0.8f, -0.6f, 0.6f, 0.05f, 5.0f);
+    ex_frame(&e, b);
+    print_message("orthographic camera: %u lit of %u drawn, max %g\n", b->lit, b->drawn, b->max);
+    assert_true(b->lit > b->drawn / 2 && b->drawn > NPIX / 2);
+    {   /* ... with a glossy back wall: the lobe's eye is a point far along the view direction */
+        gim_material m[4];
+        memcpy(m, room_materials, sizeof m);
+        m[3].glossy[0] = m[3].glossy[1] = m[3].glossy[2] = 0.5f;
+        m[3].exponent = 50.0f;
+        assert_int_equal(gim_set_materials(e.f.ctx, m, 4), GIM_OK);
+        ex_frame(&e, b);
+        assert_true(gim_outputs(e.f.ctx).proxy_glossy != 0 && b->lit > b->drawn / 2);
+    }
+    ex_end(&e);
+
     /* a spot 1e-4 above the floor: the floor under it lies inside its RSM's near plane (1e-4
        of the far plane), the VALs next to it have areas ~1e-10 and distances ~1e-4 */
     room_at(&e, 1.0, o0, 1, GIM_METHOD_LIGHTSKIN_FULL, a);
