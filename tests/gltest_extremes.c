@@ -92,6 +92,7 @@ typedef struct ex {
     uint32_t inst_count;
     gim_frame fr;
     gim_light light;
+    int host_gbuffer;       /* 1: the G-buffer is the test's own (its normals may be hostile) */
 } ex;
 
 static void ex_begin(ex *e) {
@@ -195,7 +196,8 @@ static void ex_read(ex *e, ex_out *out) {
     assert_true(o.valid);
     memset(out, 0, sizeof *out);
     gltest_read_texture(o.gbuffer_normal, GL_RGBA, out->nrm);
-    for (i = 0; i < NPIX * 4; ++i) assert_true(isfinite(out->nrm[i]));
+    if (!e->host_gbuffer)
+        for (i = 0; i < NPIX * 4; ++i) assert_true(isfinite(out->nrm[i]));
     gltest_read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, out->depth);
     for (i = 0; i < NPIX; ++i) {
         assert_true(out->depth[i] >= 0.0f && out->depth[i] <= 1.0f);
@@ -1486,6 +1488,51 @@ static void hostile_arguments(void **state) {
         cs.theta_eps = 0.5f;
         assert_int_equal(gim_add_mesh(e.f.ctx, &md, &mesh), GIM_OK);
         assert_int_equal(gim_remove_mesh(e.f.ctx, mesh), GIM_OK);
+    }
+    {   /* the host's G-buffer: too small is refused; NaN, Inf and zero normals and depths of
+           0 and 1 are not errors (a host's data) but must not reach the image as NaN */
+        GLuint tex[2];
+        float *dep = (float *)malloc(NPIX * 4), *nor = (float *)malloc(NPIX * 16);
+        uint32_t i;
+        glGenTextures(2, tex);
+        glBindTexture(GL_TEXTURE_2D, tex[0]);
+        glTexStorage2D(GL_TEXTURE_2D, 1, GL_DEPTH_COMPONENT32F, 8, 8);
+        glBindTexture(GL_TEXTURE_2D, tex[1]);
+        glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, 8, 8);
+        fr = e.fr;
+        fr.gbuffer_depth = tex[0];
+        fr.gbuffer_normal = tex[1];
+        EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
+        glDeleteTextures(2, tex);
+        glGenTextures(2, tex);
+        for (i = 0; i < NPIX; ++i) {
+            static const float odd[6] = {NAN, INFINITY, 0.0f, -INFINITY, 1e30f, 1.0f};
+            /* gimany's own G-buffer of this view (read back into o), then spoilt */
+            dep[i] = i % 7 == 0 ? 1.0f : i % 11 == 0 ? 0.0f : o->depth[i];
+            memcpy(nor + i * 4, o->nrm + i * 4, 16);
+            if (i % 3 == 0) nor[i * 4] = odd[i % 6];
+            if (i % 5 == 0) nor[i * 4 + 2] = odd[(i / 5) % 6];
+        }
+        glBindTexture(GL_TEXTURE_2D, tex[0]);
+        glTexStorage2D(GL_TEXTURE_2D, 1, GL_DEPTH_COMPONENT32F, W, H);
+        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_DEPTH_COMPONENT, GL_FLOAT, dep);
+        glBindTexture(GL_TEXTURE_2D, tex[1]);
+        glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, W, H);
+        glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_FLOAT, nor);
+        glBindTexture(GL_TEXTURE_2D, 0);
+        e.fr.gbuffer_depth = tex[0];
+        e.fr.gbuffer_normal = tex[1];
+        e.host_gbuffer = 1;
+        ex_frame(&e, o);
+        print_message("hostile host G-buffer: %u lit, max %g\n", o->lit, o->max);
+        assert_true(o->lit > NPIX / 4);    /* the pixels whose normal is usable */
+        e.fr.gbuffer_depth = e.fr.gbuffer_normal = 0;
+        e.host_gbuffer = 0;
+        glDeleteTextures(2, tex);
+        free(dep);
+        free(nor);
+        room_camera(&e.fr, 1.0, o0);
+        ex_frame(&e, o);   /* the reference frame again, gimany's G-buffer */
     }
 #undef EXPECT
     gltest_state_unchanged(&e.f);
