@@ -203,6 +203,12 @@ static void ex_read(ex *e, ex_out *out) {
         assert_true(out->depth[i] >= 0.0f && out->depth[i] <= 1.0f);
         if (out->nrm[i * 4 + 3] == 1.0f) out->drawn++;
     }
+    if (o.view_samples) {   /* {vec4 position; vec4 normal}: finite (an unusable sample is zero) */
+        float *vs = (float *)malloc((size_t)o.view_sample_count * 32u);
+        gltest_read_buffer(o.view_samples, (size_t)o.view_sample_count * 32u, vs);
+        for (i = 0; i < o.view_sample_count * 8u; ++i) assert_true(isfinite(vs[i]));
+        free(vs);
+    }
     if (o.indirect) {
         gltest_read_texture(o.indirect, GL_RGBA, out->img);
         for (i = 0; i < NPIX; ++i) {
