@@ -1040,7 +1040,10 @@ typedef struct gim_frame {
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. Needs at least one instance; every material id of an instanced
-   mesh must be below the material count. */
+   mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
+   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
+   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
+   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -4397,6 +4400,17 @@ static gim_vec3 gim__up_for(gim_vec3 d) {
     return gim_v3(1.0f, 0.0f, 0.0f);
 }
 
+/* look_at(eye, eye + dir, up) with the rotation taken from dir alone and the translation in
+   double: a float eye + dir rounds to the eye's ulp, which far from the origin turns the
+   light's axis by ulp(|eye|) / |dir| (1e-3 rad at 1e4 units, the whole axis past 1e7). */
+static gim_mat4 gim__look_along(const double eye[3], gim_vec3 dir, gim_vec3 up) {
+    gim_mat4 v = gim_mat4_look_at(gim_v3(0.0f, 0.0f, 0.0f), dir, up);
+    int r;
+    for (r = 0; r < 3; ++r) /* row r of the rotation dotted with -eye */
+        v.m[12 + r] = (float)-((double)v.m[r] * eye[0] + (double)v.m[4 + r] * eye[1] + (double)v.m[8 + r] * eye[2]);
+    return v;
+}
+
 GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj) {
     static const char where[] = "gim_light_camera";
@@ -4436,14 +4450,17 @@ GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[
         far_d *= 1.01;
         near_d = sqrt(box) * cos((double)light->cone_angle) * 0.99;
         if (near_d < far_d * 1e-4) near_d = far_d * 1e-4;
-        *view = gim_mat4_look_at(p, gim_v3_add(p, d), gim__up_for(d));
+        double eye[3];
+        eye[0] = p.x; eye[1] = p.y; eye[2] = p.z;
+        *view = gim__look_along(eye, d, gim__up_for(d));
         *proj = gim_mat4_perspective(2.0f * light->cone_angle, 1.0f, (float)near_d, (float)far_d);
     } else {
         gim_vec3 l = gim_v3_normalize(light->direction);
-        gim_vec3 centre = gim_v3((float)c[0], (float)c[1], (float)c[2]);
         float e = light->extent > 0.0f ? light->extent : (float)radius, R = (float)radius;
+        double eye[3];
         /* the eye 2R out along the light: the bounds' sphere lies between depths R and 3R */
-        *view = gim_mat4_look_at(gim_v3_add(centre, gim_v3_scale(l, 2.0f * R)), centre, gim__up_for(l));
+        eye[0] = c[0] + 2.0 * R * l.x; eye[1] = c[1] + 2.0 * R * l.y; eye[2] = c[2] + 2.0 * R * l.z;
+        *view = gim__look_along(eye, gim_v3_scale(l, -1.0f), gim__up_for(l));
         *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
     }
     if (!gim_mat4_isfinite(*view) || !gim_mat4_isfinite(*proj))
@@ -6062,6 +6079,21 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
 #define GIM__MAX_VIEW_SAMPLES 32768u
 #define GIM__DEFAULT_VIEW_SAMPLES 256u
 #define GIM__DEFAULT_VAL_COUNT 2048u
+/* Farthest a scene's world bounds may lie from the origin, in diagonals of those bounds.
+   Float positions there are quantised to ~2^-23 of the distance; the vertex transforms round
+   clip z and w separately by as much, and a spot inside the scene (near plane at 1e-4 of its
+   far plane) then loses its depth order: tests/gltest_extremes.c measured the room at 1e5
+   units intact up to ~960 diagonals (0.07% mean error) and broken (2-10%) from ~1400. */
+#define GIM__MAX_ORIGIN_DIAGONALS 1024.0
+/* Scene diagonals the float passes hold: squared lengths and 1/d^2 stay normal floats, and
+   tests/gltest_extremes.c gets the image of size 1 within 4e-5 from 1e-17 to 1e17 (1e-19
+   breaks); a margin of 100 on each side. */
+#define GIM__MIN_SCENE_DIAGONAL 1e-15
+#define GIM__MAX_SCENE_DIAGONAL 1e15
+/* Largest power a light may bring into the scene (a sun's E times the diagonal squared, a
+   spot's 4 pi I, times its brightest colour): the proxy lights' flux and second moments must
+   stay floats. tests/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
+#define GIM__MAX_LIGHT_POWER 1e36
 
 static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
     uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
@@ -6875,6 +6907,7 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1f(10, GIM__TWINS_COINCIDENT * a->scene_scale);
     gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u));
     gl->Uniform1ui(12, host ? 1u : ctx->material_count);
+    gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
@@ -7211,6 +7244,30 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     scale = frame->scene_scale > 0.0f ? frame->scene_scale : (float)diag;
     if (!(scale > 0.0f) || !gim__isfinitef(scale))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
+    if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the scene is %g across, outside %g..%g", diag,
+                         GIM__MIN_SCENE_DIAGONAL, GIM__MAX_SCENE_DIAGONAL);
+    for (i = 0; i < ctx->light_count; ++i) {
+        const gim_light *l = &ctx->lights[i];
+        float c[3];
+        double p;
+        gim__light_power(l, c);   /* colour times E or I */
+        p = c[0] > c[1] ? c[0] : c[1];
+        p = p > c[2] ? p : c[2];
+        p *= l->type == GIM_LIGHT_SPOT ? 4.0 * 3.14159265358979323846 : diag * diag;
+        if (p > GIM__MAX_LIGHT_POWER)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                             "light %u brings %g into the scene, above %g: its fluxes would overflow float", (unsigned)i,
+                             p, GIM__MAX_LIGHT_POWER);
+    }
+    for (i = 0; i < 3; ++i) {
+        double d = fabs((double)bmin[i]) > fabs((double)bmax[i]) ? fabs((double)bmin[i]) : fabs((double)bmax[i]);
+        if (d > GIM__MAX_ORIGIN_DIAGONALS * diag)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                             "the scene (%g across) lies %g from the origin, more than %g times its size: float "
+                             "positions are too coarse there; move the world origin near the scene",
+                             diag, d, GIM__MAX_ORIGIN_DIAGONALS);
+    }
     vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
     val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
     gather = frame->method == GIM_METHOD_RSM_GATHER;

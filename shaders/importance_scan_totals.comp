@@ -1,7 +1,8 @@
 /* Paper 000 eq. 12, second level, in one work group: per column, the block totals become
    exclusive block offsets (sequentially down the column, as the CPU sums); the column totals
    then give the horizontal cumulative sums row[x] = sum of column totals 0..x. Each invocation
-   scans a contiguous run of columns, then the runs' sums are scanned in shared memory. */
+   scans a contiguous run of columns, then the runs' sums are scanned in shared memory
+   (serially, see below). */
 #define THREADS 256
 layout(local_size_x = THREADS) in;
 
@@ -31,13 +32,20 @@ void main() {
     }
     run_sum[t] = run;
     barrier();
-    for (uint d = 1u; d < uint(THREADS); d <<= 1) {   /* inclusive scan of the runs */
-        double v = t >= d ? run_sum[t - d] : 0.0LF;
-        barrier();
-        run_sum[t] += v;
-        barrier();
+    /* exclusive scan of the runs, serially (256 adds): before_t = before_(t-1) + run_(t-1) is
+       then bit for bit the last row[] that invocation t-1 wrote, so row[] never decreases at
+       a run's edge (a tree scan rounds differently and could dip by an ulp after a column of
+       zero importance, which gim_importance_select rejects as "not a cumulative sum") */
+    if (t == 0u) {
+        double acc = 0.0LF;
+        for (uint i = 0u; i < uint(THREADS); ++i) {
+            double r = run_sum[i];
+            run_sum[i] = acc;
+            acc += r;
+        }
     }
-    double before = t > 0u ? run_sum[t - 1u] : 0.0LF;
+    barrier();
+    double before = run_sum[t];
     if (t > 0u)
         for (uint x = x0; x < x1; ++x) row[x] += before;
 }

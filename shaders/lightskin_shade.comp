@@ -41,6 +41,7 @@ layout(location = 9) uniform int rings;         /* shells searched: radius = rin
 layout(location = 10) uniform float near_;      /* 1e-6 scene_scale */
 layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: host G-buffer */
 layout(location = 12) uniform uint material_count;
+layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -91,6 +92,15 @@ void interp_light(bool is_glossy, vec3 x, vec3 nx, float dcmax, out vec3 e_out, 
     vec3 o[2] = vec3[2](vec3(0.0), vec3(0.0)), phi[2] = vec3[2](vec3(0.0), vec3(0.0));
     e_out = vec3(0.0);
     l_out = vec3(0.0);
+    /* the luminance weights W' relative to the brightest neighbour's: eq. 9 needs only their
+       ratios, and absolute ones overflow or flush (w lum |op|^2 goes as scale^4: past ~1e9
+       length units it is Inf, below ~1e-9 it is 0, and the image went dark) */
+    float lum_ref = 0.0;
+    for (uint j = 0u; j < found; ++j) {
+        Proxy p = is_glossy ? glossy[best_i[j]] : diffuse[best_i[j]];
+        lum_ref = max(lum_ref, dot(LUM, p.flux_visibility.xyz * p.flux_visibility.w));
+    }
+    if (!(lum_ref > 0.0)) return;                            /* all dark */
     for (uint j = 0u; j < found; ++j) {
         uint k = best_i[j];
         vec3 c = cache[k].position_area.xyz, nc = cache[k].normal_reflectance.xyz;
@@ -108,7 +118,7 @@ void interp_light(bool is_glossy, vec3 x, vec3 nx, float dcmax, out vec3 e_out, 
             nterm = dot(nx, nc);
         }
         nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
-        float lum = dot(LUM, fl);
+        float lum = dot(LUM, fl) / lum_ref;
         for (int pass = 0; pass < 2; ++pass) {
             float w = pass == 0 ? tent * nterm : nterm;
             if (!(w > 0.0)) continue;
@@ -189,5 +199,7 @@ void main() {
         float lobe = k == 0.0 ? 1.0 : (re > 0.0 ? pow(re, k) : 0.0);
         outc += gcol * ((k + 2.0) / (2.0 * PI) * lobe) * eg;
     }
-    imageStore(indirect, px, vec4(min(outc, vec3(FLT_MAX)), 1.0));
+    /* clamped to the format: GL leaves a float beyond RGBA16F's range to the implementation
+       (llvmpipe stores 65504, others Inf) */
+    imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
 }
