@@ -88,10 +88,10 @@ $(B)/cli/cli_demo: tests/cli_demo.c tests/cliutil.h examples/scene.h $(B)/ref/as
 $(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
 	@mkdir -p $(@D)
 	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' -DDEMO_BIN='"$(B)/gimany-demo"' $< -o $@ -lcmocka -lm
-CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
-REF_BINS := $(B)/ref/test_reference $(B)/ref/test_compare
+REF_BINS := $(B)/ref/test_reference
 
 test: deps check-shaders
 	@$(MAKE) --no-print-directory $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS) $(CLI_BINS)
@@ -124,7 +124,8 @@ $(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref
 # gimany-compare (tools/compare.c): error metrics of a method's image against a reference.
 $(B)/gimany-compare: tools/compare.c tools/compare.h $(B)/ref/scene.o examples/scene.h
 	gcc $(CSTD) $(WARN) -Iexamples -Itools -isystem /usr/include/stb -O2 $< $(B)/ref/scene.o -o $@ -lm -lstdc++
-$(B)/ref/test_compare: tests/test_compare.c tools/compare.c tools/compare.h $(B)/ref/asan/scene.o $(B)/gimany-compare
+$(B)/cli/cli_compare: tests/cli_compare.c tools/compare.c tools/compare.h $(B)/ref/asan/scene.o $(B)/gimany-compare
+	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O1 -g $(SAN) -DCOMPARE_BIN='"$(B)/gimany-compare"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
 
 $(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h tests/street.h

@@ -15,7 +15,6 @@
 
 static const double TOL_WEIGHT = 1e-6;
 
-static float rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
 static float from_bits(uint32_t b) { float f; memcpy(&f, &b, 4); return f; }
 static uint32_t bits_of(float f) { uint32_t b; memcpy(&b, &f, 4); return b; }
 
@@ -62,17 +61,17 @@ static void rsm_make(rsm *r, uint32_t size, const float origin[3], float L) {
     for (t = 0; t < n; ++t) {
         float *x = r->position4 + t * 4, *nn = r->normal4 + t * 4, *f = r->flux4 + t * 4, l;
         int a;
-        for (a = 0; a < 3; ++a) x[a] = origin[a] + rnd(0.0f, L);
+        for (a = 0; a < 3; ++a) x[a] = origin[a] + test_rnd(0.0f, L);
         x[3] = test_rand01() < 0.1 ? 0.0f : 1.0f;   /* some texels saw nothing */
         do {
-            nn[0] = rnd(-1, 1); nn[1] = rnd(-1, 1); nn[2] = rnd(-1, 1);
+            nn[0] = test_rnd(-1, 1); nn[1] = test_rnd(-1, 1); nn[2] = test_rnd(-1, 1);
             l = nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2];
         } while (l < 0.05f || l > 1.0f);
         l = 1.0f / sqrtf(l);
         nn[0] *= l; nn[1] *= l; nn[2] *= l;
-        nn[3] = rnd(0.01f, 1.0f) * L * L / (float)n;
-        f[0] = rnd(0, 2); f[1] = rnd(0, 2); f[2] = rnd(0, 2);
-        f[3] = rnd(-5, 5);   /* ignored */
+        nn[3] = test_rnd(0.01f, 1.0f) * L * L / (float)n;
+        f[0] = test_rnd(0, 2); f[1] = test_rnd(0, 2); f[2] = test_rnd(0, 2);
+        f[3] = test_rnd(-5, 5);   /* ignored */
     }
     if (n >= T_SPECIAL_COUNT) {
         float *p = r->position4, *nm = r->normal4, *fl = r->flux4;

@@ -67,7 +67,6 @@ static gim_mesh_data room_mesh(const room *r) {
     return m;
 }
 
-static float rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
 
 /* VALs of a lit patch on the floor and on the block top (normal up), random flux. */
 static gim_val *make_vals(float L, uint32_t count) {
@@ -75,15 +74,15 @@ static gim_val *make_vals(float L, uint32_t count) {
     uint32_t i;
     for (i = 0; i < count; ++i) {
         int top = i % 5 == 0;
-        v[i].position[0] = top ? rnd(0.35f, 0.65f) * L : rnd(0.05f, 0.3f) * L;
+        v[i].position[0] = top ? test_rnd(0.35f, 0.65f) * L : test_rnd(0.05f, 0.3f) * L;
         v[i].position[1] = top ? 0.3f * L : 0.0f;
-        v[i].position[2] = top ? rnd(0.35f, 0.65f) * L : rnd(0.4f, 0.95f) * L;
+        v[i].position[2] = top ? test_rnd(0.35f, 0.65f) * L : test_rnd(0.4f, 0.95f) * L;
         v[i].normal[1] = 1.0f;
         v[i].area = 0.5f * L * L / (float)count;
         v[i].weight = 1.0f;
-        v[i].flux[0] = rnd(0.2f, 1.0f) / (float)count;
-        v[i].flux[1] = rnd(0.2f, 1.0f) / (float)count;
-        v[i].flux[2] = rnd(0.2f, 1.0f) / (float)count;
+        v[i].flux[0] = test_rnd(0.2f, 1.0f) / (float)count;
+        v[i].flux[1] = test_rnd(0.2f, 1.0f) / (float)count;
+        v[i].flux[2] = test_rnd(0.2f, 1.0f) / (float)count;
     }
     return v;
 }
@@ -160,11 +159,11 @@ static void grid_holds_every_cache_once(void **state) {
     double sum_in = 0.0, sum_out = 0.0;
     (void)state;
     for (i = 0; i < N; ++i) {
-        in[i].position[0] = rnd(-5e3f, -4e3f);  /* far from the origin */
-        in[i].position[1] = rnd(0.0f, 1.0f) * (i % 2 ? 1.0f : 0.0f);
-        in[i].position[2] = rnd(0.0f, 800.0f);
+        in[i].position[0] = test_rnd(-5e3f, -4e3f);  /* far from the origin */
+        in[i].position[1] = test_rnd(0.0f, 1.0f) * (i % 2 ? 1.0f : 0.0f);
+        in[i].position[2] = test_rnd(0.0f, 800.0f);
         in[i].normal[1] = 1.0f;
-        in[i].area = rnd(0.5f, 2.0f);
+        in[i].area = test_rnd(0.5f, 2.0f);
         sum_in += in[i].position[0] + 3.0 * in[i].position[2] + in[i].area;
     }
     assert_int_equal(gim__grid_build(&env, in, N, 1.0f, &g, &out, &cells, &buckets), GIM_OK);

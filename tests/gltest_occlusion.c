@@ -7,17 +7,6 @@
 
 /* --- inputs ---------------------------------------------------------------------------------- */
 
-static float rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
-
-static void random_unit(float *n) {
-    float l;
-    do {
-        n[0] = rnd(-1.0f, 1.0f); n[1] = rnd(-1.0f, 1.0f); n[2] = rnd(-1.0f, 1.0f);
-        l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-    } while (l < 0.05f || l > 1.0f);
-    l = 1.0f / sqrtf(l);
-    n[0] *= l; n[1] *= l; n[2] *= l;
-}
 
 typedef struct config {
     gim_cache *caches;
@@ -46,34 +35,34 @@ static void make_config(config *c, uint32_t nc, float L, gim_env env) {
         gim_cache *k = c->caches + i;
         float *x = k->position, *n = k->normal;
         switch (i % 5) {
-        case 0: x[0] = rnd(0, L); x[1] = 0.0f; x[2] = rnd(0, L); n[1] = 1.0f; break;      /* floor */
-        case 1: x[0] = rnd(0, L); x[1] = rnd(0, L); x[2] = 0.0f; n[2] = 1.0f; break;      /* back wall */
-        case 2: x[0] = 0.0f; x[1] = rnd(0, L); x[2] = rnd(0, L); n[0] = 1.0f; break;      /* side wall */
-        case 3: x[0] = rnd(0, L); x[1] = L; x[2] = rnd(0, L); n[1] = -1.0f; break;        /* ceiling */
-        default: x[0] = rnd(0.33f * L, 0.67f * L); x[1] = rnd(0.33f * L, 0.67f * L); x[2] = rnd(0.33f * L, 0.67f * L);
-            random_unit(n); break;
+        case 0: x[0] = test_rnd(0, L); x[1] = 0.0f; x[2] = test_rnd(0, L); n[1] = 1.0f; break;      /* floor */
+        case 1: x[0] = test_rnd(0, L); x[1] = test_rnd(0, L); x[2] = 0.0f; n[2] = 1.0f; break;      /* back wall */
+        case 2: x[0] = 0.0f; x[1] = test_rnd(0, L); x[2] = test_rnd(0, L); n[0] = 1.0f; break;      /* side wall */
+        case 3: x[0] = test_rnd(0, L); x[1] = L; x[2] = test_rnd(0, L); n[1] = -1.0f; break;        /* ceiling */
+        default: x[0] = test_rnd(0.33f * L, 0.67f * L); x[1] = test_rnd(0.33f * L, 0.67f * L); x[2] = test_rnd(0.33f * L, 0.67f * L);
+            test_random_unit(n); break;
         }
         if (i % 5 != 4) { /* tilt a little and renormalise */
             float l;
-            n[0] += rnd(-0.2f, 0.2f); n[1] += rnd(-0.2f, 0.2f); n[2] += rnd(-0.2f, 0.2f);
+            n[0] += test_rnd(-0.2f, 0.2f); n[1] += test_rnd(-0.2f, 0.2f); n[2] += test_rnd(-0.2f, 0.2f);
             l = 1.0f / sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
             n[0] *= l; n[1] *= l; n[2] *= l;
         }
-        k->area = (i % 5 == 4 ? rnd(0.002f, 0.02f) : rnd(0.0005f, 0.005f)) * L * L;
+        k->area = (i % 5 == 4 ? test_rnd(0.002f, 0.02f) : test_rnd(0.0005f, 0.005f)) * L * L;
         k->reflectance = 0.5f;
     }
     for (i = 0; i < NV; ++i) {
         gim_val *v = vals + i;
         if (i % 2 == 0) {
-            v->position[0] = rnd(0.6f, 0.75f) * L; v->position[1] = 0.0f; v->position[2] = rnd(0.6f, 0.75f) * L;
+            v->position[0] = test_rnd(0.6f, 0.75f) * L; v->position[1] = 0.0f; v->position[2] = test_rnd(0.6f, 0.75f) * L;
             v->normal[1] = 1.0f;
         } else {
-            v->position[0] = rnd(0.2f, 0.35f) * L; v->position[1] = rnd(0.5f, 0.65f) * L; v->position[2] = 0.0f;
+            v->position[0] = test_rnd(0.2f, 0.35f) * L; v->position[1] = test_rnd(0.5f, 0.65f) * L; v->position[2] = 0.0f;
             v->normal[2] = 1.0f;
         }
         v->area = 0.02f * L * L / NV;
         v->weight = 1.0f;
-        v->flux[0] = rnd(0.2f, 1.0f); v->flux[1] = rnd(0.2f, 1.0f); v->flux[2] = rnd(0.2f, 1.0f);
+        v->flux[0] = test_rnd(0.2f, 1.0f); v->flux[1] = test_rnd(0.2f, 1.0f); v->flux[2] = test_rnd(0.2f, 1.0f);
     }
     memset(&d, 0, sizeof d);
     d.caches = c->caches;

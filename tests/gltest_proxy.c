@@ -6,17 +6,6 @@
 
 /* --- inputs ---------------------------------------------------------------------------------- */
 
-static float rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
-
-static void random_unit(float *n) {
-    float l;
-    do {
-        n[0] = rnd(-1.0f, 1.0f); n[1] = rnd(-1.0f, 1.0f); n[2] = rnd(-1.0f, 1.0f);
-        l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-    } while (l < 0.05f || l > 1.0f);
-    l = 1.0f / sqrtf(l);
-    n[0] *= l; n[1] *= l; n[2] *= l;
-}
 
 /* A box room of side L (origin shifted): caches on its floor and walls, facing in with random
    tilts, and a few free-floating with random normals; VALs on the floor and the back wall (an
@@ -46,30 +35,30 @@ static void make_config(config *c, uint32_t nc, uint32_t nv, float L, const floa
         float *x = k->position, *n = k->normal;
         int a;
         switch (i % 4) {
-        case 0: x[0] = rnd(0, L); x[1] = 0.0f; x[2] = rnd(0, L); n[1] = 1.0f; break;      /* floor */
-        case 1: x[0] = rnd(0, L); x[1] = rnd(0, L); x[2] = 0.0f; n[2] = 1.0f; break;      /* back wall */
-        case 2: x[0] = 0.0f; x[1] = rnd(0, L); x[2] = rnd(0, L); n[0] = 1.0f; break;      /* side wall */
-        default: x[0] = rnd(0, L); x[1] = rnd(0, L); x[2] = rnd(0, L); random_unit(n); break;
+        case 0: x[0] = test_rnd(0, L); x[1] = 0.0f; x[2] = test_rnd(0, L); n[1] = 1.0f; break;      /* floor */
+        case 1: x[0] = test_rnd(0, L); x[1] = test_rnd(0, L); x[2] = 0.0f; n[2] = 1.0f; break;      /* back wall */
+        case 2: x[0] = 0.0f; x[1] = test_rnd(0, L); x[2] = test_rnd(0, L); n[0] = 1.0f; break;      /* side wall */
+        default: x[0] = test_rnd(0, L); x[1] = test_rnd(0, L); x[2] = test_rnd(0, L); test_random_unit(n); break;
         }
         if (i % 4 != 3) { /* tilt a little and renormalise */
             float l;
-            n[0] += rnd(-0.2f, 0.2f); n[1] += rnd(-0.2f, 0.2f); n[2] += rnd(-0.2f, 0.2f);
+            n[0] += test_rnd(-0.2f, 0.2f); n[1] += test_rnd(-0.2f, 0.2f); n[2] += test_rnd(-0.2f, 0.2f);
             l = 1.0f / sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
             n[0] *= l; n[1] *= l; n[2] *= l;
         }
-        k->area = rnd(0.001f, 0.05f) * L * L;
+        k->area = test_rnd(0.001f, 0.05f) * L * L;
         k->reflectance = 0.5f;
         for (a = 0; a < 3; ++a) x[a] += origin[a];
     }
     for (i = 0; i < nv; ++i) {
         gim_val *v = c->vals + i;
         int a;
-        if (i % 2 == 0) { v->position[0] = rnd(0, L); v->position[1] = 0.0f; v->position[2] = rnd(0, L); v->normal[1] = 1.0f; }
-        else { v->position[0] = rnd(0, L); v->position[1] = rnd(0, L); v->position[2] = 0.0f; v->normal[2] = 1.0f; }
+        if (i % 2 == 0) { v->position[0] = test_rnd(0, L); v->position[1] = 0.0f; v->position[2] = test_rnd(0, L); v->normal[1] = 1.0f; }
+        else { v->position[0] = test_rnd(0, L); v->position[1] = test_rnd(0, L); v->position[2] = 0.0f; v->normal[2] = 1.0f; }
         for (a = 0; a < 3; ++a) v->position[a] += origin[a];
-        v->area = rnd(0.2f, 2.0f) * L * L / (float)nv;
-        v->flux[0] = rnd(0, 1); v->flux[1] = rnd(0, 1); v->flux[2] = rnd(0, 1);
-        p[i] = rnd(0.05f, 1.0f);
+        v->area = test_rnd(0.2f, 2.0f) * L * L / (float)nv;
+        v->flux[0] = test_rnd(0, 1); v->flux[1] = test_rnd(0, 1); v->flux[2] = test_rnd(0, 1);
+        p[i] = test_rnd(0.05f, 1.0f);
         psum += p[i];
     }
     for (i = 0; i < nv; ++i) c->vals[i].weight = brsm ? (float)(1.0 / ((double)nv * (p[i] / psum))) : 1.0f;

@@ -80,6 +80,20 @@ static inline double test_rand01(void) {
     return (double)(z >> 11) * (1.0 / 9007199254740992.0);
 }
 
+/* Uniform in [lo, hi) from test_rand01. */
+static inline float test_rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
+
+/* A random unit vector (rejection from the cube: uniform on the sphere). */
+static inline void test_random_unit(float *n) {
+    float l;
+    do {
+        n[0] = test_rnd(-1.0f, 1.0f); n[1] = test_rnd(-1.0f, 1.0f); n[2] = test_rnd(-1.0f, 1.0f);
+        l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    } while (l < 0.05f || l > 1.0f);
+    l = 1.0f / sqrtf(l);
+    n[0] *= l; n[1] *= l; n[2] *= l;
+}
+
 /* Upper tail of the chi-square distribution with k degrees of freedom (Wilson-Hilferty). */
 static inline double test_chi2_pvalue(double x, double k) {
     double z = (pow(x / k, 1.0 / 3.0) - (1.0 - 2.0 / (9.0 * k))) / sqrt(2.0 / (9.0 * k));

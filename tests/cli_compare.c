@@ -68,27 +68,27 @@ static void command_line(void **state) {
     (void)state;
     for (i = 0; i < W * H * 3; ++i) { b[i] = 0.5f; a[i] = 0.6f; }
     memset(c, 0, sizeof c);
-    assert_int_equal(scene_make_dir("build/test_compare", err, sizeof err), 0);
-    assert_int_equal(scene_write_pfm("build/test_compare/a.pfm", a, W, H, err, sizeof err), 0);
-    assert_int_equal(scene_write_pfm("build/test_compare/b.pfm", b, W, H, err, sizeof err), 0);
-    assert_int_equal(scene_write_pfm("build/test_compare/c.pfm", c, 4, 4, err, sizeof err), 0);
-    remove("build/test_compare/diff.png");
-    assert_int_equal(run("build/test_compare/a.pfm build/test_compare/b.pfm --json --diff build/test_compare/diff.png", out,
+    assert_int_equal(scene_make_dir("build/cli_compare", err, sizeof err), 0);
+    assert_int_equal(scene_write_pfm("build/cli_compare/a.pfm", a, W, H, err, sizeof err), 0);
+    assert_int_equal(scene_write_pfm("build/cli_compare/b.pfm", b, W, H, err, sizeof err), 0);
+    assert_int_equal(scene_write_pfm("build/cli_compare/c.pfm", c, 4, 4, err, sizeof err), 0);
+    remove("build/cli_compare/diff.png");
+    assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/b.pfm --json --diff build/cli_compare/diff.png", out,
                          sizeof out), 0);
     assert_non_null(strstr(out, "\"rel_mae\": 0.2"));
     assert_non_null(strstr(out, "\"covered\": 48"));
-    assert_int_equal(stat("build/test_compare/diff.png", &st), 0);
+    assert_int_equal(stat("build/cli_compare/diff.png", &st), 0);
     assert_true(st.st_size > 0);
-    assert_int_equal(run("build/test_compare/a.pfm build/test_compare/b.pfm", out, sizeof out), 0);
+    assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/b.pfm", out, sizeof out), 0);
     assert_non_null(strstr(out, "rel_mae 0.2000"));
     /* bad input: one line, non-zero exit */
-    assert_int_equal(run("build/test_compare/a.pfm build/test_compare/c.pfm", out, sizeof out), 1);
+    assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/c.pfm", out, sizeof out), 1);
     assert_non_null(strstr(out, "sizes differ"));
-    assert_int_equal(run("build/test_compare/a.pfm build/test_compare/missing.pfm", out, sizeof out), 1);
-    assert_int_equal(run("build/test_compare/a.pfm", out, sizeof out), 1);
-    assert_int_equal(run("build/test_compare/a.pfm build/test_compare/b.pfm --bogus", out, sizeof out), 1);
+    assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/missing.pfm", out, sizeof out), 1);
+    assert_int_equal(run("build/cli_compare/a.pfm", out, sizeof out), 1);
+    assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/b.pfm --bogus", out, sizeof out), 1);
     assert_non_null(strstr(out, "unknown option"));
-    assert_int_equal(run("tests/test_compare.c build/test_compare/b.pfm", out, sizeof out), 1);
+    assert_int_equal(run("tests/cli_compare.c build/cli_compare/b.pfm", out, sizeof out), 1);
 }
 
 int main(void) {
