@@ -743,6 +743,27 @@ typedef struct gim_gather_desc {
    finite and > 0, a receiver as gim_lightskin_shade rejects it. */
 GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radiance_out);
 
+/* VPLs from an RSM (Dong et al. sec. 4, clustered visibility): count VPLs at the 2D Halton
+   points 1..count (gim_halton_points, bases 2 and 3; point 0 is the corner), Cranley-Patterson
+   rotated by offsets (2 values in [0,1), or NULL). Point (u, v) takes the texel
+   (min(floor(u width), width - 1), min(floor(v height), height - 1)); a texel may be taken
+   twice. Each VPL gets its texel's position and normal, and flux such that the VPLs' flux sums
+   to the RSM's total reflected flux over the lit texels, per channel c:
+     flux_i,c = Phi_t(i),c * T_c / S_c,  T_c = sum of Phi_c over every lit texel,
+                                         S_c = sum of Phi_t(i),c over the VPLs (repeats counted);
+   where S_c = 0 (every sampled texel dark in c) the VPLs carry nothing in c. A texel is lit
+   where valid is NULL or > 0 and its position, normal and flux are finite with flux >= 0 (the
+   rules of gim_vals_gather); an unlit one gives a VPL of zero flux, its position and normal
+   copied when finite, zero otherwise (drop zero-flux VPLs before gim_kmeans, which refuses a
+   zero normal). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
+   order, then the rows), S in blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks.
+   positions, normals, flux: count * 3 each, written. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL
+   arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
+   GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
+#define GIM_RSM_VPL_BLOCK 1024u
+GIMANY_API gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
+                                   float *normals, float *flux, gim_env env);
+
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
    scaled as the surface element is, |det M| |M^-T n| for the 3x3 M of model, so the areas of
@@ -4307,6 +4328,87 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
         for (a = 0; a < 3; ++a)
             radiance_out[i * 3 + a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
                                                      rc->glossy[a] * (rc->exponent + 2.0) / (2.0 * GIM__PI) * sg[a]);
+    }
+    return GIM_OK;
+}
+
+/* The RSM texel of VPL i: Halton point i + 1 in bases 2, 3 (gim_halton_points). */
+static void gim__rsm_vpl_texel(uint32_t i, uint32_t width, uint32_t height, const float *offsets, uint32_t *x,
+                               uint32_t *y) {
+    float uv[2];
+    double fx, fy;
+    gim_halton_points(uv, 1, 2, i + 1u, offsets);
+    fx = floor((double)uv[0] * width);
+    fy = floor((double)uv[1] * height);
+    *x = fx < (double)width ? (uint32_t)fx : width - 1u;
+    *y = fy < (double)height ? (uint32_t)fy : height - 1u;
+}
+
+/* Lit texel t of the RSM (the rules of gim_vals_gather without area, which a VPL does not take). */
+static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
+    const float *f = m->flux + t * 3;
+    if (m->valid && !(m->valid[t] > 0.0f)) return 0;
+    if (!gim__all_finite(m->position + t * 3, 3) || !gim__all_finite(m->normal + t * 3, 3) || !gim__all_finite(f, 3))
+        return 0;
+    return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
+}
+
+GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
+                                   float *normals, float *flux, gim_env env) {
+    static const char fn[] = "gim_rsm_vpls";
+    double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
+    uint32_t i, x, y;
+    int a;
+    if (!rsm || !positions || !normals || !flux)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm and the output arrays are required");
+    if (!rsm->position || !rsm->normal || !rsm->flux)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm position, normal and flux are required");
+    if (rsm->width == 0 || rsm->height == 0 || count == 0)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM %ux%u and count %u must be > 0", (unsigned)rsm->width,
+                         (unsigned)rsm->height, (unsigned)count);
+    if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "offsets must be in [0,1)");
+    /* T: each row in x order, then the rows (the GPU's per-row invocations) */
+    for (y = 0; y < rsm->height; ++y) {
+        double row[3] = {0.0, 0.0, 0.0};
+        for (x = 0; x < rsm->width; ++x) {
+            size_t t = (size_t)y * rsm->width + x;
+            if (gim__rsm_vpl_lit(rsm, t))
+                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + a];
+        }
+        for (a = 0; a < 3; ++a) total[a] += row[a];
+    }
+    if (total[0] > FLT_MAX || total[1] > FLT_MAX || total[2] > FLT_MAX)
+        return gim__fail(&env, GIM_ERROR_OUT_OF_RANGE, fn, "the RSM's total flux exceeds the float range");
+    /* S: blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks */
+    for (i = 0; i < count; i += GIM_RSM_VPL_BLOCK) {
+        double block[3] = {0.0, 0.0, 0.0};
+        uint32_t e = count - i < GIM_RSM_VPL_BLOCK ? count : i + GIM_RSM_VPL_BLOCK, k;
+        for (k = i; k < e; ++k) {
+            size_t t;
+            gim__rsm_vpl_texel(k, rsm->width, rsm->height, offsets, &x, &y);
+            t = (size_t)y * rsm->width + x;
+            if (gim__rsm_vpl_lit(rsm, t))
+                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + a];
+        }
+        for (a = 0; a < 3; ++a) sampled[a] += block[a];
+    }
+    for (a = 0; a < 3; ++a) scale[a] = sampled[a] > 0.0 ? total[a] / sampled[a] : 0.0;
+    for (i = 0; i < count; ++i) {
+        size_t t;
+        int lit;
+        gim__rsm_vpl_texel(i, rsm->width, rsm->height, offsets, &x, &y);
+        t = (size_t)y * rsm->width + x;
+        lit = gim__rsm_vpl_lit(rsm, t);
+        {   /* position and normal copied where finite (an unlit texel may hold anything) */
+            int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
+            for (a = 0; a < 3; ++a) {
+                double f = lit ? (double)rsm->flux[t * 3 + a] * scale[a] : 0.0;
+                positions[(size_t)i * 3 + a] = pok ? rsm->position[t * 3 + a] : 0.0f;
+                normals[(size_t)i * 3 + a] = nok ? rsm->normal[t * 3 + a] : 0.0f;
+                flux[(size_t)i * 3 + a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
+            }
+        }
     }
     return GIM_OK;
 }
