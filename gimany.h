@@ -5416,6 +5416,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
     GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
+    GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -5433,7 +5434,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"lightskin_shade.comp", NULL},
     {"proxy_occlusion.comp", NULL},
     {"rsm_gather.comp", NULL},
-    {"vals_gather.comp", NULL}};
+    {"vals_gather.comp", NULL},
+    {"rsm_vpls.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -6152,6 +6154,97 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     gl->DispatchCompute(gx, gy, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls (see there):
+   count VPLs at the Halton texels 1..count (rotated by offsets, 2 values in [0,1), or NULL) of
+   the size x size RSM textures (RGBA32F as gim__gl_rsm writes them: position.w > 0 where lit,
+   normal.w area, flux.rgb; read as rgba32ui images like gim__gl_vals_gather, complete by
+   their own state), into vpls_out: an SSBO of at least count {vec4 position (w: 1 lit, 0
+   unlit), vec4 normal (w 0), vec4 flux (w 0)} (48 bytes each). The texels are computed on the
+   CPU by the twin's own function and uploaded (as the view samples' pixels), so both take the
+   same texels bit for bit. The normalisation T / S needs a reduction over the whole RSM: it is
+   done on the GPU (the RSM never comes back to the host), in four dispatches of rsm_vpls.comp
+   (row sums, block sums of the VPLs, the two totals, the scale), in double and in the twin's
+   order, each loop under llvmpipe's 65535 iterations (a row of <= 16384 texels; the final sum
+   over size + count / GIM_RSM_VPL_BLOCK partials). The texel list and the partial sums live
+   in two buffers made and deleted by the call. Cost: size^2 + 3 count texel reads. */
+static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                               gim__GLuint rsm_flux, uint32_t size, uint32_t count, const float *offsets,
+                                               gim__GLuint vpls_out) {
+    static const char where[] = "RSM VPLs (GL)";
+    enum { TEXTURE_INTERNAL_FORMAT = 0x1003, RGBA32UI = 0x8D70 };   /* GL_TEXTURE_INTERNAL_FORMAT, GL_RGBA32UI */
+    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3], scratch[2] = {0, 0};
+    uint32_t *texels, i, mode, blocks;
+    uint64_t sums_bytes;
+    gim_result r = GIM_OK;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !vpls_out)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or vpls_out is 0");
+    if (size == 0 || size > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %u outside 1..%u", (unsigned)size,
+                         GIM__SCAN_MAX_SIZE);
+    if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
+    if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "offsets must be in [0,1)");
+    blocks = (count + GIM_RSM_VPL_BLOCK - 1u) / GIM_RSM_VPL_BLOCK;
+    sums_bytes = ((uint64_t)size + blocks + 1u) * 32u;
+    if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes || sums_bytes > (uint64_t)ctx->max_ssbo_bytes ||
+        count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs exceed the SSBO or dispatch limits",
+                         (unsigned)count);
+    texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+    if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
+    for (i = 0; i < count; ++i) gim__rsm_vpl_texel(i, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < 3 && r == GIM_OK; ++i) {
+        gim__GLint format = 0;
+        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
+        if (r != GIM_OK) break;
+        gl->GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, TEXTURE_INTERNAL_FORMAT, &format);
+        if (format != GIM__GL_RGBA32F)
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
+                          (unsigned)format);
+    }
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, (uint64_t)count * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_RSM_VPLS, &program);
+    if (r == GIM_OK) {
+        gl->GenBuffers(2, scratch);
+        if (!scratch[0] || !scratch[1]) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[0]);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)count * 8, texels, GIM__GL_DYNAMIC_COPY);
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[1]);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)sums_bytes, NULL, GIM__GL_DYNAMIC_COPY);
+        r = gim__gl_check(ctx, where);
+    }
+    gim__free(&ctx->env, texels);
+    if (r == GIM_OK) {
+        for (i = 0; i < 3; ++i)
+            gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, RGBA32UI);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, scratch[0]);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vpls_out);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, scratch[1]);
+        gl->UseProgram(program);
+        gl->Uniform1ui(0, size);
+        gl->Uniform1ui(1, count);
+        gl->Uniform1ui(3, GIM_RSM_VPL_BLOCK);
+        for (mode = 0; mode < 4u; ++mode) {
+            uint32_t n = mode == 0u ? (size > count ? size : count) : mode == 1u ? blocks : mode == 2u ? 1u : count;
+            gl->Uniform1ui(2, mode);
+            gl->DispatchCompute((n + 63u) / 64u, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        }
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+        r = gim__gl_check(ctx, where);
+    }
+    if (scratch[0] || scratch[1]) gl->DeleteBuffers(2, scratch);   /* unbinds them (gim__gl_leave rebinds the host's) */
+    return gim__gl_leave(ctx, r);
 }
 
 

@@ -1,0 +1,238 @@
+/* The GPU VPLs of an RSM (Dong et al. sec. 4) against their CPU twin gim_rsm_vpls, on uploaded
+   random RSM textures (some texels unlit, some broken: NaN position, Inf normal, negative or
+   NaN flux), with and without Cranley-Patterson offsets, at sizes with partial work groups,
+   more VPLs than texels, and several blocks of GIM_RSM_VPL_BLOCK VPLs; zero GL errors and
+   the GL state restored.
+
+   Tolerances: positions and normals bit for bit (both copy the texel's bits, or write 0);
+   position.w is the lit flag (1 exactly where the twin's texel is lit). The flux is Phi T / S
+   in double on both sides, in the same order of sums, then rounded to float; GLSL promises
+   double arithmetic only to "at least single precision" in places, so flux is checked to
+   1e-6 relative (of the VPL's flux; a zero must be exactly zero). Seen on llvmpipe: printed. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+
+static const double TOL_FLUX = 1e-6;
+
+static float rnd(float lo, float hi) { return lo + (hi - lo) * (float)test_rand01(); }
+
+typedef struct vpl_rsm {
+    uint32_t size;
+    float *position4, *normal4, *flux4;
+    float *position, *normal, *flux, *area, *valid;
+    GLuint tex[3];
+} vpl_rsm;
+
+static GLuint texture_rgba(uint32_t size, const float *texels) {
+    GLuint t = 0;
+    glGenTextures(1, &t);
+    glBindTexture(GL_TEXTURE_2D, t);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, (GLsizei)size, (GLsizei)size);
+    glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, (GLsizei)size, (GLsizei)size, GL_RGBA, GL_FLOAT, texels);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    return t;
+}
+
+/* A random RSM around origin of extent L; 10% unlit, and a few broken texels. */
+static void rsm_make(vpl_rsm *r, uint32_t size, const float origin[3], float L) {
+    size_t n = (size_t)size * size, t;
+    memset(r, 0, sizeof *r);
+    r->size = size;
+    r->position4 = (float *)calloc(n * 4, sizeof(float));
+    r->normal4 = (float *)calloc(n * 4, sizeof(float));
+    r->flux4 = (float *)calloc(n * 4, sizeof(float));
+    r->position = (float *)malloc(n * 3 * sizeof(float));
+    r->normal = (float *)malloc(n * 3 * sizeof(float));
+    r->flux = (float *)malloc(n * 3 * sizeof(float));
+    r->area = (float *)malloc(n * sizeof(float));
+    r->valid = (float *)malloc(n * sizeof(float));
+    for (t = 0; t < n; ++t) {
+        float *x = r->position4 + t * 4, *nn = r->normal4 + t * 4, *f = r->flux4 + t * 4;
+        int a;
+        for (a = 0; a < 3; ++a) x[a] = origin[a] + rnd(0.0f, L);
+        x[3] = test_rand01() < 0.1 ? 0.0f : 1.0f;
+        nn[0] = rnd(-1, 1); nn[1] = rnd(-1, 1); nn[2] = 1.0f;
+        nn[3] = rnd(0.01f, 1.0f) * L * L / (float)n;
+        f[0] = rnd(0, 2); f[1] = rnd(0, 1); f[2] = rnd(0, 0.5f);
+        f[3] = rnd(-5, 5);   /* ignored */
+        switch (t % 97) {
+        case 3: x[1] = NAN; break;
+        case 11: nn[2] = INFINITY; break;
+        case 17: f[0] = -0.5f; break;
+        case 29: f[2] = NAN; break;
+        case 41: x[3] = NAN; break;
+        case 53: x[3] = -1.0f; break;
+        default: break;
+        }
+    }
+    for (t = 0; t < n; ++t) {
+        memcpy(r->position + t * 3, r->position4 + t * 4, 12);
+        memcpy(r->normal + t * 3, r->normal4 + t * 4, 12);
+        memcpy(r->flux + t * 3, r->flux4 + t * 4, 12);
+        r->area[t] = r->normal4[t * 4 + 3];
+        r->valid[t] = r->position4[t * 4 + 3];
+    }
+    r->tex[0] = texture_rgba(size, r->position4);
+    r->tex[1] = texture_rgba(size, r->normal4);
+    r->tex[2] = texture_rgba(size, r->flux4);
+}
+
+static gim_rsm_data rsm_data(const vpl_rsm *r) {
+    gim_rsm_data d;
+    memset(&d, 0, sizeof d);
+    d.position = r->position; d.normal = r->normal; d.flux = r->flux; d.area = r->area; d.valid = r->valid;
+    d.width = d.height = r->size;
+    return d;
+}
+
+static void rsm_free(vpl_rsm *r) {
+    glDeleteTextures(3, r->tex);
+    free(r->position4); free(r->normal4); free(r->flux4);
+    free(r->position); free(r->normal); free(r->flux); free(r->area); free(r->valid);
+}
+
+typedef struct vpl_stats {
+    double flux;        /* largest relative flux error */
+    uint32_t unlit;     /* VPLs on unlit texels */
+    uint32_t vpls;
+} vpl_stats;
+
+/* One pass of count VPLs against the twin; the buffer holds count + 3 VPLs, the last 3 must
+   keep their sentinel. */
+static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, const float *offsets, vpl_stats *st) {
+    gim_rsm_data d = rsm_data(r);
+    float *p = (float *)malloc(count * 12), *n = (float *)malloc(count * 12), *fl = (float *)malloc(count * 12);
+    float *gpu = (float *)malloc((count + 3) * 48);
+    double sum[3] = {0, 0, 0}, gsum[3] = {0, 0, 0};
+    uint32_t i, a;
+    GLuint out;
+    for (i = 0; i < (count + 3) * 12; ++i) gpu[i] = -7.0f;
+    out = gltest_ssbo((count + 3) * 48, gpu);
+    assert_int_equal(gim_rsm_vpls(&d, count, offsets, p, n, fl, f->env), GIM_OK);
+    assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, offsets, out), GIM_OK);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(out, (count + 3) * 48, gpu);
+    for (i = count * 12; i < (count + 3) * 12; ++i) assert_true(gpu[i] == -7.0f);
+    for (i = 0; i < count; ++i) {
+        const float *g = gpu + i * 12;
+        int lit = fl[i * 3] > 0.0f || fl[i * 3 + 1] > 0.0f || fl[i * 3 + 2] > 0.0f;
+        if (memcmp(g, p + i * 3, 12) != 0 || memcmp(g + 4, n + i * 3, 12) != 0)
+            fail_msg("VPL %u: position/normal (%g %g %g / %g %g %g), the twin's (%g %g %g / %g %g %g)", i, (double)g[0],
+                     (double)g[1], (double)g[2], (double)g[4], (double)g[5], (double)g[6], (double)p[i * 3],
+                     (double)p[i * 3 + 1], (double)p[i * 3 + 2], (double)n[i * 3], (double)n[i * 3 + 1],
+                     (double)n[i * 3 + 2]);
+        assert_true(g[7] == 0.0f && g[11] == 0.0f);
+        if (lit) assert_true(g[3] == 1.0f);
+        else st->unlit++;
+        for (a = 0; a < 3; ++a) {
+            double c = fl[i * 3 + a], e;
+            if (c == 0.0) {
+                if (g[8 + a] != 0.0f) fail_msg("VPL %u channel %u: flux %g, the twin's 0", i, a, (double)g[8 + a]);
+                continue;
+            }
+            e = fabs(g[8 + a] - c) / c;
+            if (e > st->flux) st->flux = e;
+            if (!(e <= TOL_FLUX)) fail_msg("VPL %u channel %u: flux %.9g, the twin's %.9g", i, a, (double)g[8 + a], c);
+            sum[a] += c;
+            gsum[a] += g[8 + a];
+        }
+    }
+    {   /* both sum to the RSM's lit total */
+        double tot[3] = {0, 0, 0};
+        size_t t;
+        for (t = 0; t < (size_t)r->size * r->size; ++t) {
+            const float *x = r->position4 + t * 4, *nn = r->normal4 + t * 4, *fx = r->flux4 + t * 4;
+            if (x[3] > 0.0f && gim__all_finite(x, 3) && gim__all_finite(nn, 3) && gim__all_finite(fx, 3) &&
+                fx[0] >= 0.0f && fx[1] >= 0.0f && fx[2] >= 0.0f)
+                for (a = 0; a < 3; ++a) tot[a] += fx[a];
+        }
+        for (a = 0; a < 3; ++a)
+            if (sum[a] > 0.0) {
+                assert_true(fabs(sum[a] - tot[a]) <= 1e-5 * tot[a]);
+                assert_true(fabs(gsum[a] - tot[a]) <= 1e-5 * tot[a]);
+            }
+    }
+    st->vpls += count;
+    glDeleteBuffers(1, &out);
+    free(p); free(n); free(fl); free(gpu);
+}
+
+/* Sizes 64 (whole groups), 37 (partial), 5 (more VPLs than texels) and 1; counts 1, 100,
+   1024 and 2500 (three blocks of the final sum); far from the origin too; with offsets. */
+static void matches_twin(void **state) {
+    static const uint32_t sizes[4] = {64, 37, 5, 1};
+    static const uint32_t counts[4] = {1, 100, 1024, 2500};
+    static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {3.0e3f, -2.0e3f, 1.0e4f}};
+    static const float off[2] = {0.37f, 0.81f};
+    gltest_fixture f;
+    vpl_stats st;
+    int s, c, o;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    memset(&st, 0, sizeof st);
+    for (s = 0; s < 4; ++s)
+        for (o = 0; o < 2; ++o) {
+            vpl_rsm r;
+            rsm_make(&r, sizes[s], origins[o], o ? 50.0f : 4.0f);
+            if (sizes[s] == 1) r.position4[3] = r.valid[0] = 1.0f;   /* one lit texel */
+            if (sizes[s] == 1) { glDeleteTextures(3, r.tex); r.tex[0] = texture_rgba(1, r.position4);
+                                 r.tex[1] = texture_rgba(1, r.normal4); r.tex[2] = texture_rgba(1, r.flux4); }
+            for (c = 0; c < 4; ++c) vpls_one(&f, &r, counts[c], (c + o) % 2 ? off : NULL, &st);
+            rsm_free(&r);
+        }
+    print_message("RSM VPLs: %u VPLs (%u unlit), largest relative flux error %.3g\n", st.vpls, st.unlit, st.flux);
+    assert_true(st.unlit > 100);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
+/* Bad arguments: errors before any GL work, the GL state as it was, nothing written. */
+static void bad_arguments(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f}, bad_off[2] = {1.0f, 0.0f};
+    gltest_fixture f;
+    vpl_rsm r;
+    GLuint out, small, r8;
+    float fill[12 * 4];
+    int k;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    rsm_make(&r, 8, zero, 1.0f);
+    for (k = 0; k < 48; ++k) fill[k] = -7.0f;
+    out = gltest_ssbo(sizeof fill, fill);
+    small = gltest_ssbo(48, fill);
+    glGenTextures(1, &r8);
+    glBindTexture(GL_TEXTURE_2D, r8);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, 8, 8);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, 0, r.tex[1], r.tex[2], 8, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, NULL, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 0, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 0, 4, NULL, out), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, bad_off, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 9, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r8, r.tex[2], 8, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, NULL, small), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(f.log.errors, 8);
+    f.log.errors = 0;
+    gltest_state_unchanged(&f);
+    gltest_read_buffer(out, sizeof fill, fill);
+    for (k = 0; k < 48; ++k) assert_true(fill[k] == -7.0f);
+    glDeleteTextures(1, &r8);
+    glDeleteBuffers(1, &out);
+    glDeleteBuffers(1, &small);
+    rsm_free(&r);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(matches_twin),
+        cmocka_unit_test(bad_arguments),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
