@@ -5417,6 +5417,8 @@ typedef enum gim__program_id {
     GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
     GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
+    GIM__PROGRAM_KMEANS_ASSIGN,      /* k-means assignment per VPL (Dong 5.1, SSVP eq. 2) */
+    GIM__PROGRAM_KMEANS_UPDATE,      /* k-means flux-weighted means per cluster (a gather) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -5435,7 +5437,9 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"proxy_occlusion.comp", NULL},
     {"rsm_gather.comp", NULL},
     {"vals_gather.comp", NULL},
-    {"rsm_vpls.comp", NULL}};
+    {"rsm_vpls.comp", NULL},
+    {"kmeans_assign.comp", NULL},
+    {"kmeans_update.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -6244,6 +6248,114 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
         r = gim__gl_check(ctx, where);
     }
     if (scratch[0] || scratch[1]) gl->DeleteBuffers(2, scratch);   /* unbinds them (gim__gl_leave rebinds the host's) */
+    return gim__gl_leave(ctx, r);
+}
+
+/* One k-means step on the GPU (Dong et al. sec. 5; SSVP sec. 3): assignment then update, the
+   twin of one iteration of gim_kmeans (see its assignment and "Means"; the same metric and
+   weights, the same tie rule, the same weighted means). vpls: SSBO of vpl_count VPLs as
+   gim__gl_rsm_vpls writes them (48 bytes: position, normal, flux rgb; the w's ignored).
+   centres: SSBO of cluster_count {vec4 position (w: VPLs in the cluster after this step),
+   vec4 unit normal} (32 bytes), read and updated in place. assignment: SSBO of vpl_count
+   uint, the cluster of each VPL, read and updated in place; 0xffffffff (none yet) before
+   the first step, as in gim_kmeans' first iteration. metric, w_x, w_a: as gim_kmeans_desc
+   (both weights 0: the metric's defaults); scene_scale > 0 (gim_kmeans' default 0 would need
+   the VPL bounds on the CPU). Differences from the twin, by design:
+   - an empty cluster keeps its old centre and normal, count 0 (gim_kmeans re-seeds it from the
+     worst cluster's farthest VPL: a serial repair left to the caller, which sees the count);
+   - distances in float (the twin: double, relative to the VPLs' bounds centre), Dong's angle
+     as 2 atan(|n - n_c|, |n + n_c|) (accurate where acos of a float cosine is not); the sums
+     of the update in double in the twin's VPL order, the centres stored as float between
+     steps. So a VPL within float rounding of a tie (relative ~1e-6 of the distances, more
+     far from the origin: the centres' float ulp over the scene scale) may choose the other
+     cluster (tests/gltest_vpls.c counts them).
+   K steps from the same centres, with the assignment reset to none, give gim_kmeans with init
+   WARM, max_iterations K (its convergence stop skips only an update that changes nothing).
+   Cost: vpl_count * cluster_count distance terms and as many VPL reads in the update (a gather
+   per cluster, in dispatches of ctx->proxy_chunk VPLs); a scratch buffer of 160 bytes per
+   cluster is made and deleted by the call. cluster_count <= 4096 (one loop over the centres
+   per invocation stays under llvmpipe's 65535 iterations). */
+#define GIM__KMEANS_MAX_CLUSTERS 4096u
+static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint vpls, uint32_t vpl_count,
+                                                  gim__GLuint centres, uint32_t cluster_count, gim__GLuint assignment,
+                                                  gim_kmeans_metric metric, float w_x, float w_a, float scene_scale) {
+    static const char where[] = "k-means step (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint p_assign = 0, p_update = 0, acc = 0;
+    int ssvp = metric == GIM_KMEANS_METRIC_SSVP;
+    float wx = w_x, wa = w_a;
+    gim_result r;
+    if (!vpls || !centres || !assignment)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (vpls == centres || vpls == assignment || centres == assignment)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "the three buffers must differ");
+    if (vpl_count == 0 || cluster_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "vpl_count (%u) and cluster_count (%u) must be > 0",
+                         (unsigned)vpl_count, (unsigned)cluster_count);
+    if (cluster_count > vpl_count)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cluster_count %u > vpl_count %u",
+                         (unsigned)cluster_count, (unsigned)vpl_count);
+    if (cluster_count > GIM__KMEANS_MAX_CLUSTERS || vpl_count > 65535u * 64u ||
+        (uint64_t)vpl_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs / %u clusters above the limits",
+                         (unsigned)vpl_count, (unsigned)cluster_count);
+    if ((unsigned)metric > (unsigned)GIM_KMEANS_METRIC_SSVP)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown metric %d", (int)metric);
+    if (!gim__isfinitef(w_x) || !gim__isfinitef(w_a) || w_x < 0.0f || w_a < 0.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "weights w_x %g, w_a %g must be finite and >= 0",
+                         (double)w_x, (double)w_a);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (wx == 0.0f && wa == 0.0f) { wx = ssvp ? 0.6f : 0.7f; wa = ssvp ? 0.4f : 0.3f; }
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "vpls", vpls, (uint64_t)vpl_count * 48u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "centres", centres, (uint64_t)cluster_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "assignment", assignment, (uint64_t)vpl_count * 4u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_ASSIGN, &p_assign);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_UPDATE, &p_update);
+    if (r == GIM_OK) {
+        gl->GenBuffers(1, &acc);
+        if (!acc) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, acc);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)cluster_count * 160, NULL, GIM__GL_DYNAMIC_COPY);
+        r = gim__gl_check(ctx, where);
+    }
+    if (r == GIM_OK) {
+        uint32_t first = 0, groups = (cluster_count + 63u) / 64u;
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, centres);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, assignment);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, acc);
+        /* assignment (Dong 5.1 / SSVP eq. 2) */
+        gl->UseProgram(p_assign);
+        gl->Uniform1ui(0, vpl_count);
+        gl->Uniform1ui(1, cluster_count);
+        gl->Uniform1f(2, (float)((double)wx / scene_scale));
+        gl->Uniform1f(3, ssvp ? wa : (float)(wa / 3.14159265358979323846));
+        gl->Uniform1ui(4, ssvp ? 1u : 0u);
+        gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        /* update: the sums chunk by chunk, then the means */
+        gl->UseProgram(p_update);
+        gl->Uniform1ui(0, cluster_count);
+        gl->Uniform1ui(3, 0u);
+        do {
+            uint32_t n = vpl_count - first < ctx->proxy_chunk ? vpl_count - first : ctx->proxy_chunk;
+            gl->Uniform1ui(1, first);
+            gl->Uniform1ui(2, n);
+            gl->DispatchCompute(groups, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+            first += n;
+        } while (first < vpl_count);
+        gl->Uniform1ui(3, 1u);
+        gl->DispatchCompute(groups, 1u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+        r = gim__gl_check(ctx, where);
+    }
+    if (acc) gl->DeleteBuffers(1, &acc);
     return gim__gl_leave(ctx, r);
 }
 

@@ -227,10 +227,236 @@ static void bad_arguments(void **state) {
     GLTEST_END();
 }
 
+/* --- one GPU k-means step against gim_kmeans ------------------------------------------------ */
+
+/* Tolerances of the k-means comparison (see gim__gl_kmeans_step): the GPU's distances are
+   float, the twin's double, so a VPL whose two nearest centres are within TOL_TIE (in the
+   metric's units, scene-scale relative, plus the centres' float ulp over the scale far from
+   the origin) may go either way: a "near tie". Where no VPL differs, centres agree to
+   TOL_CENTRE * scale (+ the float ulp of the coordinates), normals to TOL_NORMAL. */
+static const double TOL_TIE = 1e-5, TOL_CENTRE = 1e-5, TOL_NORMAL = 1e-5;
+
+typedef struct kmeans_stats {
+    uint32_t runs, compared, skipped_empty;   /* runs; runs with every VPL as the twin; runs the twin repaired */
+    uint32_t vpls, mismatches, near_ties;     /* VPLs compared; assigned differently; of which near ties */
+    double centre, normal;                    /* largest centre error (scale-relative), normal error */
+} kmeans_stats;
+
+/* n random VPLs in a box of side L at o: a third on one wall (the same normal: nearly
+   parallel normals everywhere), the rest random unit normals; every 10th of zero flux. vpl:
+   the 48-byte GPU layout. */
+static void make_vpls(uint32_t n, const float o[3], float L, float *vpl, float *p, float *nn, float *f) {
+    uint32_t i;
+    int a;
+    for (i = 0; i < n; ++i) {
+        float l;
+        for (a = 0; a < 3; ++a) p[i * 3 + a] = o[a] + rnd(0.0f, L);
+        if (i % 3 == 0) {
+            p[i * 3 + 2] = o[2];
+            nn[i * 3] = 0.0f; nn[i * 3 + 1] = 0.0f; nn[i * 3 + 2] = 1.0f;
+        } else {
+            do {
+                nn[i * 3] = rnd(-1, 1); nn[i * 3 + 1] = rnd(-1, 1); nn[i * 3 + 2] = rnd(-1, 1);
+                l = nn[i * 3] * nn[i * 3] + nn[i * 3 + 1] * nn[i * 3 + 1] + nn[i * 3 + 2] * nn[i * 3 + 2];
+            } while (l < 0.05f || l > 1.0f);
+            l = 1.0f / sqrtf(l);
+            for (a = 0; a < 3; ++a) nn[i * 3 + a] *= l;
+        }
+        for (a = 0; a < 3; ++a) f[i * 3 + a] = i % 10 == 7 ? 0.0f : rnd(0.0f, 1.0f);
+        for (a = 0; a < 3; ++a) {
+            vpl[i * 12 + a] = p[i * 3 + a];
+            vpl[i * 12 + 4 + a] = nn[i * 3 + a];
+            vpl[i * 12 + 8 + a] = f[i * 3 + a];
+        }
+        vpl[i * 12 + 3] = 1.0f; vpl[i * 12 + 7] = 0.0f; vpl[i * 12 + 11] = 0.0f;
+    }
+}
+
+/* The metric in double, as gim_kmeans (absolute positions: the test's reference for ties). */
+static double metric_d(gim_kmeans_metric m, double wx_s, double wa, const float *x, const float *n, const float *c,
+                       const float *cn) {
+    double d2 = 0.0, dot = 0.0, ln = 0.0, lc = 0.0;
+    int a;
+    for (a = 0; a < 3; ++a) {
+        d2 += ((double)x[a] - c[a]) * ((double)x[a] - c[a]);
+        dot += (double)n[a] * cn[a]; ln += (double)n[a] * n[a]; lc += (double)cn[a] * cn[a];
+    }
+    dot /= sqrt(ln * lc);
+    if (m == GIM_KMEANS_METRIC_SSVP) return wx_s * sqrt(d2) + wa * (1.0 - (dot > 0.0 ? dot : 0.0));
+    return wx_s * sqrt(d2) + wa / 3.14159265358979323846 * acos(dot > 1.0 ? 1.0 : (dot < -1.0 ? -1.0 : dot));
+}
+
+/* K GPU steps from the centres of VPLs floor(j N / M) against gim_kmeans WARM with
+   max_iterations K from the same centres. */
+static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gim_kmeans_metric metric, const float o[3],
+                       float L, kmeans_stats *st) {
+    float *vpl = (float *)malloc((size_t)n * 48), *p = (float *)malloc((size_t)n * 12), *nn = (float *)malloc((size_t)n * 12);
+    float *fl = (float *)malloc((size_t)n * 12), *init = (float *)calloc(m, 32), *gc = (float *)malloc((size_t)m * 32);
+    float *prev = (float *)malloc((size_t)m * 32), *ic = (float *)malloc((size_t)m * 12), *in = (float *)malloc((size_t)m * 12);
+    float *cc = (float *)malloc((size_t)m * 12), *cn = (float *)malloc((size_t)m * 12);
+    uint32_t *ga = (uint32_t *)malloc((size_t)n * 4), *ca = (uint32_t *)malloc((size_t)n * 4), *cnt = (uint32_t *)malloc((size_t)m * 4);
+    const float scale = L * 1.7320508f;
+    double wx = metric == GIM_KMEANS_METRIC_SSVP ? 0.6 : 0.7, wa = metric == GIM_KMEANS_METRIC_SSVP ? 0.4 : 0.3;
+    double ulp = ldexp(1.0, -23) * (fabs(o[0]) + fabs(o[1]) + fabs(o[2]) + L) / scale;
+    gim_kmeans_desc d;
+    gim_kmeans_result res;
+    GLuint bv, bc, ba;
+    uint32_t i, j, s, mism = 0, ties = 0;
+    int a;
+    make_vpls(n, o, L, vpl, p, nn, fl);
+    for (j = 0; j < m; ++j) {
+        uint32_t v = (uint32_t)((uint64_t)j * n / m);
+        for (a = 0; a < 3; ++a) {
+            ic[j * 3 + a] = init[j * 8 + a] = p[v * 3 + a];
+            in[j * 3 + a] = init[j * 8 + 4 + a] = nn[v * 3 + a];
+        }
+    }
+    memset(&d, 0, sizeof d);
+    d.positions = p; d.normals = nn; d.flux = fl; d.vpl_count = n; d.cluster_count = m; d.metric = metric;
+    d.init = GIM_KMEANS_INIT_WARM; d.init_centres = ic; d.init_normals = in; d.scene_scale = scale;
+    d.max_iterations = k; d.env = f->env;
+    memset(&res, 0, sizeof res);
+    res.centres = cc; res.normals = cn; res.counts = cnt; res.assignment = ca;
+    assert_int_equal(gim_kmeans(&d, &res), GIM_OK);
+    st->runs++;
+    if (res.empty_repaired > 0) { st->skipped_empty++; goto done; }
+    bv = gltest_ssbo((size_t)n * 48, vpl);
+    bc = gltest_ssbo((size_t)m * 32, init);
+    for (i = 0; i < n; ++i) ga[i] = 0xffffffffu;
+    ba = gltest_ssbo((size_t)n * 4, ga);
+    for (s = 0; s < k; ++s) {
+        gltest_read_buffer(bc, (size_t)m * 32, prev);
+        assert_int_equal(gim__gl_kmeans_step(f->ctx, bv, n, bc, m, ba, metric, 0.0f, 0.0f, scale), GIM_OK);
+    }
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bc, (size_t)m * 32, gc);
+    gltest_read_buffer(ba, (size_t)n * 4, ga);
+    /* the assignment: as the twin's but near ties, judged with the centres of the last step */
+    for (i = 0; i < n; ++i) {
+        double dg, dc;
+        assert_true(ga[i] < m);
+        if (ga[i] == ca[i]) continue;
+        ++mism;
+        dg = metric_d(metric, wx / scale, wa, p + i * 3, nn + i * 3, prev + ga[i] * 8, prev + ga[i] * 8 + 4);
+        dc = metric_d(metric, wx / scale, wa, p + i * 3, nn + i * 3, prev + ca[i] * 8, prev + ca[i] * 8 + 4);
+        if (fabs(dg - dc) <= TOL_TIE + 4.0 * ulp) ++ties;
+        else print_message("VPL %u: GPU cluster %u (d %.9g), the twin's %u (d %.9g)\n", i, ga[i], dg, ca[i], dc);
+    }
+    st->vpls += n; st->mismatches += mism; st->near_ties += ties;
+    if (mism == 0) {
+        st->compared++;
+        for (j = 0; j < m; ++j) {
+            assert_true(gc[j * 8 + 3] == (float)cnt[j]);
+            for (a = 0; a < 3; ++a) {
+                double ec = fabs((double)gc[j * 8 + a] - cc[j * 3 + a]) / scale, en = fabs((double)gc[j * 8 + 4 + a] - cn[j * 3 + a]);
+                if (ec > st->centre) st->centre = ec;
+                if (en > st->normal) st->normal = en;
+                if (!(ec <= TOL_CENTRE + 4.0 * ulp) || !(en <= TOL_NORMAL))
+                    fail_msg("cluster %u axis %d: centre %.9g / normal %.9g, the twin's %.9g / %.9g", j, a,
+                             (double)gc[j * 8 + a], (double)gc[j * 8 + 4 + a], (double)cc[j * 3 + a], (double)cn[j * 3 + a]);
+            }
+        }
+    }
+    glDeleteBuffers(1, &bv);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &ba);
+done:
+    free(vpl); free(p); free(nn); free(fl); free(init); free(gc); free(prev); free(ic); free(in); free(cc); free(cn);
+    free(ga); free(ca); free(cnt);
+}
+
+/* K = 1, 2, 4, 8 steps, N = 1024 / M = 30 (the issue's defaults) and N = 700 / M = 8 in chunks
+   of 97 VPLs (several update dispatches), both metrics, near the origin and far from it. */
+static void kmeans_matches_twin(void **state) {
+    static const uint32_t steps[4] = {1, 2, 4, 8};
+    static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {3.0e3f, -2.0e3f, 1.0e4f}};
+    gltest_fixture f;
+    kmeans_stats st;
+    int s, o, mt;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    memset(&st, 0, sizeof st);
+    for (mt = 0; mt < 2; ++mt)
+        for (o = 0; o < 2; ++o)
+            for (s = 0; s < 4; ++s) {
+                gim_kmeans_metric metric = mt ? GIM_KMEANS_METRIC_SSVP : GIM_KMEANS_METRIC_DONG;
+                f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+                kmeans_one(&f, 1024, 30, steps[s], metric, origins[o], o ? 50.0f : 4.0f, &st);
+                f.ctx->proxy_chunk = 97;
+                kmeans_one(&f, 700, 8, steps[s], metric, origins[o], o ? 50.0f : 4.0f, &st);
+            }
+    f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    print_message("k-means step: %u runs (%u compared in full, %u skipped: the twin repaired an empty cluster), "
+                  "%u VPLs, %u assigned differently (%u near ties); largest centre error %.3g scale, normal %.3g\n",
+                  st.runs, st.compared, st.skipped_empty, st.vpls, st.mismatches, st.near_ties, st.centre, st.normal);
+    assert_int_equal(st.mismatches, st.near_ties);
+    assert_true(st.compared * 4 >= st.runs * 3);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
+/* An empty cluster keeps its centre and normal and reports count 0; the twin re-seeds it. */
+static void kmeans_empty_cluster(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    gltest_fixture f;
+    float vpl[64 * 12], p[64 * 3], nn[64 * 3], fl[64 * 3], c[4 * 8];
+    uint32_t asg[64], i, total = 0;
+    GLuint bv, bc, ba;
+    int a;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_vpls(64, zero, 1.0f, vpl, p, nn, fl);
+    memset(c, 0, sizeof c);
+    for (i = 0; i < 4; ++i)
+        for (a = 0; a < 3; ++a) {
+            uint32_t v = i == 2 ? 16 : i * 16;   /* centre 2 = centre 1: ties go to 1, 2 stays empty */
+            c[i * 8 + a] = p[v * 3 + a];
+            c[i * 8 + 4 + a] = nn[v * 3 + a];
+        }
+    for (i = 0; i < 64; ++i) asg[i] = 0xffffffffu;
+    bv = gltest_ssbo(sizeof vpl, vpl);
+    bc = gltest_ssbo(sizeof c, c);
+    ba = gltest_ssbo(sizeof asg, asg);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0.0f, 0.0f, 1.0f), GIM_OK);
+    {
+        float g[4 * 8];
+        gltest_read_buffer(bc, sizeof g, g);
+        gltest_read_buffer(ba, sizeof asg, asg);
+        assert_true(g[2 * 8 + 3] == 0.0f);
+        assert_memory_equal(g + 2 * 8, c + 2 * 8, 12);
+        assert_memory_equal(g + 2 * 8 + 4, c + 2 * 8 + 4, 12);
+        for (i = 0; i < 4; ++i) total += (uint32_t)g[i * 8 + 3];
+        assert_int_equal(total, 64);
+        for (i = 0; i < 64; ++i) assert_true(asg[i] != 2u && asg[i] < 4u);
+    }
+    /* bad arguments */
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, 0, 64, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bv, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 0, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 3, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bc, 4, ba, (gim_kmeans_metric)7, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bc, 4, ba, GIM_KMEANS_METRIC_DONG, -1, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 64, bc, 5, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_kmeans_step(f.ctx, bv, 65, bc, 4, ba, GIM_KMEANS_METRIC_DONG, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(f.log.errors, 9);
+    f.log.errors = 0;
+    gltest_state_unchanged(&f);
+    glDeleteBuffers(1, &bv);
+    glDeleteBuffers(1, &bc);
+    glDeleteBuffers(1, &ba);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(matches_twin),
         cmocka_unit_test(bad_arguments),
+        cmocka_unit_test(kmeans_matches_twin),
+        cmocka_unit_test(kmeans_empty_cluster),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
