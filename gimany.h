@@ -6256,7 +6256,8 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
    weights, the same tie rule, the same weighted means). vpls: SSBO of vpl_count VPLs as
    gim__gl_rsm_vpls writes them (48 bytes: position, normal, flux rgb; the w's ignored).
    centres: SSBO of cluster_count {vec4 position (w: VPLs in the cluster after this step),
-   vec4 unit normal} (32 bytes), read and updated in place. assignment: SSBO of vpl_count
+   vec4 normal (renormalised in the pass, as the twin does its init normals)} (32 bytes), read
+   and updated in place. assignment: SSBO of vpl_count
    uint, the cluster of each VPL, read and updated in place; 0xffffffff (none yet) before
    the first step, as in gim_kmeans' first iteration. metric, w_x, w_a: as gim_kmeans_desc
    (both weights 0: the metric's defaults); scene_scale > 0 (gim_kmeans' default 0 would need

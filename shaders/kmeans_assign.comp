@@ -7,7 +7,7 @@
    The angle is 2 atan(|n - n_c|, |n + n_c|), not acos(n . n_c): the same angle, but accurate
    in float where the normals are nearly parallel (acos loses ~3e-4 rad there), the common
    case on a wall. A VPL of zero normal (the unlit VPLs of rsm_vpls.comp may have one) is
-   taken as perpendicular to every centre (n . n_c = 0). */
+   taken as perpendicular to every centre (n . n_c = 0); so is a centre of zero normal. */
 layout(local_size_x = 64) in;
 
 struct Vpl { vec4 position; vec4 normal; vec4 flux; };
@@ -27,9 +27,10 @@ const float PI = 3.14159265358979;
 
 float dist(vec3 x, vec3 n, uint j) {
     vec3 c = centre[j].position.xyz, cn = centre[j].normal.xyz;
-    float dir;
+    float dir, lc = length(cn);
+    cn = lc > 0.0 ? cn / lc : vec3(0.0);   /* the twin renormalises its init normals */
     if (ssvp != 0u) dir = wa * (1.0 - max(dot(n, cn), 0.0));
-    else if (n == vec3(0.0)) dir = wa * (0.5 * PI);
+    else if (n == vec3(0.0) || cn == vec3(0.0)) dir = wa * (0.5 * PI);
     else dir = wa * (2.0 * atan(length(n - cn), length(n + cn)));
     return wx_s * length(x - c) + dir;
 }

@@ -287,11 +287,11 @@ static double metric_d(gim_kmeans_metric m, double wx_s, double wa, const float 
 }
 
 /* K GPU steps from the centres of VPLs floor(j N / M) against gim_kmeans WARM with
-   max_iterations K from the same centres. */
-static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gim_kmeans_metric metric, const float o[3],
-                       float L, kmeans_stats *st) {
-    float *vpl = (float *)malloc((size_t)n * 48), *p = (float *)malloc((size_t)n * 12), *nn = (float *)malloc((size_t)n * 12);
-    float *fl = (float *)malloc((size_t)n * 12), *init = (float *)calloc(m, 32), *gc = (float *)malloc((size_t)m * 32);
+   max_iterations K from the same centres, on the VPLs p, nn, fl (the twin's arrays) and bv
+   (the same in the GPU layout); o, L: where they lie (for the float tolerance). */
+static void kmeans_compare(gltest_fixture *f, GLuint bv, const float *p, const float *nn, const float *fl, uint32_t n,
+                           uint32_t m, uint32_t k, gim_kmeans_metric metric, const float o[3], float L, kmeans_stats *st) {
+    float *init = (float *)calloc(m, 32), *gc = (float *)malloc((size_t)m * 32);
     float *prev = (float *)malloc((size_t)m * 32), *ic = (float *)malloc((size_t)m * 12), *in = (float *)malloc((size_t)m * 12);
     float *cc = (float *)malloc((size_t)m * 12), *cn = (float *)malloc((size_t)m * 12);
     uint32_t *ga = (uint32_t *)malloc((size_t)n * 4), *ca = (uint32_t *)malloc((size_t)n * 4), *cnt = (uint32_t *)malloc((size_t)m * 4);
@@ -300,10 +300,9 @@ static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gi
     double ulp = ldexp(1.0, -23) * (fabs(o[0]) + fabs(o[1]) + fabs(o[2]) + L) / scale;
     gim_kmeans_desc d;
     gim_kmeans_result res;
-    GLuint bv, bc, ba;
+    GLuint bc, ba;
     uint32_t i, j, s, mism = 0, ties = 0;
     int a;
-    make_vpls(n, o, L, vpl, p, nn, fl);
     for (j = 0; j < m; ++j) {
         uint32_t v = (uint32_t)((uint64_t)j * n / m);
         for (a = 0; a < 3; ++a) {
@@ -320,7 +319,6 @@ static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gi
     assert_int_equal(gim_kmeans(&d, &res), GIM_OK);
     st->runs++;
     if (res.empty_repaired > 0) { st->skipped_empty++; goto done; }
-    bv = gltest_ssbo((size_t)n * 48, vpl);
     bc = gltest_ssbo((size_t)m * 32, init);
     for (i = 0; i < n; ++i) ga[i] = 0xffffffffu;
     ba = gltest_ssbo((size_t)n * 4, ga);
@@ -357,16 +355,32 @@ static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gi
             }
         }
     }
-    glDeleteBuffers(1, &bv);
     glDeleteBuffers(1, &bc);
     glDeleteBuffers(1, &ba);
 done:
-    free(vpl); free(p); free(nn); free(fl); free(init); free(gc); free(prev); free(ic); free(in); free(cc); free(cn);
+    free(init); free(gc); free(prev); free(ic); free(in); free(cc); free(cn);
     free(ga); free(ca); free(cnt);
 }
 
+/* Random VPLs (dark: every flux zero, so every cluster takes the plain means). */
+static void kmeans_one(gltest_fixture *f, uint32_t n, uint32_t m, uint32_t k, gim_kmeans_metric metric, const float o[3],
+                       float L, int dark, kmeans_stats *st) {
+    float *vpl = (float *)malloc((size_t)n * 48), *p = (float *)malloc((size_t)n * 12), *nn = (float *)malloc((size_t)n * 12);
+    float *fl = (float *)malloc((size_t)n * 12);
+    uint32_t i;
+    GLuint bv;
+    make_vpls(n, o, L, vpl, p, nn, fl);
+    if (dark)
+        for (i = 0; i < n * 3; ++i) fl[i] = vpl[(i / 3) * 12 + 8 + i % 3] = 0.0f;
+    bv = gltest_ssbo((size_t)n * 48, vpl);
+    kmeans_compare(f, bv, p, nn, fl, n, m, k, metric, o, L, st);
+    glDeleteBuffers(1, &bv);
+    free(vpl); free(p); free(nn); free(fl);
+}
+
 /* K = 1, 2, 4, 8 steps, N = 1024 / M = 30 (the issue's defaults) and N = 700 / M = 8 in chunks
-   of 97 VPLs (several update dispatches), both metrics, near the origin and far from it. */
+   of 97 VPLs (several update dispatches; at 8 steps with every flux zero: the plain means),
+   both metrics, near the origin and far from it. */
 static void kmeans_matches_twin(void **state) {
     static const uint32_t steps[4] = {1, 2, 4, 8};
     static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {3.0e3f, -2.0e3f, 1.0e4f}};
@@ -382,9 +396,9 @@ static void kmeans_matches_twin(void **state) {
             for (s = 0; s < 4; ++s) {
                 gim_kmeans_metric metric = mt ? GIM_KMEANS_METRIC_SSVP : GIM_KMEANS_METRIC_DONG;
                 f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
-                kmeans_one(&f, 1024, 30, steps[s], metric, origins[o], o ? 50.0f : 4.0f, &st);
+                kmeans_one(&f, 1024, 30, steps[s], metric, origins[o], o ? 50.0f : 4.0f, 0, &st);
                 f.ctx->proxy_chunk = 97;
-                kmeans_one(&f, 700, 8, steps[s], metric, origins[o], o ? 50.0f : 4.0f, &st);
+                kmeans_one(&f, 700, 8, steps[s], metric, origins[o], o ? 50.0f : 4.0f, s == 3, &st);
             }
     f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
     print_message("k-means step: %u runs (%u compared in full, %u skipped: the twin repaired an empty cluster), "
@@ -451,12 +465,64 @@ static void kmeans_empty_cluster(void **state) {
     GLTEST_END();
 }
 
+/* The pipeline of clustered visibility's first passes: the GPU VPLs of an RSM straight into
+   GPU k-means steps (the 48-byte layout both take), against gim_rsm_vpls -> gim_kmeans. The
+   RSM has unlit texels (zero-flux VPLs: weight 0 in the means) but no broken ones (the twin's
+   k-means refuses a zero normal). */
+static void vpls_into_kmeans(void **state) {
+    static const float origin[3] = {-20.0f, 5.0f, 300.0f};
+    static const float off[2] = {0.25f, 0.6f};
+    const uint32_t n = 1024, size = 48;
+    gltest_fixture f;
+    kmeans_stats st;
+    vpl_rsm r;
+    gim_rsm_data d;
+    float *p = (float *)malloc(n * 12), *nn = (float *)malloc(n * 12), *fl = (float *)malloc(n * 12);
+    uint32_t t, k;
+    GLuint bv;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    memset(&st, 0, sizeof st);
+    rsm_make(&r, size, origin, 10.0f);
+    for (t = 0; t < size * size; ++t) {   /* no broken texels: finite everything, flux >= 0, w 0 or 1 */
+        float *x = r.position4 + t * 4, *nm = r.normal4 + t * 4, *fx = r.flux4 + t * 4;
+        if (!(x[1] == x[1])) x[1] = origin[1];
+        if (!(nm[2] < 2.0f)) nm[2] = 1.0f;
+        if (!(fx[0] >= 0.0f)) fx[0] = 0.5f;
+        if (!(fx[2] == fx[2])) fx[2] = 0.25f;
+        if (!(x[3] == 0.0f || x[3] == 1.0f)) x[3] = 0.0f;
+        memcpy(r.position + t * 3, x, 12); memcpy(r.normal + t * 3, nm, 12); memcpy(r.flux + t * 3, fx, 12);
+        r.valid[t] = x[3];
+    }
+    glDeleteTextures(3, r.tex);
+    r.tex[0] = texture_rgba(size, r.position4);
+    r.tex[1] = texture_rgba(size, r.normal4);
+    r.tex[2] = texture_rgba(size, r.flux4);
+    d = rsm_data(&r);
+    assert_int_equal(gim_rsm_vpls(&d, n, off, p, nn, fl, f.env), GIM_OK);
+    bv = gltest_ssbo(n * 48, NULL);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, off, bv), GIM_OK);
+    for (k = 1; k <= 8; k *= 2) kmeans_compare(&f, bv, p, nn, fl, n, 30, k, GIM_KMEANS_METRIC_DONG, origin, 10.0f, &st);
+    print_message("VPLs -> k-means: %u runs (%u compared in full, %u skipped), %u VPLs differently assigned (%u near ties); "
+                  "centre error %.3g scale, normal %.3g\n", st.runs, st.compared, st.skipped_empty, st.mismatches,
+                  st.near_ties, st.centre, st.normal);
+    assert_int_equal(st.mismatches, st.near_ties);
+    assert_true(st.compared >= 3);
+    glDeleteBuffers(1, &bv);
+    rsm_free(&r);
+    free(p); free(nn); free(fl);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(matches_twin),
         cmocka_unit_test(bad_arguments),
         cmocka_unit_test(kmeans_matches_twin),
         cmocka_unit_test(kmeans_empty_cluster),
+        cmocka_unit_test(vpls_into_kmeans),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
