@@ -752,10 +752,10 @@ GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radianc
      flux_i,c = Phi_t(i),c * T_c / S_c,  T_c = sum of Phi_c over every lit texel,
                                          S_c = sum of Phi_t(i),c over the VPLs (repeats counted);
    where S_c = 0 (every sampled texel dark in c) the VPLs carry nothing in c. A texel is lit
-   where valid is NULL or > 0 and its position, normal and flux are finite with flux >= 0 (the
-   rules of gim_vals_gather); an unlit one gives a VPL of zero flux, its position and normal
-   copied when finite, zero otherwise (drop zero-flux VPLs before gim_kmeans, which refuses a
-   zero normal). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
+   where valid is NULL or > 0 and its position, normal and flux are finite with flux >= 0
+   (gim_vals_gather's rules but the area's, which a VPL does not take); an unlit one gives a
+   VPL of zero flux (weight 0 in gim_kmeans' means), its position and normal copied when
+   finite, zero otherwise (gim_kmeans refuses a zero normal: leave those VPLs out). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
    order, then the rows), S in blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks.
    positions, normals, flux: count * 3 each, written. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL
    arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
