@@ -743,6 +743,27 @@ typedef struct gim_gather_desc {
    finite and > 0, a receiver as gim_lightskin_shade rejects it. */
 GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radiance_out);
 
+/* VPLs from an RSM (Dong et al. sec. 4, clustered visibility): count VPLs at the 2D Halton
+   points 1..count (gim_halton_points, bases 2 and 3; point 0 is the corner), Cranley-Patterson
+   rotated by offsets (2 values in [0,1), or NULL). Point (u, v) takes the texel
+   (min(floor(u width), width - 1), min(floor(v height), height - 1)); a texel may be taken
+   twice. Each VPL gets its texel's position and normal, and flux such that the VPLs' flux sums
+   to the RSM's total reflected flux over the lit texels, per channel c:
+     flux_i,c = Phi_t(i),c * T_c / S_c,  T_c = sum of Phi_c over every lit texel,
+                                         S_c = sum of Phi_t(i),c over the VPLs (repeats counted);
+   where S_c = 0 (every sampled texel dark in c) the VPLs carry nothing in c. A texel is lit
+   where valid is NULL or > 0 and its position, normal and flux are finite with flux >= 0
+   (gim_vals_gather's rules but the area's, which a VPL does not take); an unlit one gives a
+   VPL of zero flux (weight 0 in gim_kmeans' means), its position and normal copied when
+   finite, zero otherwise (gim_kmeans refuses a zero normal: leave those VPLs out). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
+   order, then the rows), S in blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks.
+   positions, normals, flux: count * 3 each, written. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL
+   arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
+   GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
+#define GIM_RSM_VPL_BLOCK 1024u
+GIMANY_API gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
+                                   float *normals, float *flux, gim_env env);
+
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
    scaled as the surface element is, |det M| |M^-T n| for the 3x3 M of model, so the areas of
@@ -4314,6 +4335,87 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
     return GIM_OK;
 }
 
+/* The RSM texel of VPL i: Halton point i + 1 in bases 2, 3 (gim_halton_points). */
+static void gim__rsm_vpl_texel(uint32_t i, uint32_t width, uint32_t height, const float *offsets, uint32_t *x,
+                               uint32_t *y) {
+    float uv[2];
+    double fx, fy;
+    gim_halton_points(uv, 1, 2, i + 1u, offsets);
+    fx = floor((double)uv[0] * width);
+    fy = floor((double)uv[1] * height);
+    *x = fx < (double)width ? (uint32_t)fx : width - 1u;
+    *y = fy < (double)height ? (uint32_t)fy : height - 1u;
+}
+
+/* Lit texel t of the RSM (the rules of gim_vals_gather without area, which a VPL does not take). */
+static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
+    const float *f = m->flux + t * 3;
+    if (m->valid && !(m->valid[t] > 0.0f)) return 0;
+    if (!gim__all_finite(m->position + t * 3, 3) || !gim__all_finite(m->normal + t * 3, 3) || !gim__all_finite(f, 3))
+        return 0;
+    return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
+}
+
+GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
+                                   float *normals, float *flux, gim_env env) {
+    static const char fn[] = "gim_rsm_vpls";
+    double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
+    uint32_t i, x, y;
+    int a;
+    if (!rsm || !positions || !normals || !flux)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm and the output arrays are required");
+    if (!rsm->position || !rsm->normal || !rsm->flux)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm position, normal and flux are required");
+    if (rsm->width == 0 || rsm->height == 0 || count == 0)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM %ux%u and count %u must be > 0", (unsigned)rsm->width,
+                         (unsigned)rsm->height, (unsigned)count);
+    if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "offsets must be in [0,1)");
+    /* T: each row in x order, then the rows (the GPU's per-row invocations) */
+    for (y = 0; y < rsm->height; ++y) {
+        double row[3] = {0.0, 0.0, 0.0};
+        for (x = 0; x < rsm->width; ++x) {
+            size_t t = (size_t)y * rsm->width + x;
+            if (gim__rsm_vpl_lit(rsm, t))
+                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + a];
+        }
+        for (a = 0; a < 3; ++a) total[a] += row[a];
+    }
+    if (total[0] > FLT_MAX || total[1] > FLT_MAX || total[2] > FLT_MAX)
+        return gim__fail(&env, GIM_ERROR_OUT_OF_RANGE, fn, "the RSM's total flux exceeds the float range");
+    /* S: blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks */
+    for (i = 0; i < count; i += GIM_RSM_VPL_BLOCK) {
+        double block[3] = {0.0, 0.0, 0.0};
+        uint32_t e = count - i < GIM_RSM_VPL_BLOCK ? count : i + GIM_RSM_VPL_BLOCK, k;
+        for (k = i; k < e; ++k) {
+            size_t t;
+            gim__rsm_vpl_texel(k, rsm->width, rsm->height, offsets, &x, &y);
+            t = (size_t)y * rsm->width + x;
+            if (gim__rsm_vpl_lit(rsm, t))
+                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + a];
+        }
+        for (a = 0; a < 3; ++a) sampled[a] += block[a];
+    }
+    for (a = 0; a < 3; ++a) scale[a] = sampled[a] > 0.0 ? total[a] / sampled[a] : 0.0;
+    for (i = 0; i < count; ++i) {
+        size_t t;
+        int lit;
+        gim__rsm_vpl_texel(i, rsm->width, rsm->height, offsets, &x, &y);
+        t = (size_t)y * rsm->width + x;
+        lit = gim__rsm_vpl_lit(rsm, t);
+        {   /* position and normal copied where finite (an unlit texel may hold anything) */
+            int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
+            for (a = 0; a < 3; ++a) {
+                double f = lit ? (double)rsm->flux[t * 3 + a] * scale[a] : 0.0;
+                positions[(size_t)i * 3 + a] = pok ? rsm->position[t * 3 + a] : 0.0f;
+                normals[(size_t)i * 3 + a] = nok ? rsm->normal[t * 3 + a] : 0.0f;
+                flux[(size_t)i * 3 + a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
+            }
+        }
+    }
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, gim_mat4 model, gim_cache *out,
                                           gim_env env) {
     static const char fn[] = "gim_caches_to_world";
@@ -5331,6 +5433,9 @@ typedef enum gim__program_id {
     GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
     GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
+    GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
+    GIM__PROGRAM_KMEANS_ASSIGN,      /* k-means assignment per VPL (Dong 5.1, SSVP eq. 2) */
+    GIM__PROGRAM_KMEANS_UPDATE,      /* k-means flux-weighted means per cluster (a gather) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -5348,7 +5453,10 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"lightskin_shade.comp", NULL},
     {"proxy_occlusion.comp", NULL},
     {"rsm_gather.comp", NULL},
-    {"vals_gather.comp", NULL}};
+    {"vals_gather.comp", NULL},
+    {"rsm_vpls.comp", NULL},
+    {"kmeans_assign.comp", NULL},
+    {"kmeans_update.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -6067,6 +6175,206 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     gl->DispatchCompute(gx, gy, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls (see there):
+   count VPLs at the Halton texels 1..count (rotated by offsets, 2 values in [0,1), or NULL) of
+   the size x size RSM textures (RGBA32F as gim__gl_rsm writes them: position.w > 0 where lit,
+   normal.w area, flux.rgb; read as rgba32ui images like gim__gl_vals_gather, complete by
+   their own state), into vpls_out: an SSBO of at least count {vec4 position (w: 1 lit, 0
+   unlit), vec4 normal (w 0), vec4 flux (w 0)} (48 bytes each). The texels are computed on the
+   CPU by the twin's own function and uploaded (as the view samples' pixels), so both take the
+   same texels bit for bit. The normalisation T / S needs a reduction over the whole RSM: it is
+   done on the GPU (the RSM never comes back to the host), in four dispatches of rsm_vpls.comp
+   (row sums, block sums of the VPLs, the two totals, the scale), in double and in the twin's
+   order, each loop under llvmpipe's 65535 iterations (a row of <= 16384 texels; the final sum
+   over size + count / GIM_RSM_VPL_BLOCK partials). The texel list and the partial sums live
+   in two buffers made and deleted by the call. Cost: size^2 + 3 count texel reads. */
+static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                               gim__GLuint rsm_flux, uint32_t size, uint32_t count, const float *offsets,
+                                               gim__GLuint vpls_out) {
+    static const char where[] = "RSM VPLs (GL)";
+    enum { TEXTURE_INTERNAL_FORMAT = 0x1003, RGBA32UI = 0x8D70 };   /* GL_TEXTURE_INTERNAL_FORMAT, GL_RGBA32UI */
+    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3], scratch[2] = {0, 0};
+    uint32_t *texels, i, mode, blocks;
+    uint64_t sums_bytes;
+    gim_result r = GIM_OK;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !vpls_out)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or vpls_out is 0");
+    if (size == 0 || size > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %u outside 1..%u", (unsigned)size,
+                         GIM__SCAN_MAX_SIZE);
+    if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
+    if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "offsets must be in [0,1)");
+    blocks = (count + GIM_RSM_VPL_BLOCK - 1u) / GIM_RSM_VPL_BLOCK;
+    sums_bytes = ((uint64_t)size + blocks + 1u) * 32u;
+    if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes || sums_bytes > (uint64_t)ctx->max_ssbo_bytes ||
+        count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs exceed the SSBO or dispatch limits",
+                         (unsigned)count);
+    texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+    if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
+    for (i = 0; i < count; ++i) gim__rsm_vpl_texel(i, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < 3 && r == GIM_OK; ++i) {
+        gim__GLint format = 0;
+        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
+        if (r != GIM_OK) break;
+        gl->GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, TEXTURE_INTERNAL_FORMAT, &format);
+        if (format != GIM__GL_RGBA32F)
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
+                          (unsigned)format);
+    }
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, (uint64_t)count * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_RSM_VPLS, &program);
+    if (r == GIM_OK) {
+        gl->GenBuffers(2, scratch);
+        if (!scratch[0] || !scratch[1]) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[0]);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)count * 8, texels, GIM__GL_DYNAMIC_COPY);
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[1]);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)sums_bytes, NULL, GIM__GL_DYNAMIC_COPY);
+        r = gim__gl_check(ctx, where);
+    }
+    gim__free(&ctx->env, texels);
+    if (r == GIM_OK) {
+        for (i = 0; i < 3; ++i)
+            gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, RGBA32UI);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, scratch[0]);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vpls_out);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, scratch[1]);
+        gl->UseProgram(program);
+        gl->Uniform1ui(0, size);
+        gl->Uniform1ui(1, count);
+        gl->Uniform1ui(3, GIM_RSM_VPL_BLOCK);
+        for (mode = 0; mode < 4u; ++mode) {
+            uint32_t n = mode == 0u ? (size > count ? size : count) : mode == 1u ? blocks : mode == 2u ? 1u : count;
+            gl->Uniform1ui(2, mode);
+            gl->DispatchCompute((n + 63u) / 64u, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        }
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+        r = gim__gl_check(ctx, where);
+    }
+    if (scratch[0] || scratch[1]) gl->DeleteBuffers(2, scratch);   /* unbinds them (gim__gl_leave rebinds the host's) */
+    return gim__gl_leave(ctx, r);
+}
+
+/* One k-means step on the GPU (Dong et al. sec. 5; SSVP sec. 3): assignment then update, the
+   twin of one iteration of gim_kmeans (see its assignment and "Means"; the same metric and
+   weights, the same tie rule, the same weighted means). vpls: SSBO of vpl_count VPLs as
+   gim__gl_rsm_vpls writes them (48 bytes: position, normal, flux rgb; the w's ignored).
+   centres: SSBO of cluster_count {vec4 position (w: VPLs in the cluster after this step),
+   vec4 normal (renormalised in the pass, as the twin does its init normals)} (32 bytes), read
+   and updated in place. assignment: SSBO of vpl_count
+   uint, the cluster of each VPL, read and updated in place; 0xffffffff (none yet) before
+   the first step, as in gim_kmeans' first iteration. metric, w_x, w_a: as gim_kmeans_desc
+   (both weights 0: the metric's defaults); scene_scale > 0 (gim_kmeans' default 0 would need
+   the VPL bounds on the CPU). Differences from the twin, by design:
+   - an empty cluster keeps its old centre and normal, count 0 (gim_kmeans re-seeds it from the
+     worst cluster's farthest VPL: a serial repair left to the caller, which sees the count);
+   - distances in float (the twin: double, relative to the VPLs' bounds centre), Dong's angle
+     as 2 atan(|n - n_c|, |n + n_c|) (accurate where acos of a float cosine is not); the sums
+     of the update in double in the twin's VPL order, the centres stored as float between
+     steps. So a VPL within float rounding of a tie (relative ~1e-6 of the distances, more
+     far from the origin: the centres' float ulp over the scene scale) may choose the other
+     cluster (tests/gltest_vpls.c counts them).
+   K steps from the same centres, with the assignment reset to none, give gim_kmeans with init
+   WARM, max_iterations K (its convergence stop skips only an update that changes nothing).
+   Cost: vpl_count * cluster_count distance terms and as many VPL reads in the update (a gather
+   per cluster, in dispatches of ctx->proxy_chunk VPLs); a scratch buffer of 160 bytes per
+   cluster is made and deleted by the call. cluster_count <= 4096 (one loop over the centres
+   per invocation stays under llvmpipe's 65535 iterations). */
+#define GIM__KMEANS_MAX_CLUSTERS 4096u
+static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint vpls, uint32_t vpl_count,
+                                                  gim__GLuint centres, uint32_t cluster_count, gim__GLuint assignment,
+                                                  gim_kmeans_metric metric, float w_x, float w_a, float scene_scale) {
+    static const char where[] = "k-means step (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint p_assign = 0, p_update = 0, acc = 0;
+    int ssvp = metric == GIM_KMEANS_METRIC_SSVP;
+    float wx = w_x, wa = w_a;
+    gim_result r;
+    if (!vpls || !centres || !assignment)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (vpls == centres || vpls == assignment || centres == assignment)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "the three buffers must differ");
+    if (vpl_count == 0 || cluster_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "vpl_count (%u) and cluster_count (%u) must be > 0",
+                         (unsigned)vpl_count, (unsigned)cluster_count);
+    if (cluster_count > vpl_count)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cluster_count %u > vpl_count %u",
+                         (unsigned)cluster_count, (unsigned)vpl_count);
+    if (cluster_count > GIM__KMEANS_MAX_CLUSTERS || vpl_count > 65535u * 64u ||
+        (uint64_t)vpl_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs / %u clusters above the limits",
+                         (unsigned)vpl_count, (unsigned)cluster_count);
+    if ((unsigned)metric > (unsigned)GIM_KMEANS_METRIC_SSVP)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown metric %d", (int)metric);
+    if (!gim__isfinitef(w_x) || !gim__isfinitef(w_a) || w_x < 0.0f || w_a < 0.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "weights w_x %g, w_a %g must be finite and >= 0",
+                         (double)w_x, (double)w_a);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (wx == 0.0f && wa == 0.0f) { wx = ssvp ? 0.6f : 0.7f; wa = ssvp ? 0.4f : 0.3f; }
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "vpls", vpls, (uint64_t)vpl_count * 48u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "centres", centres, (uint64_t)cluster_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "assignment", assignment, (uint64_t)vpl_count * 4u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_ASSIGN, &p_assign);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_UPDATE, &p_update);
+    if (r == GIM_OK) {
+        gl->GenBuffers(1, &acc);
+        if (!acc) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, acc);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)cluster_count * 160, NULL, GIM__GL_DYNAMIC_COPY);
+        r = gim__gl_check(ctx, where);
+    }
+    if (r == GIM_OK) {
+        uint32_t first = 0, groups = (cluster_count + 63u) / 64u;
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, centres);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, assignment);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, acc);
+        /* assignment (Dong 5.1 / SSVP eq. 2) */
+        gl->UseProgram(p_assign);
+        gl->Uniform1ui(0, vpl_count);
+        gl->Uniform1ui(1, cluster_count);
+        gl->Uniform1f(2, (float)((double)wx / scene_scale));
+        gl->Uniform1f(3, ssvp ? wa : (float)(wa / 3.14159265358979323846));
+        gl->Uniform1ui(4, ssvp ? 1u : 0u);
+        gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        /* update: the sums chunk by chunk, then the means */
+        gl->UseProgram(p_update);
+        gl->Uniform1ui(0, cluster_count);
+        gl->Uniform1ui(3, 0u);
+        do {
+            uint32_t n = vpl_count - first < ctx->proxy_chunk ? vpl_count - first : ctx->proxy_chunk;
+            gl->Uniform1ui(1, first);
+            gl->Uniform1ui(2, n);
+            gl->DispatchCompute(groups, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+            first += n;
+        } while (first < vpl_count);
+        gl->Uniform1ui(3, 1u);
+        gl->DispatchCompute(groups, 1u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+        r = gim__gl_check(ctx, where);
+    }
+    if (acc) gl->DeleteBuffers(1, &acc);
+    return gim__gl_leave(ctx, r);
 }
 
 

@@ -1,0 +1,87 @@
+/* VPLs from an RSM (Dong et al. sec. 4), the GPU twin of gim_rsm_vpls: VPL i on the texel
+   texel[i] (the Halton texels, computed on the CPU by the twin's own function), with its
+   position and normal and the texel's flux times T / S per channel: T the RSM's total over
+   the lit texels, S the sum over the VPLs' texels. Four modes, one dispatch each (the sums
+   pass through the scratch buffer `sums` between them, every loop under Mesa llvmpipe's 65535
+   iterations per invocation):
+     0: invocation y < size sums row y's lit flux into sums[y] (in double, x order); invocation
+        i < count writes VPL i with its texel's raw flux (0 where unlit);
+     1: invocation b sums the raw flux of VPLs [b BLOCK, (b + 1) BLOCK) into sums[size + b];
+     2: invocation 0 sums the rows (T) and the blocks (S), writes T / S (0 where S = 0) to
+        sums[size + blocks];
+     3: invocation i < count multiplies VPL i's flux by it.
+   The same order of sums as the twin, in double. Lit: position.w > 0 and position, normal,
+   flux finite with flux >= 0 (read as bits, so no fast-math folds the tests away). */
+layout(local_size_x = 64) in;
+
+layout(binding = 0, rgba32ui) readonly uniform uimage2D rsm_position;  /* xyz; w > 0: lit */
+layout(binding = 1, rgba32ui) readonly uniform uimage2D rsm_normal;    /* xyz; w = area A */
+layout(binding = 2, rgba32ui) readonly uniform uimage2D rsm_flux;      /* rgb */
+
+layout(std430, binding = 0) readonly buffer Texels { uvec2 texel[]; };
+struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit 1 / 0; 0; 0 */
+layout(std430, binding = 1) buffer Vpls { Vpl vpl[]; };
+layout(std430, binding = 2) buffer Sums { dvec4 sums[]; };
+
+layout(location = 0) uniform uint size;    /* RSM side */
+layout(location = 1) uniform uint count;   /* VPLs */
+layout(location = 2) uniform uint mode;
+layout(location = 3) uniform uint block;   /* VPLs per block sum of mode 1 (GIM_RSM_VPL_BLOCK) */
+
+const uint SIGN = 0x80000000u, EXPONENT = 0x7f800000u;
+
+bool finite3(uvec3 b) { return all(notEqual(b & EXPONENT, uvec3(EXPONENT))); }
+/* x >= 0 on a finite x: +x or -0 */
+bool nonneg3(uvec3 b) { return all(bvec3((b.x & SIGN) == 0u || b.x == SIGN, (b.y & SIGN) == 0u || b.y == SIGN,
+                                         (b.z & SIGN) == 0u || b.z == SIGN)); }
+
+/* The twin's lit texel: position.w > 0 (not NaN), position, normal, flux finite, flux >= 0. */
+bool lit(uvec4 x, uvec4 n, uvec4 f) {
+    return (x.w & SIGN) == 0u && x.w != 0u && x.w <= EXPONENT && finite3(x.xyz) && finite3(n.xyz) && finite3(f.rgb) &&
+           nonneg3(f.rgb);
+}
+
+void main() {
+    uint i = gl_GlobalInvocationID.y * (gl_NumWorkGroups.x * gl_WorkGroupSize.x) + gl_GlobalInvocationID.x;
+    uint blocks = (count + block - 1u) / block;
+    if (mode == 0u) {
+        if (i < size) {
+            dvec3 row = dvec3(0.0);
+            for (uint x = 0u; x < size; ++x) {
+                ivec2 p = ivec2(x, i);
+                uvec4 f = imageLoad(rsm_flux, p);
+                if (lit(imageLoad(rsm_position, p), imageLoad(rsm_normal, p), f)) row += dvec3(uintBitsToFloat(f.rgb));
+            }
+            sums[i] = dvec4(row, 0.0);
+        }
+        if (i < count) {
+            ivec2 p = ivec2(texel[i]);
+            uvec4 x = imageLoad(rsm_position, p), n = imageLoad(rsm_normal, p), f = imageLoad(rsm_flux, p);
+            bool l = lit(x, n, f);
+            Vpl v;
+            /* position and normal where finite (an unlit texel may hold anything), else 0 */
+            v.position = vec4(finite3(x.xyz) ? uintBitsToFloat(x.xyz) : vec3(0.0), l ? 1.0 : 0.0);
+            v.normal = vec4(finite3(n.xyz) ? uintBitsToFloat(n.xyz) : vec3(0.0), 0.0);
+            v.flux = vec4(l ? uintBitsToFloat(f.rgb) : vec3(0.0), 0.0);
+            vpl[i] = v;
+        }
+    } else if (mode == 1u) {
+        if (i < blocks) {
+            dvec3 s = dvec3(0.0);
+            uint e = min(count, (i + 1u) * block);
+            for (uint k = i * block; k < e; ++k) s += dvec3(vpl[k].flux.rgb);
+            sums[size + i] = dvec4(s, 0.0);
+        }
+    } else if (mode == 2u) {
+        if (i == 0u) {
+            dvec3 t = dvec3(0.0), s = dvec3(0.0);
+            for (uint y = 0u; y < size; ++y) t += sums[y].xyz;
+            for (uint b = 0u; b < blocks; ++b) s += sums[size + b].xyz;
+            sums[size + blocks] = dvec4(s.x > 0.0LF ? t.x / s.x : 0.0LF, s.y > 0.0LF ? t.y / s.y : 0.0LF,
+                                        s.z > 0.0LF ? t.z / s.z : 0.0LF, 0.0LF);
+        }
+    } else if (i < count) {
+        dvec3 scale = sums[size + blocks].xyz;
+        vpl[i].flux.rgb = vec3(min(dvec3(vpl[i].flux.rgb) * scale, dvec3(3.4028234663852886e38LF)));
+    }
+}

@@ -1,0 +1,243 @@
+/* gim_rsm_vpls, the VPLs of clustered visibility (Dong et al. sec. 4) taken from an RSM at
+   Halton points: their flux sums to the RSM's total over the lit texels (per channel), each
+   sits on the texel its Halton point falls in, unlit texels give dark VPLs, the zero-sum guard
+   leaves no NaN, the result scales with the flux unit, bad arguments fail and leave the
+   outputs untouched. */
+#define GIMANY_IMPLEMENTATION
+#include "testutil.h"
+
+#define W 37
+#define H 23
+#define N 300
+
+/* Texel (x, y) at position (x + 0.5, y + 0.5, 7) so a VPL's position names its texel; random
+   unit-ish normals, random flux; every 9th texel unlit. */
+typedef struct vpl_rsm {
+    float pos[W * H * 3], nrm[W * H * 3], flux[W * H * 3], area[W * H], valid[W * H];
+    gim_rsm_data rsm;
+} vpl_rsm;
+
+static void make_rsm(vpl_rsm *r) {
+    int x, y;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            int t = y * W + x;
+            r->pos[t * 3] = x + 0.5f; r->pos[t * 3 + 1] = y + 0.5f; r->pos[t * 3 + 2] = 7.0f;
+            r->nrm[t * 3] = 0.0f; r->nrm[t * 3 + 1] = 0.6f; r->nrm[t * 3 + 2] = 0.8f;
+            r->flux[t * 3] = (float)test_rand01();
+            r->flux[t * 3 + 1] = (float)(2.0 * test_rand01());
+            r->flux[t * 3 + 2] = (float)(0.1 * test_rand01());
+            r->area[t] = 1.0f;
+            r->valid[t] = t % 9 == 4 ? 0.0f : 1.0f;
+        }
+    memset(&r->rsm, 0, sizeof r->rsm);
+    r->rsm.position = r->pos; r->rsm.normal = r->nrm; r->rsm.flux = r->flux; r->rsm.area = r->area;
+    r->rsm.valid = r->valid;
+    r->rsm.width = W; r->rsm.height = H;
+}
+
+/* The RSM's total over the lit texels, in double. */
+static void total_flux(const vpl_rsm *r, double out[3]) {
+    int t, a;
+    out[0] = out[1] = out[2] = 0.0;
+    for (t = 0; t < W * H; ++t)
+        if (r->valid[t] > 0.0f)
+            for (a = 0; a < 3; ++a) out[a] += r->flux[t * 3 + a];
+}
+
+static vpl_rsm g_rsm;
+static float g_p[N * 3], g_n[N * 3], g_f[N * 3];
+
+/* The VPLs' flux sums to the lit total per channel (1e-6 relative: float rounding of each
+   share), with and without a Cranley-Patterson rotation, and every VPL's flux is its texel's
+   times one factor per channel. Same input twice: the same bits. */
+static void flux_sums_to_the_total(void **state) {
+    static const float off[2] = {0.3f, 0.71f};
+    double tot[3];
+    int pass, i, a;
+    test_log log;
+    gim_env env = test_env(NULL, &log);
+    (void)state;
+    make_rsm(&g_rsm);
+    total_flux(&g_rsm, tot);
+    for (pass = 0; pass < 2; ++pass) {
+        double sum[3] = {0.0, 0.0, 0.0}, factor[3] = {0.0, 0.0, 0.0};
+        float p2[N * 3], n2[N * 3], f2[N * 3];
+        const float *o = pass ? off : NULL;
+        assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, o, g_p, g_n, g_f, env), GIM_OK);
+        for (i = 0; i < N; ++i) {
+            int x = (int)g_p[i * 3], y = (int)g_p[i * 3 + 1], t = y * W + x;
+            for (a = 0; a < 3; ++a) {
+                sum[a] += g_f[i * 3 + a];
+                if (g_rsm.valid[t] > 0.0f && g_rsm.flux[t * 3 + a] > 0.0f) {
+                    double q = g_f[i * 3 + a] / (double)g_rsm.flux[t * 3 + a];
+                    if (factor[a] == 0.0) factor[a] = q;
+                    assert_true(fabs(q - factor[a]) <= 1e-6 * factor[a]);
+                }
+            }
+        }
+        for (a = 0; a < 3; ++a) {
+            assert_true(tot[a] > 0.0);
+            assert_true(fabs(sum[a] - tot[a]) <= 1e-6 * tot[a]);
+            assert_true(factor[a] > 1.0);   /* N < lit texels: each VPL stands for several */
+        }
+        assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, o, p2, n2, f2, env), GIM_OK);
+        assert_memory_equal(p2, g_p, sizeof p2);
+        assert_memory_equal(n2, g_n, sizeof n2);
+        assert_memory_equal(f2, g_f, sizeof f2);
+    }
+    assert_int_equal(log.errors, 0);
+}
+
+/* VPL i sits on texel (floor(u W), floor(v H)) of Halton point i + 1 (bases 2, 3), rotated by
+   the offsets when given; its normal is the texel's. */
+static void halton_placement(void **state) {
+    static const float off[2] = {0.9f, 0.05f};
+    int pass, i;
+    gim_env env = test_env(NULL, NULL);
+    (void)state;
+    make_rsm(&g_rsm);
+    for (pass = 0; pass < 2; ++pass) {
+        float pts[N * 2];
+        const float *o = pass ? off : NULL;
+        assert_int_equal(gim_halton_points(pts, N, 2, 1, o), GIM_OK);
+        assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, o, g_p, g_n, g_f, env), GIM_OK);
+        for (i = 0; i < N; ++i) {
+            double u = o ? gim_rotate01((float)gim_halton((uint32_t)i + 1, 0), o[0]) : gim_halton((uint32_t)i + 1, 0);
+            int x = (int)floor((double)pts[i * 2] * W), y = (int)floor((double)pts[i * 2 + 1] * H);
+            assert_true(fabs(u - pts[i * 2]) < 1e-6);   /* the helper is Halton base 2 */
+            assert_true(g_p[i * 3] == x + 0.5f);
+            assert_true(g_p[i * 3 + 1] == y + 0.5f);
+            assert_true(g_p[i * 3 + 2] == 7.0f);
+            assert_true(g_n[i * 3 + 1] == 0.6f && g_n[i * 3 + 2] == 0.8f);
+        }
+        /* the first point, (1/2, 1/3) unrotated */
+        if (!o) {
+            assert_true(g_p[0] == (float)(W / 2) + 0.5f);
+            assert_true(g_p[1] == (float)(H / 3) + 0.5f);
+        }
+    }
+}
+
+/* Unlit and broken texels give zero flux and take no part in the total; a non-finite position
+   or normal is written as zero; a channel no sampled texel carries stays zero (no NaN), while
+   the others still sum to the total. A 1 x 1 RSM: every VPL on its one texel. */
+static void unlit_texels(void **state) {
+    float p[N * 3], n[N * 3], f[N * 3];
+    double tot[3], sum[3] = {0.0, 0.0, 0.0};
+    int i, a, unlit = 0;
+    gim_env env = test_env(NULL, NULL);
+    (void)state;
+    make_rsm(&g_rsm);
+    /* texel of VPL 0 (x = W / 2, y = H / 3): NaN position and flux */
+    {
+        int t = (H / 3) * W + W / 2;
+        g_rsm.pos[t * 3] = NAN;
+        g_rsm.nrm[t * 3 + 2] = INFINITY;
+        g_rsm.flux[t * 3 + 1] = NAN;
+    }
+    for (i = 0; i < W * H; ++i) g_rsm.flux[i * 3 + 2] = 0.0f;   /* blue: dark everywhere */
+    g_rsm.flux[(W * H - 1) * 3 + 2] = 1.0f;                        /* but for a corner texel no VPL takes */
+    g_rsm.valid[W * H - 1] = 1.0f;
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, p, n, f, env), GIM_OK);
+    assert_true(p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f);
+    assert_true(n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f);
+    assert_true(f[0] == 0.0f && f[1] == 0.0f && f[2] == 0.0f);
+    total_flux(&g_rsm, tot);
+    {   /* the broken texel is unlit for the total too */
+        int t = (H / 3) * W + W / 2;
+        for (a = 0; a < 3; ++a) tot[a] -= g_rsm.flux[t * 3 + a] == g_rsm.flux[t * 3 + a] ? g_rsm.flux[t * 3 + a] : 0.0;
+        tot[1] = 0.0;
+        for (i = 0; i < W * H; ++i)
+            if (g_rsm.valid[i] > 0.0f && i != t) tot[1] += g_rsm.flux[i * 3 + 1];
+    }
+    for (i = 0; i < N; ++i) {
+        int t;
+        for (a = 0; a < 3; ++a) {
+            assert_true(gim__isfinitef(f[i * 3 + a]) && f[i * 3 + a] >= 0.0f);
+            sum[a] += f[i * 3 + a];
+        }
+        if (i == 0) continue;
+        t = (int)p[i * 3 + 1] * W + (int)p[i * 3];
+        assert_true(t != W * H - 1);
+        if (g_rsm.valid[t] <= 0.0f) {
+            ++unlit;
+            assert_true(f[i * 3] == 0.0f && f[i * 3 + 1] == 0.0f);
+            assert_true(p[i * 3 + 2] == 7.0f);   /* the position is still copied */
+        }
+    }
+    assert_true(unlit > 10);
+    assert_true(fabs(sum[0] - tot[0]) <= 1e-6 * tot[0]);
+    assert_true(fabs(sum[1] - tot[1]) <= 1e-6 * tot[1]);
+    assert_true(sum[2] == 0.0);   /* S = 0: the guard, not 0 / 0 */
+    {   /* 1 x 1 */
+        gim_rsm_data one = g_rsm.rsm;
+        float fl[3] = {3.0f, 0.0f, 1.5f};
+        one.flux = fl; one.valid = NULL; one.position = g_rsm.pos + 3; one.normal = g_rsm.nrm + 3;
+        one.width = one.height = 1;
+        assert_int_equal(gim_rsm_vpls(&one, 4, NULL, p, n, f, env), GIM_OK);
+        for (i = 0; i < 4; ++i) {
+            assert_true(p[i * 3] == 1.5f);
+            assert_true(f[i * 3] == 0.75f && f[i * 3 + 1] == 0.0f && f[i * 3 + 2] == 0.375f);
+        }
+    }
+}
+
+/* Unit-free: flux in another unit (x 1000) scales every VPL's flux by 1000; positions in
+   another unit (x 1e-3) leave texels and flux alone. */
+static void units(void **state) {
+    float p2[N * 3], n2[N * 3], f2[N * 3];
+    int i;
+    gim_env env = test_env(NULL, NULL);
+    (void)state;
+    make_rsm(&g_rsm);
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, g_p, g_n, g_f, env), GIM_OK);
+    for (i = 0; i < W * H * 3; ++i) { g_rsm.flux[i] *= 1000.0f; g_rsm.pos[i] *= 1e-3f; }
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, p2, n2, f2, env), GIM_OK);
+    for (i = 0; i < N * 3; ++i) {
+        assert_true(fabs(f2[i] - 1000.0 * g_f[i]) <= 1e-5 * 1000.0 * g_f[i]);
+        assert_true(p2[i] == g_p[i] * 1e-3f);
+    }
+}
+
+/* Bad arguments: an error through the logger, the outputs untouched. */
+static void bad_arguments(void **state) {
+    static const float bad_off[3][2] = {{1.0f, 0.0f}, {0.0f, -0.1f}, {NAN, 0.5f}};
+    float p[N * 3], n[N * 3], f[N * 3];
+    gim_rsm_data d;
+    test_log log;
+    int k;
+    gim_env env = test_env(NULL, &log);
+    (void)state;
+    make_rsm(&g_rsm);
+    for (k = 0; k < N * 3; ++k) p[k] = n[k] = f[k] = -5.0f;
+    assert_int_equal(gim_rsm_vpls(NULL, N, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, NULL, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, p, NULL, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, p, n, NULL, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, 0, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    for (k = 0; k < 3; ++k)
+        assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, bad_off[k], p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    d = g_rsm.rsm; d.width = 0;
+    assert_int_equal(gim_rsm_vpls(&d, N, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    d = g_rsm.rsm; d.flux = NULL;
+    assert_int_equal(gim_rsm_vpls(&d, N, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    d = g_rsm.rsm; d.position = NULL;
+    assert_int_equal(gim_rsm_vpls(&d, N, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    /* a total beyond FLT_MAX */
+    g_rsm.flux[0] = g_rsm.flux[3] = 3e38f; g_rsm.valid[0] = g_rsm.valid[1] = 1.0f;
+    assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, NULL, p, n, f, env), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(log.errors, 12);
+    for (k = 0; k < N * 3; ++k) assert_true(p[k] == -5.0f && n[k] == -5.0f && f[k] == -5.0f);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(flux_sums_to_the_total),
+        cmocka_unit_test(halton_placement),
+        cmocka_unit_test(unlit_texels),
+        cmocka_unit_test(units),
+        cmocka_unit_test(bad_arguments),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
