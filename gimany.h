@@ -5482,6 +5482,13 @@ typedef struct gim__light_gpu {
     gim_mat4 view, proj;
 } gim__light_gpu;
 
+/* The hash grid over the world-space caches that lightskin_shade.comp searches. */
+typedef struct gim__grid {
+    float origin[3], h;          /* cell (i, j, k) covers origin + h [i, i+1) x ... */
+    int32_t dims[3];             /* cells per axis over the caches' bounds */
+    uint32_t bucket_count;       /* a power of two >= 2 cache_count */
+} gim__grid;
+
 /* The LightSkin buffers, sized to the last frame that used them. */
 typedef struct gim__lightskin_gpu {
     gim__GLuint caches, cells, buckets, vals, diffuse, glossy;
@@ -5527,6 +5534,11 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
+    uint64_t scene_version;       /* bumped when meshes or instances change */
+    uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
+    float ls_scale;               /* and the scene scale */
+    gim__grid ls_grid;
+    float ls_cos_theta;
     gim__GLuint gather_samples, gather_sum;  /* RSM gather: the pattern, the per-pixel sum over lights */
     uint64_t gather_samples_bytes, gather_sum_bytes;
     /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
@@ -6617,6 +6629,7 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     }
     gim__gl_leave(ctx, r);
     m.used = 1;
+    ++ctx->scene_version;
     ctx->meshes[slot] = m;
     caches = NULL;
     out->id = (slot + 1u) | ((m.generation & 0xFFFFu) << 16);
@@ -6635,6 +6648,7 @@ GIMANY_DEF gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh) {
     if (!m) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, "gim_remove_mesh", "mesh %u is not a mesh", (unsigned)mesh.id);
     gim__gl_enter(ctx, "gim_remove_mesh");
     gim__mesh_release(ctx, m);
+    ++ctx->scene_version;
     return gim__gl_leave(ctx, gim__gl_check(ctx, "gim_remove_mesh"));
 }
 
@@ -6708,10 +6722,13 @@ GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
     if (count > ctx->instance_capacity) {
         gim_instance *grown = (gim_instance *)gim__alloc_array(&ctx->env, count, sizeof(gim_instance));
         if (!grown) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u instances", (unsigned)count);
+        if (ctx->instance_count) memcpy(grown, ctx->instances, (size_t)ctx->instance_count * sizeof(gim_instance));
         gim__free(&ctx->env, ctx->instances);
         ctx->instances = grown;
         ctx->instance_capacity = count;
     }
+    if (count != ctx->instance_count || (count && memcmp(ctx->instances, instances, (size_t)count * sizeof(gim_instance))))
+        ++ctx->scene_version;   /* the caches' world positions must be made again */
     if (count) memcpy(ctx->instances, instances, (size_t)count * sizeof(gim_instance));
     ctx->instance_count = count;
     return GIM_OK;
@@ -7076,12 +7093,6 @@ static gim_result gim__gl_pixel_pass(gim_context *ctx, gim__GLuint program, gim_
 
 #define GIM__NEIGHBOUR_RINGS 3   /* grid shells a pixel searches: neighbours within 3 cells */
 
-/* The hash grid over the world-space caches that lightskin_shade.comp searches. */
-typedef struct gim__grid {
-    float origin[3], h;          /* cell (i, j, k) covers origin + h [i, i+1) x ... */
-    int32_t dims[3];             /* cells per axis over the caches' bounds */
-    uint32_t bucket_count;       /* a power of two >= 2 cache_count */
-} gim__grid;
 
 /* Bucket of a cell before the mask; the shader's cell_hash, in the same uint arithmetic. */
 static uint32_t gim__grid_hash(int32_t x, int32_t y, int32_t z) {
@@ -7283,6 +7294,10 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
         return GIM_OK;
     }
     n = f->neighbour_count ? f->neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
+    if (ls->caches && ctx->ls_version == ctx->scene_version && ctx->ls_scale == scale) {
+        grid = ctx->ls_grid;   /* nothing moved: the world caches and their grid stand */
+        goto vals;
+    }
     /* caches to world space, the compatibility angle (2 theta_eps of the sets, at most 90 degrees) */
     world = (gim_cache *)gim__alloc_array(&ctx->env, total, sizeof(gim_cache));
     if (!world) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", (unsigned)total);
@@ -7304,7 +7319,15 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
     gim__free(&ctx->env, sorted);
     gim__free(&ctx->env, cells);
     gim__free(&ctx->env, buckets);
-    if (r != GIM_OK) return r;
+    if (r != GIM_OK) {
+        ctx->ls_version = ctx->scene_version - 1u;   /* made again next frame */
+        return r;
+    }
+    ctx->ls_version = ctx->scene_version;
+    ctx->ls_scale = scale;
+    ctx->ls_grid = grid;
+    ctx->ls_cos_theta = (float)cos(theta);
+vals:
     gim__stamp(ctx, f->timing, GIM_PASS_CACHES);
     /* the VALs of every light, one after the other */
     for (i = 0; i < ctx->light_count; ++i) {
@@ -7368,7 +7391,7 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
     sa.cache_count = total;
     sa.grid = grid;
     sa.n = n;
-    sa.cos_theta = (float)cos(theta);
+    sa.cos_theta = ctx->ls_cos_theta;
     sa.scene_scale = scale;
     sa.indirect = ctx->indirect;
     sa.format = format;

@@ -420,6 +420,35 @@ static void glossy_sizes_and_no_caches(void **state) {
     bad = compare_with_cpu_frame(&ff, img, 0, 1.1e-3, &max_rel);
     print_message("glossy BRSM, RGBA16F: GPU vs CPU frame max rel %.2e, %u pixels above 1.1e-3\n", max_rel, bad);
     assert_true(bad <= W * H / 200);
+    /* the world caches and their grid are made again only when an instance or mesh changes */
+    {
+        uint64_t v = ff.f.ctx->scene_version;
+        gim_cache *cs = (gim_cache *)malloc(ff.g.cache_count * sizeof *cs);
+        double y_moved = 0.0, y_back = 0.0;
+        uint32_t k;
+        assert_int_equal(gim_set_instances(ff.f.ctx, ff.g.instances, ff.g.mesh_count), GIM_OK);
+        assert_true(ff.f.ctx->scene_version == v && ff.f.ctx->ls_version == v);
+        for (i = 0; i < ff.g.mesh_count; ++i) ff.g.instances[i].model.m[13] += 0.05f;   /* lift everything 5 cm */
+        assert_int_equal(gim_set_instances(ff.f.ctx, ff.g.instances, ff.g.mesh_count), GIM_OK);
+        assert_true(ff.f.ctx->scene_version != v);
+        ff.fr.indirect_float32 = 1;
+        assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+        assert_true(ff.f.ctx->ls_version == ff.f.ctx->scene_version);
+        o = gim_outputs(ff.f.ctx);
+        gltest_read_buffer(o.caches, ff.g.cache_count * sizeof *cs, cs);
+        for (k = 0; k < ff.g.cache_count; ++k) y_moved += cs[k].position[1];
+        read_indirect(&o, img);
+        bad = compare_with_cpu_frame(&ff, img, 0, 5e-4, &max_rel);   /* its caches: the moved ones */
+        print_message("moved instances: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
+        assert_true(bad <= W * H / 200);
+        for (i = 0; i < ff.g.mesh_count; ++i) ff.g.instances[i].model.m[13] -= 0.05f;
+        assert_int_equal(gim_set_instances(ff.f.ctx, ff.g.instances, ff.g.mesh_count), GIM_OK);
+        assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+        gltest_read_buffer(gim_outputs(ff.f.ctx).caches, ff.g.cache_count * sizeof *cs, cs);
+        for (k = 0; k < ff.g.cache_count; ++k) y_back += cs[k].position[1];
+        assert_true(fabs((y_moved - y_back) / ff.g.cache_count - 0.05) < 1e-5);
+        free(cs);
+    }
     /* back to diffuse only: the glossy buffer goes */
     for (i = 0; i < ff.s.material_count; ++i) { m[i].glossy[0] = m[i].glossy[1] = m[i].glossy[2] = 0.0f; }
     assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
