@@ -5044,7 +5044,9 @@ enum {
     GIM__GL_QUERY_RESULT = 0x8866,
     GIM__GL_DYNAMIC_DRAW = 0x88E8,
     GIM__GL_TEXTURE_UPDATE_BARRIER_BIT = 0x00000100,
-    GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT = 0x90DF
+    GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT = 0x90DF,
+    GIM__GL_TEXTURE_INTERNAL_FORMAT = 0x1003,
+    GIM__GL_RGBA32UI = 0x8D70
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -6104,6 +6106,25 @@ static GIM__UNUSED gim_result gim__gl_proxy_occlusion(gim_context *ctx, gim__GLu
 }
 
 
+/* The three RSM textures a pass reads (position, normal, flux as gim__gl_rsm writes them):
+   each size x size and RGBA32F, for the passes that read them bit for bit as rgba32ui images.
+   Inside gim__gl_enter/leave. */
+static gim_result gim__gl_check_rsm(gim_context *ctx, const char *where, const gim__GLuint textures[3], uint32_t size) {
+    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
+    gim_result r = GIM_OK;
+    int i;
+    for (i = 0; i < 3 && r == GIM_OK; ++i) {
+        gim__GLint format = 0;
+        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
+        if (r != GIM_OK) break;
+        ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &format);
+        if (format != GIM__GL_RGBA32F)
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
+                          (unsigned)format);
+    }
+    return r;
+}
+
 #define GIM__GATHER_GROUP 64u   /* local_size_x of vals_gather.comp */
 
 /* The VAL list on the GPU, the twin of gim_vals_gather (paper 000 sec. 3, eq. 13-15).
@@ -6127,8 +6148,6 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
                                                   gim__GLuint rsm_flux, uint32_t size, gim__GLuint selected,
                                                   uint32_t selected_count, gim__GLuint vals_out, uint32_t first) {
     static const char where[] = "VAL gather (GL)";
-    enum { TEXTURE_INTERNAL_FORMAT = 0x1003, RGBA32UI = 0x8D70 };   /* GL_TEXTURE_INTERNAL_FORMAT, GL_RGBA32UI */
-    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3];
     uint64_t count, groups;
@@ -6158,21 +6177,13 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     textures[1] = rsm_normal;
     textures[2] = rsm_flux;
     gim__gl_enter(ctx, where);
-    for (i = 0; i < 3 && r == GIM_OK; ++i) {
-        gim__GLint format = 0;
-        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
-        if (r != GIM_OK) break;
-        gl->GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, TEXTURE_INTERNAL_FORMAT, &format);
-        if (format != GIM__GL_RGBA32F)
-            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
-                          (unsigned)format);
-    }
+    r = gim__gl_check_rsm(ctx, where, textures, size);
     if (r == GIM_OK && selected) r = gim__gl_check_buffer(ctx, where, "selected", selected, (uint64_t)selected_count * 12u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vals_out", vals_out, ((uint64_t)first + count) * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_VALS_GATHER, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     for (i = 0; i < 3; ++i)
-        gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, RGBA32UI);
+        gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, GIM__GL_RGBA32UI);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, selected ? selected : vals_out); /* never read in FULL */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vals_out);
     gl->UseProgram(program);
@@ -6206,8 +6217,6 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
                                                gim__GLuint rsm_flux, uint32_t size, uint32_t count, const float *offsets,
                                                gim__GLuint vpls_out) {
     static const char where[] = "RSM VPLs (GL)";
-    enum { TEXTURE_INTERNAL_FORMAT = 0x1003, RGBA32UI = 0x8D70 };   /* GL_TEXTURE_INTERNAL_FORMAT, GL_RGBA32UI */
-    static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3], scratch[2] = {0, 0};
     uint32_t *texels, i, mode, blocks;
@@ -6234,15 +6243,7 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
     textures[1] = rsm_normal;
     textures[2] = rsm_flux;
     gim__gl_enter(ctx, where);
-    for (i = 0; i < 3 && r == GIM_OK; ++i) {
-        gim__GLint format = 0;
-        r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
-        if (r != GIM_OK) break;
-        gl->GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, TEXTURE_INTERNAL_FORMAT, &format);
-        if (format != GIM__GL_RGBA32F)
-            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s has format 0x%04x, not RGBA32F", names[i],
-                          (unsigned)format);
-    }
+    r = gim__gl_check_rsm(ctx, where, textures, size);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, (uint64_t)count * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_RSM_VPLS, &program);
     if (r == GIM_OK) {
@@ -6259,7 +6260,7 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
     gim__free(&ctx->env, texels);
     if (r == GIM_OK) {
         for (i = 0; i < 3; ++i)
-            gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, RGBA32UI);
+            gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, GIM__GL_RGBA32UI);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, scratch[0]);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vpls_out);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, scratch[1]);
