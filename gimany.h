@@ -909,6 +909,166 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
                                             gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
                                             gim_view_sample *out);
 
+/* twins of the VPL methods: clustered visibility (Dong et al.) and SSVP (Aranha et al.) -------
+   Units: a VPL is a point y_i on a surface with normal n_i and flux Phi_i (W, rgb) that emits
+   like a small Lambertian patch: intensity Phi_i (n_i . omega)+ / pi. A VPL lights a receiver
+   x (normal n_x) with irradiance
+     E_i = Phi_i (n_i . omega)+ (n_x . -omega)+ / (pi max(d^2, d_c^2)) V_i,  omega = (x - y_i) / d,
+   d = |x - y_i|, d_c the clamping distance (Krivanek's slides: the 1 / d^2 singularity traded
+   for bias; the energy it removes is measured by make bench) and V_i the visibility of the
+   VPL's cluster (1 without visibility). A receiver leaves
+     L = rho_d / pi sum E_i + rho_g (k + 2) / (2 pi) sum ((r_i . view)+)^k E_i,
+   r_i = -omega mirrored at n_x, the same lobe as gim_lightskin_shade. SSVP's eq. 6 divides by
+   the total VPL count N; here each VPL's flux already carries its share (first bounce: the
+   RSM's total over the VPLs, gim_rsm_vpls; second bounce: 1 / (S pdf), gim_second_bounce_vpls),
+   which is the same estimator with each bounce normalised by its own sample count.
+
+   Paraboloid maps (Brabec et al. 2002; Dong sec. 4.2; SSVP sec. 3.C): a hemisphere around a
+   cluster's normal n, seen from origin o. With t, b = gim_basis(n), a point p has local
+   l = ((p - o) . t, (p - o) . b, (p - o) . n), direction w = l / |l| and, for w.z >= 0, map
+   point (u, v) = (w.x, w.y) / (1 + w.z) in the unit disk (the stereographic projection: solid
+   angle d omega = 4 du dv / (1 + u^2 + v^2)^2; an angle alpha near w spans alpha / (1 + w.z)).
+   Texel (x, y) of a size^2 map has centre u = (2 x + 1) / size - 1, v = (2 y + 1) / size - 1
+   and direction w = (2 u, 2 v, 1 - u^2 - v^2) / (1 + u^2 + v^2); texels outside the disk
+   (u^2 + v^2 > 1) hold nothing. A point maps to texel x = min(floor((u + 1) size / 2), size - 1),
+   likewise y. Maps are stored layer by layer (one per cluster), rows from y = 0. */
+
+/* One VPL: three vec4, the layout of the GPU's VPL buffers (48 bytes). */
+typedef struct gim_vpl {
+    float position[3];
+    float lit;              /* 1: a VPL; 0: it emits nothing (an unlit RSM texel) */
+    float normal[3];        /* unit */
+    float unused0;
+    float flux[3];          /* Phi, rgb, >= 0 */
+    float unused1;
+} gim_vpl;
+
+/* The paraboloid map of one cluster (a virtual area light, VAL): three vec4 (48 bytes). */
+typedef struct gim_paraboloid {
+    float origin[3];        /* o: the cluster's centre, lifted 1e-4 scene scales along its normal */
+    float near_distance;    /* hits nearer than this are the VAL's own surface, not blockers */
+    float normal[3];        /* n, unit: the axis of the hemisphere */
+    float size;             /* Delta >= 0: the VAL's side, sqrt of its area (penumbra width) */
+    float flux[3];          /* the cluster's summed VPL flux, rgb (lights its second bounce) */
+    float unused;
+} gim_paraboloid;
+
+/* Which low-discrepancy points pick the first-bounce VPLs' texels. */
+typedef enum gim_vpl_sequence {
+    GIM_VPL_SEQUENCE_DEFAULT = 0,   /* = HALTON */
+    GIM_VPL_SEQUENCE_HALTON,        /* Halton points 1..count, bases 2, 3 (Dong sec. 6) */
+    GIM_VPL_SEQUENCE_HAMMERSLEY     /* Hammersley points (i + 0.5) / count, radical inverse base 2 of i (SSVP eq. 1) */
+} gim_vpl_sequence;
+
+/* gim_rsm_vpls with a choice of sequence (gim_rsm_vpls is HALTON); the same rules otherwise.
+   HAMMERSLEY point i of count: (u, v) = ((i + 0.5) / count, gim_van_der_corput(i)), rotated
+   by offsets like the Halton points. */
+GIMANY_API gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
+                                            const float *offsets, float *positions, float *normals, float *flux,
+                                            gim_env env);
+
+/* The paraboloid maps of clustered VPLs (Dong sec. 5-6), the twin of the runtime's cluster
+   pass. Per cluster m with centre c_m and normal n_m (gim_kmeans' centres and normals, or the
+   GPU k-means'): flux = the sum of its VPLs' flux; origin = c_m + 1e-4 scene_scale n_m;
+   size Delta = sqrt(A) with A = 12 sqrt(det C), C the flux-weighted 2x2 covariance of its
+   VPLs' positions projected on the plane of n_m (weights as gim_kmeans' means, plain when the
+   cluster has no flux): the area of the rectangle that a uniform distribution with the same
+   second moments fills, invariant under in-plane rotation like Dong's bounding rectangle but
+   not set by one outlying VPL; near_distance = max(Delta / 2, 1e-4 scene_scale): geometry
+   within the VAL's own extent is what emits it (Dong fig. 7). A cluster without VPLs gets
+   zero flux and size, its centre and normal kept. Sums in double in VPL order.
+   cluster[vpl_count] < cluster_count; centres, normals: cluster_count * 3 (normals unit). */
+GIMANY_API gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
+                                              const float *centres, const float *normals, uint32_t cluster_count,
+                                              float scene_scale, gim_paraboloid *out, gim_env env);
+
+/* What the paraboloid pass writes at one texel. */
+#define GIM_PARABOLOID_EMPTY 3.0e38f   /* distance where the texel sees nothing */
+typedef struct gim_paraboloid_texel {
+    float distance;         /* from the origin along the texel's direction to the nearest hit
+                               beyond near_distance; GIM_PARABOLOID_EMPTY where none */
+    float position[3];      /* the hit, world */
+    float normal[3];        /* unit, towards the origin (two-sided) */
+    float albedo[3];        /* diffuse rgb of the hit triangle */
+    int hit;                /* 1 where a surface is */
+    uint32_t triangle;      /* UINT32_MAX: none */
+} gim_paraboloid_texel;
+
+/* Twin of the paraboloid pass at texel (x, y) of the size^2 map of map (see the convention
+   above): the ray from the origin through the texel centre's direction against the scene. */
+GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, const gim_paraboloid *map, uint32_t size,
+                                                uint32_t x, uint32_t y, gim_paraboloid_texel *out);
+
+/* Soft visibility of a cluster's VAL from receiver x (Dong sec. 4: a PCSS-style blocker search
+   and filter on its paraboloid map; distance: the map's size^2 distances). *out in [0, 1];
+   1 where x lies behind the VAL's plane (w.z <= 0: the map knows nothing there, Dong fig. 7).
+   See the implementation for the kernel and the bias. */
+GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
+                                                gim_vec3 receiver, float *out);
+
+/* Input of gim_second_bounce_vpls; zero means default. */
+typedef struct gim_second_bounce_desc {
+    const gim_paraboloid *maps;     /* map_count clusters (origin, normal, flux used) */
+    uint32_t map_count;
+    uint32_t size;                  /* side of each map */
+    const float *position;          /* map_count * size^2 * 4: hit position, w = 1 where hit */
+    const float *normal;            /* map_count * size^2 * 4: unit normal towards the origin */
+    const float *albedo;            /* map_count * size^2 * 4: diffuse rgb */
+    uint32_t vpl_count;             /* S: map m takes S / map_count VPLs, one more for m < S mod map_count */
+    gim_env env;
+} gim_second_bounce_desc;
+
+/* Second-bounce VPLs (SSVP sec. 3.C): map m's j-th of S_m VPLs is at the texel under the
+   area-preserving unit-disk point gim_square_to_disk of the Hammersley point ((j + 0.5) / S_m,
+   radical inverse base 2 of j), the surface its cluster sees in that direction; it carries
+     Phi = albedo * Phi_m w.z / (pi S_m pdf),  pdf = (1 + u^2 + v^2)^2 / (4 pi)
+   (w and u, v of the texel centre): the cluster as a cosine emitter of its summed flux Phi_m,
+   the solid angle 1 / (S_m pdf) of each sample, and the hit's own distance and cosine
+   cancelling between the irradiance and the area the sample stands for. A texel with no hit
+   gives an unlit VPL. out[vpl_count], in map order. */
+GIMANY_API gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out);
+
+/* Input of gim_vpl_shade; zero means default. */
+typedef struct gim_vpl_shade_desc {
+    const gim_vpl *vpls;
+    uint32_t vpl_count;
+    const uint32_t *cluster;        /* vpl_count: the map of each VPL's cluster, UINT32_MAX for none
+                                       (unshadowed); NULL: no visibility at all */
+    const gim_paraboloid *maps;
+    uint32_t map_count;
+    const float *distance;          /* map_count * map_size^2 distances (gim_paraboloid_texel's) */
+    uint32_t map_size;
+    const gim_receiver *receivers;  /* width * height, row-major, row 0 first; a zero normal: no surface */
+    uint32_t width, height;
+    uint32_t interleave;            /* k (Dong sec. 6, Segovia et al.): pixel (x, y) takes the VPLs with
+                                       i mod k^2 = s, s = x mod k + k (y mod k), their sum scaled by
+                                       N / n_s (n_s: how many there are); 0 or 1: every VPL */
+    float clamp_distance;           /* d_c (lengths), >= 0; 0: no clamping */
+    float scene_scale;              /* > 0 */
+    gim_env env;
+} gim_vpl_shade_desc;
+
+/* Indirect radiance of every receiver from the VPLs (units above), rgb into
+   radiance_out[width * height * 3]; one independent invocation per pixel, VPLs in index order. */
+GIMANY_API gim_result gim_vpl_shade(const gim_vpl_shade_desc *desc, float *radiance_out);
+
+/* Input of gim_geometry_blur; zero means default. */
+typedef struct gim_blur_desc {
+    const float *radiance;          /* width * height * 3 (gim_vpl_shade's) */
+    const gim_receiver *receivers;  /* width * height, as gim_vpl_shade's */
+    uint32_t width, height;
+    uint32_t window;                /* k: the k x k window [x - k/2, x + k/2 - 1]^2 holds every interleaved
+                                       subset once; 0 or 1: a copy */
+    float position_tolerance;       /* > 0: neighbours farther than this from the pixel are left out */
+    float normal_tolerance;         /* neighbours with n . n_x below this are left out; 0: 0.8 */
+    gim_env env;
+} gim_blur_desc;
+
+/* Geometry-aware blur (Dong sec. 6 after Laine et al.): each pixel with a surface becomes the
+   mean of the pixels with a surface in its window that pass both tolerances (it passes itself);
+   pixels without a surface get 0. out[width * height * 3], not the input. */
+GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
+
 #ifdef __cplusplus
 }
 #endif
