@@ -1175,8 +1175,15 @@ typedef enum gim_method {
     GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
     GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs per light drawn by importance (paper 000 sec. 4) */
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
-    GIM_METHOD_RSM_GATHER           /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
+    GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
                                        gim_rsm_gather): the baseline, no caches, no visibility */
+    GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric, the same
+                                       seeds every frame) into cluster_count VALs, one paraboloid soft
+                                       shadow map each; every VPL shades with its VAL's visibility */
+    GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric, warm
+                                       start from the last frame), a paraboloid map per cluster with
+                                       position, normal and albedo whose unit-disk samples are the
+                                       second-bounce VPLs; both bounces shade (bounces = 2 by default) */
 } gim_method;
 
 /* Input of gim_update; zero means default. */
@@ -1203,6 +1210,21 @@ typedef struct gim_frame {
     float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
     uint32_t gather_samples;    /* RSM_GATHER: texels per pixel and light; 0: 256; at most 16384 */
     float gather_radius;        /* RSM_GATHER: pattern radius as a fraction of the RSM side; 0: 0.15 */
+    /* the VPL methods (CLUSTERED, SSVP); see the twins of the VPL methods in @section twins */
+    uint32_t vpl_count;         /* first-bounce VPLs per light; 0: 1024 (CLUSTERED) or 256 (SSVP); <= 32768 in all */
+    uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
+                                   <= 256 and <= the VPLs */
+    uint32_t kmeans_iterations; /* k-means steps per frame; 0: 8 (CLUSTERED, from the fixed seeds) or 3 (SSVP,
+                                   from the last frame's centres) */
+    uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
+    int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
+                                   still renders its attribute maps) */
+    uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs from the maps */
+    uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
+    uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
+                                   k x k; 0: 8 (Dong sec. 6); 1: every VPL at every pixel, no blur */
+    float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
+    float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
     int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
                                    2: also glFinish before each, so a driver that runs queued work
                                    at the next flush (llvmpipe) charges it to its pass; it
@@ -1269,6 +1291,17 @@ typedef struct gim_frame_outputs {
     uint32_t neighbour_count;   /* n of the interpolation */
     float neighbour_cos;        /* cosine of the normal compatibility angle */
     float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
+    /* VPL methods (0 otherwise); indirect as above */
+    uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
+    uint32_t vpl_count;
+    uint32_t first_bounce_count; /* VPLs [0, first_bounce_count) are the first bounce */
+    uint32_t vpl_clusters;      /* SSBO: vpl_count uint, each VPL's cluster (0xffffffff: none, unshadowed) */
+    uint32_t clusters;          /* SSBO: cluster_count gim_paraboloid */
+    uint32_t cluster_count;
+    uint32_t kmeans_centres;    /* SSBO: cluster_count {vec4 centre (w: VPLs), vec4 normal} */
+    uint32_t paraboloid_size;
+    uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
+    uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
 } gim_frame_outputs;
 
 /* The outputs of the last gim_update (all zero for NULL). */
@@ -1286,7 +1319,12 @@ typedef enum gim_pass {
     GIM_PASS_VALS,
     GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
     GIM_PASS_OCCLUSION,
-    GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading */
+    GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading; the VPL methods' shading */
+    GIM_PASS_VPLS,              /* VPLs from the RSMs */
+    GIM_PASS_KMEANS,            /* k-means steps and the clusters' VALs */
+    GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
+    GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
+    GIM_PASS_BLUR,              /* geometry-aware blur */
     GIM_PASS_COUNT
 } gim_pass;
 
@@ -4496,11 +4534,17 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
 }
 
 /* The RSM texel of VPL i: Halton point i + 1 in bases 2, 3 (gim_halton_points). */
-static void gim__rsm_vpl_texel(uint32_t i, uint32_t width, uint32_t height, const float *offsets, uint32_t *x,
-                               uint32_t *y) {
+static void gim__rsm_vpl_texel(uint32_t i, uint32_t count, gim_vpl_sequence sequence, uint32_t width, uint32_t height,
+                               const float *offsets, uint32_t *x, uint32_t *y) {
     float uv[2];
     double fx, fy;
-    gim_halton_points(uv, 1, 2, i + 1u, offsets);
+    if (sequence == GIM_VPL_SEQUENCE_HAMMERSLEY) {   /* SSVP eq. 1, centred in its stratum */
+        uv[0] = (float)(((double)i + 0.5) / (double)count);
+        uv[1] = (float)gim_van_der_corput(i);
+        if (offsets) { uv[0] = gim_rotate01(uv[0], offsets[0]); uv[1] = gim_rotate01(uv[1], offsets[1]); }
+    } else {
+        gim_halton_points(uv, 1, 2, i + 1u, offsets);
+    }
     fx = floor((double)uv[0] * width);
     fy = floor((double)uv[1] * height);
     *x = fx < (double)width ? (uint32_t)fx : width - 1u;
@@ -4518,6 +4562,12 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
 
 GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
                                    float *normals, float *flux, gim_env env) {
+    return gim_rsm_vpls_sequence(rsm, count, GIM_VPL_SEQUENCE_HALTON, offsets, positions, normals, flux, env);
+}
+
+GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
+                                            const float *offsets, float *positions, float *normals, float *flux,
+                                            gim_env env) {
     static const char fn[] = "gim_rsm_vpls";
     double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
     uint32_t i, x, y;
@@ -4531,6 +4581,8 @@ GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, cons
                          (unsigned)rsm->height, (unsigned)count);
     if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "offsets must be in [0,1)");
+    if ((unsigned)sequence > (unsigned)GIM_VPL_SEQUENCE_HAMMERSLEY)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown sequence %d", (int)sequence);
     /* T: each row in x order, then the rows (the GPU's per-row invocations) */
     for (y = 0; y < rsm->height; ++y) {
         double row[3] = {0.0, 0.0, 0.0};
@@ -4549,7 +4601,7 @@ GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, cons
         uint32_t e = count - i < GIM_RSM_VPL_BLOCK ? count : i + GIM_RSM_VPL_BLOCK, k;
         for (k = i; k < e; ++k) {
             size_t t;
-            gim__rsm_vpl_texel(k, rsm->width, rsm->height, offsets, &x, &y);
+            gim__rsm_vpl_texel(k, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
             t = (size_t)y * rsm->width + x;
             if (gim__rsm_vpl_lit(rsm, t))
                 for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + a];
@@ -4560,7 +4612,7 @@ GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, cons
     for (i = 0; i < count; ++i) {
         size_t t;
         int lit;
-        gim__rsm_vpl_texel(i, rsm->width, rsm->height, offsets, &x, &y);
+        gim__rsm_vpl_texel(i, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
         t = (size_t)y * rsm->width + x;
         lit = gim__rsm_vpl_lit(rsm, t);
         {   /* position and normal copied where finite (an unlit texel may hold anything) */
@@ -4604,6 +4656,81 @@ GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, g
         c.normal[0] = (float)(n.x / len); c.normal[1] = (float)(n.y / len); c.normal[2] = (float)(n.z / len);
         c.area = (float)area;
         out[i] = c;
+    }
+    return GIM_OK;
+}
+
+/* The clusters' VALs and paraboloid maps (see the declaration): one independent loop per
+   cluster over the VPLs in index order, as the GPU pass (clusters.comp) runs it. */
+GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
+                                              const float *centres, const float *normals, uint32_t cluster_count,
+                                              float scene_scale, gim_paraboloid *out, gim_env env) {
+    static const char fn[] = "gim_cluster_paraboloids";
+    uint32_t i, m;
+    if (!vpls || !cluster || !centres || !normals || !out)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpls, cluster, centres, normals and out are required");
+    if (vpl_count == 0 || cluster_count == 0)
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpl_count (%u) and cluster_count (%u) must be > 0",
+                         (unsigned)vpl_count, (unsigned)cluster_count);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and > 0", (double)scene_scale);
+    for (m = 0; m < cluster_count; ++m) {
+        const float *n = normals + 3 * m;
+        if (!gim__all_finite(centres + 3 * m, 3) || !gim__all_finite(n, 3) || n[0] * n[0] + n[1] * n[1] + n[2] * n[2] == 0.0f)
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "cluster %u: centre or normal not finite, or a zero normal",
+                             (unsigned)m);
+    }
+    for (i = 0; i < vpl_count; ++i) {
+        const gim_vpl *v = vpls + i;
+        if (cluster[i] >= cluster_count)
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: cluster %u >= %u", (unsigned)i,
+                             (unsigned)cluster[i], (unsigned)cluster_count);
+        if (!gim__all_finite(v->position, 3) || !gim__all_finite(v->flux, 3) || v->flux[0] < 0.0f || v->flux[1] < 0.0f ||
+            v->flux[2] < 0.0f)
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: position or flux not finite, or negative flux",
+                             (unsigned)i);
+    }
+    for (m = 0; m < cluster_count; ++m) {
+        gim_paraboloid *p = out + m;
+        gim_vec3 n = gim_v3_normalize(gim_v3(normals[3 * m], normals[3 * m + 1], normals[3 * m + 2])), t, b;
+        double c[3], f[3] = {0.0, 0.0, 0.0}, w[2] = {0.0, 0.0}, s1[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
+        double s2[2][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};   /* [weighted, plain] x (ss, tt, st) */
+        double area = 0.0, det;
+        int k, plain;
+        float lift = 1e-4f * scene_scale;
+        gim_basis(n, &t, &b);
+        for (k = 0; k < 3; ++k) c[k] = centres[3 * m + k];
+        for (i = 0; i < vpl_count; ++i) {
+            const gim_vpl *v = vpls + i;
+            double d[3], ps, pt, wi;
+            if (cluster[i] != m) continue;
+            for (k = 0; k < 3; ++k) d[k] = (double)v->position[k] - c[k];
+            ps = d[0] * t.x + d[1] * t.y + d[2] * t.z;
+            pt = d[0] * b.x + d[1] * b.y + d[2] * b.z;
+            wi = ((double)v->flux[0] + v->flux[1] + v->flux[2]) / 3.0;   /* gim_kmeans' weight */
+            for (k = 0; k < 3; ++k) f[k] += v->flux[k];
+            w[0] += wi; w[1] += 1.0;
+            s1[0][0] += wi * ps; s1[0][1] += wi * pt;
+            s1[1][0] += ps;      s1[1][1] += pt;
+            s2[0][0] += wi * ps * ps; s2[0][1] += wi * pt * pt; s2[0][2] += wi * ps * pt;
+            s2[1][0] += ps * ps;      s2[1][1] += pt * pt;      s2[1][2] += ps * pt;
+        }
+        plain = !(w[0] > 0.0);
+        if (w[1] > 0.0) {   /* covariance of the projected positions; area of the uniform rectangle */
+            int q = plain ? 1 : 0;
+            double W = w[q], ms = s1[q][0] / W, mt = s1[q][1] / W;
+            double css = s2[q][0] / W - ms * ms, ctt = s2[q][1] / W - mt * mt, cst = s2[q][2] / W - ms * mt;
+            det = css * ctt - cst * cst;
+            area = det > 0.0 ? 12.0 * sqrt(det) : 0.0;
+        }
+        p->origin[0] = centres[3 * m] + lift * n.x;
+        p->origin[1] = centres[3 * m + 1] + lift * n.y;
+        p->origin[2] = centres[3 * m + 2] + lift * n.z;
+        p->normal[0] = n.x; p->normal[1] = n.y; p->normal[2] = n.z;
+        p->size = (float)sqrt(area);
+        p->near_distance = 0.5f * p->size > lift ? 0.5f * p->size : lift;
+        for (k = 0; k < 3; ++k) p->flux[k] = f[k] < (double)FLT_MAX ? (float)f[k] : FLT_MAX;
+        p->unused = 0.0f;
     }
     return GIM_OK;
 }
@@ -5313,6 +5440,9 @@ enum {
                         gim__GLfloat v3))                                                        \
     X(void, BufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size,      \
                             const void *data))                                                   \
+    X(void, CopyBufferSubData, (gim__GLenum read_target, gim__GLenum write_target,               \
+                                gim__GLintptr read_offset, gim__GLintptr write_offset,           \
+                                gim__GLsizeiptr size))                                           \
     X(gim__GLboolean, IsEnabledi, (gim__GLenum cap, gim__GLuint index))                          \
     X(void, Enablei, (gim__GLenum cap, gim__GLuint index))                                       \
     X(void, Disablei, (gim__GLenum cap, gim__GLuint index))                                      \
@@ -5598,6 +5728,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
     GIM__PROGRAM_KMEANS_ASSIGN,      /* k-means assignment per VPL (Dong 5.1, SSVP eq. 2) */
     GIM__PROGRAM_KMEANS_UPDATE,      /* k-means flux-weighted means per cluster (a gather) */
+    GIM__PROGRAM_CLUSTERS,           /* k-means seeds; the clusters' VALs and paraboloid maps */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -5618,7 +5749,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"vals_gather.comp", NULL},
     {"rsm_vpls.comp", NULL},
     {"kmeans_assign.comp", NULL},
-    {"kmeans_update.comp", NULL}};
+    {"kmeans_update.comp", NULL},
+    {"clusters.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -5656,6 +5788,17 @@ typedef struct gim__lightskin_gpu {
     gim__GLuint caches, cells, buckets, vals, diffuse, glossy;
     uint64_t caches_bytes, cells_bytes, buckets_bytes, vals_bytes, diffuse_bytes, glossy_bytes;
 } gim__lightskin_gpu;
+
+/* The GPU state of the VPL methods (see "the VPL frame"), sized to what the last frame used. */
+typedef struct gim__vpl_gpu {
+    gim__GLuint vpls;             /* gim_vpl: first bounce (every light's), then the second */
+    gim__GLuint staging;          /* one light's VPLs before they are copied behind the others' */
+    gim__GLuint cluster_of;       /* uint per VPL: the k-means assignment, 0xffffffff for the second bounce */
+    gim__GLuint centres;          /* k-means centres {vec4 centre (w: VPLs), vec4 normal} */
+    gim__GLuint maps;             /* gim_paraboloid per cluster */
+    uint64_t vpls_bytes, staging_bytes, cluster_of_bytes, centres_bytes, maps_bytes;
+    uint32_t warm_clusters, warm_vpls; /* what the centres were made for (SSVP's warm start); 0: none */
+} gim__vpl_gpu;
 
 #define GIM__MAX_STAMPS 96   /* timestamps a frame may take: 1 + 4 per light + 7 */
 
@@ -5703,6 +5846,7 @@ struct gim_context {
     float ls_cos_theta;
     gim__GLuint gather_samples, gather_sum;  /* RSM gather: the pattern, the per-pixel sum over lights */
     uint64_t gather_samples_bytes, gather_sum_bytes;
+    gim__vpl_gpu vpl;             /* the VPL methods (CLUSTERED, SSVP; see "the VPL frame") */
     /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
     gim__GLuint queries[GIM__MAX_STAMPS];
     uint32_t query_count, stamp_count;
@@ -5710,6 +5854,8 @@ struct gim_context {
     gim_stats stats;
     gim_frame_outputs outputs;
 };
+
+static void gim__vpl_release(gim_context *ctx);
 
 /* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
    error the host left pending is logged and cleared, so it is not blamed on gimany. */
@@ -6361,7 +6507,7 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
 }
 
 /* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls (see there):
-   count VPLs at the Halton texels 1..count (rotated by offsets, 2 values in [0,1), or NULL) of
+   count VPLs at the texels of sequence (gim_rsm_vpls_sequence; rotated by offsets, 2 values in [0,1), or NULL) of
    the size x size RSM textures (RGBA32F as gim__gl_rsm writes them: position.w > 0 where lit,
    normal.w area, flux.rgb; read as rgba32ui images like gim__gl_vals_gather, complete by
    their own state), into vpls_out: an SSBO of at least count {vec4 position (w: 1 lit, 0
@@ -6374,8 +6520,8 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    over size + count / GIM_RSM_VPL_BLOCK partials). The texel list and the partial sums live
    in two buffers made and deleted by the call. Cost: size^2 + 3 count texel reads. */
 static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
-                                               gim__GLuint rsm_flux, uint32_t size, uint32_t count, const float *offsets,
-                                               gim__GLuint vpls_out) {
+                                               gim__GLuint rsm_flux, uint32_t size, uint32_t count,
+                                               gim_vpl_sequence sequence, const float *offsets, gim__GLuint vpls_out) {
     static const char where[] = "RSM VPLs (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3], scratch[2] = {0, 0};
@@ -6398,7 +6544,7 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
                          (unsigned)count);
     texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
     if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
-    for (i = 0; i < count; ++i) gim__rsm_vpl_texel(i, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+    for (i = 0; i < count; ++i) gim__rsm_vpl_texel(i, count, sequence, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
     textures[0] = rsm_position;
     textures[1] = rsm_normal;
     textures[2] = rsm_flux;
@@ -6953,6 +7099,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     gl->DeleteBuffers(6, b);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
+    gim__vpl_release(ctx);
     if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
     if (ctx->nearest_sampler) gl->DeleteSamplers(1, &ctx->nearest_sampler);
@@ -7654,6 +7801,191 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
 }
 
 /* Argument checks of gim_update that need no GL. */
+/* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
+   Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
+   RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (seeded every
+   frame for CLUSTERED, warm from the last frame's centres for SSVP) -> the clusters' VALs and
+   paraboloid parameters (clusters.comp) -> one layered pass of paraboloid maps (depth for
+   visibility; position, normal, albedo for the second bounce) -> second-bounce VPLs -> per
+   pixel shading of every VPL (interleaved) with its cluster's soft visibility -> the
+   geometry-aware blur. Only what the frame enables is made: no maps without visibility or a
+   second bounce, no attribute maps at one bounce, no blur buffer without interleaving. */
+
+#define GIM__VPL_MAX 32768u       /* first-bounce VPLs of all lights: one loop of clusters.comp */
+#define GIM__VPL_MAX_CLUSTERS 256u
+#define GIM__VPL_MAX_SECOND 65536u
+
+static void gim__vpl_release(gim_context *ctx) {
+    gim__vpl_gpu *v = &ctx->vpl;
+    gim__GLuint b[5];
+    b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
+    ctx->gl.DeleteBuffers(5, b);
+    memset(v, 0, sizeof *v);
+}
+
+/* The resolved settings of a VPL frame (gim_frame's zeros made defaults). */
+typedef struct gim__vpl_settings {
+    int ssvp, visibility;
+    uint32_t vpls, clusters, iterations, size, bounces, second, interleave;
+    float clamp_distance, blur_distance;   /* in scene scales (clamp 0: none) */
+} gim__vpl_settings;
+
+static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
+    s->ssvp = f->method == GIM_METHOD_SSVP;
+    s->visibility = !f->no_visibility;
+    s->vpls = f->vpl_count ? f->vpl_count : s->ssvp ? 256u : 1024u;
+    s->clusters = f->cluster_count ? f->cluster_count : s->ssvp ? 8u : 30u;
+    s->iterations = f->kmeans_iterations ? f->kmeans_iterations : s->ssvp ? 3u : 8u;
+    s->size = f->paraboloid_size ? f->paraboloid_size : 256u;
+    s->bounces = f->bounces ? f->bounces : s->ssvp ? 2u : 1u;
+    s->second = s->bounces == 2u ? (f->second_bounce_vpls ? f->second_bounce_vpls : 256u) : 0u;
+    s->interleave = f->interleave ? f->interleave : 8u;
+    s->clamp_distance = f->clamp_distance < 0.0f ? 0.0f : f->clamp_distance > 0.0f ? f->clamp_distance : 0.01f;
+    s->blur_distance = f->blur_distance > 0.0f ? f->blur_distance : 0.1f;
+}
+
+/* The VPL fields of a frame, checked before any GL work (lights: the context's count). */
+static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
+    static const char where[] = "gim_update";
+    gim__vpl_settings s;
+    uint32_t lights = ctx->light_count ? ctx->light_count : 1u;
+    if (!gim__isfinitef(f->clamp_distance) || !gim__isfinitef(f->blur_distance) || f->blur_distance < 0.0f)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
+                         "(blur_distance >= 0)");
+    if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
+    gim__vpl_settings_of(f, &s);
+    if ((uint64_t)s.vpls * lights > GIM__VPL_MAX)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs per light x %u lights above %u", (unsigned)s.vpls,
+                         (unsigned)lights, GIM__VPL_MAX);
+    if (s.clusters > GIM__VPL_MAX_CLUSTERS || s.clusters > s.vpls * lights)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cluster_count %u: at most %u and at most the VPLs (%u)",
+                         (unsigned)s.clusters, GIM__VPL_MAX_CLUSTERS, (unsigned)(s.vpls * lights));
+    if (s.iterations > 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "kmeans_iterations %u above 64", (unsigned)s.iterations);
+    if (s.size > 2048u || s.size > (uint32_t)ctx->max_texture_size || s.size > (uint32_t)ctx->max_viewport[0] ||
+        s.size > (uint32_t)ctx->max_viewport[1])
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "paraboloid_size %u above 2048 or the GL limits",
+                         (unsigned)s.size);
+    if (s.bounces > 2u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "bounces %u: 1 or 2", (unsigned)s.bounces);
+    if (s.second > GIM__VPL_MAX_SECOND)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "second_bounce_vpls %u above %u", (unsigned)s.second,
+                         GIM__VPL_MAX_SECOND);
+    if (s.interleave > 32u || s.interleave * s.interleave > s.vpls * lights + s.second)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "interleave %u: at most 32, and k^2 at most the VPLs",
+                         (unsigned)s.interleave);
+    return GIM_OK;
+}
+
+/* The k-means seeds (mode 1), the repair of empty clusters (mode 2: one dispatch per cluster,
+   each a single invocation that does nothing unless its cluster is empty) or the clusters' VALs
+   and paraboloid parameters (mode 0, the twin of gim_cluster_paraboloids): clusters.comp on
+   ctx->vpl's buffers. */
+static gim_result gim__gl_clusters(gim_context *ctx, uint32_t vpl_count, uint32_t cluster_count, float scale, uint32_t mode) {
+    static const char where[] = "clusters (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_CLUSTERS, &program);
+    if (r != GIM_OK) return r;
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->vpl.vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->vpl.centres);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->vpl.cluster_of);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->vpl.maps);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, vpl_count);
+    gl->Uniform1ui(1, cluster_count);
+    gl->Uniform1f(2, scale);
+    gl->Uniform1ui(3, mode);
+    if (mode == 2u) {
+        uint32_t e;
+        for (e = 0; e < cluster_count; ++e) {
+            gl->Uniform1ui(4, e);
+            gl->DispatchCompute(1u, 1u, 1u);
+            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        }
+    } else {
+        gl->DispatchCompute((cluster_count + 63u) / 64u, 1u, 1u);
+    }
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* Every VPL's cluster reset to none (0xffffffff): the k-means' first assignment, and the
+   second bounce's "unshadowed". */
+static gim_result gim__gl_clusters_reset(gim_context *ctx, uint32_t count) {
+    uint32_t *none = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof(uint32_t));
+    if (!none) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, "gim_update", "%u VPL clusters", (unsigned)count);
+    memset(none, 0xff, (size_t)count * sizeof(uint32_t));
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->vpl.cluster_of);
+    ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 4, none);
+    gim__free(&ctx->env, none);
+    return GIM_OK;
+}
+
+static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
+                                    gim_frame_outputs *o) {
+    static const char where[] = "gim_update";
+    gim__vpl_gpu *v = &ctx->vpl;
+    gim__vpl_settings s;
+    uint32_t i, first, total, it;
+    gim_result r = GIM_OK;
+    int warm;
+    (void)depth; (void)normal;
+    gim__vpl_settings_of(f, &s);
+    if (ctx->light_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
+    first = s.vpls * ctx->light_count;
+    total = first + s.second;
+    /* first-bounce VPLs, one light after the other */
+    r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
+    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
+    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
+    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->maps, &v->maps_bytes, (uint64_t)s.clusters * 48u, where);
+    if (r == GIM_OK && ctx->light_count > 1u)
+        r = gim__gl_sized_buffer(ctx, &v->staging, &v->staging_bytes, (uint64_t)s.vpls * 48u, where);
+    if (r == GIM_OK && ctx->light_count == 1u && v->staging) {
+        ctx->gl.DeleteBuffers(1, &v->staging);
+        v->staging = 0; v->staging_bytes = 0;
+    }
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        r = gim__gl_rsm_vpls(ctx, g->position, g->normal, g->flux, g->size, s.vpls,
+                             s.ssvp ? GIM_VPL_SEQUENCE_HAMMERSLEY : GIM_VPL_SEQUENCE_HALTON, NULL,
+                             ctx->light_count > 1u ? v->staging : v->vpls);
+        if (r == GIM_OK && ctx->light_count > 1u) {
+            ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->staging);
+            ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->vpls);
+            ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER, 0,
+                                      (gim__GLintptr)((uint64_t)i * s.vpls * 48u), (gim__GLsizeiptr)s.vpls * 48);
+            r = gim__gl_check(ctx, where);
+        }
+    }
+    gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
+    /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
+    warm = s.ssvp && v->warm_clusters == s.clusters && v->warm_vpls == first;
+    if (r == GIM_OK) r = gim__gl_clusters_reset(ctx, total);
+    if (r == GIM_OK && !warm) r = gim__gl_clusters(ctx, first, s.clusters, scale, 1u);
+    for (it = 0; it < s.iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */
+        r = gim__gl_kmeans_step(ctx, v->vpls, first, v->centres, s.clusters, v->cluster_of,
+                                s.ssvp ? GIM_KMEANS_METRIC_SSVP : GIM_KMEANS_METRIC_DONG, 0.0f, 0.0f, scale);
+        if (r == GIM_OK) r = gim__gl_clusters(ctx, first, s.clusters, scale, 2u);
+    }
+    if (r == GIM_OK) r = gim__gl_clusters(ctx, first, s.clusters, scale, 0u);
+    v->warm_clusters = r == GIM_OK ? s.clusters : 0u;
+    v->warm_vpls = r == GIM_OK ? first : 0u;
+    gim__stamp(ctx, f->timing, GIM_PASS_KMEANS);
+    if (r != GIM_OK) return r;
+    /* MERGE: paraboloid maps, second bounce, shading, blur */
+    o->vpls = v->vpls;
+    o->vpl_count = total;
+    o->first_bounce_count = first;
+    o->vpl_clusters = v->cluster_of;
+    o->clusters = v->maps;
+    o->cluster_count = s.clusters;
+    o->kmeans_centres = v->centres;
+    o->paraboloid_size = s.size;
+    return GIM_OK;
+}
+
 static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
     static const char where[] = "gim_update";
     gim_mat4 inv;
@@ -7679,8 +8011,9 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         f->importance_clamp < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
     if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL &&
-        f->method != GIM_METHOD_RSM_GATHER)
+        f->method != GIM_METHOD_RSM_GATHER && f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
+    if (gim__vpl_check(ctx, f) != GIM_OK) return GIM_ERROR_OUT_OF_RANGE;
     if (f->gather_samples > 16384u || !gim__isfinitef(f->gather_radius) || f->gather_radius < 0.0f || f->gather_radius > 2.0f)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
@@ -7725,7 +8058,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     gim__GLuint depth, normal;
     gim_result r;
     double diag;
-    int full, gather;
+    int full, gather, vplm;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     r = gim__frame_check(ctx, frame, bmin, bmax);
@@ -7763,7 +8096,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
     val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
     gather = frame->method == GIM_METHOD_RSM_GATHER;
-    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather;   /* neither needs importance */
+    vplm = frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP;
+    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather || vplm;   /* none needs importance */
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
     gim__gl_enter(ctx, where);
@@ -7830,6 +8164,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         b[5] = ctx->ls.glossy;
         ctx->gl.DeleteBuffers(6, b);
         memset(&ctx->ls, 0, sizeof ctx->ls);
+        gim__vpl_release(ctx);
         r = ctx->light_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
                                                   frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
                              : GIM_OK;
@@ -7838,12 +8173,22 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             gim__stamp(ctx, frame->timing, GIM_PASS_SHADE);
         }
     } else if (r == GIM_OK) {
-        gim__GLuint b[2];   /* no gather buffers in a LightSkin frame */
+        gim__GLuint b[2];   /* no gather buffers in a LightSkin or VPL frame */
         b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
         ctx->gl.DeleteBuffers(2, b);
         ctx->gather_samples = ctx->gather_sum = 0;
         ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
-        r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+        if (vplm) {
+            gim__GLuint l[6];   /* no LightSkin buffers in a VPL frame */
+            l[0] = ctx->ls.caches; l[1] = ctx->ls.cells; l[2] = ctx->ls.buckets; l[3] = ctx->ls.vals;
+            l[4] = ctx->ls.diffuse; l[5] = ctx->ls.glossy;
+            ctx->gl.DeleteBuffers(6, l);
+            memset(&ctx->ls, 0, sizeof ctx->ls);
+            r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o);
+        } else {
+            gim__vpl_release(ctx);
+            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+        }
     }
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     o.valid = 1;
@@ -7906,6 +8251,8 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
+    b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
+         ctx->vpl.maps_bytes;
     return b;
 }
 

@@ -86,7 +86,8 @@ static void json_string(FILE *f, const char *s) {
 }
 
 static const char *pass_names[GIM_PASS_COUNT] = {"rsm", "gbuffer", "view_samples", "importance_map", "cumsum", "select",
-                                                 "caches", "vals", "proxy_lights", "occlusion", "shade"};
+                                                 "caches", "vals", "proxy_lights", "occlusion", "shade", "vpls",
+                                                 "kmeans", "paraboloid", "second_bounce", "blur"};
 
 typedef struct demo_run {
     scene s;

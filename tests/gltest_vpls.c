@@ -99,7 +99,8 @@ typedef struct vpl_stats {
 
 /* One pass of count VPLs against the twin; the buffer holds count + 3 VPLs, the last 3 must
    keep their sentinel. */
-static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, const float *offsets, vpl_stats *st) {
+static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vpl_sequence seq, const float *offsets,
+                     vpl_stats *st) {
     gim_rsm_data d = rsm_data(r);
     float *p = (float *)malloc(count * 12), *n = (float *)malloc(count * 12), *fl = (float *)malloc(count * 12);
     float *gpu = (float *)malloc((count + 3) * 48);
@@ -108,8 +109,8 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, const 
     GLuint out;
     for (i = 0; i < (count + 3) * 12; ++i) gpu[i] = -7.0f;
     out = gltest_ssbo((count + 3) * 48, gpu);
-    assert_int_equal(gim_rsm_vpls(&d, count, offsets, p, n, fl, f->env), GIM_OK);
-    assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, offsets, out), GIM_OK);
+    assert_int_equal(gim_rsm_vpls_sequence(&d, count, seq, offsets, p, n, fl, f->env), GIM_OK);
+    assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, seq, offsets, out), GIM_OK);
     gltest_state_unchanged(f);
     gltest_read_buffer(out, (count + 3) * 48, gpu);
     for (i = count * 12; i < (count + 3) * 12; ++i) assert_true(gpu[i] == -7.0f);
@@ -178,7 +179,9 @@ static void matches_twin(void **state) {
             if (sizes[s] == 1) r.position4[3] = r.valid[0] = 1.0f;   /* one lit texel */
             if (sizes[s] == 1) { glDeleteTextures(3, r.tex); r.tex[0] = texture_rgba(1, r.position4);
                                  r.tex[1] = texture_rgba(1, r.normal4); r.tex[2] = texture_rgba(1, r.flux4); }
-            for (c = 0; c < 4; ++c) vpls_one(&f, &r, counts[c], (c + o) % 2 ? off : NULL, &st);
+            for (c = 0; c < 4; ++c)
+                vpls_one(&f, &r, counts[c], c % 2 ? GIM_VPL_SEQUENCE_HAMMERSLEY : GIM_VPL_SEQUENCE_HALTON,
+                         (c + o) % 2 ? off : NULL, &st);
             rsm_free(&r);
         }
     print_message("RSM VPLs: %u VPLs (%u unlit), largest relative flux error %.3g\n", st.vpls, st.unlit, st.flux);
@@ -206,14 +209,14 @@ static void bad_arguments(void **state) {
     glBindTexture(GL_TEXTURE_2D, r8);
     glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA8, 8, 8);
     glBindTexture(GL_TEXTURE_2D, 0);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, 0, r.tex[1], r.tex[2], 8, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, NULL, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 0, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 0, 4, NULL, out), GIM_ERROR_OUT_OF_RANGE);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, bad_off, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 9, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r8, r.tex[2], 8, 4, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, NULL, small), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, 0, r.tex[1], r.tex[2], 8, 4, GIM_VPL_SEQUENCE_HALTON, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, GIM_VPL_SEQUENCE_HALTON, NULL, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 0, GIM_VPL_SEQUENCE_HALTON, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 0, 4, GIM_VPL_SEQUENCE_HALTON, NULL, out), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, GIM_VPL_SEQUENCE_HALTON, bad_off, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 9, 4, GIM_VPL_SEQUENCE_HALTON, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r8, r.tex[2], 8, 4, GIM_VPL_SEQUENCE_HALTON, NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], 8, 4, GIM_VPL_SEQUENCE_HALTON, NULL, small), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(f.log.errors, 8);
     f.log.errors = 0;
     gltest_state_unchanged(&f);
@@ -502,7 +505,7 @@ static void vpls_into_kmeans(void **state) {
     d = rsm_data(&r);
     assert_int_equal(gim_rsm_vpls(&d, n, off, p, nn, fl, f.env), GIM_OK);
     bv = gltest_ssbo(n * 48, NULL);
-    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, off, bv), GIM_OK);
+    assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, GIM_VPL_SEQUENCE_HALTON, off, bv), GIM_OK);
     for (k = 1; k <= 8; k *= 2) kmeans_compare(&f, bv, p, nn, fl, n, 30, k, GIM_KMEANS_METRIC_DONG, origin, 10.0f, &st);
     print_message("VPLs -> k-means: %u runs (%u compared in full, %u skipped), %u VPLs differently assigned (%u near ties); "
                   "centre error %.3g scale, normal %.3g\n", st.runs, st.compared, st.skipped_empty, st.mismatches,

@@ -231,10 +231,114 @@ static void bad_arguments(void **state) {
     for (k = 0; k < N * 3; ++k) assert_true(p[k] == -5.0f && n[k] == -5.0f && f[k] == -5.0f);
 }
 
+/* SSVP's first bounce (eq. 1): Hammersley point i of N is ((i + 0.5) / N, radical inverse of
+   i in base 2); the same flux normalisation as the Halton VPLs. */
+static void hammersley_placement(void **state) {
+    static const float off[2] = {0.3f, 0.77f};
+    int pass, i, c;
+    gim_env env = test_env(NULL, NULL);
+    double total[3], sum[3];
+    (void)state;
+    make_rsm(&g_rsm);
+    total_flux(&g_rsm, total);
+    for (pass = 0; pass < 2; ++pass) {
+        const float *o = pass ? off : NULL;
+        assert_int_equal(gim_rsm_vpls_sequence(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, o, g_p, g_n, g_f, env), GIM_OK);
+        sum[0] = sum[1] = sum[2] = 0.0;
+        for (i = 0; i < N; ++i) {
+            float u = (float)((i + 0.5) / N), v = (float)gim_van_der_corput((uint32_t)i);
+            if (o) { u = gim_rotate01(u, o[0]); v = gim_rotate01(v, o[1]); }
+            assert_true(g_p[i * 3] == (float)floor((double)u * W) + 0.5f);
+            assert_true(g_p[i * 3 + 1] == (float)floor((double)v * H) + 0.5f);
+            for (c = 0; c < 3; ++c) sum[c] += g_f[i * 3 + c];
+        }
+        for (c = 0; c < 3; ++c) assert_true(fabs(sum[c] - total[c]) <= 1e-5 * total[c]);
+    }
+    /* the first two points unrotated: (0.5 / N, 0) and (1.5 / N, 1/2) */
+    assert_int_equal(gim_rsm_vpls_sequence(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, NULL, g_p, g_n, g_f, env), GIM_OK);
+    assert_true(g_p[0] == 0.5f && g_p[1] == 0.5f);
+    assert_true(g_p[4] == (float)(H / 2) + 0.5f);
+    /* HALTON through the general entry point is gim_rsm_vpls */
+    {
+        static float p2[N * 3], n2[N * 3], f2[N * 3];
+        assert_int_equal(gim_rsm_vpls(&g_rsm.rsm, N, off, g_p, g_n, g_f, env), GIM_OK);
+        assert_int_equal(gim_rsm_vpls_sequence(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_DEFAULT, off, p2, n2, f2, env), GIM_OK);
+        assert_memory_equal(g_p, p2, sizeof p2);
+        assert_memory_equal(g_f, f2, sizeof f2);
+    }
+    assert_int_equal(gim_rsm_vpls_sequence(&g_rsm.rsm, N, (gim_vpl_sequence)7, NULL, g_p, g_n, g_f, env),
+                     GIM_ERROR_INVALID_ARGUMENT);
+}
+
+/* gim_cluster_paraboloids: a k x k grid of VPLs filling a square of side a on a tilted plane
+   has the side of its uniform rectangle, a sqrt(1 - 1/k^2); the size does not change when the
+   square turns in its plane; flux sums; the origin is lifted along the normal; near is half
+   the side; a cluster of one VPL is a point; bad input fails. */
+static void cluster_paraboloids(void **state) {
+    enum { K = 12, NV = K * K + 1 };
+    static gim_vpl v[NV];
+    static uint32_t cl[NV];
+    gim_env env = test_env(NULL, NULL);
+    gim_vec3 n = gim_v3_normalize(gim_v3(0.3f, 0.8f, -0.5f)), t, b;
+    float centres[6], normals[6];
+    gim_paraboloid out[2];
+    double a = 0.6, expect = a * sqrt(1.0 - 1.0 / (K * K)), sizes[2];
+    int turn, i, j;
+    (void)state;
+    gim_basis(n, &t, &b);
+    for (turn = 0; turn < 2; ++turn) {
+        double ang = turn ? 0.7 : 0.0, ca = cos(ang), sa = sin(ang);
+        for (i = 0; i < K; ++i)
+            for (j = 0; j < K; ++j) {
+                gim_vpl *p = &v[i * K + j];
+                double s0 = ((i + 0.5) / K - 0.5) * a, t0 = ((j + 0.5) / K - 0.5) * a;
+                double s1 = ca * s0 - sa * t0, t1 = sa * s0 + ca * t0;
+                memset(p, 0, sizeof *p);
+                p->position[0] = (float)(2.0 + s1 * t.x + t1 * b.x);
+                p->position[1] = (float)(-1.0 + s1 * t.y + t1 * b.y);
+                p->position[2] = (float)(5.0 + s1 * t.z + t1 * b.z);
+                p->normal[0] = n.x; p->normal[1] = n.y; p->normal[2] = n.z;
+                p->flux[0] = 1.0f; p->flux[1] = 2.0f; p->flux[2] = 0.5f;
+                p->lit = 1.0f;
+                cl[i * K + j] = 0;
+            }
+        memset(&v[NV - 1], 0, sizeof v[0]);   /* one lone VPL in cluster 1 */
+        v[NV - 1].position[0] = 9.0f; v[NV - 1].normal[1] = 1.0f; v[NV - 1].flux[0] = 3.0f; v[NV - 1].lit = 1.0f;
+        cl[NV - 1] = 1;
+        centres[0] = 2.0f; centres[1] = -1.0f; centres[2] = 5.0f;
+        centres[3] = 9.0f; centres[4] = 0.0f; centres[5] = 0.0f;
+        normals[0] = n.x; normals[1] = n.y; normals[2] = n.z;
+        normals[3] = 0.0f; normals[4] = 2.0f; normals[5] = 0.0f;   /* renormalised */
+        assert_int_equal(gim_cluster_paraboloids(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_OK);
+        sizes[turn] = out[0].size;
+        assert_true(fabs(out[0].size - expect) < 1e-4 * expect);
+        assert_true(fabs(out[0].flux[0] - K * K) < 1e-3 && fabs(out[0].flux[1] - 2 * K * K) < 1e-3);
+        assert_true(fabs(out[0].near_distance - 0.5 * out[0].size) < 1e-6);
+        assert_true(fabs(out[0].origin[0] - (2.0 + 1e-3 * n.x)) < 1e-5);
+        assert_true(fabs(out[0].origin[2] - (5.0 + 1e-3 * n.z)) < 1e-5);
+        assert_true(out[1].size == 0.0f && out[1].flux[0] == 3.0f && out[1].normal[1] == 1.0f);
+        assert_true(fabs(out[1].near_distance - 1e-3) < 1e-9 && fabs(out[1].origin[1] - 1e-3) < 1e-9);
+    }
+    assert_true(fabs(sizes[0] - sizes[1]) < 1e-5 * sizes[0]);
+    /* bad input */
+    cl[3] = 2;
+    assert_int_equal(gim_cluster_paraboloids(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    cl[3] = 0;
+    assert_int_equal(gim_cluster_paraboloids(v, NV, cl, centres, normals, 2, 0.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cluster_paraboloids(NULL, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    normals[4] = 0.0f;
+    assert_int_equal(gim_cluster_paraboloids(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    normals[4] = 1.0f;
+    v[5].flux[1] = -1.0f;
+    assert_int_equal(gim_cluster_paraboloids(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(flux_sums_to_the_total),
         cmocka_unit_test(halton_placement),
+        cmocka_unit_test(hammersley_placement),
+        cmocka_unit_test(cluster_paraboloids),
         cmocka_unit_test(unlit_texels),
         cmocka_unit_test(units),
         cmocka_unit_test(bad_arguments),
