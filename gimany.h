@@ -1100,8 +1100,9 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
          ... sample o.indirect in the host's shading: add it to the direct light, then tone-map
          gim_destroy(ctx);
    Caches come from gim_cache_generate (or a blob) once per mesh, handed over in
-   gim_mesh_desc.caches; without caches a frame runs the shared passes only. f.method picks
-   LightSkin + BRSM (default) or FULL; f.val_count, f.view_sample_count, the lights' rsm_size,
+   gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
+   picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
+   SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
    f.occlusion and f.neighbour_count trade speed for accuracy at run time. */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
@@ -1203,7 +1204,7 @@ typedef struct gim_frame {
     float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
                                    bounds of the instances */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
-    gim_method method;          /* LightSkin with BRSM (default) or FULL */
+    gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
     int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
@@ -1242,7 +1243,15 @@ typedef struct gim_frame {
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
-   and no indirect texture. Needs at least one instance; every material id of an instanced
+   and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
+   after the RSMs and the G-buffer: vpl_count VPLs per light (gim_rsm_vpls_sequence) -> k-means
+   steps on the GPU (Dong's metric from the same seeds every frame, or SSVP's warm from the last
+   frame's centres; an empty cluster re-seeded from the farthest VPL) -> the clusters' VALs
+   (gim_cluster_paraboloids) -> one layered pass of paraboloid maps (distance for visibility;
+   position, normal and albedo at two bounces) -> second-bounce VPLs (gim_second_bounce_vpls)
+   -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
+   (gim_vpl_shade) -> the geometry-aware blur (gim_geometry_blur) into the indirect texture.
+   Needs at least one instance; every material id of an instanced
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
    "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
    bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
@@ -8013,7 +8022,10 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL &&
         f->method != GIM_METHOD_RSM_GATHER && f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
-    if (gim__vpl_check(ctx, f) != GIM_OK) return GIM_ERROR_OUT_OF_RANGE;
+    {
+        gim_result r = gim__vpl_check(ctx, f);
+        if (r != GIM_OK) return r;
+    }
     if (f->gather_samples > 16384u || !gim__isfinitef(f->gather_radius) || f->gather_radius < 0.0f || f->gather_radius > 2.0f)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)

@@ -238,9 +238,10 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     scene_gimany_camera(&r->s, &f.view, &f.proj);
     f.width = w;
     f.height = h;
-    f.method = !strcmp(r->d.method, "full")     ? GIM_METHOD_LIGHTSKIN_FULL
-               : !strcmp(r->d.method, "gather") ? GIM_METHOD_RSM_GATHER
-                                                : GIM_METHOD_LIGHTSKIN_BRSM;
+    f.method = demo_method(&r->d);
+    f.vpl_count = r->d.vpls;
+    f.cluster_count = r->d.clusters;
+    f.bounces = (uint32_t)r->o.bounces;
     f.val_count = r->d.vals;
     f.view_sample_count = r->d.view_samples;
     f.occlusion = r->d.occlusion;
@@ -260,6 +261,10 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
         f.frame_index = fr;
         if (gim_update(ctx, &f) != GIM_OK) { snprintf(err, cap, "gim_update failed (logged above)"); goto done; }
         o = gim_outputs(ctx);
+        if (o.cluster_count) {   /* the VPL methods: report what ran, the defaults resolved */
+            r->d.vpls = o.first_bounce_count / (o.light_count ? o.light_count : 1u);
+            r->d.clusters = o.cluster_count;
+        }
         display_direct(&dp, &o, g.lights, f.view, f.proj, 1);
         display_compose(&dp, o.indirect, 1.0f);
         glFinish();
@@ -346,12 +351,8 @@ int main(int argc, char **argv) {
     if (pr == 0) pr = scene_parse_args(rest_count, rest, 0, &r.o, err, sizeof err) == SCENE_ARGS_OK ? 0 : -1;
     free(rest);
     if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 2; }
-    if (demo_method_unavailable(&r.d)) {
-        fprintf(stderr, PROG ": method %s %s\n", r.d.method, demo_method_unavailable(&r.d));
-        return 2;
-    }
-    if (r.o.bounces != 1) {
-        fprintf(stderr, PROG ": --bounces %d is not available yet (LightSkin gives one bounce)\n", r.o.bounces);
+    if (demo_bounces_unavailable(&r.d, r.o.bounces)) {
+        fprintf(stderr, PROG ": --bounces %d %s\n", r.o.bounces, demo_bounces_unavailable(&r.d, r.o.bounces));
         return 2;
     }
     pr = scene_load(&r.o, &r.s, err, sizeof err);

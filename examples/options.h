@@ -23,7 +23,7 @@ typedef struct demo_options {
     uint32_t rsm;            /* RSM side per light */
     uint32_t vals;           /* VALs per light (BRSM) */
     uint32_t view_samples;
-    uint32_t vpls, clusters; /* for the later methods (gather, clustered, ssvp) */
+    uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int occlusion;
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
@@ -36,11 +36,14 @@ typedef struct demo_options {
 static const char demo_usage_text[] =
     "  --method M            brsm (default: LightSkin + bidirectional RSM importance sampling), full (LightSkin,\n"
     "                        every RSM texel a VAL), gather (RSM gather, Dachsbacher 2005: the baseline),\n"
-    "                        none (direct light only); clustered, ssvp: later\n"
+    "                        clustered (Dong et al.: k-means VALs with paraboloid soft shadows), ssvp (two\n"
+    "                        bounces from paraboloid maps, Aranha et al.), none (direct light only)\n"
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
-    "  --vpls N, --clusters N  VPLs and clusters of the later methods (default 1024, 32)\n"
+    "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 1024, 30 clustered;\n"
+    "                        256, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
+    "                        the second bounce to either\n"
     "  --no-occlusion        no occlusion of the proxy lights (default: on)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n";
@@ -51,8 +54,6 @@ DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     d->rsm = 256;
     d->vals = 2048;
     d->view_samples = 128;
-    d->vpls = 1024;
-    d->clusters = 32;
     d->occlusion = 1;
     d->glossy = 1;
     d->frames = (flags & DEMO_PARSE_VIEWER) ? 0 : 3;
@@ -76,7 +77,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
                       size_t cap) {
     static const struct { const char *name; uint32_t lo, hi; } nums[] = {
         {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
-        {"--vpls", 1, 1u << 20}, {"--clusters", 1, 4096}, {"--frames", 1, 100000}};
+        {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}};
     int i, n = 0;
     rest[n++] = argv[0];
     for (i = 1; i < argc; ++i) {
@@ -140,10 +141,19 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
     return 0;
 }
 
-/* One line naming a method the library does not have yet, or NULL when it runs. */
-DEMO_OPTIONS_FN const char *demo_method_unavailable(const demo_options *d) {
-    if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp"))
-        return "is not available yet (brsm, full, gather and none are)";
+/* The gimany method of a --method name (none: the same meshes without caches, see the demo). */
+DEMO_OPTIONS_FN gim_method demo_method(const demo_options *d) {
+    return !strcmp(d->method, "full")        ? GIM_METHOD_LIGHTSKIN_FULL
+           : !strcmp(d->method, "gather")    ? GIM_METHOD_RSM_GATHER
+           : !strcmp(d->method, "clustered") ? GIM_METHOD_CLUSTERED
+           : !strcmp(d->method, "ssvp")      ? GIM_METHOD_SSVP
+                                             : GIM_METHOD_LIGHTSKIN_BRSM;
+}
+
+/* One line refusing a --bounces the method cannot give, or NULL. */
+DEMO_OPTIONS_FN const char *demo_bounces_unavailable(const demo_options *d, int bounces) {
+    if (bounces != 1 && strcmp(d->method, "clustered") && strcmp(d->method, "ssvp"))
+        return "needs --method clustered or ssvp (the other methods give one bounce)";
     return NULL;
 }
 

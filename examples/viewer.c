@@ -6,6 +6,7 @@
 
    Keys:  W A S D  move, Q E  down / up, Shift  faster; drag with the left button to look around
           1 2 3    method brsm / full / none          [ ]  halve / double the VAL count
+          4 5      method clustered / ssvp
           - =      halve / double the RSM size         O  occlusion on / off
           Space    animate the sun (turns about +Y)   X  re-meter the exposure
           P        screenshot (gimany-viewer-N.png)    Esc  quit
@@ -48,6 +49,7 @@ typedef struct viewer {
     gim_light lights[GIM_MAX_LIGHTS];
     float yaw, pitch;           /* of the view direction; used once the camera moved */
     int moved, dragging, animate, meter, shots, lights_dirty, instances_dirty;
+    int bounces;                /* --bounces: 1, or 2 with clustered / ssvp */
     double drag_x, drag_y, sun_angle;
     float exposure;
 } viewer;
@@ -81,6 +83,8 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods) {
     case GLFW_KEY_1: v->d.method = "brsm"; v->instances_dirty = 1; break;
     case GLFW_KEY_2: v->d.method = "full"; v->instances_dirty = 1; break;
     case GLFW_KEY_3: v->d.method = "none"; v->instances_dirty = 1; break;
+    case GLFW_KEY_4: v->d.method = "clustered"; v->instances_dirty = 1; break;
+    case GLFW_KEY_5: v->d.method = "ssvp"; v->instances_dirty = 1; break;
     case GLFW_KEY_LEFT_BRACKET: if (v->d.vals > 16) v->d.vals /= 2; break;
     case GLFW_KEY_RIGHT_BRACKET: if (v->d.vals < (1u << 20)) v->d.vals *= 2; break;
     case GLFW_KEY_MINUS:
@@ -218,9 +222,10 @@ static int run(viewer *v, GLFWwindow *w) {
         scene_gimany_camera(&v->s, &f.view, &f.proj);
         f.width = (uint32_t)fw;
         f.height = (uint32_t)fh;
-        f.method = !strcmp(v->d.method, "full")     ? GIM_METHOD_LIGHTSKIN_FULL
-                   : !strcmp(v->d.method, "gather") ? GIM_METHOD_RSM_GATHER
-                                                    : GIM_METHOD_LIGHTSKIN_BRSM;
+        f.method = demo_method(&v->d);
+        f.vpl_count = v->d.vpls;
+        f.cluster_count = v->d.clusters;
+        f.bounces = (uint32_t)v->bounces;
         f.val_count = v->d.vals;
         f.view_sample_count = v->d.view_samples;
         f.occlusion = v->d.occlusion;
@@ -291,8 +296,11 @@ int main(int argc, char **argv) {
         if (pr == 0) pr = scene_parse_args(rest_count, rest, 0, &o, err, sizeof err) == SCENE_ARGS_OK ? 0 : -1;
         free(rest);
         if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 2; }
-        if (demo_method_unavailable(&v.d)) { fprintf(stderr, PROG ": method %s %s\n", v.d.method, demo_method_unavailable(&v.d)); return 2; }
-        if (o.bounces != 1) { fprintf(stderr, PROG ": --bounces %d is not available yet (LightSkin gives one bounce)\n", o.bounces); return 2; }
+        if (demo_bounces_unavailable(&v.d, o.bounces)) {
+            fprintf(stderr, PROG ": --bounces %d %s\n", o.bounces, demo_bounces_unavailable(&v.d, o.bounces));
+            return 2;
+        }
+        v.bounces = o.bounces;
         pr = scene_load(&o, &v.s, err, sizeof err);
         if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 1; }
     }

@@ -75,7 +75,7 @@ static void screenshot(void **state) {
 
 /* Option errors need no window: one line, exit 2. */
 static void bad_options(void **state) {
-    static const char *bad[] = {"--bogus", "--vals x", "--method clustered", "--screenshot", "--size 3"};
+    static const char *bad[] = {"--bogus", "--vals x", "--bounces 2", "--screenshot", "--size 3"};
     size_t k;
     (void)state;
     for (k = 0; k < sizeof bad / sizeof bad[0]; ++k) {

@@ -12,13 +12,14 @@
 #define H 64
 #include "framefix.h"
 
-/* The built-in Cornell box with its spot turned to the red (left) wall: most light reaching
-   the floor is indirect and comes from that wall, so the blocks cast indirect shadows. */
+/* The built-in Cornell box with its spot turned to the green (right) wall, above the blocks:
+   the floor gets only indirect light, most of it from that wall, so the tall block casts an
+   indirect shadow on the floor between it and the red wall. */
 static void wall_light(frame_fixture *ff, float yaw_deg) {
     gim_light l = ff->g.lights[0];
     double a = yaw_deg * 3.14159265358979323846 / 180.0;
-    l.position = gim_v3(0.45f, 0.42f, -0.28f);
-    l.direction = gim_v3((float)-cos(a), 0.1f, (float)sin(a));
+    l.position = gim_v3(0.10f, 0.42f, -0.12f);
+    l.direction = gim_v3((float)cos(a), 0.1f, (float)sin(a));
     l.cone_angle = 0.45f;
     assert_int_equal(gim_set_lights(ff->f.ctx, &l, 1), GIM_OK);
 }
@@ -88,9 +89,285 @@ static void clusters_of_both_methods(void **state) {
     GLTEST_END();
 }
 
+/* The frame's receivers on the whole W x H grid (a zero normal where no surface). */
+static void grid_receivers(frame_fixture *ff, gim_receiver *grid) {
+    gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
+    uint32_t *map = (uint32_t *)malloc(W * H * 4), n, i;
+    gim_vec3 eye;
+    n = frame_receivers(ff, rec, map, &eye);
+    memset(grid, 0, W * H * sizeof *grid);
+    for (i = 0; i < n; ++i) grid[map[i]] = rec[i];
+    free(rec);
+    free(map);
+}
+
+/* The GPU frame against the CPU chain on its own VPLs, clusters and maps: gim_vpl_shade with
+   the frame's interleave and clamp, then gim_geometry_blur. Returns the pixels whose largest
+   channel differs by more than tol relative (floored at 1e-3 of the image's maximum). */
+static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
+    gim_frame_outputs o = gim_outputs(ff->f.ctx);
+    uint32_t n = o.vpl_count, m = o.cluster_count, s = o.paraboloid_size, i, bad;
+    uint32_t k = ff->fr.interleave ? ff->fr.interleave : 8u, *cl = (uint32_t *)malloc(n * 4), *map = (uint32_t *)malloc(W * H * 4);
+    gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
+    gim_paraboloid *maps = (gim_paraboloid *)malloc(m * sizeof *maps);
+    float *dist = NULL, *shade = (float *)malloc(W * H * 12), *blur = (float *)malloc(W * H * 12);
+    gim_receiver *grid = (gim_receiver *)malloc(W * H * sizeof *grid);
+    gim_vpl_shade_desc sd;
+    gim_blur_desc bd;
+    gltest_read_buffer(o.vpls, n * sizeof *v, v);
+    gltest_read_buffer(o.vpl_clusters, n * 4, cl);
+    gltest_read_buffer(o.clusters, m * sizeof *maps, maps);
+    if (o.paraboloid_distance) {
+        dist = (float *)malloc((size_t)m * s * s * 4);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, o.paraboloid_distance);
+        glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_RED, GL_FLOAT, dist);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+    }
+    grid_receivers(ff, grid);
+    memset(&sd, 0, sizeof sd);
+    sd.vpls = v; sd.vpl_count = n;
+    sd.cluster = dist ? cl : NULL;
+    sd.maps = maps; sd.map_count = m;
+    sd.distance = dist; sd.map_size = s;
+    sd.receivers = grid; sd.width = W; sd.height = H;
+    sd.interleave = k;
+    sd.clamp_distance = (ff->fr.clamp_distance < 0.0f ? 0.0f : ff->fr.clamp_distance > 0.0f ? ff->fr.clamp_distance : 0.01f) *
+                        o.scene_scale;
+    sd.scene_scale = o.scene_scale;
+    sd.env = ff->f.env;
+    assert_int_equal(gim_vpl_shade(&sd, shade), GIM_OK);
+    memset(&bd, 0, sizeof bd);
+    bd.radiance = shade; bd.receivers = grid; bd.width = W; bd.height = H; bd.window = k;
+    bd.position_tolerance = (ff->fr.blur_distance > 0.0f ? ff->fr.blur_distance : 0.1f) * o.scene_scale;
+    bd.normal_tolerance = 0.8f;
+    bd.env = ff->f.env;
+    if (k > 1) assert_int_equal(gim_geometry_blur(&bd, blur), GIM_OK);
+    else memcpy(blur, shade, W * H * 12);
+    for (i = 0; i < W * H; ++i) map[i] = i;
+    bad = compare_pixels(gpu, blur, map, W * H, tol, max_rel);
+    free(cl); free(map); free(v); free(maps); free(dist); free(shade); free(blur); free(grid);
+    return bad;
+}
+
+static void frame_matches_cpu_chain(void **state) {
+    frame_fixture ff;
+    float *img = (float *)malloc(W * H * 16);
+    double max_rel;
+    uint32_t bad;
+    int k;
+    (void)state;
+    GLTEST_BEGIN();
+    for (k = 0; k < 3; ++k) {   /* CLUSTERED; CLUSTERED without interleaving; SSVP, two bounces */
+        vpl_frame_begin(&ff, k == 2 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
+        if (k == 1) ff.fr.interleave = 1;
+        assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+        gltest_state_unchanged(&ff.f);
+        read_indirect(&gim_outputs(ff.f.ctx), img);
+        bad = compare_with_cpu_chain(&ff, img, 1e-3, &max_rel);
+        print_message("%s: GPU vs CPU chain, %u of %u pixels above 1e-3, the others within %.2e\n",
+                      k == 0 ? "clustered" : k == 1 ? "clustered, k = 1" : "ssvp", bad, W * H, max_rel);
+        assert_true(bad <= W * H / 50);   /* a visibility tap across a texel edge flips a few */
+        frame_end(&ff);
+    }
+    free(img);
+    GLTEST_END();
+}
+
+/* Mean luminance of the floor pixels between the tall block and the red wall, and of every
+   pixel. */
+static void shadow_region(frame_fixture *ff, const float *img, double *region, double *all, uint32_t *count) {
+    gim_receiver *grid = (gim_receiver *)malloc(W * H * sizeof *grid);
+    double s = 0.0, t = 0.0;
+    uint32_t i, n = 0, m = 0;
+    grid_receivers(ff, grid);
+    for (i = 0; i < W * H; ++i) {
+        const gim_receiver *r = grid + i;
+        double l = 0.2126 * img[i * 4] + 0.7152 * img[i * 4 + 1] + 0.0722 * img[i * 4 + 2];
+        if (r->normal[0] == 0.0f && r->normal[1] == 0.0f && r->normal[2] == 0.0f) continue;
+        t += l; m++;
+        if (r->normal[1] > 0.9f && r->position[1] < 0.01f && r->position[0] < 0.075f && r->position[2] < -0.30f &&
+            r->position[2] > -0.42f) { s += l; n++; }
+    }
+    assert_true(n > 0 && m > 0);
+    *region = s / n;
+    *all = t / m;
+    *count = n;
+    free(grid);
+}
+
+/* Indirect shadows: with visibility the floor behind the tall block, seen from the lit wall, is
+   darker than without, while the whole image changes less. The second bounce adds energy
+   where one bounce leaves it dark. Clamping only removes energy. */
+static void shadows_and_second_bounce(void **state) {
+    frame_fixture ff;
+    float *img = (float *)malloc(W * H * 16);
+    double on, off, all_on, all_off, b1, b2, all1, all2, unclamped, all_unclamped;
+    uint32_t n;
+    (void)state;
+    GLTEST_BEGIN();
+    vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
+    ff.fr.vpl_count = 1024;
+    ff.fr.cluster_count = 16;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&gim_outputs(ff.f.ctx), img);
+    shadow_region(&ff, img, &on, &all_on, &n);
+    ff.fr.no_visibility = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&gim_outputs(ff.f.ctx), img);
+    shadow_region(&ff, img, &off, &all_off, &n);
+    print_message("indirect shadow: floor behind the block %.4g with visibility, %.4g without (%u pixels); "
+                  "image %.4g / %.4g\n", on, off, n, all_on, all_off);
+    assert_true(on < 0.7 * off);
+    assert_true(all_on > 0.7 * all_off);
+    ff.fr.no_visibility = 0;
+    ff.fr.clamp_distance = -1.0f;   /* no clamping */
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&gim_outputs(ff.f.ctx), img);
+    shadow_region(&ff, img, &unclamped, &all_unclamped, &n);
+    print_message("clamping at 0.01 scene scales removes %.2f%% of the image's energy\n",
+                  100.0 * (1.0 - all_on / all_unclamped));
+    assert_true(all_on <= all_unclamped * (1.0 + 1e-6));
+    frame_end(&ff);
+
+    vpl_frame_begin(&ff, GIM_METHOD_SSVP);
+    ff.fr.bounces = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&gim_outputs(ff.f.ctx), img);
+    shadow_region(&ff, img, &b1, &all1, &n);
+    ff.fr.bounces = 2;
+    ff.fr.second_bounce_vpls = 1024;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    read_indirect(&gim_outputs(ff.f.ctx), img);
+    shadow_region(&ff, img, &b2, &all2, &n);
+    print_message("second bounce: floor behind the block %.4g -> %.4g, image %.4g -> %.4g\n", b1, b2, all1, all2);
+    assert_true(b2 > 1.3 * b1);
+    assert_true(all2 > 1.05 * all1);
+    frame_end(&ff);
+    free(img);
+    GLTEST_END();
+}
+
+/* Temporal coherence (Dong sec. 5.2; SSVP's warm start): the light turns 1 degree a frame; no
+   cluster is lost and no centre jumps across the scene. */
+static void clusters_move_smoothly(void **state) {
+    frame_fixture ff;
+    float prev[8 * 8], cur[8 * 8];
+    int k, fr;
+    uint32_t i;
+    (void)state;
+    GLTEST_BEGIN();
+    for (k = 0; k < 2; ++k) {
+        double worst = 0.0, mean = 0.0;
+        uint32_t steps = 0;
+        vpl_frame_begin(&ff, k ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
+        ff.fr.bounces = 1;
+        for (fr = 0; fr < 8; ++fr) {
+            gim_frame_outputs o;
+            wall_light(&ff, (float)fr);
+            ff.fr.frame_index = (uint32_t)fr;
+            assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+            o = gim_outputs(ff.f.ctx);
+            assert_int_equal(o.cluster_count, 8u);
+            gltest_read_buffer(o.kmeans_centres, 8 * 32, cur);
+            for (i = 0; i < 8; ++i) {
+                assert_true(cur[i * 8 + 3] >= 1.0f);   /* no cluster lost */
+                if (fr > 0) {
+                    double d = sqrt(pow(cur[i * 8] - prev[i * 8], 2) + pow(cur[i * 8 + 1] - prev[i * 8 + 1], 2) +
+                                    pow(cur[i * 8 + 2] - prev[i * 8 + 2], 2)) / o.scene_scale;
+                    worst = fmax(worst, d);
+                    mean += d;
+                    steps++;
+                }
+            }
+            memcpy(prev, cur, sizeof cur);
+        }
+        mean /= steps;
+        print_message("%s: centres move %.4f scene scales a frame on average, %.4f at most\n",
+                      k ? "ssvp" : "clustered", mean, worst);
+        assert_true(worst < 0.15);
+        assert_true(mean < 0.03);
+        frame_end(&ff);
+    }
+    GLTEST_END();
+}
+
+/* Only what a frame enables exists: no maps without visibility and a second bounce, no
+   attribute maps at one bounce, and nothing of the VPL methods in a LightSkin frame. */
+static void only_what_is_enabled(void **state) {
+    frame_fixture ff;
+    gim_frame_outputs o;
+    gim_stats st;
+    uint64_t with_maps, without, two;
+    (void)state;
+    GLTEST_BEGIN();
+    vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_true(o.paraboloid_distance != 0);
+    assert_true(o.paraboloid_position == 0 && o.paraboloid_normal == 0 && o.paraboloid_albedo == 0);
+    assert_int_equal(o.vpl_count, o.first_bounce_count);
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    with_maps = st.gpu_bytes;
+    ff.fr.no_visibility = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_true(o.paraboloid_distance == 0 && o.paraboloid_position == 0);
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    without = st.gpu_bytes;
+    print_message("GPU bytes: %llu with visibility, %llu without\n", (unsigned long long)with_maps,
+                  (unsigned long long)without);
+    assert_true(without + 8ull * 64 * 64 * 8 <= with_maps);   /* 8 maps of 64^2: distance + depth */
+    ff.fr.bounces = 2;                                       /* the second bounce needs the maps' attributes */
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_true(o.paraboloid_position != 0 && o.paraboloid_normal != 0 && o.paraboloid_albedo != 0);
+    assert_int_equal(o.vpl_count, o.first_bounce_count + 256u);
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    two = st.gpu_bytes;
+    assert_true(two > without + 8ull * 64 * 64 * 48);
+    ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    assert_true(o.vpls == 0 && o.clusters == 0 && o.paraboloid_distance == 0 && o.paraboloid_position == 0);
+    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+    assert_true(st.gpu_bytes < two);
+    gltest_state_unchanged(&ff.f);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+/* Bad VPL settings are refused before any GL work. */
+static void bad_settings(void **state) {
+    frame_fixture ff;
+    static const struct { uint32_t vpls, clusters, size, bounces, interleave, iters; } bad[] = {
+        {40000, 8, 64, 1, 4, 0}, {256, 300, 64, 1, 4, 0}, {256, 8, 4096, 1, 4, 0},
+        {256, 8, 64, 3, 4, 0},   {256, 8, 64, 1, 40, 0},  {16, 8, 64, 1, 8, 0}, {256, 8, 64, 1, 4, 65}};
+    size_t k;
+    (void)state;
+    GLTEST_BEGIN();
+    vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
+    for (k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        gim_frame f = ff.fr;
+        f.vpl_count = bad[k].vpls; f.cluster_count = bad[k].clusters; f.paraboloid_size = bad[k].size;
+        f.bounces = bad[k].bounces; f.interleave = bad[k].interleave; f.kmeans_iterations = bad[k].iters;
+        assert_int_equal(gim_update(ff.f.ctx, &f), GIM_ERROR_OUT_OF_RANGE);
+        gltest_state_unchanged(&ff.f);
+    }
+    ff.fr.clamp_distance = NAN;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_INVALID_ARGUMENT);
+    ff.f.log.errors = 0;
+    frame_end(&ff);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(clusters_of_both_methods),
+        cmocka_unit_test(frame_matches_cpu_chain),
+        cmocka_unit_test(shadows_and_second_bounce),
+        cmocka_unit_test(clusters_move_smoothly),
+        cmocka_unit_test(only_what_is_enabled),
+        cmocka_unit_test(bad_settings),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
