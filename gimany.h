@@ -7975,7 +7975,7 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
     gl->UseProgram(program);
     gl->Uniform1ui(3, ctx->materials ? ctx->material_count : 0u);
-    gl->Uniform1f(4, 2.0f / (float)size + 1e-5f);  /* a texel and float rounding beyond the exact bound */
+    gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);  /* rounding only: a quarter texel beyond the rigorous bound */
     gl->Uniform1ui(5, size);
     gl->Uniform1f(6, scene_scale);
     /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */

@@ -7,8 +7,11 @@
    sub-arc of angle alpha between samples w0, w1 maps to a curve of length <= alpha /
    (1 + min(w0.z, w1.z)) (the map scales an angle near w by 1 / (1 + w.z), and z along a great
    circle arc in z >= 0 is smallest at an end), so every point of it lies within half that of
-   an end: padding the ends by it bounds the image rigorously. margin adds a texel for float
-   rounding. A triangle through the origin covers the whole map. */
+   an end: padding the ends by it bounds the image rigorously. K grows with the edge's angle
+   (padding of at most ~half a texel, up to 16 samples), so a small triangle costs one or two
+   samples per edge. The rasteriser draws the texels whose centres (the rays' texels) fall
+   inside the quad, so margin only absorbs rounding (a quarter texel). A triangle through the
+   origin covers the whole map. */
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 
@@ -24,6 +27,7 @@ layout(std430, binding = 1) readonly buffer TriangleMaterial { uint triangle_mat
 
 layout(location = 3) uniform uint material_count;  /* 0: albedo 0 */
 layout(location = 4) uniform float margin;         /* map units */
+layout(location = 5) uniform uint size;            /* of the maps */
 
 flat out vec3 tri_v0;      /* vertices relative to the map's origin, world axes */
 flat out vec3 tri_v1;
@@ -34,7 +38,7 @@ flat out vec3 tri_n2;
 flat out vec3 tri_albedo;
 flat out int tri_map;
 
-const int K = 8;
+const int MAX_K = 16;
 
 /* gim_basis (Duff et al. 2017) */
 void basis(vec3 n, out vec3 t, out vec3 b) {
@@ -73,7 +77,11 @@ void main() {
     bool whole = false;
     for (int e = 0; e < k && !whole; ++e) {
         vec3 a = poly[e], c = poly[(e + 1) % k];
-        float tiny = 1e-6 * max(length(a), length(c));
+        float la = length(a), lc = length(c), tiny = 1e-6 * max(la, lc);
+        if (!(la > tiny && lc > tiny)) { whole = true; break; }
+        /* the edge's angle over a texel's worth of map units (2 / size; 1 / (1 + z) <= 1) */
+        float edge = 2.0 * asin(min(0.5 * length(a / la - c / lc), 1.0));
+        int K = clamp(int(ceil(edge * float(size) / 2.0)), 1, MAX_K);
         vec3 prev = vec3(0.0);
         vec2 prev_uv = vec2(0.0);
         for (int j = 0; j <= K; ++j) {

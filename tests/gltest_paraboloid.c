@@ -4,7 +4,9 @@
    get badly wrong) with a rotated, scaled block, six maps with different origins and normals
    (one tilted to a grazing 85 degrees, one outside the box looking in, near distances on
    some); with attributes (position, normal, albedo) and without (no attribute textures then);
-   a perturbed map shows the comparison fails. Then the second-bounce VPLs (SSVP sec. 3.C) of
+   a panel of 512 small triangles with shared edges; a perturbed map shows the comparison
+   fails (and a bound of each triangle from its projected vertices alone, tried in the
+   geometry shader, loses ~15% of the hit texels here: the test catches it). Then the second-bounce VPLs (SSVP sec. 3.C) of
    the GPU maps against gim_second_bounce_vpls on the same maps read back. Zero GL errors, the
    GL state restored, every allocation freed.
 
@@ -18,7 +20,8 @@
 
 #define NMAPS 6
 #define SIZE 64
-#define MAX_TRI 32
+#define MAX_TRI 600
+#define GRID 16
 
 static gim_mat4 translate(float x, float y, float z) {
     gim_mat4 m = gim_mat4_identity();
@@ -48,6 +51,27 @@ static uint32_t cb_mat[10];
 /* A closed unit cube [-1, 1]^3, no normals (the library computes them: flat here). */
 static float blk_pos[24 * 3];
 static uint32_t blk_idx[36], blk_mat[12];
+
+/* A GRID x GRID grid of small triangles over [-1, 1]^2 at y = 0 with shared vertices (normals
+   computed by the library: +y everywhere, interpolated). */
+static float grid_pos[(GRID + 1) * (GRID + 1) * 3], grid_nrm[(GRID + 1) * (GRID + 1) * 3];
+static uint32_t grid_idx[GRID * GRID * 6], grid_mat[GRID * GRID * 2];
+
+static void make_grid(void) {
+    int x, z;
+    for (z = 0; z <= GRID; ++z)
+        for (x = 0; x <= GRID; ++x) {
+            float *p = grid_pos + (z * (GRID + 1) + x) * 3, *n = grid_nrm + (z * (GRID + 1) + x) * 3;
+            p[0] = -1.0f + 2.0f * x / GRID; p[1] = 0.0f; p[2] = -1.0f + 2.0f * z / GRID;
+            n[0] = 0.0f; n[1] = 1.0f; n[2] = 0.0f;
+        }
+    for (z = 0; z < GRID; ++z)
+        for (x = 0; x < GRID; ++x) {
+            uint32_t a = (uint32_t)(z * (GRID + 1) + x), *t = grid_idx + (z * GRID + x) * 6;
+            t[0] = a; t[1] = a + GRID + 1; t[2] = a + 1; t[3] = a + 1; t[4] = a + GRID + 1; t[5] = a + GRID + 2;
+            grid_mat[(z * GRID + x) * 2] = grid_mat[(z * GRID + x) * 2 + 1] = (uint32_t)((x + z) % 4);  /* a checkerboard */
+        }
+}
 
 static void make_meshes(void) {
     static const float cb[5][4][3] = {{{-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1}},
@@ -188,6 +212,7 @@ static float *read_array(GLuint tex, GLenum format, int comps) {
 
 typedef struct compare_stats {
     uint32_t texels, agree, hits, gpu_only, twin_only, albedo_differs;
+    uint32_t panel_hits;    /* agreeing hits on triangles past the box and the block (22) */
     double dist_err, pos_err, normal_err;
 } compare_stats;
 
@@ -219,6 +244,7 @@ static compare_stats compare(scene *s, const gim_paraboloid *maps, int attribute
                 c.agree++;
                 if (!o.hit) continue;
                 c.hits++;
+                c.panel_hits += o.triangle >= 22;
                 {
                     double e = fabs((double)dist[t] - o.distance) / o.distance;
                     if (e > c.dist_err) c.dist_err = e;
@@ -347,6 +373,53 @@ static void maps_far_and_small_units(void **state) {
     GLTEST_END();
 }
 
+/* Many small triangles with shared edges (a checkerboard panel of 512, tilted in the box):
+   the tight bound of small triangles loses no texel at their edges. */
+static void small_triangles_match_twin(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    gim_instance inst[3];
+    gim_mesh_desc md;
+    gim_mesh grid;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    make_grid();
+    memset(&md, 0, sizeof md);
+    md.data.positions = grid_pos; md.data.normals = grid_nrm; md.data.vertex_count = (GRID + 1) * (GRID + 1);
+    md.data.indices = grid_idx; md.data.index_count = GRID * GRID * 6; md.data.triangle_material = grid_mat;
+    assert_int_equal(gim_add_mesh(s.f.ctx, &md, &grid), GIM_OK);
+    inst[0].mesh = s.box; inst[0].model = gim_mat4_identity();
+    inst[1].mesh = s.block;
+    inst[1].model = gim_mat4_mul(translate(0.35f, 0.6f, -0.2f), gim_mat4_mul(rotate_y(0.4f), scale3(0.3f, 0.6f, 0.25f)));
+    inst[2].mesh = grid;
+    inst[2].model = gim_mat4_mul(translate(-0.45f, 1.1f, -0.4f), gim_mat4_mul(rotate_y(0.7f), scale3(0.45f, 1.0f, 0.4f)));
+    {   /* tilt it about x by 0.5 rad */
+        gim_mat4 r = gim_mat4_identity();
+        r.m[5] = cosf(0.5f); r.m[6] = sinf(0.5f); r.m[9] = -sinf(0.5f); r.m[10] = cosf(0.5f);
+        inst[2].model = gim_mat4_mul(inst[2].model, r);
+    }
+    assert_int_equal(gim_set_instances(s.f.ctx, inst, 3), GIM_OK);
+    s.soup.n = 0;
+    soup_add(&s.soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
+    soup_add(&s.soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    soup_add(&s.soup, grid_pos, grid_nrm, grid_idx, 0, GRID * GRID * 6, grid_mat, 0, inst[2].model);
+    s.twin.triangle_count = s.soup.n;
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    c = compare(&s, s.maps, 1);
+    print_stats("with a panel of 512 small triangles", &c);
+    print_message("  of which on the panel: %u\n", c.panel_hits);
+    assert_true(c.panel_hits > c.texels / 20);
+    assert_true(c.hits > c.texels / 2);
+    assert_true(compare_ok(&c, 1));
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
 /* Second-bounce VPLs on the GPU maps against the twin on the same maps read back: the same
    texels (positions, normals bit for bit, lit flags equal), flux to float rounding; written
    from VPL first on, the rest of the buffer untouched. */
@@ -459,6 +532,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(maps_match_twin),
         cmocka_unit_test(maps_far_and_small_units),
+        cmocka_unit_test(small_triangles_match_twin),
         cmocka_unit_test(second_bounce_matches_twin),
         cmocka_unit_test(argument_errors),
     };
