@@ -528,6 +528,53 @@ static void argument_errors(void **state) {
     GLTEST_END();
 }
 
+/* No materials: albedo 0 where hit (nothing else changes); no instances: every texel empty;
+   an instance of a removed mesh: an error. */
+static void empty_scene_and_no_materials(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    float *dist, *alb, *pos;
+    size_t t, n = (size_t)NMAPS * SIZE * SIZE;
+    uint32_t hits = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim_set_materials(s.f.ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    c = compare(&s, s.maps, 0);
+    assert_true(compare_ok(&c, 0));
+    alb = read_array(s.f.ctx->para_albedo, GL_RGBA, 4);
+    pos = read_array(s.f.ctx->para_position, GL_RGBA, 4);
+    for (t = 0; t < n; ++t) {
+        if (pos[t * 4 + 3] != 1.0f) continue;
+        hits++;
+        assert_true(alb[t * 4] == 0.0f && alb[t * 4 + 1] == 0.0f && alb[t * 4 + 2] == 0.0f && alb[t * 4 + 3] == 1.0f);
+    }
+    assert_true(hits == c.hits);
+    free(alb); free(pos);
+    assert_int_equal(gim_set_instances(s.f.ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 0, 2.0f), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    dist = read_array(s.f.ctx->para_distance, GL_RED, 1);
+    for (t = 0; t < n; ++t) assert_true(dist[t] == GIM_PARABOLOID_EMPTY);
+    free(dist);
+    {
+        gim_instance inst;
+        inst.mesh = s.block; inst.model = gim_mat4_identity();
+        assert_int_equal(gim_set_instances(s.f.ctx, &inst, 1), GIM_OK);
+        assert_int_equal(gim_remove_mesh(s.f.ctx, s.block), GIM_OK);
+        assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 0, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(s.f.log.errors, 1);
+        s.f.log.errors = 0;
+        gltest_state_unchanged(&s.f);
+    }
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(maps_match_twin),
@@ -535,6 +582,7 @@ int main(void) {
         cmocka_unit_test(small_triangles_match_twin),
         cmocka_unit_test(second_bounce_matches_twin),
         cmocka_unit_test(argument_errors),
+        cmocka_unit_test(empty_scene_and_no_materials),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
