@@ -7930,7 +7930,7 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
      para_depth     DEPTH_COMPONENT32F: d / (d + scene_scale) (the depth test), 1 where none;
    and with attributes != 0 (otherwise they are deleted):
      para_position  RGBA32F: the hit, w = 1 (0 where none);
-     para_normal    RGBA32F: unit normal towards the origin (two-sided);
+     para_normal    RGBA32F: unit normal towards the origin (two-sided), w = 0;
      para_albedo    RGBA32F: diffuse rgb of the triangle's material, w = 1.
    scene_scale > 0 only shapes the depth encoding. Cost: per map, every triangle in front of
    its plane, each covering its image's bounding box. */
