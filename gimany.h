@@ -5165,6 +5165,176 @@ GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *nor
     return GIM_OK;
 }
 
+/* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C) ------------------- */
+
+/* A map's frame: unit n (normalised in float, as the GPU does) and t, b = gim_basis(n).
+   0 where the map is unusable (origin or normal not finite, |n|^2 not within 1e-3 of 1,
+   near_distance not finite and >= 0). */
+static int gim__paraboloid_frame(const gim_paraboloid *m, gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
+    if (!gim__all_finite(m->origin, 3) || !gim__all_finite(m->normal, 3) || !gim__isfinitef(m->near_distance) ||
+        !(m->near_distance >= 0.0f) || !gim__unit_or_zero(m->normal, 0))
+        return 0;
+    *n = gim_v3_normalize(gim_v3(m->normal[0], m->normal[1], m->normal[2]));
+    gim_basis(*n, t, b);
+    return 1;
+}
+
+/* Texel (x, y)'s centre (u, v) on the map and its local direction w (see @section twins);
+   0 outside the unit disk. */
+static int gim__paraboloid_texel_dir(uint32_t size, uint32_t x, uint32_t y, double uv[2], double w[3]) {
+    double r2, k;
+    uv[0] = (2.0 * x + 1.0) / size - 1.0;
+    uv[1] = (2.0 * y + 1.0) / size - 1.0;
+    r2 = uv[0] * uv[0] + uv[1] * uv[1];
+    if (r2 > 1.0) return 0;
+    k = 1.0 / (1.0 + r2);
+    w[0] = 2.0 * uv[0] * k;
+    w[1] = 2.0 * uv[1] * k;
+    w[2] = (1.0 - r2) * k;
+    return 1;
+}
+
+GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, const gim_paraboloid *map, uint32_t size,
+                                                uint32_t x, uint32_t y, gim_paraboloid_texel *out) {
+    static const char where[] = "gim_paraboloid_texel_twin";
+    gim_vec3 t, b, n;
+    double uv[2], w[3], d[3], o[3], best = -1.0, bu = 0.0, bv = 0.0, len;
+    uint32_t tri, best_t = UINT32_MAX;
+    int i;
+    gim_result r;
+    if (!out || !map) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out or map is NULL");
+    r = gim__twin_scene_check(scene, where);
+    if (r != GIM_OK) return r;
+    if (!gim__paraboloid_frame(map, &t, &b, &n))
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "the map's origin or normal is not finite, the normal not unit or near_distance not >= 0");
+    if (size == 0 || x >= size || y >= size)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "texel (%u, %u) outside the %u^2 map", (unsigned)x,
+                         (unsigned)y, (unsigned)size);
+    memset(out, 0, sizeof *out);
+    out->distance = GIM_PARABOLOID_EMPTY;
+    out->triangle = UINT32_MAX;
+    if (!gim__paraboloid_texel_dir(size, x, y, uv, w)) return GIM_OK;
+    d[0] = w[0] * t.x + w[1] * b.x + w[2] * n.x;
+    d[1] = w[0] * t.y + w[1] * b.y + w[2] * n.y;
+    d[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
+    len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (i = 0; i < 3; ++i) { d[i] /= len; o[i] = map->origin[i]; }
+    for (tri = 0; tri < scene->triangle_count; ++tri) { /* Moller-Trumbore, s the distance along unit d */
+        const float *v = scene->positions + (size_t)tri * 9;
+        double e1[3], e2[3], pv[3], tv[3], qv[3], det, u, vv, s;
+        for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; tv[i] = o[i] - v[i]; }
+        pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
+        det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+        if (det == 0.0) continue;
+        u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
+        if (u < 0.0 || u > 1.0) continue;
+        qv[0] = tv[1] * e1[2] - tv[2] * e1[1]; qv[1] = tv[2] * e1[0] - tv[0] * e1[2]; qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+        vv = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+        if (vv < 0.0 || u + vv > 1.0) continue;
+        s = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+        /* nearer than near_distance: the VAL's own surface (Dong fig. 7), not a blocker */
+        if (!(s > (double)map->near_distance) || (best_t != UINT32_MAX && s >= best)) continue;
+        best = s; best_t = tri; bu = u; bv = vv;
+    }
+    if (best_t == UINT32_MAX || !(best <= FLT_MAX)) return GIM_OK;
+    out->hit = 1;
+    out->triangle = best_t;
+    out->distance = (float)best;
+    {
+        const float *v = scene->positions + (size_t)best_t * 9;
+        double nn[3], side = 0.0;
+        if (scene->normals) {
+            const float *vn = scene->normals + (size_t)best_t * 9;
+            for (i = 0; i < 3; ++i) nn[i] = (1.0 - bu - bv) * vn[i] + bu * vn[3 + i] + bv * vn[6 + i];
+        } else {
+            double e1[3], e2[3];
+            for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; }
+            nn[0] = e1[1] * e2[2] - e1[2] * e2[1]; nn[1] = e1[2] * e2[0] - e1[0] * e2[2]; nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        }
+        len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+        for (i = 0; i < 3; ++i) side -= nn[i] * d[i];
+        for (i = 0; i < 3; ++i) {
+            out->position[i] = (float)(o[i] + best * d[i]);
+            /* two-sided: turned towards the origin (zero for a degenerate normal) */
+            out->normal[i] = len > 0.0 ? (float)((side < 0.0 ? -nn[i] : nn[i]) / len) : 0.0f;
+            out->albedo[i] = scene->albedo[(size_t)best_t * 3 + i];
+        }
+    }
+    return GIM_OK;
+}
+
+/* S_m = S / M, one more for m < S mod M: map m's share of the second-bounce VPLs, and the
+   index of its first one. */
+static uint32_t gim__second_bounce_share(uint32_t vpl_count, uint32_t map_count, uint32_t m, uint32_t *first) {
+    uint32_t q = vpl_count / map_count, rem = vpl_count % map_count;
+    *first = m * q + (m < rem ? m : rem);
+    return q + (m < rem ? 1u : 0u);
+}
+
+/* The texel of map sample j of s_m (SSVP sec. 3.C): the Hammersley point ((j + 0.5) / s_m,
+   radical inverse of j) through the area-preserving gim_square_to_disk, to the texel that
+   holds it (x = min(floor((u + 1) size / 2), size - 1)). */
+static void gim__second_bounce_texel(uint32_t j, uint32_t s_m, uint32_t size, uint32_t *x, uint32_t *y) {
+    gim_vec2 p = gim_square_to_disk((float)((j + 0.5) / s_m), (float)gim_van_der_corput(j));
+    double fx = floor(((double)p.x + 1.0) * size * 0.5), fy = floor(((double)p.y + 1.0) * size * 0.5);
+    *x = fx < 0.0 ? 0u : fx >= (double)size ? size - 1u : (uint32_t)fx;
+    *y = fy < 0.0 ? 0u : fy >= (double)size ? size - 1u : (uint32_t)fy;
+}
+
+GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out) {
+    static const char where[] = "gim_second_bounce_vpls";
+    const gim_env *env = desc ? &desc->env : NULL;
+    uint32_t m, j;
+    size_t texels;
+    if (!desc || !out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
+    if (!desc->maps || !desc->position || !desc->normal || !desc->albedo)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "maps, position, normal or albedo is NULL");
+    if (desc->map_count == 0 || desc->size == 0 || desc->vpl_count == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "map_count, size or vpl_count is 0");
+    if (desc->size > 65535u)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "size %u above 65535", (unsigned)desc->size);
+    texels = (size_t)desc->size * desc->size;
+    for (m = 0; m < desc->map_count; ++m) {
+        const gim_paraboloid *p = &desc->maps[m];
+        gim_vec3 t, b, n;
+        if (!gim__paraboloid_frame(p, &t, &b, &n) || !gim__all_finite(p->flux, 3) || p->flux[0] < 0.0f ||
+            p->flux[1] < 0.0f || p->flux[2] < 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "map %u: origin, normal, near_distance or flux not finite, unit and >= 0", (unsigned)m);
+    }
+    for (m = 0; m < desc->map_count; ++m) {
+        const gim_paraboloid *p = &desc->maps[m];
+        uint32_t first, s_m = gim__second_bounce_share(desc->vpl_count, desc->map_count, m, &first);
+        for (j = 0; j < s_m; ++j) {
+            gim_vpl *v = &out[first + j];
+            uint32_t x, y;
+            size_t k;
+            const float *hp, *hn, *ha;
+            double uv[2], w[3], r2, scale;
+            int i;
+            gim__second_bounce_texel(j, s_m, desc->size, &x, &y);
+            k = ((size_t)m * texels + (size_t)y * desc->size + x) * 4u;
+            hp = desc->position + k; hn = desc->normal + k; ha = desc->albedo + k;
+            memset(v, 0, sizeof *v);
+            /* a texel without a hit, with broken data or outside the disk: an unlit VPL */
+            if (!(hp[3] > 0.0f) || !gim__all_finite(hp, 3) || !gim__all_finite(hn, 3) || !gim__all_finite(ha, 3) ||
+                ha[0] < 0.0f || ha[1] < 0.0f || ha[2] < 0.0f || !gim__paraboloid_texel_dir(desc->size, x, y, uv, w))
+                continue;
+            /* Phi = albedo Phi_m w.z / (pi S_m pdf), pdf = (1 + r^2)^2 / (4 pi), w.z = (1 - r^2) / (1 + r^2) */
+            r2 = uv[0] * uv[0] + uv[1] * uv[1];
+            scale = 4.0 * (1.0 - r2) / ((double)s_m * (1.0 + r2) * (1.0 + r2) * (1.0 + r2));
+            v->lit = 1.0f;
+            for (i = 0; i < 3; ++i) {
+                v->position[i] = hp[i];
+                v->normal[i] = hn[i];
+                v->flux[i] = gim__clamp_flt((double)ha[i] * p->flux[i] * scale);
+            }
+        }
+    }
+    return GIM_OK;
+}
+
 #ifdef __cplusplus
 }
 #endif
@@ -5342,7 +5512,9 @@ enum {
     GIM__GL_TEXTURE_UPDATE_BARRIER_BIT = 0x00000100,
     GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT = 0x90DF,
     GIM__GL_TEXTURE_INTERNAL_FORMAT = 0x1003,
-    GIM__GL_RGBA32UI = 0x8D70
+    GIM__GL_RGBA32UI = 0x8D70,
+    GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
+    GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -5465,7 +5637,13 @@ enum {
     X(void, DeleteQueries, (gim__GLsizei n, const gim__GLuint *ids))                             \
     X(void, QueryCounter, (gim__GLuint id, gim__GLenum target))                                  \
     X(void, Finish, (void))                                                                      \
-    X(void, GetQueryObjectui64v, (gim__GLuint id, gim__GLenum pname, uint64_t *params))
+    X(void, GetQueryObjectui64v, (gim__GLuint id, gim__GLenum pname, uint64_t *params))         \
+    X(void, TexStorage3D, (gim__GLenum target, gim__GLsizei levels, gim__GLenum format,          \
+                           gim__GLsizei width, gim__GLsizei height, gim__GLsizei depth))         \
+    X(void, FramebufferTexture, (gim__GLenum target, gim__GLenum attachment, gim__GLuint texture, \
+                                 gim__GLint level))                                              \
+    X(void, DrawElementsInstanced, (gim__GLenum mode, gim__GLsizei count, gim__GLenum type,      \
+                                    const void *indices, gim__GLsizei instancecount))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -5738,11 +5916,13 @@ typedef enum gim__program_id {
     GIM__PROGRAM_KMEANS_ASSIGN,      /* k-means assignment per VPL (Dong 5.1, SSVP eq. 2) */
     GIM__PROGRAM_KMEANS_UPDATE,      /* k-means flux-weighted means per cluster (a gather) */
     GIM__PROGRAM_CLUSTERS,           /* k-means seeds; the clusters' VALs and paraboloid maps */
+    GIM__PROGRAM_PARABOLOID,         /* paraboloid maps of the clusters, one layer each (Dong sec. 4.2) */
+    GIM__PROGRAM_SECOND_BOUNCE,      /* second-bounce VPLs from the maps (SSVP sec. 3.C) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
-/* Shader files of each program (compute: one file; draw programs: vertex, fragment). */
-static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
+/* Shader files of each program (compute: one file; draw programs: vertex, [geometry,] fragment). */
+static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"importance_map.comp", NULL},
     {"importance_scan_columns.comp", NULL},
     {"importance_scan_totals.comp", NULL},
@@ -5759,7 +5939,9 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][2] = {
     {"rsm_vpls.comp", NULL},
     {"kmeans_assign.comp", NULL},
     {"kmeans_update.comp", NULL},
-    {"clusters.comp", NULL}};
+    {"clusters.comp", NULL},
+    {"paraboloid.vert", "paraboloid.geom", "paraboloid.frag"},
+    {"second_bounce.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -5862,6 +6044,13 @@ struct gim_context {
     unsigned char stamp_pass[GIM__MAX_STAMPS];
     gim_stats stats;
     gim_frame_outputs outputs;
+    /* paraboloid maps (issue 5) */
+    uint32_t para_size, para_count;   /* of the textures below; 0: none */
+    int para_attributes;              /* 1: position, normal, albedo exist */
+    gim__GLuint para_distance, para_depth, para_position, para_normal, para_albedo, para_fbo;
+    gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
+    uint64_t para_samples_bytes;
+    uint32_t para_key[3];             /* map_count, size, vpl_count para_samples was made for */
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -5997,12 +6186,12 @@ static const char *gim__embedded_source(const char *file) {
 
 /* The program id, built on first use (a feature never used costs nothing). */
 static gim_result gim__gl_program(gim_context *ctx, gim__program_id id, gim__GLuint *out) {
-    gim__shader_stage stages[2];
+    gim__shader_stage stages[3];
     int n = 0, i;
     gim_result r;
     GIMANY_ASSERT((unsigned)id < GIM__PROGRAM_COUNT);
     if (ctx->programs[id]) { *out = ctx->programs[id]; return GIM_OK; }
-    for (i = 0; i < 2 && gim__program_files[id][i]; ++i) {
+    for (i = 0; i < 3 && gim__program_files[id][i]; ++i) {
         const char *file = gim__program_files[id][i], *dot = strrchr(file, '.');
         stages[n].name = file;
         stages[n].source = gim__embedded_source(file);
@@ -7809,6 +7998,234 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     return gim__gl_check(ctx, where);
 }
 
+/* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C; issue 5) ------- */
+
+/* Delete the paraboloid textures (all, or only the attribute ones) and, with all, the second
+   bounce's sample buffer. */
+static void gim__paraboloid_release(gim_context *ctx, int all) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint t[5];
+    t[0] = ctx->para_position; t[1] = ctx->para_normal; t[2] = ctx->para_albedo;
+    t[3] = ctx->para_distance; t[4] = ctx->para_depth;
+    gl->DeleteTextures(all ? 5 : 3, t);
+    ctx->para_position = ctx->para_normal = ctx->para_albedo = 0;
+    ctx->para_attributes = 0;
+    if (!all) return;
+    ctx->para_distance = ctx->para_depth = 0;
+    if (ctx->para_fbo) gl->DeleteFramebuffers(1, &ctx->para_fbo);
+    if (ctx->para_samples) gl->DeleteBuffers(1, &ctx->para_samples);
+    ctx->para_fbo = ctx->para_samples = 0;
+    ctx->para_samples_bytes = 0;
+    ctx->para_size = ctx->para_count = 0;
+    memset(ctx->para_key, 0, sizeof ctx->para_key);
+}
+
+/* A size x size x layers single-level 2D array texture of format, nearest, clamped (replaces *tex). */
+static void gim__gl_texture_array(gim_context *ctx, gim__GLuint *tex, gim__GLenum format, uint32_t size, uint32_t layers) {
+    const gim__gl *gl = &ctx->gl;
+    if (*tex) gl->DeleteTextures(1, tex);
+    *tex = 0;
+    gl->GenTextures(1, tex);
+    gl->ActiveTexture(GIM__GL_TEXTURE0);
+    gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, *tex);
+    gl->TexStorage3D(GIM__GL_TEXTURE_2D_ARRAY, 1, format, (gim__GLsizei)size, (gim__GLsizei)size, (gim__GLsizei)layers);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D_ARRAY, GIM__GL_TEXTURE_MIN_FILTER, GIM__GL_NEAREST);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D_ARRAY, GIM__GL_TEXTURE_MAG_FILTER, GIM__GL_NEAREST);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D_ARRAY, GIM__GL_TEXTURE_WRAP_S, GIM__GL_CLAMP_TO_EDGE);
+    gl->TexParameteri(GIM__GL_TEXTURE_2D_ARRAY, GIM__GL_TEXTURE_WRAP_T, GIM__GL_CLAMP_TO_EDGE);
+}
+
+/* The layered textures and framebuffer of count size^2 maps (kept while they fit exactly). */
+static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, uint32_t size, int attributes,
+                                             const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint color[4];
+    gim__GLenum bufs[4], status;
+    int n = attributes ? 4 : 1, i;
+    if (ctx->para_size == size && ctx->para_count == count && ctx->para_attributes == attributes && ctx->para_fbo)
+        return GIM_OK;
+    if (!attributes) gim__paraboloid_release(ctx, 0);  /* only what is enabled is allocated */
+    ctx->para_size = ctx->para_count = 0;
+    gim__gl_texture_array(ctx, &ctx->para_distance, GIM__GL_R32F, size, count);
+    gim__gl_texture_array(ctx, &ctx->para_depth, GIM__GL_DEPTH_COMPONENT32F, size, count);
+    if (attributes) {
+        gim__gl_texture_array(ctx, &ctx->para_position, GIM__GL_RGBA32F, size, count);
+        gim__gl_texture_array(ctx, &ctx->para_normal, GIM__GL_RGBA32F, size, count);
+        gim__gl_texture_array(ctx, &ctx->para_albedo, GIM__GL_RGBA32F, size, count);
+    }
+    color[0] = ctx->para_distance; color[1] = ctx->para_position; color[2] = ctx->para_normal; color[3] = ctx->para_albedo;
+    if (ctx->para_fbo) gl->DeleteFramebuffers(1, &ctx->para_fbo);
+    ctx->para_fbo = 0;
+    gl->GenFramebuffers(1, &ctx->para_fbo);
+    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, ctx->para_fbo);
+    for (i = 0; i < n; ++i) { /* layered attachments: gl_Layer picks the map */
+        gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
+        bufs[i] = GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i;
+    }
+    gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->para_depth, 0);
+    gl->DrawBuffers(n, bufs);
+    status = gl->CheckFramebufferStatus(GIM__GL_FRAMEBUFFER);
+    if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
+        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "layered framebuffer incomplete (0x%04x)", (unsigned)status);
+    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
+    ctx->para_size = size;
+    ctx->para_count = count;
+    ctx->para_attributes = attributes;
+    return GIM_OK;
+}
+
+/* The paraboloid maps of count clusters in one layered pass, the GPU twin of
+   gim_paraboloid_texel_twin at every texel. maps_ssbo: count gim_paraboloid (48 bytes, std430
+   3 vec4), read by the shaders only (the cluster pass writes it on the GPU). Every scene
+   instance is drawn instanced count times; paraboloid.geom sends instance i's triangles to
+   layer i as a conservative quad around their exact (curved) image, and paraboloid.frag
+   intersects each covered texel's ray with the triangle, so the maps are exact for any
+   triangle size (the papers project vertices and rasterise linearly, which bends nothing).
+   Writes, in ctx (size x size x count 2D arrays, layer = map, rows from y = 0):
+     para_distance  R32F: distance to the nearest hit beyond near_distance, GIM_PARABOLOID_EMPTY where none;
+     para_depth     DEPTH_COMPONENT32F: d / (d + scene_scale) (the depth test), 1 where none;
+   and with attributes != 0 (otherwise they are deleted):
+     para_position  RGBA32F: the hit, w = 1 (0 where none);
+     para_normal    RGBA32F: unit normal towards the origin (two-sided), w = 0;
+     para_albedo    RGBA32F: diffuse rgb of the triangle's material, w = 1.
+   scene_scale > 0 only shapes the depth encoding. Cost: per map, every triangle in front of
+   its plane, each covering its image's bounding box. */
+static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t count, uint32_t size,
+                                                  int attributes, float scene_scale) {
+    static const char where[] = "paraboloid maps (GL)";
+    static const float empty[4] = {GIM_PARABOLOID_EMPTY, 0.0f, 0.0f, 0.0f}, zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+    static const float one = 1.0f;
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim__GLint max_layers = 0, max_fb_layers = 0;
+    gim_result r = GIM_OK;
+    uint32_t i;
+    int k;
+    if (!maps_ssbo) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_ssbo is 0");
+    if (count == 0 || size == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count or size is 0");
+    if (!gim__isfinitef(scene_scale) || !(scene_scale > 0.0f))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
+    if (size > (uint32_t)ctx->max_texture_size || size > (uint32_t)ctx->max_viewport[0] ||
+        size > (uint32_t)ctx->max_viewport[1])
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %u above the texture or viewport limit",
+                         (unsigned)size);
+    if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the SSBO limit", (unsigned)count);
+    attributes = attributes != 0;
+    gim__gl_enter(ctx, where);
+    gl->GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
+    gl->GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &max_fb_layers);
+    if ((int64_t)count > (int64_t)max_layers || (int64_t)count > (int64_t)max_fb_layers)
+        r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)", (unsigned)count,
+                      (int)max_layers, (int)max_fb_layers);
+    for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
+        if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)count * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PARABOLOID, &program);
+    if (r == GIM_OK) r = gim__gl_paraboloid_targets(ctx, count, size, attributes, where);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gim__gl_raster_state(gl, ctx->para_fbo, size, size);
+    gl->ClearBufferfv(GIM__GL_COLOR, 0, empty);
+    for (k = 1; k < (attributes ? 4 : 1); ++k) gl->ClearBufferfv(GIM__GL_COLOR, k, zero);
+    gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
+    gl->UseProgram(program);
+    gl->Uniform1ui(3, ctx->materials ? ctx->material_count : 0u);
+    gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);  /* rounding only: a quarter texel beyond the rigorous bound */
+    gl->Uniform1ui(5, size);
+    gl->Uniform1f(6, scene_scale);
+    /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials ? ctx->materials : maps_ssbo);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_ssbo);
+    for (i = 0; i < ctx->instance_count; ++i) {
+        const gim_instance *in = &ctx->instances[i];
+        const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
+        gim_mat4 nm = gim_mat4_normal(in->model);
+        gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
+        gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
+        gl->BindVertexArray(m->vao);
+        gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, NULL,
+                                  (gim__GLsizei)count);
+    }
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Second-bounce VPLs on the GPU, the twin of gim_second_bounce_vpls on the maps of the last
+   gim__gl_paraboloids (made with attributes, map_count <= its count, the same size): VPL
+   first + i of vpls_out (gim_vpl, 48 bytes) for i < vpl_count, map m's share in map order.
+   The texels are the twin's own (gim__second_bounce_texel), computed on the CPU and kept in
+   ctx->para_samples while map_count, size and vpl_count stay the same. maps_ssbo: as for the
+   maps (flux read). */
+static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count,
+                                                    uint32_t size, uint32_t vpl_count, gim__GLuint vpls_out,
+                                                    uint32_t first) {
+    static const char where[] = "second-bounce VPLs (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3];
+    gim_result r = GIM_OK;
+    uint32_t m, j, i;
+    if (!maps_ssbo || !vpls_out)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_ssbo or vpls_out is 0");
+    if (map_count == 0 || size == 0 || vpl_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "map_count, size or vpl_count is 0");
+    if (!ctx->para_attributes || ctx->para_size != size || ctx->para_count < map_count)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "no paraboloid maps with attributes of size %u and %u layers (run the paraboloid pass first)",
+                         (unsigned)size, (unsigned)map_count);
+    if ((uint64_t)first + vpl_count > UINT32_MAX || ((uint64_t)first + vpl_count) * 48u > (uint64_t)ctx->max_ssbo_bytes ||
+        (uint64_t)vpl_count * 16u > (uint64_t)ctx->max_ssbo_bytes || vpl_count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs from %u exceed the SSBO or dispatch limits",
+                         (unsigned)vpl_count, (unsigned)first);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)map_count * 48u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, ((uint64_t)first + vpl_count) * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE, &program);
+    if (r == GIM_OK && (!ctx->para_samples || ctx->para_key[0] != map_count || ctx->para_key[1] != size ||
+                        ctx->para_key[2] != vpl_count)) {
+        uint32_t *texels = (uint32_t *)gim__alloc_array(&ctx->env, vpl_count, 4u * sizeof(uint32_t));
+        if (!texels) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)vpl_count);
+        for (m = 0; m < map_count && texels; ++m) {
+            uint32_t at, s_m = gim__second_bounce_share(vpl_count, map_count, m, &at);
+            for (j = 0; j < s_m; ++j) {
+                uint32_t *t = texels + (size_t)(at + j) * 4u;
+                t[0] = m;
+                gim__second_bounce_texel(j, s_m, size, &t[1], &t[2]);
+                t[3] = s_m;
+            }
+        }
+        memset(ctx->para_key, 0, sizeof ctx->para_key);
+        if (r == GIM_OK)
+            r = gim__gl_sized_buffer(ctx, &ctx->para_samples, &ctx->para_samples_bytes, (uint64_t)vpl_count * 16u, where);
+        if (r == GIM_OK) {
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->para_samples);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)vpl_count * 16, texels);
+            r = gim__gl_check(ctx, where);
+        }
+        if (r == GIM_OK) { ctx->para_key[0] = map_count; ctx->para_key[1] = size; ctx->para_key[2] = vpl_count; }
+        gim__free(&ctx->env, texels);
+    }
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gim__gl_nearest_sampler(ctx);
+    textures[0] = ctx->para_position; textures[1] = ctx->para_normal; textures[2] = ctx->para_albedo;
+    for (i = 0; i < 3; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, textures[i]);
+        gl->BindSampler(i, ctx->nearest_sampler);
+    }
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, maps_ssbo);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->para_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls_out);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, vpl_count);
+    gl->Uniform1ui(1, first);
+    gl->Uniform1ui(2, size);
+    gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
 /* Argument checks of gim_update that need no GL. */
 /* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
    Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
@@ -7830,6 +8247,7 @@ static void gim__vpl_release(gim_context *ctx) {
     b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
     ctx->gl.DeleteBuffers(5, b);
     memset(v, 0, sizeof *v);
+    gim__paraboloid_release(ctx, 1);
 }
 
 /* The resolved settings of a VPL frame (gim_frame's zeros made defaults). */
@@ -7983,7 +8401,19 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     v->warm_vpls = r == GIM_OK ? first : 0u;
     gim__stamp(ctx, f->timing, GIM_PASS_KMEANS);
     if (r != GIM_OK) return r;
-    /* MERGE: paraboloid maps, second bounce, shading, blur */
+    /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility, attributes for the second bounce */
+    if (s.visibility || s.second) {
+        r = gim__gl_paraboloids(ctx, v->maps, s.clusters, s.size, s.second > 0u, scale);
+        gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
+    } else {
+        gim__paraboloid_release(ctx, 1);
+    }
+    if (r == GIM_OK && s.second) {
+        r = gim__gl_second_bounce(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first);
+        gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
+    }
+    if (r != GIM_OK) return r;
+    /* MERGE: shading, blur */
     o->vpls = v->vpls;
     o->vpl_count = total;
     o->first_bounce_count = first;
@@ -7992,6 +8422,10 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     o->cluster_count = s.clusters;
     o->kmeans_centres = v->centres;
     o->paraboloid_size = s.size;
+    o->paraboloid_distance = ctx->para_distance;
+    o->paraboloid_position = ctx->para_position;
+    o->paraboloid_normal = ctx->para_normal;
+    o->paraboloid_albedo = ctx->para_albedo;
     return GIM_OK;
 }
 
@@ -8265,6 +8699,8 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
          ctx->vpl.maps_bytes;
+    b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
+         ctx->para_samples_bytes;
     return b;
 }
 
@@ -8362,6 +8798,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
         if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
     if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
+    gim__paraboloid_release(ctx, 1);
     gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);

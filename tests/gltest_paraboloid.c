@@ -1,0 +1,590 @@
+/* The paraboloid-map pass (one layered draw of every map, Dong sec. 4.2) against its CPU twin
+   gim_paraboloid_texel_twin at EVERY texel, on a Cornell-like box of huge triangles (each wall
+   two triangles, whose curved images a linear rasterisation of the projected vertices would
+   get badly wrong) with a rotated, scaled block, six maps with different origins and normals
+   (one tilted to a grazing 85 degrees, one outside the box looking in, near distances on
+   some); with attributes (position, normal, albedo) and without (no attribute textures then);
+   a panel of 512 small triangles with shared edges; a perturbed map shows the comparison
+   fails (and a bound of each triangle from its projected vertices alone, tried in the
+   geometry shader, loses ~15% of the hit texels here: the test catches it). Then the second-bounce VPLs (SSVP sec. 3.C) of
+   the GPU maps against gim_second_bounce_vpls on the same maps read back. Zero GL errors, the
+   GL state restored, every allocation freed.
+
+   Tolerances: hit/miss may differ only where a texel's ray grazes a triangle's edge (float
+   on the GPU, double in the twin): >= 99.9% of texels must agree; at agreeing hits the
+   distance within 1e-4 relative (float rounding of the ray-triangle intersection, ~1e-6 seen),
+   the position within 1e-4 of the box, normals within 1e-3 (dot product), albedo equal but at
+   the few texels where the two hit different triangles at a shared edge. Seen: printed. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+
+#define NMAPS 6
+#define SIZE 64
+#define MAX_TRI 600
+#define GRID 16
+
+static gim_mat4 translate(float x, float y, float z) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[12] = x; m.m[13] = y; m.m[14] = z;
+    return m;
+}
+static gim_mat4 scale3(float x, float y, float z) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[0] = x; m.m[5] = y; m.m[10] = z;
+    return m;
+}
+static gim_mat4 rotate_y(float a) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[0] = cosf(a); m.m[8] = sinf(a); m.m[2] = -sinf(a); m.m[10] = cosf(a);
+    return m;
+}
+
+static const gim_material materials[4] = {
+    {{0.75f, 0.75f, 0.75f}, {0, 0, 0}, 0}, {{0.8f, 0.1f, 0.1f}, {0, 0, 0}, 0},
+    {{0.1f, 0.7f, 0.15f}, {0, 0, 0}, 0}, {{0.3f, 0.4f, 0.9f}, {0.2f, 0.2f, 0.2f}, 10}};
+
+/* The box [-1, 1] x [0, 2] x [-1, 1] without its front: floor, ceiling, back (white), left
+   (red), right (green); unshared vertices, explicit inward normals of length 2. */
+static float cb_pos[20 * 3], cb_nrm[20 * 3];
+static uint16_t cb_idx[30];
+static uint32_t cb_mat[10];
+/* A closed unit cube [-1, 1]^3, no normals (the library computes them: flat here). */
+static float blk_pos[24 * 3];
+static uint32_t blk_idx[36], blk_mat[12];
+
+/* A GRID x GRID grid of small triangles over [-1, 1]^2 at y = 0 with shared vertices (normals
+   computed by the library: +y everywhere, interpolated). */
+static float grid_pos[(GRID + 1) * (GRID + 1) * 3], grid_nrm[(GRID + 1) * (GRID + 1) * 3];
+static uint32_t grid_idx[GRID * GRID * 6], grid_mat[GRID * GRID * 2];
+
+static void make_grid(void) {
+    int x, z;
+    for (z = 0; z <= GRID; ++z)
+        for (x = 0; x <= GRID; ++x) {
+            float *p = grid_pos + (z * (GRID + 1) + x) * 3, *n = grid_nrm + (z * (GRID + 1) + x) * 3;
+            p[0] = -1.0f + 2.0f * x / GRID; p[1] = 0.0f; p[2] = -1.0f + 2.0f * z / GRID;
+            n[0] = 0.0f; n[1] = 1.0f; n[2] = 0.0f;
+        }
+    for (z = 0; z < GRID; ++z)
+        for (x = 0; x < GRID; ++x) {
+            uint32_t a = (uint32_t)(z * (GRID + 1) + x), *t = grid_idx + (z * GRID + x) * 6;
+            t[0] = a; t[1] = a + GRID + 1; t[2] = a + 1; t[3] = a + 1; t[4] = a + GRID + 1; t[5] = a + GRID + 2;
+            grid_mat[(z * GRID + x) * 2] = grid_mat[(z * GRID + x) * 2 + 1] = (uint32_t)((x + z) % 4);  /* a checkerboard */
+        }
+}
+
+static void make_meshes(void) {
+    static const float cb[5][4][3] = {{{-1, 0, -1}, {1, 0, -1}, {1, 0, 1}, {-1, 0, 1}},
+                                      {{-1, 2, -1}, {-1, 2, 1}, {1, 2, 1}, {1, 2, -1}},
+                                      {{-1, 0, -1}, {-1, 2, -1}, {1, 2, -1}, {1, 0, -1}},
+                                      {{-1, 0, -1}, {-1, 0, 1}, {-1, 2, 1}, {-1, 2, -1}},
+                                      {{1, 0, -1}, {1, 2, -1}, {1, 2, 1}, {1, 0, 1}}};
+    static const float cbn[5][3] = {{0, 2, 0}, {0, -2, 0}, {0, 0, 2}, {2, 0, 0}, {-2, 0, 0}};
+    static const uint32_t cbm[5] = {0, 0, 0, 1, 2};
+    static const float bf[6][4][3] = {{{-1, 1, -1}, {-1, 1, 1}, {1, 1, 1}, {1, 1, -1}},
+                                      {{-1, -1, -1}, {1, -1, -1}, {1, -1, 1}, {-1, -1, 1}},
+                                      {{-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}},
+                                      {{1, -1, -1}, {-1, -1, -1}, {-1, 1, -1}, {1, 1, -1}},
+                                      {{1, -1, 1}, {1, -1, -1}, {1, 1, -1}, {1, 1, 1}},
+                                      {{-1, -1, -1}, {-1, -1, 1}, {-1, 1, 1}, {-1, 1, -1}}};
+    int f, v;
+    for (f = 0; f < 5; ++f) {
+        for (v = 0; v < 4; ++v) {
+            memcpy(cb_pos + (f * 4 + v) * 3, cb[f][v], 12);
+            memcpy(cb_nrm + (f * 4 + v) * 3, cbn[f], 12);
+        }
+        cb_idx[f * 6] = (uint16_t)(f * 4); cb_idx[f * 6 + 1] = (uint16_t)(f * 4 + 1); cb_idx[f * 6 + 2] = (uint16_t)(f * 4 + 2);
+        cb_idx[f * 6 + 3] = (uint16_t)(f * 4); cb_idx[f * 6 + 4] = (uint16_t)(f * 4 + 2); cb_idx[f * 6 + 5] = (uint16_t)(f * 4 + 3);
+        cb_mat[f * 2] = cb_mat[f * 2 + 1] = cbm[f];
+    }
+    for (f = 0; f < 6; ++f) {
+        for (v = 0; v < 4; ++v) memcpy(blk_pos + (f * 4 + v) * 3, bf[f][v], 12);
+        blk_idx[f * 6] = (uint32_t)f * 4; blk_idx[f * 6 + 1] = (uint32_t)f * 4 + 1; blk_idx[f * 6 + 2] = (uint32_t)f * 4 + 2;
+        blk_idx[f * 6 + 3] = (uint32_t)f * 4; blk_idx[f * 6 + 4] = (uint32_t)f * 4 + 2; blk_idx[f * 6 + 5] = (uint32_t)f * 4 + 3;
+        blk_mat[f * 2] = 3u;
+        blk_mat[f * 2 + 1] = f == 0 ? 9u : 3u;  /* one id past the materials: clamped to the last (3) */
+    }
+}
+
+typedef struct twin_soup {
+    float pos[MAX_TRI * 9], nrm[MAX_TRI * 9], alb[MAX_TRI * 3];
+    uint32_t n;
+} twin_soup;
+
+/* Append a mesh placed by model to the twin's soup; normals NULL: the model-space face normal
+   through the normal matrix (as the GPU gets it for unshared vertices). */
+static void soup_add(twin_soup *s, const float *pos, const float *nrm, const void *idx, int u16, uint32_t index_count,
+                     const uint32_t *mat, uint32_t mat_all, gim_mat4 model) {
+    gim_mat4 nm = gim_mat4_normal(model);
+    uint32_t t, k, v[3];
+    for (t = 0; t < index_count / 3; ++t) {
+        float *P = s->pos + s->n * 9, *N = s->nrm + s->n * 9;
+        assert_true(s->n < MAX_TRI);
+        for (k = 0; k < 3; ++k) {
+            gim_vec3 w;
+            v[k] = u16 ? ((const uint16_t *)idx)[t * 3 + k] : ((const uint32_t *)idx)[t * 3 + k];
+            w = gim_mat4_point(model, gim_v3(pos[v[k] * 3], pos[v[k] * 3 + 1], pos[v[k] * 3 + 2]));
+            P[k * 3] = w.x; P[k * 3 + 1] = w.y; P[k * 3 + 2] = w.z;
+            if (nrm) {
+                gim_vec3 n = gim_mat4_dir(nm, gim_v3(nrm[v[k] * 3], nrm[v[k] * 3 + 1], nrm[v[k] * 3 + 2]));
+                N[k * 3] = n.x; N[k * 3 + 1] = n.y; N[k * 3 + 2] = n.z;
+            }
+        }
+        if (!nrm) {
+            gim_vec3 a = gim_v3(pos[v[0] * 3], pos[v[0] * 3 + 1], pos[v[0] * 3 + 2]);
+            gim_vec3 fn = gim_mat4_dir(nm, gim_v3_cross(gim_v3_sub(gim_v3(pos[v[1] * 3], pos[v[1] * 3 + 1], pos[v[1] * 3 + 2]), a),
+                                                        gim_v3_sub(gim_v3(pos[v[2] * 3], pos[v[2] * 3 + 1], pos[v[2] * 3 + 2]), a)));
+            for (k = 0; k < 3; ++k) { N[k * 3] = fn.x; N[k * 3 + 1] = fn.y; N[k * 3 + 2] = fn.z; }
+        }
+        memcpy(s->alb + s->n * 3, materials[mat ? mat[t] : mat_all].diffuse, 3 * sizeof(float));
+        s->n++;
+    }
+}
+
+typedef struct scene {
+    gltest_fixture f;
+    gim_mesh box, block;
+    twin_soup soup;
+    gim_twin_scene twin;
+    gim_paraboloid maps[NMAPS];
+} scene;
+
+static gim_paraboloid map_at(float ox, float oy, float oz, float nx, float ny, float nz, float near_d) {
+    gim_paraboloid m;
+    float l = sqrtf(nx * nx + ny * ny + nz * nz);
+    memset(&m, 0, sizeof m);
+    m.origin[0] = ox; m.origin[1] = oy; m.origin[2] = oz;
+    m.normal[0] = nx / l; m.normal[1] = ny / l; m.normal[2] = nz / l;
+    m.near_distance = near_d;
+    m.size = 0.1f;
+    m.flux[0] = 2.0f + ox; m.flux[1] = 1.0f + oy; m.flux[2] = 0.5f;
+    return m;
+}
+
+static void scene_begin(scene *s) {
+    gim_mesh_desc md;
+    gim_instance inst[2];
+    const float graze = 85.0f * 3.14159265f / 180.0f;
+    memset(s, 0, sizeof *s);
+    gltest_fixture_begin(&s->f);
+    make_meshes();
+    memset(&md, 0, sizeof md);
+    md.data.positions = cb_pos; md.data.normals = cb_nrm; md.data.vertex_count = 20;
+    md.data.indices = cb_idx; md.data.index_count = 30; md.data.index_type = GIM_INDEX_U16;
+    md.data.triangle_material = cb_mat;
+    assert_int_equal(gim_add_mesh(s->f.ctx, &md, &s->box), GIM_OK);
+    memset(&md, 0, sizeof md);
+    md.data.positions = blk_pos; md.data.vertex_count = 24;
+    md.data.indices = blk_idx; md.data.index_count = 36; md.data.triangle_material = blk_mat;
+    assert_int_equal(gim_add_mesh(s->f.ctx, &md, &s->block), GIM_OK);
+    assert_int_equal(gim_set_materials(s->f.ctx, materials, 4), GIM_OK);
+    inst[0].mesh = s->box; inst[0].model = gim_mat4_identity();
+    inst[1].mesh = s->block;
+    /* the block: rotated, non-uniformly scaled, standing on the floor */
+    inst[1].model = gim_mat4_mul(translate(0.35f, 0.6f, -0.2f), gim_mat4_mul(rotate_y(0.4f), scale3(0.3f, 0.6f, 0.25f)));
+    assert_int_equal(gim_set_instances(s->f.ctx, inst, 2), GIM_OK);
+    s->soup.n = 0;
+    soup_add(&s->soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
+    soup_add(&s->soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    s->twin.positions = s->soup.pos; s->twin.normals = s->soup.nrm; s->twin.albedo = s->soup.alb;
+    s->twin.triangle_count = s->soup.n;
+    s->maps[0] = map_at(0.0f, 1e-4f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f);             /* floor centre, up */
+    s->maps[1] = map_at(0.1f, 2.0f - 1e-4f, 0.2f, 0.0f, -1.0f, 0.0f, 0.02f);     /* ceiling, down */
+    s->maps[2] = map_at(-1.0f + 1e-4f, 1.0f, -0.3f, 1.0f, 0.0f, 0.0f, 0.0f);     /* left wall */
+    s->maps[3] = map_at(0.3f, 1.5f, 0.1f, 0.2f, -1.0f, 0.1f, 0.05f);             /* above the block */
+    s->maps[4] = map_at(-0.5f, 1e-3f, 0.5f, sinf(graze) * 0.866f, cosf(graze), sinf(graze) * 0.5f, 0.0f); /* grazing */
+    s->maps[5] = map_at(0.0f, 1.0f, 3.0f, 0.05f, -0.1f, -1.0f, 0.0f);           /* outside, looking in */
+}
+
+static void scene_end(scene *s) { gltest_fixture_end(&s->f); }
+
+static float *read_array(GLuint tex, GLenum format, int comps) {
+    float *out = (float *)malloc((size_t)NMAPS * SIZE * SIZE * comps * sizeof(float));
+    GLint pack = 4;
+    glGetIntegerv(GL_PACK_ALIGNMENT, &pack);
+    glPixelStorei(GL_PACK_ALIGNMENT, 4);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, tex);
+    glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, format, GL_FLOAT, out);
+    glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+    glPixelStorei(GL_PACK_ALIGNMENT, pack);
+    return out;
+}
+
+typedef struct compare_stats {
+    uint32_t texels, agree, hits, gpu_only, twin_only, albedo_differs;
+    uint32_t panel_hits;    /* agreeing hits on triangles past the box and the block (22) */
+    double dist_err, pos_err, normal_err;
+} compare_stats;
+
+/* Every texel of the maps in ctx against the twin of maps (the unperturbed ones). */
+static compare_stats compare(scene *s, const gim_paraboloid *maps, int attributes) {
+    compare_stats c;
+    float *dist = read_array(s->f.ctx->para_distance, GL_RED, 1), *pos = NULL, *nrm = NULL, *alb = NULL;
+    uint32_t m, x, y, i;
+    memset(&c, 0, sizeof c);
+    if (attributes) {
+        pos = read_array(s->f.ctx->para_position, GL_RGBA, 4);
+        nrm = read_array(s->f.ctx->para_normal, GL_RGBA, 4);
+        alb = read_array(s->f.ctx->para_albedo, GL_RGBA, 4);
+    }
+    for (m = 0; m < NMAPS; ++m)
+        for (y = 0; y < SIZE; ++y)
+            for (x = 0; x < SIZE; ++x) {
+                size_t t = ((size_t)m * SIZE + y) * SIZE + x;
+                gim_paraboloid_texel o;
+                int ghit = dist[t] != GIM_PARABOLOID_EMPTY;
+                assert_int_equal(gim_paraboloid_texel_twin(&s->twin, &maps[m], SIZE, x, y, &o), GIM_OK);
+                c.texels++;
+                if (attributes) assert_true(pos[t * 4 + 3] == (ghit ? 1.0f : 0.0f));
+                if (ghit != o.hit) {
+                    if (ghit) c.gpu_only++;
+                    else c.twin_only++;
+                    continue;
+                }
+                c.agree++;
+                if (!o.hit) continue;
+                c.hits++;
+                c.panel_hits += o.triangle >= 22;
+                {
+                    double e = fabs((double)dist[t] - o.distance) / o.distance;
+                    if (e > c.dist_err) c.dist_err = e;
+                }
+                if (!attributes) continue;
+                for (i = 0; i < 3; ++i) {
+                    double e = fabs((double)pos[t * 4 + i] - o.position[i]) / 2.0;   /* of the box's size */
+                    if (e > c.pos_err) c.pos_err = e;
+                }
+                {
+                    double d = (double)nrm[t * 4] * o.normal[0] + (double)nrm[t * 4 + 1] * o.normal[1] +
+                               (double)nrm[t * 4 + 2] * o.normal[2];
+                    if (1.0 - d > c.normal_err) c.normal_err = 1.0 - d;
+                }
+                if (alb[t * 4] != o.albedo[0] || alb[t * 4 + 1] != o.albedo[1] || alb[t * 4 + 2] != o.albedo[2] ||
+                    alb[t * 4 + 3] != 1.0f)
+                    c.albedo_differs++;
+            }
+    free(dist); free(pos); free(nrm); free(alb);
+    return c;
+}
+
+static int compare_ok(const compare_stats *c, int attributes) {
+    return c->agree >= c->texels - c->texels / 1000u && c->dist_err < 1e-4 &&
+           (!attributes || (c->pos_err < 1e-4 && c->normal_err < 1e-3 && c->albedo_differs <= c->hits / 1000u));
+}
+
+static void print_stats(const char *what, const compare_stats *c) {
+    print_message("%s: %u texels, %u agree (%u hits; GPU-only %u, twin-only %u), max rel. distance error %.3g, "
+                  "position %.3g, 1 - n.n %.3g, albedo differs at %u\n",
+                  what, c->texels, c->agree, c->hits, c->gpu_only, c->twin_only, c->dist_err, c->pos_err, c->normal_err,
+                  c->albedo_differs);
+}
+
+static void maps_match_twin(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    int attributes;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    for (attributes = 1; attributes >= 0; --attributes) {
+        assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, attributes, 2.0f), GIM_OK);
+        gltest_state_unchanged(&s.f);
+        assert_true(s.f.ctx->para_distance != 0 && s.f.ctx->para_depth != 0);
+        if (attributes) {
+            assert_true(s.f.ctx->para_position && s.f.ctx->para_normal && s.f.ctx->para_albedo);
+        } else { /* only what is enabled is allocated: the earlier call's attribute textures are gone */
+            assert_true(!s.f.ctx->para_position && !s.f.ctx->para_normal && !s.f.ctx->para_albedo);
+        }
+        c = compare(&s, s.maps, attributes);
+        print_stats(attributes ? "with attributes" : "distance only", &c);
+        assert_true(c.hits > c.texels / 2);       /* the box fills most of the maps */
+        assert_true(compare_ok(&c, attributes));
+    }
+    /* each map in its own layer: swapping two maps in the buffer swaps their layers, so the
+       comparison against the unswapped twin fails; so does a map moved by 1% of the box */
+    {
+        gim_paraboloid moved[NMAPS];
+        memcpy(moved, s.maps, sizeof moved);
+        moved[1] = s.maps[2]; moved[2] = s.maps[1];
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, ssbo);
+        glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof moved, moved);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+        assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+        c = compare(&s, s.maps, 1);
+        print_stats("two maps swapped (must fail)", &c);
+        assert_false(compare_ok(&c, 1));
+        c = compare(&s, moved, 1);
+        assert_true(compare_ok(&c, 1));
+        memcpy(moved, s.maps, sizeof moved);
+        moved[4].origin[0] += 0.02f;
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, ssbo);
+        glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof moved, moved);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+        assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+        c = compare(&s, s.maps, 1);
+        print_stats("grazing map moved by 1% (must fail)", &c);
+        assert_false(compare_ok(&c, 1));
+    }
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+/* The same box in millimetres far from the origin: the same agreement (scene_scale scales
+   the depth encoding only). */
+static void maps_far_and_small_units(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    gim_instance inst[2];
+    const float k = 1000.0f, off[3] = {5e4f, -2e3f, 3e4f};
+    uint32_t m, i;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    inst[0].mesh = s.box; inst[0].model = gim_mat4_mul(translate(off[0], off[1], off[2]), scale3(k, k, k));
+    inst[1].mesh = s.block;
+    inst[1].model = gim_mat4_mul(inst[0].model, gim_mat4_mul(translate(0.35f, 0.6f, -0.2f),
+                                                             gim_mat4_mul(rotate_y(0.4f), scale3(0.3f, 0.6f, 0.25f))));
+    assert_int_equal(gim_set_instances(s.f.ctx, inst, 2), GIM_OK);
+    s.soup.n = 0;
+    soup_add(&s.soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
+    soup_add(&s.soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    for (m = 0; m < NMAPS; ++m) {
+        for (i = 0; i < 3; ++i) s.maps[m].origin[i] = s.maps[m].origin[i] * k + off[i];
+        s.maps[m].near_distance *= k;
+    }
+    /* the floor map's lift of 1e-4 box sizes is 0.1 mm here, a few float ulps at 5e4: lift more */
+    s.maps[0].origin[1] = off[1] + 0.02f * k;
+    s.maps[1].origin[1] = off[1] + 1.98f * k;
+    s.maps[2].origin[0] = off[0] - 0.98f * k;
+    s.maps[4].origin[1] = off[1] + 0.02f * k;
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f * k), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    c = compare(&s, s.maps, 0);
+    print_stats("millimetres, far from the origin (distances)", &c);
+    assert_true(c.hits > c.texels / 2);
+    assert_true(compare_ok(&c, 0));
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+/* Many small triangles with shared edges (a checkerboard panel of 512, tilted in the box):
+   the tight bound of small triangles loses no texel at their edges. */
+static void small_triangles_match_twin(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    gim_instance inst[3];
+    gim_mesh_desc md;
+    gim_mesh grid;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    make_grid();
+    memset(&md, 0, sizeof md);
+    md.data.positions = grid_pos; md.data.normals = grid_nrm; md.data.vertex_count = (GRID + 1) * (GRID + 1);
+    md.data.indices = grid_idx; md.data.index_count = GRID * GRID * 6; md.data.triangle_material = grid_mat;
+    assert_int_equal(gim_add_mesh(s.f.ctx, &md, &grid), GIM_OK);
+    inst[0].mesh = s.box; inst[0].model = gim_mat4_identity();
+    inst[1].mesh = s.block;
+    inst[1].model = gim_mat4_mul(translate(0.35f, 0.6f, -0.2f), gim_mat4_mul(rotate_y(0.4f), scale3(0.3f, 0.6f, 0.25f)));
+    inst[2].mesh = grid;
+    inst[2].model = gim_mat4_mul(translate(-0.45f, 1.1f, -0.4f), gim_mat4_mul(rotate_y(0.7f), scale3(0.45f, 1.0f, 0.4f)));
+    {   /* tilt it about x by 0.5 rad */
+        gim_mat4 r = gim_mat4_identity();
+        r.m[5] = cosf(0.5f); r.m[6] = sinf(0.5f); r.m[9] = -sinf(0.5f); r.m[10] = cosf(0.5f);
+        inst[2].model = gim_mat4_mul(inst[2].model, r);
+    }
+    assert_int_equal(gim_set_instances(s.f.ctx, inst, 3), GIM_OK);
+    s.soup.n = 0;
+    soup_add(&s.soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
+    soup_add(&s.soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    soup_add(&s.soup, grid_pos, grid_nrm, grid_idx, 0, GRID * GRID * 6, grid_mat, 0, inst[2].model);
+    s.twin.triangle_count = s.soup.n;
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    c = compare(&s, s.maps, 1);
+    print_stats("with a panel of 512 small triangles", &c);
+    print_message("  of which on the panel: %u\n", c.panel_hits);
+    assert_true(c.panel_hits > c.texels / 20);
+    assert_true(c.hits > c.texels / 2);
+    assert_true(compare_ok(&c, 1));
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+/* Second-bounce VPLs on the GPU maps against the twin on the same maps read back: the same
+   texels (positions, normals bit for bit, lit flags equal), flux to float rounding; written
+   from VPL first on, the rest of the buffer untouched. */
+static void second_bounce_matches_twin(void **state) {
+    scene s;
+    GLuint ssbo, out;
+    const uint32_t first = 7, counts[2] = {500, 37};
+    uint32_t ci, i, a, lit = 0;
+    double flux_err = 0.0;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    for (ci = 0; ci < 2; ++ci) {
+        uint32_t n = counts[ci], total = first + n + 5;
+        gim_vpl *gpu = (gim_vpl *)malloc(total * sizeof(gim_vpl)), *cpu = (gim_vpl *)malloc(n * sizeof(gim_vpl));
+        float *pos = read_array(s.f.ctx->para_position, GL_RGBA, 4), *nrm = read_array(s.f.ctx->para_normal, GL_RGBA, 4),
+              *alb = read_array(s.f.ctx->para_albedo, GL_RGBA, 4);
+        gim_second_bounce_desc d;
+        for (i = 0; i < total * 12; ++i) ((float *)gpu)[i] = -7.0f;
+        out = gltest_ssbo(total * sizeof(gim_vpl), gpu);
+        assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, n, out, first), GIM_OK);
+        gltest_state_unchanged(&s.f);
+        gltest_read_buffer(out, total * sizeof(gim_vpl), gpu);
+        memset(&d, 0, sizeof d);
+        d.maps = s.maps; d.map_count = NMAPS; d.size = SIZE; d.position = pos; d.normal = nrm; d.albedo = alb;
+        d.vpl_count = n; d.env = s.f.env;
+        assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_OK);
+        for (i = 0; i < total * 12; ++i)
+            if (i < first * 12 || i >= (first + n) * 12) assert_true(((float *)gpu)[i] == -7.0f);
+        for (i = 0; i < n; ++i) {
+            const gim_vpl *g = &gpu[first + i], *c = &cpu[i];
+            if (memcmp(g->position, c->position, 12) != 0 || memcmp(g->normal, c->normal, 12) != 0 || g->lit != c->lit)
+                fail_msg("%u VPLs: VPL %u differs: lit %g/%g, position %g %g %g / %g %g %g", n, i, (double)g->lit,
+                         (double)c->lit, (double)g->position[0], (double)g->position[1], (double)g->position[2],
+                         (double)c->position[0], (double)c->position[1], (double)c->position[2]);
+            assert_true(g->unused0 == 0.0f && g->unused1 == 0.0f);
+            lit += c->lit == 1.0f;
+            for (a = 0; a < 3; ++a) {
+                double e;
+                if (c->flux[a] == 0.0f) { assert_true(g->flux[a] == 0.0f); continue; }
+                e = fabs((double)g->flux[a] - c->flux[a]) / c->flux[a];
+                if (e > flux_err) flux_err = e;
+                if (!(e <= 1e-6)) fail_msg("VPL %u channel %u: flux %.9g, the twin's %.9g", i, a, (double)g->flux[a], (double)c->flux[a]);
+            }
+        }
+        glDeleteBuffers(1, &out);
+        free(gpu); free(cpu); free(pos); free(nrm); free(alb);
+    }
+    print_message("second bounce: %u lit VPLs of %u, max rel. flux error %.3g\n", lit, counts[0] + counts[1], flux_err);
+    assert_true(lit > (counts[0] + counts[1]) / 2);
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+/* Bad arguments fail with a message and leave GL as it was; the second bounce needs maps with
+   attributes of its size. */
+static void argument_errors(void **state) {
+    scene s;
+    GLuint ssbo, small, out;
+    int before;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    small = gltest_ssbo(2 * sizeof(gim_paraboloid), s.maps);
+    out = gltest_ssbo(16 * sizeof(gim_vpl), NULL);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, 0, NMAPS, SIZE, 1, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, 0, SIZE, 1, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, 0, 1, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 0.0f), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, NAN), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, 1u << 30, 1, 2.0f), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, 1u << 20, SIZE, 1, 2.0f), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, small, NMAPS, SIZE, 1, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+    gltest_state_unchanged(&s.f);
+    /* no maps yet */
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 0, 2.0f), GIM_OK);
+    /* maps without attributes */
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, out, 0), GIM_OK);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE / 2, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS + 1, SIZE, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 0, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, 0, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, 0, NMAPS, SIZE, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, out, 9), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, small, NMAPS, SIZE, 8, out, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 8, out, UINT32_MAX - 2), GIM_ERROR_OUT_OF_RANGE);
+    gltest_state_unchanged(&s.f);
+    before = s.f.log.errors;
+    assert_true(before >= 18);
+    { /* allocation failure of the second bounce's texels: no leak, then it works again */
+        s.f.stats.fail_after = 0;
+        assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 9, out, 0), GIM_ERROR_OUT_OF_MEMORY);
+        s.f.stats.fail_after = -1;
+        assert_int_equal(gim__gl_second_bounce(s.f.ctx, ssbo, NMAPS, SIZE, 9, out, 0), GIM_OK);
+    }
+    s.f.log.errors = 0;
+    glDeleteBuffers(1, &ssbo); glDeleteBuffers(1, &small); glDeleteBuffers(1, &out);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+/* No materials: albedo 0 where hit (nothing else changes); no instances: every texel empty;
+   an instance of a removed mesh: an error. */
+static void empty_scene_and_no_materials(void **state) {
+    scene s;
+    GLuint ssbo;
+    compare_stats c;
+    float *dist, *alb, *pos;
+    size_t t, n = (size_t)NMAPS * SIZE * SIZE;
+    uint32_t hits = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim_set_materials(s.f.ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    c = compare(&s, s.maps, 0);
+    assert_true(compare_ok(&c, 0));
+    alb = read_array(s.f.ctx->para_albedo, GL_RGBA, 4);
+    pos = read_array(s.f.ctx->para_position, GL_RGBA, 4);
+    for (t = 0; t < n; ++t) {
+        if (pos[t * 4 + 3] != 1.0f) continue;
+        hits++;
+        assert_true(alb[t * 4] == 0.0f && alb[t * 4 + 1] == 0.0f && alb[t * 4 + 2] == 0.0f && alb[t * 4 + 3] == 1.0f);
+    }
+    assert_true(hits == c.hits);
+    free(alb); free(pos);
+    assert_int_equal(gim_set_instances(s.f.ctx, NULL, 0), GIM_OK);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 0, 2.0f), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    dist = read_array(s.f.ctx->para_distance, GL_RED, 1);
+    for (t = 0; t < n; ++t) assert_true(dist[t] == GIM_PARABOLOID_EMPTY);
+    free(dist);
+    {
+        gim_instance inst;
+        inst.mesh = s.block; inst.model = gim_mat4_identity();
+        assert_int_equal(gim_set_instances(s.f.ctx, &inst, 1), GIM_OK);
+        assert_int_equal(gim_remove_mesh(s.f.ctx, s.block), GIM_OK);
+        assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 0, 2.0f), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(s.f.log.errors, 1);
+        s.f.log.errors = 0;
+        gltest_state_unchanged(&s.f);
+    }
+    glDeleteBuffers(1, &ssbo);
+    scene_end(&s);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(maps_match_twin),
+        cmocka_unit_test(maps_far_and_small_units),
+        cmocka_unit_test(small_triangles_match_twin),
+        cmocka_unit_test(second_bounce_matches_twin),
+        cmocka_unit_test(argument_errors),
+        cmocka_unit_test(empty_scene_and_no_materials),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
