@@ -7905,7 +7905,8 @@ typedef struct gim__vpl_shade_args {
     gim_mat4 view, proj;
     gim__GLuint vpls;              /* SSBO: vpl_count gim_vpl (48 bytes) */
     uint32_t vpl_count;            /* N; 0 lights nothing */
-    gim__GLuint cluster;           /* SSBO: a uint map index per VPL (UINT32_MAX: unshadowed), or 0: no visibility */
+    gim__GLuint cluster;           /* SSBO: a uint map index per VPL (>= map_count, e.g. UINT32_MAX: unshadowed),
+                                      or 0: no visibility */
     gim__GLuint maps;              /* SSBO: map_count gim_paraboloid (48 bytes) */
     uint32_t map_count;
     gim__GLuint distance;          /* R32F 2D array texture, map_size^2 x map_count (layer m: map m), or 0: no visibility */
@@ -7965,6 +7966,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     gl->Uniform1f(10, a->clamp_distance * a->clamp_distance);
     gl->Uniform1ui(11, host ? 1u : ctx->material_count);
     gl->Uniform1f(12, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    gl->Uniform1ui(13, vis ? a->map_count : 0u);
     first = 0;
     do {
         uint32_t n = members - first < chunk ? members - first : chunk;

@@ -40,6 +40,7 @@ layout(location = 9) uniform float near_;       /* 1e-6 scene_scale */
 layout(location = 10) uniform float dc2;        /* clamp distance squared */
 layout(location = 11) uniform uint material_count;
 layout(location = 12) uniform float max_value;  /* largest value of the output format */
+layout(location = 13) uniform uint map_count;   /* a cluster index beyond it is unshadowed */
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -165,7 +166,7 @@ void main() {
         precise float cx = -(nx.x * ox + nx.y * oy + nx.z * oz);
         if (!(cl > 0.0) || !(cx > 0.0)) continue;
         precise float vv = 1.0;
-        if ((flags & 1u) != 0u && cluster[i] != 0xffffffffu) vv = visibility(cluster[i], x);
+        if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;
