@@ -67,6 +67,7 @@ typedef struct shade_case {
     int visibility;
     int host;                /* the host's G-buffer: albedo 1, no glossy */
     gim__GLenum format;
+    int probe;               /* also measure the visibility per map */
 } shade_case;
 
 typedef struct compare_stats { double max_rel, mean_rel; uint32_t above, count; } compare_stats;
@@ -264,6 +265,10 @@ static void run_case(const shade_case *sc) {
     bd.position_tolerance = ba.position_tolerance; bd.env = f.env;
     assert_int_equal(gim_geometry_blur(&bd, cpu_blur), GIM_OK);
     cb = compare(gpu_blur, cpu_blur, surface, pix_count, 1e-3);
+    if (ba.window > 1u) {   /* the blur did something: the input and its blur differ */
+        compare_stats moved = compare(gpu_blur, cpu3, surface, pix_count, 1e-3);
+        assert_true(moved.above > moved.count / 20);
+    }
     /* the test can fail: the twin without visibility (or with the other interleave) is far */
     sd.cluster = sc->visibility ? NULL : cluster;
     assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
@@ -286,6 +291,47 @@ static void run_case(const shade_case *sc) {
     }
     assert_true(cfail.above > cfail.count / 20);
 
+    /* the visibility itself: one VPL of cluster m at a time, V_gpu = the GPU's radiance over
+       the twin's unshadowed one (both scale by V), against gim_paraboloid_visibility on the
+       twin's receiver; a mismatch is a tap that read another texel */
+    if (sc->probe) {
+        uint32_t m, lit = 0, mismatch = 0, partial = 0;
+        for (m = 0; m < M; ++m) {
+            gim_vpl one = vpls[m];
+            uint32_t cm = m;
+            double ref_max = 0.0;
+            one.lit = 1.0f;
+            one.flux[0] = one.flux[1] = one.flux[2] = 1.0f;
+            glBindBuffer(GL_SHADER_STORAGE_BUFFER, b_vpls);
+            glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof one, &one);
+            glBindBuffer(GL_SHADER_STORAGE_BUFFER, b_cluster);
+            glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, sizeof cm, &cm);
+            glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+            a.vpl_count = 1; a.interleave = 1; a.cluster = b_cluster; a.distance = t_dist;
+            gim__gl_enter(f.ctx, "test");
+            assert_int_equal(gim__gl_vpl_shade(f.ctx, &a), GIM_OK);
+            assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
+            gltest_read_texture(t_out, GL_RGBA, gpu);
+            sd.vpls = &one; sd.vpl_count = 1; sd.interleave = 1; sd.cluster = NULL;
+            assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
+            for (i = 0; i < pix_count; ++i) if (cpu[i * 3] > ref_max) ref_max = cpu[i * 3];
+            for (i = 0; i < pix_count; ++i) {
+                float vc;
+                if (!surface[i] || !(cpu[i * 3] > 1e-3 * ref_max)) continue;
+                assert_int_equal(gim_paraboloid_visibility(dist + (size_t)m * S * S, S, &maps[m],
+                                                           gim_v3(rec[i].position[0], rec[i].position[1], rec[i].position[2]), &vc),
+                                 GIM_OK);
+                lit++;
+                if (vc > 0.0f && vc < 1.0f) partial++;
+                if (fabs(gpu[i * 4] / cpu[i * 3] - vc) > 1e-3) mismatch++;
+            }
+        }
+        print_message("visibility: %u lit pixel-maps, %u in a penumbra, %u (%.2f %%) where the GPU's V differs\n", lit, partial,
+                      mismatch, 100.0 * mismatch / lit);
+        assert_true(partial > lit / 50);
+        assert_true(mismatch <= lit / 100);
+    }
+
     glDeleteBuffers(1, &b_vpls); glDeleteBuffers(1, &b_cluster); glDeleteBuffers(1, &b_maps);
     glDeleteTextures(1, &t_dist); glDeleteTextures(1, &t_out); glDeleteTextures(1, &t_blur);
     free(dist); free(depth); free(nrm); free(alb); free(mat); free(gpu); free(gpu_blur); free(cpu); free(cpu_blur);
@@ -298,8 +344,9 @@ static void vpl_shade_matches_twin(void **state) {
     (void)state;
     GLTEST_BEGIN();
     memset(&sc, 0, sizeof sc);
-    sc.L = 4.0f; sc.interleave = 2; sc.clamp = 0.05f; sc.visibility = 1; sc.format = GL_RGBA32F;
+    sc.L = 4.0f; sc.interleave = 2; sc.clamp = 0.05f; sc.visibility = 1; sc.format = GL_RGBA32F; sc.probe = 1;
     run_case(&sc);
+    sc.probe = 0;
     sc.interleave = 4; sc.chunk = 4;               /* 15 members per pixel in 4 dispatches */
     run_case(&sc);
     sc.interleave = 1; sc.chunk = 0; sc.clamp = 0.0f; sc.host = 1;
@@ -308,7 +355,9 @@ static void vpl_shade_matches_twin(void **state) {
     run_case(&sc);
     sc.visibility = 1; sc.format = GL_RGBA32F; sc.L = 0.004f;   /* millimetres, far from the origin */
     sc.origin[0] = 0.3f; sc.origin[1] = -0.1f; sc.origin[2] = 0.2f;
+    sc.probe = 1;
     run_case(&sc);
+    sc.probe = 0;
     sc.L = 40.0f; sc.origin[0] = 3e3f; sc.origin[1] = -1e3f; sc.origin[2] = 2e3f;
     run_case(&sc);
     GLTEST_END();
