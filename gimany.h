@@ -5078,9 +5078,10 @@ static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u
       is the filter's radius, clamped to [one texel's angle 2 / (size J), 0.5];
    4. V = the fraction of the 16 filter taps that do not block (PCF).
    bias = d (0.01 + 4 (1 + w.z) / size): 1 % of the distance (the map's own float and
-   texel-centre error) plus two texels' angle times d, the distance change over two texels of a
-   surface at 63 degrees to the direction (the map has no receiver normal). A stored value
-   that is not a finite positive distance (NaN, <= 0) blocks nothing. */
+   texel-centre error) plus d times two texels' angle, what the distance to a surface inclined
+   63 degrees (tan = 2) from facing the VAL changes across one texel (the map knows no
+   receiver normal). A stored value that is not a finite positive distance (NaN, <= 0)
+   blocks nothing. size: 1..65536. */
 static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim_paraboloid *m, const float *x) {
     gim_vec3 t, b, n = gim_v3(m->normal[0], m->normal[1], m->normal[2]);
     float p0 = x[0] - m->origin[0], p1 = x[1] - m->origin[1], p2 = x[2] - m->origin[2];
