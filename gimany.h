@@ -5068,13 +5068,17 @@ static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u
 /* Soft visibility of map m from x (Dong sec. 4.2, PCSS on a paraboloid map in angles).
    In map units the stereographic map stretches an angle a around w by J = 1 / (1 + w.z), so
    a cone of half-angle a is a disk of radius J a around the receiver's map point (u, v).
-   1. blocker search over a_s = min(0.5, 1.5 Delta / d): a blocker at distance z from the
-      VAL's centre shadows x from points of the VAL up to (Delta / 2)(1 / z - 1 / d) radians
-      away, which is 1.5 Delta / d for z = d / 4: blockers nearer the VAL than a quarter of
+   0. the VAL as x sees it: a square of side Delta' = Delta sqrt(w.z), the side of a square
+      of its projected area Delta^2 w.z (Dong's filter uses Delta; foreshortening the VAL
+      brings the mean |V - exact from-area visibility| behind random plates, VALs and
+      receivers from 0.067 to 0.053, test_vpl_shade.c visibility_near_exact);
+   1. blocker search over a_s = min(0.5, 1.5 Delta' / d): a blocker at distance z from the
+      VAL's centre shadows x from points of the VAL up to (Delta' / 2)(1 / z - 1 / d) radians
+      away, which is 1.5 Delta' / d for z = d / 4: blockers nearer the VAL than a quarter of
       the way are only partly searched (their penumbra is wide and faint);
    2. z_avg: the mean distance of the taps that block (0 < z < d - bias); none: V = 1;
    3. penumbra (Dong's p cos beta = (d - z_avg) Delta / z_avg, seen from the VAL's centre as
-      the angle alpha = p cos beta / d): its half-width a_p = (Delta / 2)(1 / z_avg - 1 / d)
+      the angle alpha = p cos beta / d): its half-width a_p = (Delta' / 2)(1 / z_avg - 1 / d)
       is the filter's radius, clamped to [one texel's angle 2 / (size J), 0.5];
    4. V = the fraction of the 16 filter taps that do not block (PCF).
    bias = d (0.01 + 4 (1 + w.z) / size): 1 % of the distance (the map's own float and
@@ -5085,7 +5089,7 @@ static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u
 static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim_paraboloid *m, const float *x) {
     gim_vec3 t, b, n = gim_v3(m->normal[0], m->normal[1], m->normal[2]);
     float p0 = x[0] - m->origin[0], p1 = x[1] - m->origin[1], p2 = x[2] - m->origin[2];
-    float lx, ly, lz, d, wz, opz, jac, u, v, fs = (float)size, texel, bias, ref, as, s, zsum = 0.0f, zavg, ap, af;
+    float lx, ly, lz, d, wz, opz, jac, u, v, fs = (float)size, texel, bias, ref, dv, as, s, zsum = 0.0f, zavg, ap, af;
     int k, found = 0, open = 0;
     gim_basis(n, &t, &b);
     lx = p0 * t.x + p1 * t.y + p2 * t.z;
@@ -5102,7 +5106,8 @@ static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim
     texel = 2.0f * opz / fs;
     bias = d * (0.01f + 4.0f * opz / fs);
     ref = d - bias;
-    as = 1.5f * m->size / d;
+    dv = m->size * sqrtf(wz);                             /* Delta', the foreshortened VAL */
+    as = 1.5f * dv / d;
     as = as < 0.5f ? as : 0.5f;
     s = jac * as;
     for (k = 0; k < GIM__VIS_TAPS; ++k) {
@@ -5111,7 +5116,7 @@ static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim
     }
     if (found == 0) return 1.0f;
     zavg = zsum / (float)found;
-    ap = 0.5f * m->size * (1.0f / zavg - 1.0f / d);
+    ap = 0.5f * dv * (1.0f / zavg - 1.0f / d);
     af = ap > texel ? ap : texel;
     af = af < 0.5f ? af : 0.5f;
     s = jac * af;

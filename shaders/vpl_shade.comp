@@ -97,7 +97,8 @@ float visibility(uint m, vec3 x) {
     precise float texel = 2.0 * opz / fs;
     precise float bias = d * (0.01 + 4.0 * opz / fs);
     precise float ref = d - bias;
-    precise float as_ = 1.5 * delta / d;
+    precise float dv = delta * sqrt(wz);                  /* the foreshortened VAL */
+    precise float as_ = 1.5 * dv / d;
     as_ = as_ < 0.5 ? as_ : 0.5;
     precise float s = jac * as_;
     precise float zsum = 0.0;
@@ -108,7 +109,7 @@ float visibility(uint m, vec3 x) {
     }
     if (found == 0) return 1.0;
     precise float zavg = zsum / float(found);
-    precise float ap = 0.5 * delta * (1.0 / zavg - 1.0 / d);   /* penumbra angle */
+    precise float ap = 0.5 * dv * (1.0 / zavg - 1.0 / d);      /* penumbra half-width */
     precise float af = ap > texel ? ap : texel;
     af = af < 0.5 ? af : 0.5;
     s = jac * af;
