@@ -1178,11 +1178,11 @@ typedef enum gim_method {
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
     GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
                                        gim_rsm_gather): the baseline, no caches, no visibility */
-    GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric, the same
-                                       seeds every frame) into cluster_count VALs, one paraboloid soft
-                                       shadow map each; every VPL shades with its VAL's visibility */
-    GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric, warm
-                                       start from the last frame), a paraboloid map per cluster with
+    GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric) into
+                                       cluster_count VALs, one paraboloid soft shadow map each; every VPL
+                                       shades with its VAL's visibility */
+    GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric) into
+                                       cluster_count clusters, a paraboloid map per cluster with
                                        position, normal and albedo whose unit-disk samples are the
                                        second-bounce VPLs; both bounces shade (bounces = 2 by default) */
 } gim_method;
@@ -1215,8 +1215,13 @@ typedef struct gim_frame {
     uint32_t vpl_count;         /* first-bounce VPLs per light; 0: 1024 (CLUSTERED) or 256 (SSVP); <= 32768 in all */
     uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
                                    <= 256 and <= the VPLs */
-    uint32_t kmeans_iterations; /* k-means steps per frame; 0: 8 (CLUSTERED, from the fixed seeds) or 3 (SSVP,
-                                   from the last frame's centres) */
+    uint32_t kmeans_iterations; /* k-means steps per frame; 0: 3 from the last frame's centres, 8 from seeds */
+    int kmeans_restart;         /* 1: k-means restarts from the same seeds every frame (Dong sec. 5.2); 0: warm
+                                   from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded
+                                   (Dong's reason to restart). On the Cornell box with the light turning 1
+                                   degree a frame the restart relabels clusters (centres jump 0.33 scene
+                                   scales: a near-uniform patch has many equal clusterings), warm moves them
+                                   0.009 (tests/gltest_vplframe.c) */
     uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
     int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
                                    still renders its attribute maps) */
@@ -1245,8 +1250,8 @@ typedef struct gim_frame {
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
    after the RSMs and the G-buffer: vpl_count VPLs per light (gim_rsm_vpls_sequence) -> k-means
-   steps on the GPU (Dong's metric from the same seeds every frame, or SSVP's warm from the last
-   frame's centres; an empty cluster re-seeded from the farthest VPL) -> the clusters' VALs
+   steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
+   same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids) -> one layered pass of paraboloid maps (distance for visibility;
    position, normal and albedo at two bounces) -> second-bounce VPLs (gim_second_bounce_vpls)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
@@ -5339,6 +5344,321 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
 }
 #endif
 
+/* --- VPL shading (issue 5): soft visibility, shading, geometry-aware blur -----------------
+   Twins of vpl_shade.comp and geometry_blur.comp. Every step is float arithmetic written in
+   the order the shaders write it (their variables `precise`, so no multiply-add is fused),
+   so the GPU reads the same texels and sums the same terms. */
+
+/* The 16 taps of the visibility kernel: a Vogel (golden-angle) disk, tap j at radius
+   sqrt((j + 0.5) / 16) and angle j pi (3 - sqrt 5), as (r cos, r sin): equal area per tap
+   and no grid alignment (a regular grid of taps bands the penumbra). vpl_shade.comp holds
+   the same floats. */
+#define GIM__VIS_TAPS 16
+static const float gim__vogel16[GIM__VIS_TAPS][2] = {
+    {0.176776692f, 0.0f}, {-0.225772187f, 0.206825823f}, {0.0345580503f, -0.393771172f},
+    {0.28457123f, 0.371172756f}, {-0.522223175f, -0.0923739299f}, {0.494695395f, -0.314684719f},
+    {-0.165465921f, 0.615525007f}, {-0.315561473f, -0.60759443f}, {0.684642136f, 0.25003022f},
+    {-0.712256074f, 0.29400897f}, {0.343354493f, -0.733728647f}, {0.253730237f, 0.808932006f},
+    {-0.764745891f, -0.443185866f}, {0.897134006f, -0.197232395f}, {-0.547506928f, 0.778772235f},
+    {-0.126486778f, -0.976089716f}};
+#define GIM__VPL_MAX_INTERLEAVE 64u   /* k of interleaved sampling and the blur window, at most */
+
+/* The stored distance at map point (u, v): the declared texel rule; outside the unit disk
+   (directions below the VAL's plane, where it emits nothing) there is no blocker. */
+static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u, float v) {
+    float fs = (float)size, fx, fy;
+    uint32_t x, y;
+    if (!(u * u + v * v <= 1.0f)) return GIM_PARABOLOID_EMPTY;
+    fx = floorf((u + 1.0f) * fs * 0.5f);
+    fy = floorf((v + 1.0f) * fs * 0.5f);
+    x = fx < 0.0f ? 0u : (fx > fs - 1.0f ? size - 1u : (uint32_t)fx);
+    y = fy < 0.0f ? 0u : (fy > fs - 1.0f ? size - 1u : (uint32_t)fy);
+    return distance[(size_t)y * size + x];
+}
+
+/* Soft visibility of map m from x (Dong sec. 4.2, PCSS on a paraboloid map in angles).
+   In map units the stereographic map stretches an angle a around w by J = 1 / (1 + w.z), so
+   a cone of half-angle a is a disk of radius J a around the receiver's map point (u, v).
+   0. the VAL as x sees it: a square of side Delta' = Delta sqrt(w.z), the side of a square
+      of its projected area Delta^2 w.z (Dong's filter uses Delta; foreshortening the VAL
+      brings the mean |V - exact from-area visibility| behind random plates, VALs and
+      receivers from 0.067 to 0.053, test_vpl_shade.c visibility_near_exact);
+   1. blocker search over a_s = min(0.5, 1.5 Delta' / d): a blocker at distance z from the
+      VAL's centre shadows x from points of the VAL up to (Delta' / 2)(1 / z - 1 / d) radians
+      away, which is 1.5 Delta' / d for z = d / 4: blockers nearer the VAL than a quarter of
+      the way are only partly searched (their penumbra is wide and faint);
+   2. z_avg: the mean distance of the taps that block (0 < z < d - bias); none: V = 1;
+   3. penumbra (Dong's p cos beta = (d - z_avg) Delta / z_avg, seen from the VAL's centre as
+      the angle alpha = p cos beta / d): its half-width a_p = (Delta' / 2)(1 / z_avg - 1 / d)
+      is the filter's radius, clamped to [one texel's angle 2 / (size J), 0.5];
+   4. V = the fraction of the 16 filter taps that do not block (PCF).
+   bias = d (0.01 + 4 (1 + w.z) / size): 1 % of the distance (the map's own float and
+   texel-centre error) plus d times two texels' angle, what the distance to a surface inclined
+   63 degrees (tan = 2) from facing the VAL changes across one texel (the map knows no
+   receiver normal). A stored value that is not a finite positive distance (NaN, <= 0)
+   blocks nothing. size: 1..65536. */
+static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim_paraboloid *m, const float *x) {
+    gim_vec3 t, b, n = gim_v3(m->normal[0], m->normal[1], m->normal[2]);
+    float p0 = x[0] - m->origin[0], p1 = x[1] - m->origin[1], p2 = x[2] - m->origin[2];
+    float lx, ly, lz, d, wz, opz, jac, u, v, fs = (float)size, texel, bias, ref, dv, as, s, zsum = 0.0f, zavg, ap, af;
+    int k, found = 0, open = 0;
+    gim_basis(n, &t, &b);
+    lx = p0 * t.x + p1 * t.y + p2 * t.z;
+    ly = p0 * b.x + p1 * b.y + p2 * b.z;
+    lz = p0 * n.x + p1 * n.y + p2 * n.z;
+    d = sqrtf(lx * lx + ly * ly + lz * lz);
+    if (!(d > 0.0f) || !(d <= FLT_MAX)) return 1.0f;     /* at the origin, or too far for floats */
+    wz = lz / d;
+    if (!(wz > 0.0f)) return 1.0f;                        /* behind the VAL's plane (Dong fig. 7) */
+    opz = 1.0f + wz;
+    jac = 1.0f / opz;
+    u = lx / d / opz;
+    v = ly / d / opz;
+    texel = 2.0f * opz / fs;
+    bias = d * (0.01f + 4.0f * opz / fs);
+    ref = d - bias;
+    dv = m->size * sqrtf(wz);                             /* Delta', the foreshortened VAL */
+    as = 1.5f * dv / d;
+    as = as < 0.5f ? as : 0.5f;
+    s = jac * as;
+    for (k = 0; k < GIM__VIS_TAPS; ++k) {
+        float z = gim__paraboloid_fetch(distance, size, u + s * gim__vogel16[k][0], v + s * gim__vogel16[k][1]);
+        if (z > 0.0f && z < ref) { zsum += z; ++found; }
+    }
+    if (found == 0) return 1.0f;
+    zavg = zsum / (float)found;
+    ap = 0.5f * dv * (1.0f / zavg - 1.0f / d);
+    af = ap > texel ? ap : texel;
+    af = af < 0.5f ? af : 0.5f;
+    s = jac * af;
+    for (k = 0; k < GIM__VIS_TAPS; ++k) {
+        float z = gim__paraboloid_fetch(distance, size, u + s * gim__vogel16[k][0], v + s * gim__vogel16[k][1]);
+        if (!(z > 0.0f && z < ref)) ++open;
+    }
+    return (float)open / (float)GIM__VIS_TAPS;
+}
+
+static int gim__paraboloid_ok(const gim_paraboloid *m) {
+    return gim__all_finite(m->origin, 3) && gim__unit_or_zero(m->normal, 0) && gim__isfinitef(m->size) &&
+           m->size >= 0.0f;
+}
+
+GIMANY_DEF gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
+                                                gim_vec3 receiver, float *out) {
+    static const char fn[] = "gim_paraboloid_visibility";
+    gim_env env;
+    float x[3];
+    memset(&env, 0, sizeof env);
+    if (!distance || !map || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance, map and out are required");
+    if (size == 0 || size > 65536u) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u must be 1..65536", size);
+    if (!gim__paraboloid_ok(map))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map: origin not finite, normal not unit or size not >= 0");
+    if (!gim_v3_isfinite(receiver)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver is not finite");
+    x[0] = receiver.x; x[1] = receiver.y; x[2] = receiver.z;
+    *out = gim__paraboloid_vis(distance, size, map, x);
+    return GIM_OK;
+}
+
+/* A receiver of gim_vpl_shade / gim_geometry_blur: a surface (unit normal) or none (zero). */
+static int gim__receiver_ok(const gim_receiver *rc) {
+    if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->normal, 3) || !gim__unit_or_zero(rc->normal, 1))
+        return 0;
+    if (rc->normal[0] == 0.0f && rc->normal[1] == 0.0f && rc->normal[2] == 0.0f) return 1;
+    return gim__unit_or_zero(rc->view, 0) && gim__all_finite(rc->albedo, 3) && gim__all_finite(rc->glossy, 3) &&
+           rc->albedo[0] >= 0.0f && rc->albedo[1] >= 0.0f && rc->albedo[2] >= 0.0f && rc->glossy[0] >= 0.0f &&
+           rc->glossy[1] >= 0.0f && rc->glossy[2] >= 0.0f && rc->exponent >= 0.0f &&
+           rc->exponent <= GIM__TWINS_MAX_EXPONENT;
+}
+static int gim__receiver_surface(const gim_receiver *rc) {
+    return rc->normal[0] != 0.0f || rc->normal[1] != 0.0f || rc->normal[2] != 0.0f;
+}
+
+static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *fn) {
+    const gim_env *env = &d->env;
+    uint32_t i;
+    if (!d->receivers || d->width == 0 || d->height == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "receivers, width and height are required");
+    if ((uint64_t)d->width * d->height > (uint64_t)SIZE_MAX / 16u)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "%u x %u receivers", d->width, d->height);
+    if (d->vpl_count > 0 && !d->vpls) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpls is NULL");
+    if (d->interleave > GIM__VPL_MAX_INTERLEAVE)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "interleave %u exceeds %u", d->interleave, GIM__VPL_MAX_INTERLEAVE);
+    if (!gim__isfinitef(d->clamp_distance) || !(d->clamp_distance >= 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "clamp_distance must be finite and >= 0");
+    if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if (d->cluster) {
+        if (!d->maps || !d->distance || d->map_count == 0 || d->map_size == 0 || d->map_size > 65536u)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cluster needs maps, distance, map_count > 0 and map_size 1..65536");
+        for (i = 0; i < d->map_count; ++i)
+            if (!gim__paraboloid_ok(d->maps + i))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "map %u: origin not finite, normal not unit or size not >= 0", i);
+    }
+    for (i = 0; i < d->vpl_count; ++i) {
+        const gim_vpl *v = d->vpls + i;
+        if (!gim__all_finite(v->position, 3) || !gim__all_finite(v->normal, 3) || !gim__all_finite(v->flux, 3) ||
+            !gim__isfinitef(v->lit))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u is not finite", i);
+        if (v->lit > 0.0f && (!gim__unit_or_zero(v->normal, 0) || !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f)))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: normal not unit or negative flux", i);
+        if (d->cluster && d->cluster[i] != UINT32_MAX && d->cluster[i] >= d->map_count)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: cluster %u of %u maps", i, d->cluster[i], d->map_count);
+    }
+    for (i = 0; i < d->width * d->height; ++i)
+        if (!gim__receiver_ok(d->receivers + i))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "receiver %u: not finite, normal not unit or zero, view not unit, negative colour or k outside [0, 1e6]", i);
+    return GIM_OK;
+}
+
+/* One pixel of gim_vpl_shade (see vpl_shade.comp, the same steps): the VPLs i = s, s + k^2, ...
+   summed in index order in float; vis caches the visibility per map (< 0: not yet). */
+static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, uint32_t s, uint32_t step, float *vis,
+                           float *out) {
+    const float pi = (float)GIM__PI, near_ = GIM__TWINS_COINCIDENT * d->scene_scale;
+    const float dc2 = d->clamp_distance * d->clamp_distance;
+    float sd[3] = {0.0f, 0.0f, 0.0f}, sg[3] = {0.0f, 0.0f, 0.0f}, scale, fd, fg;
+    uint32_t i, count = 0;
+    int a;
+    for (i = s; i < d->vpl_count; i += step) {
+        const gim_vpl *v = d->vpls + i;
+        float dx, dy, dz, d2, dist, ox, oy, oz, cl, cx, vv = 1.0f, g, rx, ry, rz, lobe;
+        ++count;
+        if (!(v->lit > 0.0f)) continue;
+        dx = rc->position[0] - v->position[0];
+        dy = rc->position[1] - v->position[1];
+        dz = rc->position[2] - v->position[2];
+        d2 = dx * dx + dy * dy + dz * dz;
+        dist = sqrtf(d2);
+        if (!(dist > near_)) continue;                    /* no direction */
+        ox = dx / dist; oy = dy / dist; oz = dz / dist;   /* omega, VPL -> receiver */
+        cl = v->normal[0] * ox + v->normal[1] * oy + v->normal[2] * oz;
+        cx = -(rc->normal[0] * ox + rc->normal[1] * oy + rc->normal[2] * oz);
+        if (!(cl > 0.0f) || !(cx > 0.0f)) continue;
+        if (d->cluster && d->cluster[i] != UINT32_MAX) {
+            uint32_t m = d->cluster[i];
+            if (vis[m] < 0.0f)
+                vis[m] = gim__paraboloid_vis(d->distance + (size_t)m * d->map_size * d->map_size, d->map_size, d->maps + m,
+                                             rc->position);
+            vv = vis[m];
+        }
+        /* E_i / Phi_i: Krivanek's clamping, max(d^2, d_c^2) */
+        g = cl * cx * vv / (pi * (d2 > dc2 ? d2 : dc2));
+        /* r_i = -omega mirrored at n_x: 2 (n_x . -omega) n_x + omega */
+        rx = 2.0f * cx * rc->normal[0] + ox;
+        ry = 2.0f * cx * rc->normal[1] + oy;
+        rz = 2.0f * cx * rc->normal[2] + oz;
+        lobe = gim__lobe(rx * rc->view[0] + ry * rc->view[1] + rz * rc->view[2], rc->exponent);
+        for (a = 0; a < 3; ++a) {
+            float e = v->flux[a] * g;
+            sd[a] += e;
+            sg[a] += e * lobe;
+        }
+    }
+    if (count == 0) { out[0] = out[1] = out[2] = 0.0f; return; }
+    scale = (float)d->vpl_count / (float)count;              /* N / n_s */
+    fd = scale / pi;
+    fg = scale * (rc->exponent + 2.0f) / (2.0f * pi);
+    for (a = 0; a < 3; ++a) {
+        float ed = sd[a] < FLT_MAX ? sd[a] : FLT_MAX, eg = sg[a] < FLT_MAX ? sg[a] : FLT_MAX;
+        float o = rc->albedo[a] * (fd * ed) + rc->glossy[a] * (fg * eg);
+        out[a] = o < FLT_MAX ? o : FLT_MAX;
+    }
+}
+
+GIMANY_DEF gim_result gim_vpl_shade(const gim_vpl_shade_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_vpl_shade";
+    gim_result r;
+    float *vis = NULL;
+    uint32_t x, y, k, m;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!radiance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance_out is NULL");
+    if ((r = gim__check_vpl_shade(desc, fn)) != GIM_OK) return r;
+    if (desc->cluster) {
+        vis = (float *)gim__alloc_array(&desc->env, desc->map_count, sizeof(float));
+        if (!vis) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, fn, "visibility of %u maps", desc->map_count);
+    }
+    k = desc->interleave > 1u ? desc->interleave : 1u;
+    for (y = 0; y < desc->height; ++y)
+        for (x = 0; x < desc->width; ++x) {
+            size_t p = (size_t)y * desc->width + x;
+            const gim_receiver *rc = desc->receivers + p;
+            if (!gim__receiver_surface(rc)) {
+                radiance_out[p * 3] = radiance_out[p * 3 + 1] = radiance_out[p * 3 + 2] = 0.0f;
+                continue;
+            }
+            for (m = 0; vis && m < desc->map_count; ++m) vis[m] = -1.0f;
+            gim__vpl_pixel(desc, rc, x % k + k * (y % k), k * k, vis, radiance_out + p * 3);
+        }
+    gim__free(&desc->env, vis);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
+    static const char fn[] = "gim_geometry_blur";
+    const gim_env *env;
+    uint32_t x, y, k, i, w, h;
+    float tol2, ncos;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    w = desc->width; h = desc->height;
+    if (!out || !desc->radiance || !desc->receivers || w == 0 || h == 0)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance, receivers, out, width and height are required");
+    if ((uint64_t)w * h > (uint64_t)SIZE_MAX / 16u) return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "%u x %u pixels", w, h);
+    if (desc->radiance == out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "out must not be the input");
+    if (desc->window > GIM__VPL_MAX_INTERLEAVE)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "window %u exceeds %u", desc->window, GIM__VPL_MAX_INTERLEAVE);
+    if (!gim__isfinitef(desc->position_tolerance) || !(desc->position_tolerance > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "position_tolerance must be finite and > 0");
+    if (!gim__isfinitef(desc->normal_tolerance) || desc->normal_tolerance < -1.0f || desc->normal_tolerance > 1.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal_tolerance must be in [-1, 1]");
+    for (i = 0; i < w * h; ++i) {
+        if (!gim__receiver_ok(desc->receivers + i))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver %u: not finite or normal not unit or zero", i);
+        if (!gim__all_finite(desc->radiance + (size_t)i * 3, 3))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "radiance of pixel %u is not finite", i);
+    }
+    k = desc->window > 1u ? desc->window : 1u;
+    tol2 = desc->position_tolerance * desc->position_tolerance;
+    ncos = desc->normal_tolerance != 0.0f ? desc->normal_tolerance : 0.8f;   /* Laine et al.'s beta */
+    for (y = 0; y < h; ++y)
+        for (x = 0; x < w; ++x) {
+            size_t p = (size_t)y * w + x;
+            const gim_receiver *rc = desc->receivers + p;
+            /* the window [x - k/2, x - k/2 + k - 1]^2, clipped to the image */
+            int32_t x0 = (int32_t)x - (int32_t)(k / 2u), y0 = (int32_t)y - (int32_t)(k / 2u), xx, yy;
+            float sum[3] = {0.0f, 0.0f, 0.0f};
+            uint32_t n = 0;
+            int a;
+            if (!gim__receiver_surface(rc)) {
+                out[p * 3] = out[p * 3 + 1] = out[p * 3 + 2] = 0.0f;
+                continue;
+            }
+            for (yy = y0 < 0 ? 0 : y0; yy < y0 + (int32_t)k && yy < (int32_t)h; ++yy)
+                for (xx = x0 < 0 ? 0 : x0; xx < x0 + (int32_t)k && xx < (int32_t)w; ++xx) {
+                    size_t q = (size_t)yy * w + (size_t)xx;
+                    const gim_receiver *nb = desc->receivers + q;
+                    if (q != p) {
+                        float dx, dy, dz, c;
+                        if (!gim__receiver_surface(nb)) continue;
+                        dx = nb->position[0] - rc->position[0];
+                        dy = nb->position[1] - rc->position[1];
+                        dz = nb->position[2] - rc->position[2];
+                        if (!(dx * dx + dy * dy + dz * dz <= tol2)) continue;
+                        c = nb->normal[0] * rc->normal[0] + nb->normal[1] * rc->normal[1] + nb->normal[2] * rc->normal[2];
+                        if (!(c >= ncos)) continue;
+                    }
+                    for (a = 0; a < 3; ++a) sum[a] += desc->radiance[q * 3 + a];
+                    ++n;
+                }
+            for (a = 0; a < 3; ++a) {
+                float o = sum[a] / (float)n;
+                out[p * 3 + a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
+            }
+        }
+    return GIM_OK;
+}
+
 /* @impl gl ================================================================================ */
 #ifndef GIMANY_NO_GL
 #include "shaders_embedded.h"
@@ -5918,6 +6238,8 @@ typedef enum gim__program_id {
     GIM__PROGRAM_CLUSTERS,           /* k-means seeds; the clusters' VALs and paraboloid maps */
     GIM__PROGRAM_PARABOLOID,         /* paraboloid maps of the clusters, one layer each (Dong sec. 4.2) */
     GIM__PROGRAM_SECOND_BOUNCE,      /* second-bounce VPLs from the maps (SSVP sec. 3.C) */
+    GIM__PROGRAM_VPL_SHADE,          /* VPL shading per pixel: soft visibility, clamping, interleaving (Dong sec. 6) */
+    GIM__PROGRAM_GEOMETRY_BLUR,      /* geometry-aware blur (Dong sec. 6, Laine et al.) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -5941,7 +6263,9 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"kmeans_update.comp", NULL},
     {"clusters.comp", NULL},
     {"paraboloid.vert", "paraboloid.geom", "paraboloid.frag"},
-    {"second_bounce.comp", NULL}};
+    {"second_bounce.comp", NULL},
+    {"vpl_shade.comp", NULL},
+    {"geometry_blur.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -5988,7 +6312,9 @@ typedef struct gim__vpl_gpu {
     gim__GLuint centres;          /* k-means centres {vec4 centre (w: VPLs), vec4 normal} */
     gim__GLuint maps;             /* gim_paraboloid per cluster */
     uint64_t vpls_bytes, staging_bytes, cluster_of_bytes, centres_bytes, maps_bytes;
-    uint32_t warm_clusters, warm_vpls; /* what the centres were made for (SSVP's warm start); 0: none */
+    gim__GLuint shaded;           /* RGBA32F: the interleaved shading before the blur (none at k = 1) */
+    uint32_t shaded_width, shaded_height;
+    uint32_t warm_clusters, warm_vpls, warm_metric; /* what the centres were made for (the warm start); 0: none */
 } gim__vpl_gpu;
 
 #define GIM__MAX_STAMPS 96   /* timestamps a frame may take: 1 + 4 per light + 7 */
@@ -6051,6 +6377,10 @@ struct gim_context {
     gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
     uint64_t para_samples_bytes;
     uint32_t para_key[3];             /* map_count, size, vpl_count para_samples was made for */
+    /* VPL shading (issue 5) */
+    gim__GLuint vpl_partial;      /* per pixel running sums between VPL-shading dispatches (2 vec4) */
+    uint64_t vpl_partial_bytes;
+    uint32_t vpl_chunk;           /* subset members per VPL-shading dispatch (GIM__VPL_SHADE_CHUNK) */
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -7918,6 +8248,152 @@ vals:
     return GIM_OK;
 }
 
+/* --- VPL shading (issue 5): clustered visibility and SSVP --------------------------------- */
+
+/* Subset members per VPL-shading dispatch: each costs an invocation up to 1 + 2 x 16 loop
+   iterations (the two visibility kernels), and llvmpipe stops an invocation's loops after
+   65535 in all; 1024 stays at ~35k. */
+#define GIM__VPL_SHADE_CHUNK 1024u
+
+/* What the VPL shading pass reads and writes. */
+typedef struct gim__vpl_shade_args {
+    gim__GLuint depth, normal;     /* the G-buffer (gimany's or the host's) */
+    gim__GLuint albedo, material;  /* gimany's G-buffer; both 0 with the host's: albedo 1, no glossy */
+    uint32_t width, height;
+    gim_mat4 view, proj;
+    gim__GLuint vpls;              /* SSBO: vpl_count gim_vpl (48 bytes) */
+    uint32_t vpl_count;            /* N; 0 lights nothing */
+    gim__GLuint cluster;           /* SSBO: a uint map index per VPL (>= map_count, e.g. UINT32_MAX: unshadowed),
+                                      or 0: no visibility */
+    gim__GLuint maps;              /* SSBO: map_count gim_paraboloid (48 bytes) */
+    uint32_t map_count;
+    gim__GLuint distance;          /* R32F 2D array texture, map_size^2 x map_count (layer m: map m), or 0: no visibility */
+    uint32_t map_size;
+    uint32_t interleave;           /* k (gim_vpl_shade_desc); 0 or 1: every VPL */
+    float clamp_distance;          /* d_c, >= 0 */
+    float scene_scale;             /* > 0 */
+    gim__GLuint output;            /* width x height texture of format */
+    gim__GLenum format;            /* RGBA16F or RGBA32F */
+} gim__vpl_shade_args;
+
+/* VPL shading per pixel into a->output (twin: gim_vpl_shade on the receivers unprojected from
+   the G-buffer, as in lightskin_shade.comp); in dispatches of ctx->vpl_chunk members of each
+   pixel's interleaved subset, the running sums in ctx->vpl_partial between them. */
+static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl_shade_args *a) {
+    static const char where[] = "VPL shading (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    int host = a->albedo == 0, vis = a->cluster != 0 && a->distance != 0;
+    uint32_t k = a->interleave > 1u ? a->interleave : 1u, members, chunk, first;
+    gim_result r;
+    if (a->width == 0 || a->height == 0 || !a->depth || !a->normal || !a->output)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no G-buffer or output");
+    if (a->interleave > GIM__VPL_MAX_INTERLEAVE)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "interleave %u exceeds %u", a->interleave,
+                         GIM__VPL_MAX_INTERLEAVE);
+    if (a->vpl_count > 0 && !a->vpls) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no VPL buffer");
+    if (vis && (!a->maps || a->map_count == 0 || a->map_size == 0))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "visibility needs maps, map_count and map_size");
+    if (!gim__isfinitef(a->clamp_distance) || !(a->clamp_distance >= 0.0f) || !gim__isfinitef(a->scene_scale) ||
+        !(a->scene_scale > 0.0f))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance >= 0 and scene_scale > 0 must be finite");
+    if (!host && ctx->material_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no materials");
+    if ((r = gim__gl_program(ctx, GIM__PROGRAM_VPL_SHADE, &program)) != GIM_OK) return r;
+    members = a->vpl_count / (k * k) + (a->vpl_count % (k * k) != 0u);   /* the largest subset, s = 0 */
+    chunk = ctx->vpl_chunk ? ctx->vpl_chunk : GIM__VPL_SHADE_CHUNK;
+    if (members > chunk) {
+        r = gim__gl_sized_buffer(ctx, &ctx->vpl_partial, &ctx->vpl_partial_bytes, (uint64_t)a->width * a->height * 32u, where);
+        if (r != GIM_OK) return r;
+    }
+    r = gim__gl_pixel_pass(ctx, program, a->depth, a->normal, a->albedo, a->material, a->width, a->height, a->view, a->proj,
+                           a->output, a->format, where);
+    if (r != GIM_OK) return r;
+    gl->ActiveTexture(GIM__GL_TEXTURE0 + 4u);
+    gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, vis ? a->distance : 0u);
+    gl->BindSampler(4u, ctx->nearest_sampler);
+    /* a binding the pass does not read gets the VPL buffer (something valid is bound) */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, a->vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vis ? a->cluster : a->vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vis ? a->maps : a->vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, host ? a->vpls : ctx->materials);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, members > chunk ? ctx->vpl_partial : a->vpls);
+    gl->Uniform1ui(4, a->vpl_count);
+    gl->Uniform1ui(5, k);
+    gl->Uniform1ui(8, a->map_size);
+    gl->Uniform1f(9, GIM__TWINS_COINCIDENT * a->scene_scale);
+    gl->Uniform1f(10, a->clamp_distance * a->clamp_distance);
+    gl->Uniform1ui(11, host ? 1u : ctx->material_count);
+    gl->Uniform1f(12, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    gl->Uniform1ui(13, vis ? a->map_count : 0u);
+    first = 0;
+    do {
+        uint32_t n = members - first < chunk ? members - first : chunk;
+        uint32_t flags = (vis ? 1u : 0u) | (host ? 2u : 0u) | (first == 0u ? 4u : 0u) | (first + n >= members ? 8u : 0u);
+        gl->Uniform2ui(6, first, first + n);
+        gl->Uniform1ui(7, flags);
+        gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        first += n;
+    } while (first < members);
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
+/* What the geometry-aware blur reads and writes. */
+typedef struct gim__blur_args {
+    gim__GLuint depth, normal;     /* the G-buffer */
+    uint32_t width, height;
+    gim_mat4 view, proj;
+    gim__GLuint input;             /* width x height rgb texture (the VPL shading's output) */
+    uint32_t window;               /* k; 0 or 1: a copy of the pixels with a surface */
+    float position_tolerance;      /* > 0, length */
+    float normal_tolerance;        /* [-1, 1]; 0: 0.8 */
+    gim__GLuint output;            /* width x height texture of format, not the input */
+    gim__GLenum format;            /* RGBA16F or RGBA32F */
+} gim__blur_args;
+
+/* Geometry-aware blur of a->input into a->output (twin: gim_geometry_blur). */
+static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim__blur_args *a) {
+    static const char where[] = "geometry-aware blur (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, tex[3];
+    gim_mat4 inv_view, inv_proj;
+    float tol = a->position_tolerance, ncos = a->normal_tolerance != 0.0f ? a->normal_tolerance : 0.8f;
+    int i;
+    gim_result r;
+    if (a->width == 0 || a->height == 0 || !a->depth || !a->normal || !a->input || !a->output || a->input == a->output)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "G-buffer, input and a distinct output are required");
+    if (a->window > GIM__VPL_MAX_INTERLEAVE)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "window %u exceeds %u", a->window, GIM__VPL_MAX_INTERLEAVE);
+    if (!gim__isfinitef(tol) || !(tol > 0.0f) || !(ncos >= -1.0f && ncos <= 1.0f))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "position_tolerance > 0, normal_tolerance in [-1, 1]");
+    if (!gim_mat4_invert(a->view, &inv_view) || !gim_mat4_invert(a->proj, &inv_proj))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
+    if ((r = gim__gl_program(ctx, GIM__PROGRAM_GEOMETRY_BLUR, &program)) != GIM_OK) return r;
+    gim__gl_nearest_sampler(ctx);
+    tex[0] = a->depth; tex[1] = a->normal; tex[2] = a->input;
+    for (i = 0; i < 3; ++i) {
+        gim__GLuint unit = i == 2 ? 4u : (gim__GLuint)i;
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + unit);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
+        gl->BindSampler(unit, ctx->nearest_sampler);
+    }
+    gl->BindImageTexture(0, a->output, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, a->format);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, a->width, a->height);
+    gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, inv_proj.m);
+    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, inv_view.m);
+    gl->Uniform1ui(4, a->window > 1u ? a->window : 1u);
+    gl->Uniform1f(5, tol * tol);
+    gl->Uniform1f(6, ncos);
+    gl->Uniform1f(7, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
+                      GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
+    return gim__gl_check(ctx, where);
+}
+
 /* --- RSM gather (Dachsbacher 2005) ---------------------------------------------------------- */
 
 #define GIM__GATHER_DEFAULT_SAMPLES 256u
@@ -8229,8 +8705,8 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
 /* Argument checks of gim_update that need no GL. */
 /* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
    Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
-   RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (seeded every
-   frame for CLUSTERED, warm from the last frame's centres for SSVP) -> the clusters' VALs and
+   RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (warm from the
+   last frame's centres, or seeded every frame: gim_frame.kmeans_restart) -> the clusters' VALs and
    paraboloid parameters (clusters.comp) -> one layered pass of paraboloid maps (depth for
    visibility; position, normal, albedo for the second bounce) -> second-bounce VPLs -> per
    pixel shading of every VPL (interleaved) with its cluster's soft visibility -> the
@@ -8246,13 +8722,17 @@ static void gim__vpl_release(gim_context *ctx) {
     gim__GLuint b[5];
     b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
     ctx->gl.DeleteBuffers(5, b);
+    if (v->shaded) ctx->gl.DeleteTextures(1, &v->shaded);
     memset(v, 0, sizeof *v);
     gim__paraboloid_release(ctx, 1);
+    if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
+    ctx->vpl_partial = 0;
+    ctx->vpl_partial_bytes = 0;
 }
 
 /* The resolved settings of a VPL frame (gim_frame's zeros made defaults). */
 typedef struct gim__vpl_settings {
-    int ssvp, visibility;
+    int ssvp, visibility, restart;
     uint32_t vpls, clusters, iterations, size, bounces, second, interleave;
     float clamp_distance, blur_distance;   /* in scene scales (clamp 0: none) */
 } gim__vpl_settings;
@@ -8262,7 +8742,8 @@ static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->visibility = !f->no_visibility;
     s->vpls = f->vpl_count ? f->vpl_count : s->ssvp ? 256u : 1024u;
     s->clusters = f->cluster_count ? f->cluster_count : s->ssvp ? 8u : 30u;
-    s->iterations = f->kmeans_iterations ? f->kmeans_iterations : s->ssvp ? 3u : 8u;
+    s->restart = f->kmeans_restart != 0;
+    s->iterations = f->kmeans_iterations ? f->kmeans_iterations : s->restart ? 8u : 3u;
     s->size = f->paraboloid_size ? f->paraboloid_size : 256u;
     s->bounces = f->bounces ? f->bounces : s->ssvp ? 2u : 1u;
     s->second = s->bounces == 2u ? (f->second_bounce_vpls ? f->second_bounce_vpls : 256u) : 0u;
@@ -8354,10 +8835,9 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
-    uint32_t i, first, total, it;
+    uint32_t i, first, total, it, iterations;
     gim_result r = GIM_OK;
     int warm;
-    (void)depth; (void)normal;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = s.vpls * ctx->light_count;
@@ -8388,10 +8868,11 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     }
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
-    warm = s.ssvp && v->warm_clusters == s.clusters && v->warm_vpls == first;
+    warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
     if (r == GIM_OK) r = gim__gl_clusters_reset(ctx, total);
     if (r == GIM_OK && !warm) r = gim__gl_clusters(ctx, first, s.clusters, scale, 1u);
-    for (it = 0; it < s.iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */
+    iterations = warm || s.iterations >= 8u || f->kmeans_iterations ? s.iterations : 8u;   /* from seeds: 8 at least */
+    for (it = 0; it < iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */
         r = gim__gl_kmeans_step(ctx, v->vpls, first, v->centres, s.clusters, v->cluster_of,
                                 s.ssvp ? GIM_KMEANS_METRIC_SSVP : GIM_KMEANS_METRIC_DONG, 0.0f, 0.0f, scale);
         if (r == GIM_OK) r = gim__gl_clusters(ctx, first, s.clusters, scale, 2u);
@@ -8399,6 +8880,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     if (r == GIM_OK) r = gim__gl_clusters(ctx, first, s.clusters, scale, 0u);
     v->warm_clusters = r == GIM_OK ? s.clusters : 0u;
     v->warm_vpls = r == GIM_OK ? first : 0u;
+    v->warm_metric = r == GIM_OK ? 1u + (uint32_t)s.ssvp : 0u;
     gim__stamp(ctx, f->timing, GIM_PASS_KMEANS);
     if (r != GIM_OK) return r;
     /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility, attributes for the second bounce */
@@ -8413,7 +8895,65 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
     }
     if (r != GIM_OK) return r;
-    /* MERGE: shading, blur */
+    /* shading (Dong 6; SSVP eq. 6 with each bounce's own normalisation), then the blur */
+    {
+        gim__GLenum format = f->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F;
+        gim__vpl_shade_args a;
+        gim__blur_args b;
+        int blur = s.interleave > 1u;
+        gim__gl_indirect_texture(ctx, f->width, f->height, format);
+        if (blur && (!v->shaded || v->shaded_width != f->width || v->shaded_height != f->height)) {
+            gim__gl_texture(ctx, &v->shaded, GIM__GL_RGBA32F, f->width, f->height);
+            v->shaded_width = f->width;
+            v->shaded_height = f->height;
+        } else if (!blur && v->shaded) {
+            ctx->gl.DeleteTextures(1, &v->shaded);
+            v->shaded = 0;
+            v->shaded_width = v->shaded_height = 0;
+        }
+        memset(&a, 0, sizeof a);
+        a.depth = depth;
+        a.normal = normal;
+        a.albedo = f->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
+        a.material = f->gbuffer_depth ? 0u : ctx->gbuffer_material;
+        a.width = f->width;
+        a.height = f->height;
+        a.view = f->view;
+        a.proj = f->proj;
+        a.vpls = v->vpls;
+        a.vpl_count = total;
+        a.cluster = s.visibility ? v->cluster_of : 0u;
+        a.maps = v->maps;
+        a.map_count = s.clusters;
+        a.distance = s.visibility ? ctx->para_distance : 0u;
+        a.map_size = s.size;
+        a.interleave = s.interleave;
+        a.clamp_distance = s.clamp_distance * scale;
+        a.scene_scale = scale;
+        a.output = blur ? v->shaded : ctx->indirect;
+        a.format = blur ? GIM__GL_RGBA32F : format;
+        r = gim__gl_vpl_shade(ctx, &a);
+        gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
+        if (r == GIM_OK && blur) {
+            memset(&b, 0, sizeof b);
+            b.depth = depth;
+            b.normal = normal;
+            b.width = f->width;
+            b.height = f->height;
+            b.view = f->view;
+            b.proj = f->proj;
+            b.input = v->shaded;
+            b.window = s.interleave;
+            b.position_tolerance = s.blur_distance * scale;
+            b.normal_tolerance = 0.8f;
+            b.output = ctx->indirect;
+            b.format = format;
+            r = gim__gl_geometry_blur(ctx, &b);
+            gim__stamp(ctx, f->timing, GIM_PASS_BLUR);
+        }
+        if (r != GIM_OK) return r;
+    }
+    o->indirect = ctx->indirect;
     o->vpls = v->vpls;
     o->vpl_count = total;
     o->first_bounce_count = first;
@@ -8698,9 +9238,10 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
-         ctx->vpl.maps_bytes;
+         ctx->vpl.maps_bytes + (uint64_t)ctx->vpl.shaded_width * ctx->vpl.shaded_height * 16u;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
+    b += ctx->vpl_partial_bytes;
     return b;
 }
 
@@ -8799,6 +9340,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
     if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
     gim__paraboloid_release(ctx, 1);
+    if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
     gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);

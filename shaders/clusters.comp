@@ -6,9 +6,11 @@
    near = max(Delta / 2, the lift).
      mode 0: the maps from the k-means centres (centre.w: VPLs; the normal renormalised);
      mode 1: seed the centres: centre[k] = VPL floor(k N / M) (Dong sec. 5.2, the same seeds
-             every frame; gim_kmeans' FIXED init), a zero normal taken as +z;
+             every frame; gim_kmeans' FIXED init), or the first lit VPL after it (an unlit one
+             carries no light: a cluster seeded there would sit wherever the cone is not, and
+             jump when the light moves), a zero normal taken as +z;
      mode 2: repair cluster `target` if the last update left it empty (centre.w = 0), one
-             invocation: the VPL farthest from its own centre among the clusters of two or
+             invocation: the lit VPL farthest from its own centre among the clusters of two or
              more VPLs (ties: the lowest index) moves to it and seeds it, as gim_kmeans
              re-seeds (which takes the farthest VPL of the cluster of largest error). */
 layout(local_size_x = 64) in;
@@ -44,7 +46,7 @@ void main() {
         uint arg = 0xffffffffu;
         for (uint i = 0u; i < vpl_count; ++i) {
             uint c = assignment[i];
-            if (c >= cluster_count || centre[c].position.w < 2.0) continue;
+            if (c >= cluster_count || centre[c].position.w < 2.0 || vpl[i].position.w <= 0.0) continue;
             float d = length(vpl[i].position.xyz - centre[c].position.xyz);
             if (d > best) { best = d; arg = i; }
         }
@@ -58,7 +60,11 @@ void main() {
         return;
     }
     if (mode == 1u) {
-        uint i = (m * vpl_count) / cluster_count;   /* < 256 * 32768: no overflow */
+        uint i0 = (m * vpl_count) / cluster_count, i = i0;   /* < 256 * 32768: no overflow */
+        for (uint j = 0u; j < vpl_count; ++j) {
+            uint c = i0 + j < vpl_count ? i0 + j : i0 + j - vpl_count;
+            if (vpl[c].position.w > 0.0) { i = c; break; }
+        }
         vec3 n = vpl[i].normal.xyz;
         centre[m].position = vec4(vpl[i].position.xyz, 0.0);
         centre[m].normal = vec4(dot(n, n) > 0.0 ? n : vec3(0.0, 0.0, 1.0), 0.0);

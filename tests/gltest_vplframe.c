@@ -162,7 +162,7 @@ static void frame_matches_cpu_chain(void **state) {
         if (k == 1) ff.fr.interleave = 1;
         assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
         gltest_state_unchanged(&ff.f);
-        read_indirect(&gim_outputs(ff.f.ctx), img);
+        { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
         bad = compare_with_cpu_chain(&ff, img, 1e-3, &max_rel);
         print_message("%s: GPU vs CPU chain, %u of %u pixels above 1e-3, the others within %.2e\n",
                       k == 0 ? "clustered" : k == 1 ? "clustered, k = 1" : "ssvp", bad, W * H, max_rel);
@@ -208,12 +208,13 @@ static void shadows_and_second_bounce(void **state) {
     vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
     ff.fr.vpl_count = 1024;
     ff.fr.cluster_count = 16;
+    ff.fr.kmeans_restart = 1;   /* every frame the same clusters, whatever came before */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    read_indirect(&gim_outputs(ff.f.ctx), img);
+    { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &on, &all_on, &n);
     ff.fr.no_visibility = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    read_indirect(&gim_outputs(ff.f.ctx), img);
+    { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &off, &all_off, &n);
     print_message("indirect shadow: floor behind the block %.4g with visibility, %.4g without (%u pixels); "
                   "image %.4g / %.4g\n", on, off, n, all_on, all_off);
@@ -222,7 +223,7 @@ static void shadows_and_second_bounce(void **state) {
     ff.fr.no_visibility = 0;
     ff.fr.clamp_distance = -1.0f;   /* no clamping */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    read_indirect(&gim_outputs(ff.f.ctx), img);
+    { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &unclamped, &all_unclamped, &n);
     print_message("clamping at 0.01 scene scales removes %.2f%% of the image's energy\n",
                   100.0 * (1.0 - all_on / all_unclamped));
@@ -230,14 +231,15 @@ static void shadows_and_second_bounce(void **state) {
     frame_end(&ff);
 
     vpl_frame_begin(&ff, GIM_METHOD_SSVP);
+    ff.fr.kmeans_restart = 1;
     ff.fr.bounces = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    read_indirect(&gim_outputs(ff.f.ctx), img);
+    { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &b1, &all1, &n);
     ff.fr.bounces = 2;
     ff.fr.second_bounce_vpls = 1024;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    read_indirect(&gim_outputs(ff.f.ctx), img);
+    { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &b2, &all2, &n);
     print_message("second bounce: floor behind the block %.4g -> %.4g, image %.4g -> %.4g\n", b1, b2, all1, all2);
     assert_true(b2 > 1.3 * b1);
@@ -248,7 +250,9 @@ static void shadows_and_second_bounce(void **state) {
 }
 
 /* Temporal coherence (Dong sec. 5.2; SSVP's warm start): the light turns 1 degree a frame; no
-   cluster is lost and no centre jumps across the scene. */
+   cluster is lost and, from the last frame's centres, no centre jumps across the scene. With
+   Dong's restart from the same seeds every frame no cluster is lost either; its jumps are
+   reported (the documented reason the default is warm). */
 static void clusters_move_smoothly(void **state) {
     frame_fixture ff;
     float prev[8 * 8], cur[8 * 8];
@@ -256,11 +260,12 @@ static void clusters_move_smoothly(void **state) {
     uint32_t i;
     (void)state;
     GLTEST_BEGIN();
-    for (k = 0; k < 2; ++k) {
+    for (k = 0; k < 3; ++k) {   /* CLUSTERED, SSVP (both warm), CLUSTERED restarting */
         double worst = 0.0, mean = 0.0;
         uint32_t steps = 0;
-        vpl_frame_begin(&ff, k ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
+        vpl_frame_begin(&ff, k == 1 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
         ff.fr.bounces = 1;
+        ff.fr.kmeans_restart = k == 2;
         for (fr = 0; fr < 8; ++fr) {
             gim_frame_outputs o;
             wall_light(&ff, (float)fr);
@@ -283,9 +288,11 @@ static void clusters_move_smoothly(void **state) {
         }
         mean /= steps;
         print_message("%s: centres move %.4f scene scales a frame on average, %.4f at most\n",
-                      k ? "ssvp" : "clustered", mean, worst);
-        assert_true(worst < 0.15);
-        assert_true(mean < 0.03);
+                      k == 0 ? "clustered" : k == 1 ? "ssvp" : "clustered, restarting (Dong 5.2)", mean, worst);
+        if (k < 2) {
+            assert_true(worst < 0.1);
+            assert_true(mean < 0.02);
+        }
         frame_end(&ff);
     }
     GLTEST_END();

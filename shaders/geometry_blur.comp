@@ -1,0 +1,71 @@
+/* Geometry-aware blur (Dong sec. 6 after Laine et al.), the GPU twin of gim_geometry_blur: each
+   pixel with a surface becomes the mean of the pixels with a surface in its k x k window
+   [x - k/2, x - k/2 + k - 1]^2 (clipped to the image) that lie within position_tolerance of it
+   and whose normal has n . n_x >= normal_cos (the pixel itself always counts), summed in float
+   rows first as the twin. Positions are unprojected from the G-buffer as in vpl_shade.comp. */
+layout(local_size_x = 8, local_size_y = 8) in;
+
+layout(binding = 0) uniform sampler2D gbuffer_depth;
+layout(binding = 1) uniform sampler2D gbuffer_normal;    /* world normal in xyz */
+layout(binding = 4) uniform sampler2D radiance;          /* rgb input */
+layout(binding = 0) writeonly uniform image2D blurred;   /* RGBA16F or RGBA32F */
+
+layout(location = 0) uniform uvec2 size;
+layout(location = 1) uniform mat4 inv_proj;
+layout(location = 2) uniform mat4 inv_view;
+layout(location = 4) uniform uint k;             /* window, >= 1 */
+layout(location = 5) uniform float tol2;         /* position tolerance squared */
+layout(location = 6) uniform float normal_cos;
+layout(location = 7) uniform float max_value;
+
+const float FLT_MAX = 3.402823466e+38;
+
+bool finite3(vec3 v) {
+    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
+    return all(notEqual(e, uvec3(0xffu)));
+}
+
+/* The pixel's surface: position in xyz, w = 1; w = 0 where there is none. */
+vec4 surface(ivec2 px, out vec3 n) {
+    float depth = texelFetch(gbuffer_depth, px, 0).r;
+    vec4 nw = texelFetch(gbuffer_normal, px, 0);
+    n = vec3(0.0);
+    if (!(depth < 1.0) || !finite3(nw.xyz) || !(dot(nw.xyz, nw.xyz) > 0.0)) return vec4(0.0);
+    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+    vec4 v = inv_proj * ndc;
+    v /= v.w;
+    n = normalize(nw.xyz);
+    return vec4((inv_view * vec4(v.xyz, 1.0)).xyz, 1.0);
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= int(size.x) || px.y >= int(size.y)) return;
+    vec3 nx;
+    vec4 x = surface(px, nx);
+    if (x.w == 0.0) {
+        imageStore(blurred, px, vec4(0.0));
+        return;
+    }
+    ivec2 lo = px - ivec2(int(k / 2u)), hi = lo + ivec2(int(k)) - 1;
+    precise vec3 sum = vec3(0.0);
+    uint n = 0u;
+    for (int yy = max(lo.y, 0); yy <= min(hi.y, int(size.y) - 1); ++yy)
+        for (int xx = max(lo.x, 0); xx <= min(hi.x, int(size.x) - 1); ++xx) {
+            ivec2 q = ivec2(xx, yy);
+            if (q != px) {
+                vec3 nq;
+                vec4 y = surface(q, nq);
+                if (y.w == 0.0) continue;
+                precise float dx = y.x - x.x, dy = y.y - x.y, dz = y.z - x.z;
+                precise float d2 = dx * dx + dy * dy + dz * dz;
+                if (!(d2 <= tol2)) continue;
+                precise float c = nq.x * nx.x + nq.y * nx.y + nq.z * nx.z;
+                if (!(c >= normal_cos)) continue;
+            }
+            sum += texelFetch(radiance, q, 0).rgb;
+            ++n;
+        }
+    precise vec3 o = sum / float(n);
+    imageStore(blurred, px, vec4(clamp(o, vec3(-max_value), vec3(max_value)), 1.0));
+}

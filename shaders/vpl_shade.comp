@@ -1,0 +1,194 @@
+/* VPL shading per pixel (Dong sec. 6, SSVP eq. 6; units in gimany.h "twins of the VPL
+   methods"), the GPU twin of gim_vpl_shade: one invocation per G-buffer pixel sums the VPLs
+   of its interleaved subset (i = s, s + k^2, ...; s = x mod k + k (y mod k)) in index order,
+   each with its cluster's soft visibility from the paraboloid maps (gim_paraboloid_visibility,
+   the same float steps; `precise` keeps the compiler from fusing them into multiply-adds),
+   clamped at d_c (Krivanek), diffuse + Phong lobe. The subset is split into dispatches of
+   [first, last) of its members (llvmpipe stops an invocation's loops after 65535 iterations in
+   all), the running float sums kept per pixel in `partial` between them. Writes rgb radiance,
+   a = 1 where a surface is, at the last dispatch. */
+layout(local_size_x = 8, local_size_y = 8) in;
+
+#define TAPS 16
+
+layout(binding = 0) uniform sampler2D gbuffer_depth;
+layout(binding = 1) uniform sampler2D gbuffer_normal;     /* world normal in xyz, w = 1 where drawn */
+layout(binding = 2) uniform sampler2D gbuffer_albedo;     /* diffuse rgb (unused with host_gbuffer) */
+layout(binding = 3) uniform sampler2D gbuffer_material;   /* material id (unused with host_gbuffer) */
+layout(binding = 4) uniform sampler2DArray distance_map;  /* R32F: one paraboloid map per layer */
+layout(binding = 0) writeonly uniform image2D indirect;   /* RGBA16F or RGBA32F */
+
+struct Vpl { vec4 position_lit; vec4 normal; vec4 flux; };        /* gim_vpl */
+struct Map { vec4 origin_near; vec4 normal_size; vec4 flux; };    /* gim_paraboloid */
+struct Material { vec4 diffuse; vec4 glossy; };                   /* rgb, (rgb, k) */
+layout(std430, binding = 0) readonly buffer Vpls { Vpl vpl[]; };
+layout(std430, binding = 1) readonly buffer Clusters { uint cluster[]; };   /* UINT_MAX: none */
+layout(std430, binding = 2) readonly buffer Maps { Map map[]; };
+layout(std430, binding = 3) readonly buffer Materials { Material material[]; };
+layout(std430, binding = 4) buffer Partial { vec4 partial[]; };   /* per pixel: diffuse sum, glossy sum */
+
+layout(location = 0) uniform uvec2 size;
+layout(location = 1) uniform mat4 inv_proj;
+layout(location = 2) uniform mat4 inv_view;
+layout(location = 3) uniform vec4 eye;          /* perspective: (position, 1); orthographic: (direction, 0) */
+layout(location = 4) uniform uint vpl_count;    /* N */
+layout(location = 5) uniform uint k;            /* interleave, >= 1 */
+layout(location = 6) uniform uvec2 range;       /* members [first, last) of the pixel's subset this dispatch */
+layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last */
+layout(location = 8) uniform uint map_size;
+layout(location = 9) uniform float near_;       /* 1e-6 scene_scale */
+layout(location = 10) uniform float dc2;        /* clamp distance squared */
+layout(location = 11) uniform uint material_count;
+layout(location = 12) uniform float max_value;  /* largest value of the output format */
+layout(location = 13) uniform uint map_count;   /* a cluster index beyond it is unshadowed */
+
+const float PI = 3.14159265358979323846;
+const float FLT_MAX = 3.402823466e+38;
+const float EMPTY = 3.0e38;                     /* GIM_PARABOLOID_EMPTY */
+const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
+    vec2(0.176776692, 0.0), vec2(-0.225772187, 0.206825823), vec2(0.0345580503, -0.393771172),
+    vec2(0.28457123, 0.371172756), vec2(-0.522223175, -0.0923739299), vec2(0.494695395, -0.314684719),
+    vec2(-0.165465921, 0.615525007), vec2(-0.315561473, -0.60759443), vec2(0.684642136, 0.25003022),
+    vec2(-0.712256074, 0.29400897), vec2(0.343354493, -0.733728647), vec2(0.253730237, 0.808932006),
+    vec2(-0.764745891, -0.443185866), vec2(0.897134006, -0.197232395), vec2(-0.547506928, 0.778772235),
+    vec2(-0.126486778, -0.976089716));
+
+bool finite3(vec3 v) {
+    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
+    return all(notEqual(e, uvec3(0xffu)));
+}
+
+/* gim__paraboloid_fetch */
+float fetch(int layer, precise float u, precise float v) {
+    precise float r2 = u * u + v * v;
+    if (!(r2 <= 1.0)) return EMPTY;
+    precise float fs = float(map_size);
+    precise float fx = floor((u + 1.0) * fs * 0.5);
+    precise float fy = floor((v + 1.0) * fs * 0.5);
+    int x = fx < 0.0 ? 0 : (fx > fs - 1.0 ? int(map_size) - 1 : int(fx));
+    int y = fy < 0.0 ? 0 : (fy > fs - 1.0 ? int(map_size) - 1 : int(fy));
+    return texelFetch(distance_map, ivec3(x, y, layer), 0).r;
+}
+
+/* gim__paraboloid_vis: PCSS on map m's paraboloid map in angles (read the twin) */
+float visibility(uint m, vec3 x) {
+    precise vec3 n = map[m].normal_size.xyz;
+    precise vec3 o = map[m].origin_near.xyz;
+    precise float delta = map[m].normal_size.w;
+    /* gim_basis (Duff et al. 2017), the same expression order */
+    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;
+    precise float a = -1.0 / (sg + n.z);
+    precise float c = n.x * n.y * a;
+    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * c, -sg * n.x);
+    precise vec3 b = vec3(c, sg + n.y * n.y * a, -n.y);
+    precise float p0 = x.x - o.x, p1 = x.y - o.y, p2 = x.z - o.z;
+    precise float lx = p0 * t.x + p1 * t.y + p2 * t.z;
+    precise float ly = p0 * b.x + p1 * b.y + p2 * b.z;
+    precise float lz = p0 * n.x + p1 * n.y + p2 * n.z;
+    precise float d = sqrt(lx * lx + ly * ly + lz * lz);
+    if (!(d > 0.0) || !(d <= FLT_MAX)) return 1.0;
+    precise float wz = lz / d;
+    if (!(wz > 0.0)) return 1.0;                          /* behind the VAL's plane */
+    precise float opz = 1.0 + wz;
+    precise float jac = 1.0 / opz;
+    precise float u = lx / d / opz;
+    precise float v = ly / d / opz;
+    precise float fs = float(map_size);
+    precise float texel = 2.0 * opz / fs;
+    precise float bias = d * (0.01 + 4.0 * opz / fs);
+    precise float ref = d - bias;
+    precise float dv = delta * sqrt(wz);                  /* the foreshortened VAL */
+    precise float as_ = 1.5 * dv / d;
+    as_ = as_ < 0.5 ? as_ : 0.5;
+    precise float s = jac * as_;
+    precise float zsum = 0.0;
+    int found = 0, open = 0, layer = int(m);
+    for (int j = 0; j < TAPS; ++j) {                      /* blocker search */
+        float z = fetch(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y);
+        if (z > 0.0 && z < ref) { zsum += z; ++found; }
+    }
+    if (found == 0) return 1.0;
+    precise float zavg = zsum / float(found);
+    precise float ap = 0.5 * dv * (1.0 / zavg - 1.0 / d);      /* penumbra half-width */
+    precise float af = ap > texel ? ap : texel;
+    af = af < 0.5 ? af : 0.5;
+    s = jac * af;
+    for (int j = 0; j < TAPS; ++j) {                      /* PCF */
+        float z = fetch(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y);
+        if (!(z > 0.0 && z < ref)) ++open;
+    }
+    return float(open) / float(TAPS);
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    if (px.x >= int(size.x) || px.y >= int(size.y)) return;
+    uint pix = uint(px.y) * size.x + uint(px.x);
+    bool last = (flags & 8u) != 0u;
+    /* the receiver, as lightskin_shade.comp builds it */
+    float depth = texelFetch(gbuffer_depth, px, 0).r;
+    vec4 nw = texelFetch(gbuffer_normal, px, 0);
+    if (!(depth < 1.0) || !finite3(nw.xyz) || !(dot(nw.xyz, nw.xyz) > 0.0)) {
+        if (last) imageStore(indirect, px, vec4(0.0));
+        return;
+    }
+    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+    vec4 vh = inv_proj * ndc;
+    vh /= vh.w;
+    vec3 x = (inv_view * vec4(vh.xyz, 1.0)).xyz;
+    vec3 nx = normalize(nw.xyz);
+    vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+    vec3 albedo = vec3(1.0), gcol = vec3(0.0);
+    float kexp = 0.0;
+    if ((flags & 2u) == 0u) {
+        albedo = texelFetch(gbuffer_albedo, px, 0).rgb;
+        uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
+        gcol = material[id].glossy.rgb;
+        kexp = material[id].glossy.w;
+    }
+
+    precise vec3 sd = vec3(0.0), sgl = vec3(0.0);
+    if ((flags & 4u) == 0u) {
+        sd = partial[pix * 2u].xyz;
+        sgl = partial[pix * 2u + 1u].xyz;
+    }
+    uint step = k * k, s = uint(px.x) % k + k * (uint(px.y) % k);
+    for (uint j = range.x; j < range.y; ++j) {
+        uint i = s + j * step;
+        if (i >= vpl_count) break;
+        Vpl p = vpl[i];
+        if (!(p.position_lit.w > 0.0)) continue;
+        precise float dx = x.x - p.position_lit.x, dy = x.y - p.position_lit.y, dz = x.z - p.position_lit.z;
+        precise float d2 = dx * dx + dy * dy + dz * dz;
+        precise float dist = sqrt(d2);
+        if (!(dist > near_)) continue;
+        precise float ox = dx / dist, oy = dy / dist, oz = dz / dist;
+        precise float cl = p.normal.x * ox + p.normal.y * oy + p.normal.z * oz;
+        precise float cx = -(nx.x * ox + nx.y * oy + nx.z * oz);
+        if (!(cl > 0.0) || !(cx > 0.0)) continue;
+        precise float vv = 1.0;
+        if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x);
+        precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
+        precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
+        precise float re = rx * view.x + ry * view.y + rz * view.z;
+        float lobe = kexp == 0.0 ? 1.0 : (re > 0.0 ? pow(re, kexp) : 0.0);
+        precise vec3 e = p.flux.xyz * g;
+        sd += e;
+        sgl += e * lobe;
+    }
+    if (!last) {
+        partial[pix * 2u] = vec4(sd, 0.0);
+        partial[pix * 2u + 1u] = vec4(sgl, 0.0);
+        return;
+    }
+    uint count = s < vpl_count ? (vpl_count - s + step - 1u) / step : 0u;   /* n_s */
+    vec3 outc = vec3(0.0);
+    if (count > 0u) {
+        precise float scale = float(vpl_count) / float(count);
+        precise float fd = scale / PI;
+        precise float fg = scale * (kexp + 2.0) / (2.0 * PI);
+        precise vec3 ed = min(sd, vec3(FLT_MAX)), eg = min(sgl, vec3(FLT_MAX));
+        outc = albedo * (fd * ed) + gcol * (fg * eg);
+    }
+    imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
+}
