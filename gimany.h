@@ -8931,7 +8931,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.clamp_distance = s.clamp_distance * scale;
         a.scene_scale = scale;
         a.output = blur ? v->shaded : ctx->indirect;
-        a.format = blur ? GIM__GL_RGBA32F : format;
+        a.format = blur ? (gim__GLenum)GIM__GL_RGBA32F : format;
         r = gim__gl_vpl_shade(ctx, &a);
         gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
         if (r == GIM_OK && blur) {
