@@ -5071,7 +5071,7 @@ static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u
    0. the VAL as x sees it: a square of side Delta' = Delta sqrt(w.z), the side of a square
       of its projected area Delta^2 w.z (Dong's filter uses Delta; foreshortening the VAL
       brings the mean |V - exact from-area visibility| behind random plates, VALs and
-      receivers from 0.067 to 0.053, test_vpl_shade.c visibility_near_exact);
+      receivers from 0.058 to 0.048, test_vpl_shade.c visibility_near_exact);
    1. blocker search over a_s = min(0.5, 1.5 Delta' / d): a blocker at distance z from the
       VAL's centre shadows x from points of the VAL up to (Delta' / 2)(1 / z - 1 / d) radians
       away, which is 1.5 Delta' / d for z = d / 4: blockers nearer the VAL than a quarter of
