@@ -6032,6 +6032,9 @@ struct gim_context {
     gim__GLuint vpl_partial;      /* per pixel running sums between VPL-shading dispatches (2 vec4) */
     uint64_t vpl_partial_bytes;
     uint32_t vpl_chunk;           /* subset members per VPL-shading dispatch (GIM__VPL_SHADE_CHUNK) */
+    gim__GLuint vpl_raw;          /* the VPL shading before the geometry-aware blur (gim__gl_vpl_raw_texture) */
+    uint32_t vpl_raw_width, vpl_raw_height;
+    gim__GLenum vpl_raw_format;
 };
 
 /* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
@@ -7988,6 +7991,17 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     return gim__gl_check(ctx, where);
 }
 
+/* The texture the VPL shading writes before the blur reads it (the blur's output is the
+   frame's indirect texture), width x height of format, made anew when either changes. */
+static GIM__UNUSED void gim__gl_vpl_raw_texture(gim_context *ctx, uint32_t width, uint32_t height, gim__GLenum format) {
+    if (ctx->vpl_raw && ctx->vpl_raw_width == width && ctx->vpl_raw_height == height && ctx->vpl_raw_format == format)
+        return;
+    gim__gl_texture(ctx, &ctx->vpl_raw, format, width, height);
+    ctx->vpl_raw_width = width;
+    ctx->vpl_raw_height = height;
+    ctx->vpl_raw_format = format;
+}
+
 /* What the geometry-aware blur reads and writes. */
 typedef struct gim__blur_args {
     gim__GLuint depth, normal;     /* the G-buffer */
@@ -8376,6 +8390,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl_partial_bytes;
+    b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }
 
@@ -8474,6 +8489,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
     if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
     if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
+    if (ctx->vpl_raw) ctx->gl.DeleteTextures(1, &ctx->vpl_raw);
     gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);
