@@ -5382,7 +5382,7 @@ static float gim__paraboloid_fetch(const float *distance, uint32_t size, float u
    0. the VAL as x sees it: a square of side Delta' = Delta sqrt(w.z), the side of a square
       of its projected area Delta^2 w.z (Dong's filter uses Delta; foreshortening the VAL
       brings the mean |V - exact from-area visibility| behind random plates, VALs and
-      receivers from 0.067 to 0.053, test_vpl_shade.c visibility_near_exact);
+      receivers from 0.058 to 0.048, test_vpl_shade.c visibility_near_exact);
    1. blocker search over a_s = min(0.5, 1.5 Delta' / d): a blocker at distance z from the
       VAL's centre shadows x from points of the VAL up to (Delta' / 2)(1 / z - 1 / d) radians
       away, which is 1.5 Delta' / d for z = d / 4: blockers nearer the VAL than a quarter of
@@ -6381,6 +6381,9 @@ struct gim_context {
     gim__GLuint vpl_partial;      /* per pixel running sums between VPL-shading dispatches (2 vec4) */
     uint64_t vpl_partial_bytes;
     uint32_t vpl_chunk;           /* subset members per VPL-shading dispatch (GIM__VPL_SHADE_CHUNK) */
+    gim__GLuint vpl_raw;          /* the VPL shading before the geometry-aware blur (gim__gl_vpl_raw_texture) */
+    uint32_t vpl_raw_width, vpl_raw_height;
+    gim__GLenum vpl_raw_format;
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -8340,6 +8343,17 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     return gim__gl_check(ctx, where);
 }
 
+/* The texture the VPL shading writes before the blur reads it (the blur's output is the
+   frame's indirect texture), width x height of format, made anew when either changes. */
+static GIM__UNUSED void gim__gl_vpl_raw_texture(gim_context *ctx, uint32_t width, uint32_t height, gim__GLenum format) {
+    if (ctx->vpl_raw && ctx->vpl_raw_width == width && ctx->vpl_raw_height == height && ctx->vpl_raw_format == format)
+        return;
+    gim__gl_texture(ctx, &ctx->vpl_raw, format, width, height);
+    ctx->vpl_raw_width = width;
+    ctx->vpl_raw_height = height;
+    ctx->vpl_raw_format = format;
+}
+
 /* What the geometry-aware blur reads and writes. */
 typedef struct gim__blur_args {
     gim__GLuint depth, normal;     /* the G-buffer */
@@ -9242,6 +9256,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
     b += ctx->vpl_partial_bytes;
+    b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }
 
@@ -9341,6 +9356,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
     if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
     gim__paraboloid_release(ctx, 1);
     if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
+    if (ctx->vpl_raw) ctx->gl.DeleteTextures(1, &ctx->vpl_raw);
     gim__scene_destroy(ctx);
     env = ctx->env;
     gim__free(&env, ctx);

@@ -177,9 +177,6 @@ static void run_case(const shade_case *sc) {
     glTexStorage3D(GL_TEXTURE_2D_ARRAY, 1, GL_R32F, S, S, M);
     glTexSubImage3D(GL_TEXTURE_2D_ARRAY, 0, 0, 0, 0, S, S, M, GL_RED, GL_FLOAT, dist);
     glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
-    glGenTextures(1, &t_out);
-    glBindTexture(GL_TEXTURE_2D, t_out);
-    glTexStorage2D(GL_TEXTURE_2D, 1, sc->format, W, H);
     glGenTextures(1, &t_blur);
     glBindTexture(GL_TEXTURE_2D, t_blur);
     glTexStorage2D(GL_TEXTURE_2D, 1, sc->format, W, H);
@@ -195,13 +192,15 @@ static void run_case(const shade_case *sc) {
     a.cluster = sc->visibility ? b_cluster : 0u; a.maps = b_maps; a.map_count = M;
     a.distance = sc->visibility ? t_dist : 0u; a.map_size = S;
     a.interleave = sc->interleave; a.clamp_distance = sc->clamp * L; a.scene_scale = 1.7320508f * L;
-    a.output = t_out; a.format = sc->format;
+    a.format = sc->format;
     memset(&ba, 0, sizeof ba);
     ba.depth = out.gbuffer_depth; ba.normal = out.gbuffer_normal; ba.width = W; ba.height = H;
-    ba.view = fr.view; ba.proj = fr.proj; ba.input = t_out; ba.window = sc->interleave;
+    ba.view = fr.view; ba.proj = fr.proj; ba.window = sc->interleave;
     ba.position_tolerance = 0.1f * 1.7320508f * L;   /* Laine et al.'s alpha: 10 % of the extent */
     ba.output = t_blur; ba.format = sc->format;
     gim__gl_enter(f.ctx, "test");
+    gim__gl_vpl_raw_texture(f.ctx, W, H, sc->format);   /* the context's texture between the passes */
+    t_out = a.output = ba.input = f.ctx->vpl_raw;
     assert_int_equal(gim__gl_vpl_shade(f.ctx, &a), GIM_OK);
     assert_int_equal(gim__gl_geometry_blur(f.ctx, &ba), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
@@ -333,7 +332,7 @@ static void run_case(const shade_case *sc) {
     }
 
     glDeleteBuffers(1, &b_vpls); glDeleteBuffers(1, &b_cluster); glDeleteBuffers(1, &b_maps);
-    glDeleteTextures(1, &t_dist); glDeleteTextures(1, &t_out); glDeleteTextures(1, &t_blur);
+    glDeleteTextures(1, &t_dist); glDeleteTextures(1, &t_blur);
     free(dist); free(depth); free(nrm); free(alb); free(mat); free(gpu); free(gpu_blur); free(cpu); free(cpu_blur);
     free(cpu3); free(pixels); free(vs); free(rec); free(surface);
     gltest_fixture_end(&f);
