@@ -6312,8 +6312,6 @@ typedef struct gim__vpl_gpu {
     gim__GLuint centres;          /* k-means centres {vec4 centre (w: VPLs), vec4 normal} */
     gim__GLuint maps;             /* gim_paraboloid per cluster */
     uint64_t vpls_bytes, staging_bytes, cluster_of_bytes, centres_bytes, maps_bytes;
-    gim__GLuint shaded;           /* RGBA32F: the interleaved shading before the blur (none at k = 1) */
-    uint32_t shaded_width, shaded_height;
     uint32_t warm_clusters, warm_vpls, warm_metric; /* what the centres were made for (the warm start); 0: none */
 } gim__vpl_gpu;
 
@@ -8345,6 +8343,13 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
 
 /* The texture the VPL shading writes before the blur reads it (the blur's output is the
    frame's indirect texture), width x height of format, made anew when either changes. */
+static void gim__vpl_raw_release(gim_context *ctx) {
+    if (ctx->vpl_raw) ctx->gl.DeleteTextures(1, &ctx->vpl_raw);
+    ctx->vpl_raw = 0;
+    ctx->vpl_raw_width = ctx->vpl_raw_height = 0;
+    ctx->vpl_raw_format = 0;
+}
+
 static GIM__UNUSED void gim__gl_vpl_raw_texture(gim_context *ctx, uint32_t width, uint32_t height, gim__GLenum format) {
     if (ctx->vpl_raw && ctx->vpl_raw_width == width && ctx->vpl_raw_height == height && ctx->vpl_raw_format == format)
         return;
@@ -8736,8 +8741,8 @@ static void gim__vpl_release(gim_context *ctx) {
     gim__GLuint b[5];
     b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
     ctx->gl.DeleteBuffers(5, b);
-    if (v->shaded) ctx->gl.DeleteTextures(1, &v->shaded);
     memset(v, 0, sizeof *v);
+    gim__vpl_raw_release(ctx);
     gim__paraboloid_release(ctx, 1);
     if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
     ctx->vpl_partial = 0;
@@ -8916,15 +8921,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         gim__blur_args b;
         int blur = s.interleave > 1u;
         gim__gl_indirect_texture(ctx, f->width, f->height, format);
-        if (blur && (!v->shaded || v->shaded_width != f->width || v->shaded_height != f->height)) {
-            gim__gl_texture(ctx, &v->shaded, GIM__GL_RGBA32F, f->width, f->height);
-            v->shaded_width = f->width;
-            v->shaded_height = f->height;
-        } else if (!blur && v->shaded) {
-            ctx->gl.DeleteTextures(1, &v->shaded);
-            v->shaded = 0;
-            v->shaded_width = v->shaded_height = 0;
-        }
+        if (blur) gim__gl_vpl_raw_texture(ctx, f->width, f->height, GIM__GL_RGBA32F);   /* full precision to blur */
+        else gim__vpl_raw_release(ctx);   /* k = 1: no blur, nothing between */
         memset(&a, 0, sizeof a);
         a.depth = depth;
         a.normal = normal;
@@ -8944,7 +8942,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.interleave = s.interleave;
         a.clamp_distance = s.clamp_distance * scale;
         a.scene_scale = scale;
-        a.output = blur ? v->shaded : ctx->indirect;
+        a.output = blur ? ctx->vpl_raw : ctx->indirect;
         a.format = blur ? (gim__GLenum)GIM__GL_RGBA32F : format;
         r = gim__gl_vpl_shade(ctx, &a);
         gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
@@ -8956,7 +8954,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
             b.height = f->height;
             b.view = f->view;
             b.proj = f->proj;
-            b.input = v->shaded;
+            b.input = ctx->vpl_raw;
             b.window = s.interleave;
             b.position_tolerance = s.blur_distance * scale;
             b.normal_tolerance = 0.8f;
@@ -9252,7 +9250,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
-         ctx->vpl.maps_bytes + (uint64_t)ctx->vpl.shaded_width * ctx->vpl.shaded_height * 16u;
+         ctx->vpl.maps_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
     b += ctx->vpl_partial_bytes;
