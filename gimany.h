@@ -1348,6 +1348,7 @@ typedef struct gim_stats {
     double pass_ms[GIM_PASS_COUNT]; /* GPU time per pass (GL timestamps between passes), summed over lights */
     double frame_ms;            /* GPU time from the first pass to the last */
     uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
+    uint32_t vpl_count, cluster_count;   /* the VPL methods: VPLs of both bounces, clusters */
     uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
 } gim_stats;
 
@@ -9223,6 +9224,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     ctx->stats.view_sample_count = o.view_sample_count;
     ctx->stats.cache_count = o.cache_count;
     ctx->stats.val_count = o.val_count;
+    ctx->stats.vpl_count = o.vpl_count;
+    ctx->stats.cluster_count = o.cluster_count;
     ctx->stats.pixel_count = frame->width * frame->height;
     return gim__gl_leave(ctx, GIM_OK);
 }

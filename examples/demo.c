@@ -123,10 +123,11 @@ static int write_stats(const demo_run *r, const char *path, char *err, size_t ca
     fprintf(f, "\"direct\": %.4f, \"compose\": %.4f},\n", r->direct_ms, r->compose_ms);
     fprintf(f, "  \"gimany_frame_ms\": %.4f,\n  \"frame_ms\": %.4f,\n", r->gimany_ms, r->frame_ms);
     fprintf(f,
-            "  \"counts\": {\"triangles\": %llu, \"caches\": %u, \"vals\": %u, \"view_samples\": %u, \"vpls\": 0, "
-            "\"clusters\": 0, \"lights\": %u, \"pixels\": %u, \"gpu_bytes\": %llu}\n}\n",
+            "  \"counts\": {\"triangles\": %llu, \"caches\": %u, \"vals\": %u, \"view_samples\": %u, \"vpls\": %u, "
+            "\"clusters\": %u, \"lights\": %u, \"pixels\": %u, \"gpu_bytes\": %llu}\n}\n",
             (unsigned long long)r->triangles, (unsigned)r->cache_count, (unsigned)r->st.val_count,
-            (unsigned)r->st.view_sample_count, (unsigned)r->s.light_count, (unsigned)(r->o.width * r->o.height),
+            (unsigned)r->st.view_sample_count, (unsigned)r->st.vpl_count, (unsigned)r->st.cluster_count,
+            (unsigned)r->s.light_count, (unsigned)(r->o.width * r->o.height),
             (unsigned long long)r->st.gpu_bytes);
     if (fclose(f) != 0) { snprintf(err, cap, "cannot write %.400s", path); return 1; }
     return 0;
@@ -242,6 +243,7 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     f.vpl_count = r->d.vpls;
     f.cluster_count = r->d.clusters;
     f.bounces = (uint32_t)r->o.bounces;
+    f.no_visibility = r->d.no_visibility;
     f.val_count = r->d.vals;
     f.view_sample_count = r->d.view_samples;
     f.occlusion = r->d.occlusion;

@@ -25,6 +25,7 @@ typedef struct demo_options {
     uint32_t view_samples;
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int occlusion;
+    int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
     float exposure;          /* 0: automatic */
@@ -45,6 +46,7 @@ static const char demo_usage_text[] =
     "                        256, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --no-occlusion        no occlusion of the proxy lights (default: on)\n"
+    "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n";
 
@@ -87,9 +89,10 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
         if (len == 14 && !strncmp(a, "--no-occlusion", 14)) flag = 0;
         else if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
+        else if (len == 15 && !strncmp(a, "--no-visibility", 15)) flag = 2;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
-            if (flag == 0) d->occlusion = 0; else d->glossy = 0;
+            if (flag == 0) d->occlusion = 0; else if (flag == 1) d->glossy = 0; else d->no_visibility = 1;
             continue;
         }
         for (k = 0; k < sizeof nums / sizeof nums[0]; ++k)

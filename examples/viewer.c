@@ -226,6 +226,7 @@ static int run(viewer *v, GLFWwindow *w) {
         f.vpl_count = v->d.vpls;
         f.cluster_count = v->d.clusters;
         f.bounces = (uint32_t)v->bounces;
+        f.no_visibility = v->d.no_visibility;
         f.val_count = v->d.vals;
         f.view_sample_count = v->d.view_samples;
         f.occlusion = v->d.occlusion;
