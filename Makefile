@@ -1,5 +1,5 @@
 # gimany.h - build, test, bench. `make test` and `make demo` install what they need (tools/install-deps.sh).
-.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench fuzz fuzz-short demo deps clean reference
+.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench bench-full fuzz fuzz-short demo deps clean reference
 .DEFAULT_GOAL := test
 
 CC      ?= cc
@@ -154,7 +154,14 @@ bench: deps
 	@$(DEPS) examples reference plots
 	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES)) $(B)/gimany-reference
 	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
-	@tools/bench-plots.sh
+	@tools/bench-plots.sh bench
+
+# bench_frame's full sweep (RSM 128^2..2048^2, 320x180; about half an hour on 2 llvmpipe cores)
+bench-full: deps
+	@$(DEPS) examples reference plots
+	@$(MAKE) --no-print-directory $(B)/bench/bench_frame $(B)/gimany-reference
+	$(B)/bench/bench_frame full
+	@tools/bench-plots.sh bench/full
 
 # --- fuzzing (libFuzzer) ------------------------------------------------------------------
 $(B)/fuzz/%: tests/%.c $(HDRS) 

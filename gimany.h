@@ -1232,9 +1232,10 @@ typedef struct gim_frame {
     float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
     float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
     int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
-                                   2: also glFinish before each, so a driver that runs queued work
-                                   at the next flush (llvmpipe) charges it to its pass; it
-                                   serialises the frame, for profiling only */
+                                   2: glFinish after every pass, then the CPU's clock (see
+                                   gim_stats.cpu_clock): a driver that runs queued work at a later
+                                   flush (llvmpipe, even between timestamps) still charges it to
+                                   its pass; it serialises the frame, for profiling only */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1345,8 +1346,12 @@ typedef enum gim_pass {
 /* What the last gim_update did and cost. */
 typedef struct gim_stats {
     int timed;                  /* 1: the frame ran with gim_frame.timing, pass_ms is measured */
-    double pass_ms[GIM_PASS_COUNT]; /* GPU time per pass (GL timestamps between passes), summed over lights */
-    double frame_ms;            /* GPU time from the first pass to the last */
+    int cpu_clock;              /* the clock of pass_ms: 0 GL timestamps (timing 1); timing 2: 1 the
+                                   CPU's monotonic clock (clock_gettime, where <time.h> declares
+                                   CLOCK_MONOTONIC), 2 the GL's clock read now (glGetInteger64v
+                                   GL_TIMESTAMP) where it does not; both after a glFinish */
+    double pass_ms[GIM_PASS_COUNT]; /* time per pass (between the stamps after passes), summed over lights */
+    double frame_ms;            /* time from the first stamp (frame start) to the last */
     uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
     uint32_t vpl_count, cluster_count;   /* the VPL methods: VPLs of both bounces, clusters */
     uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
@@ -5663,6 +5668,7 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
 /* @impl gl ================================================================================ */
 #ifndef GIMANY_NO_GL
 #include "shaders_embedded.h"
+#include <time.h>
 
 #ifdef __cplusplus
 extern "C" {
@@ -6367,6 +6373,7 @@ struct gim_context {
     gim__GLuint queries[GIM__MAX_STAMPS];
     uint32_t query_count, stamp_count;
     unsigned char stamp_pass[GIM__MAX_STAMPS];
+    double stamp_ms[GIM__MAX_STAMPS];  /* timing 2: the clock (gim__clock_ms) after each stamp's glFinish */
     gim_stats stats;
     gim_frame_outputs outputs;
     /* paraboloid maps (issue 5) */
@@ -8071,15 +8078,41 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     return gim__gl_check(ctx, where);
 }
 
-/* A GL timestamp after pass (GIM_PASS_COUNT: the frame's start), when the frame is timed. */
+/* timing 2's clock in ms (gim_stats.cpu_clock): POSIX's monotonic clock where <time.h> declares
+   it (_POSIX_C_SOURCE >= 199309L before the first system header), else the GL's own clock read
+   at once; after a glFinish either is the time the work so far took. */
+#ifdef CLOCK_MONOTONIC
+#define GIM__CPU_CLOCK 1
+static double gim__clock_ms(gim_context *ctx) {
+    struct timespec t;
+    (void)ctx;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+}
+#else
+#define GIM__CPU_CLOCK 2
+static double gim__clock_ms(gim_context *ctx) {
+    gim__GLint64 t = 0;
+    ctx->gl.GetInteger64v(GIM__GL_TIMESTAMP, &t);
+    return (double)t * 1e-6;
+}
+#endif
+
+/* A stamp after pass (GIM_PASS_COUNT: the frame's start), when the frame is timed: a GL
+   timestamp (timing 1), or glFinish and the clock (timing 2: llvmpipe runs queued work at the
+   next flush, so its timestamps charge a pass's work to a later one). */
 static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
     if (!timed || ctx->stamp_count >= GIM__MAX_STAMPS) return;
-    if (ctx->query_count == 0) {
-        ctx->gl.GenQueries(GIM__MAX_STAMPS, ctx->queries);
-        ctx->query_count = GIM__MAX_STAMPS;
+    if (timed == 2) {
+        ctx->gl.Finish();
+        ctx->stamp_ms[ctx->stamp_count] = gim__clock_ms(ctx);
+    } else {
+        if (ctx->query_count == 0) {
+            ctx->gl.GenQueries(GIM__MAX_STAMPS, ctx->queries);
+            ctx->query_count = GIM__MAX_STAMPS;
+        }
+        ctx->gl.QueryCounter(ctx->queries[ctx->stamp_count], GIM__GL_TIMESTAMP);
     }
-    if (timed == 2) ctx->gl.Finish();
-    ctx->gl.QueryCounter(ctx->queries[ctx->stamp_count], GIM__GL_TIMESTAMP);
     ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
 }
 
@@ -9220,6 +9253,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     ctx->outputs = o;
     memset(&ctx->stats, 0, sizeof ctx->stats);
     ctx->stats.timed = frame->timing ? 1 : 0;
+    ctx->stats.cpu_clock = frame->timing == 2 ? GIM__CPU_CLOCK : 0;
     ctx->stats.light_count = ctx->light_count;
     ctx->stats.view_sample_count = o.view_sample_count;
     ctx->stats.cache_count = o.cache_count;
@@ -9271,6 +9305,13 @@ GIMANY_DEF gim_result gim_frame_stats(gim_context *ctx, gim_stats *out) {
     *out = ctx->stats;
     out->gpu_bytes = gim__context_bytes(ctx);
     if (!ctx->stats.timed || ctx->stamp_count < 2) return GIM_OK;
+    if (ctx->stats.cpu_clock) {   /* timing 2: the clock after each glFinish */
+        const double *c = ctx->stamp_ms;
+        for (i = 1; i < ctx->stamp_count; ++i)
+            if (ctx->stamp_pass[i] < GIM_PASS_COUNT && c[i] >= c[i - 1]) out->pass_ms[ctx->stamp_pass[i]] += c[i] - c[i - 1];
+        out->frame_ms = c[ctx->stamp_count - 1] >= c[0] ? c[ctx->stamp_count - 1] - c[0] : 0.0;
+        return GIM_OK;
+    }
     gim__gl_enter(ctx, where);
     for (i = 0; i < ctx->stamp_count; ++i) ctx->gl.GetQueryObjectui64v(ctx->queries[i], GIM__GL_QUERY_RESULT, &t[i]);
     for (i = 1; i < ctx->stamp_count; ++i)

@@ -1,12 +1,24 @@
-/* The main method's trade (paper 000 Fig. 3 and 5): whole gim_update frames of LightSkin +
-   BRSM against LightSkin FULL at equal settings, side by side in one run, on the procedural
-   street (the paper's open-world case) lit by its sun: RSM 256^2, 512^2, 1024^2; 2048, 4096,
-   8192 VALs; 256 and 512 view samples. Per configuration: the median frame time (wall clock
-   around gim_update + glFinish) and RSM gather (the baseline) at each RSM size, the per-pass
-   GPU times of the median frame's configuration
-   (GL timestamps), the FULL : BRSM ratio and the mean relative difference of the indirect
-   image to FULL's. On llvmpipe only the ratios mean anything.
-   Usage: bench_frame [max_rsm] (default 1024; CI-sized machines may pass 512). */
+/* The speed/accuracy trade of the many-light methods (issue 7; paper 000 Fig. 3 and 5): whole
+   gim_update frames of every method in `methods` below against LightSkin FULL (every RSM texel
+   a VAL, the paper's own reference) and against the Embree ground truth of the same view
+   (build/gimany-reference), side by side in one run, on the procedural street (the paper's
+   open-world case), the measured Cornell box and Sponza (../shared/scenes, when present).
+
+   Two sweeps (the CSV's `sweep` column, the README's table between its markers):
+     ci    (`make bench`, default): 160x90 frames (64x36 on Sponza), RSM 128^2 and 256^2,
+           1024 / 4096 VALs, 256 view samples, reference at 1024 paths per pixel; a few minutes
+           on a 2-core llvmpipe machine. Writes bench/results.csv and the plots.
+     full  (`make bench-full`): 320x180 frames, RSM 128^2 .. 2048^2 (street; Cornell box to
+           512^2, Sponza to 256^2), 2048 / 4096 / 8192 VALs, 256 / 512 view samples, reference at
+           1024 paths per pixel. Writes bench/full/results.csv and bench/full/PLOT.png.
+   Per configuration: the median frame time (wall clock around gim_update + glFinish, untimed
+   frames), then per-pass medians from separate frames with gim_frame.timing = 2 (glFinish after
+   each pass and the CPU's clock: the only per-pass times that mean something on llvmpipe, whose
+   GL timestamps charge queued work to later passes); memory; the ratio FULL : this; the mean
+   relative difference to FULL's image (the paper's Fig. 3/5 comparison); the relative MAE
+   against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
+   standard error alone gives against the true image); flicker.
+   Usage: bench_frame [ci|full] */
 #include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -14,37 +26,123 @@
 #define COMPARE_NO_MAIN
 #include "../tools/compare.c"
 
-#define W 320
-#define H 180
-#define REF_SPP 1024
 #define CORNELL_GLTF "../shared/scenes/cornell_box/CornellBox.gltf"
 #define SPONZA_GLB "../shared/scenes/sponza_lod4/sponza_lod4.glb"
+#define MAX_RUNS 9
 
-static double frame_ms(gim_context *ctx, const gim_frame *f, int runs, gim_stats *st) {
-    double t[9];
-    int r;
+/* --- the methods: one row each ----------------------------------------------------------- */
+
+/* A method of the sweep with its parameters. LightSkin FULL is the baseline every row is
+   compared with (run first at each RSM size, one frame: it takes up to minutes here). A row with
+   per_val is swept over the sweep's VAL and view-sample counts; one without runs once per RSM
+   size. clusters, second_bounce_vpls and bounces are written to the CSV (0: the method has no
+   such parameter); setup sets the frame fields the row needs beyond method, val_count and
+   view_sample_count (NULL: none). To add a method or a parameter value, add a row, e.g.
+     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_clustered},
+     {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_ssvp},
+   with setup_clustered copying m->clusters (and setup_ssvp m->second_bounce_vpls, m->bounces)
+   into the gim_frame fields that issue 5 gives them. */
+typedef struct bench_method bench_method;
+struct bench_method {
+    const char *name;             /* the CSV's method column */
+    gim_method method;
+    int per_val;                  /* 1: swept over VAL and view-sample counts */
+    uint32_t clusters;            /* Dong / SSVP clusters */
+    uint32_t second_bounce_vpls;  /* SSVP's second-bounce VPLs */
+    uint32_t bounces;             /* 1 or 2 */
+    void (*setup)(gim_frame *f, const bench_method *m);
+};
+
+static void setup_gather(gim_frame *f, const bench_method *m) {
+    (void)m;
+    f->gather_samples = 256;   /* over gather_radius 0: 0.15 of the RSM */
+}
+
+static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL};
+static const bench_method methods[] = {
+    {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather},
+    {"brsm", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, NULL},
+};
+#define METHOD_COUNT (sizeof methods / sizeof methods[0])
+
+/* --- the sweeps -------------------------------------------------------------------------- */
+
+typedef struct bench_scene {
+    const char *name, *source;    /* a built-in name or a glTF path */
+    const char *fallback;         /* the built-in scene when the file is absent; NULL: skipped */
+    uint32_t max_rsm[2];          /* largest RSM side (FULL's frame grows with it): ci, full */
+    int width[2], height[2];      /* frame: ci, full */
+} bench_scene;
+
+static const bench_scene scenes[] = {
+    {"street", "street", NULL, {256, 2048}, {160, 320}, {90, 180}},
+    {"cornell", CORNELL_GLTF, "cornell", {256, 512}, {160, 320}, {90, 180}},
+    {"sponza", SPONZA_GLB, NULL, {128, 256}, {64, 320}, {36, 180}},
+};
+
+typedef struct bench_sweep {
+    const char *name, *dir;       /* CSV sweep column; where results.csv goes */
+    uint32_t rsm[5], vals[3], view_samples[2];
+    int rsm_n, vals_n, vs_n;
+    int ref_spp, runs;            /* reference paths per pixel; frames per median */
+    int full_runs;                /* FULL's frames per median (its frame takes up to minutes; 1 timed) */
+    uint32_t flicker_rsm;         /* flicker measured at this RSM size (street only) */
+    int flicker_frames;
+} bench_sweep;
+
+static const bench_sweep sweeps[2] = {
+    {"ci", "bench", {128, 256, 0, 0, 0}, {1024, 4096, 0}, {256, 0}, 2, 2, 1, 1024, 3, 3, 128, 6},
+    {"full", "bench/full", {128, 256, 512, 1024, 2048}, {2048, 4096, 8192}, {256, 512}, 5, 3, 2, 1024, 3, 1, 256, 8},
+};
+
+/* --- measuring --------------------------------------------------------------------------- */
+
+static FILE *csv;
+static const bench_sweep *sw;
+static int W, H;
+
+static const char *const pass_names[GIM_PASS_COUNT] = {"rsm",  "gbuffer", "view_samples", "importance", "cumsum", "select",
+                                                       "caches", "vals", "proxy", "occlusion", "shade"};
+
+typedef struct measure {
+    double frame_ms;              /* median of untimed frames */
+    double pass_ms[GIM_PASS_COUNT]; /* medians of timing-2 frames */
+    int pass_clock;               /* gim_stats.cpu_clock of those */
+    double gpu_mib;
+    uint32_t vals;                /* VALs the frame used */
+} measure;
+
+static void update(gim_context *ctx, const gim_frame *f) {
+    if (gim_update(ctx, f) != GIM_OK) { fprintf(stderr, "gim_update failed\n"); exit(1); }
+}
+
+/* runs untimed frames (after a warm-up frame when warm), then timed_runs frames with timing 2
+   for the per-pass medians */
+static void measure_frames(gim_context *ctx, const gim_frame *f, int warm, int runs, int timed_runs, measure *m) {
+    double t[MAX_RUNS], p[GIM_PASS_COUNT][MAX_RUNS];
+    gim_stats st;
     gim_frame timed = *f;
-    if (runs < 0) {   /* one frame, timed per pass (GL timestamps), no warm-up: the caller made one */
-        double t0 = now_ms();
-        timed.timing = 1;
-        if (gim_update(ctx, &timed) != GIM_OK) { fprintf(stderr, "gim_update failed\n"); exit(1); }
-        glFinish();
-        t[0] = now_ms() - t0;
-        gim_frame_stats(ctx, st);
-        return t[0];
-    }
-    if (gim_update(ctx, f) != GIM_OK) { fprintf(stderr, "gim_update failed\n"); exit(1); }   /* warm-up */
-    glFinish();
+    int r, k;
+    memset(&st, 0, sizeof st);
+    if (warm) { update(ctx, f); glFinish(); }
     for (r = 0; r < runs; ++r) {
         double t0 = now_ms();
-        gim_update(ctx, f);
+        update(ctx, f);
         glFinish();
         t[r] = now_ms() - t0;
     }
-    timed.timing = 2;   /* one more, timed per pass (glFinish between passes: llvmpipe runs queued work at flushes) */
-    gim_update(ctx, &timed);
-    gim_frame_stats(ctx, st);
-    return median(t, runs);
+    m->frame_ms = median(t, runs);
+    gim_frame_stats(ctx, &st);
+    m->gpu_mib = (double)st.gpu_bytes / 1048576.0;
+    m->vals = st.val_count;
+    timed.timing = 2;
+    for (r = 0; r < timed_runs; ++r) {
+        update(ctx, &timed);
+        gim_frame_stats(ctx, &st);
+        for (k = 0; k < GIM_PASS_COUNT; ++k) p[k][r] = st.pass_ms[k];
+    }
+    for (k = 0; k < GIM_PASS_COUNT; ++k) m->pass_ms[k] = median(p[k], timed_runs);
+    m->pass_clock = st.cpu_clock;
 }
 
 static void read_image(gim_context *ctx, float *rgba) {
@@ -54,15 +152,26 @@ static void read_image(gim_context *ctx, float *rgba) {
 /* rel. MAE of the indirect image (RGBA, GL rows bottom first) against the reference (RGB, top
    row first); -1 without a reference */
 static double error_vs(const float *rgba, const float *ref) {
-    static float rgb[W * H * 3];
+    float *rgb;
     compare_result r;
     int x, y, c;
     if (!ref) return -1.0;
+    rgb = (float *)malloc((size_t)W * H * 12);
     for (y = 0; y < H; ++y)
         for (x = 0; x < W; ++x)
             for (c = 0; c < 3; ++c) rgb[(y * W + x) * 3 + c] = rgba[((H - 1 - y) * W + x) * 4 + c];
-    compare_images(rgb, ref, W, H, &r, NULL);
+    compare_images(rgb, ref, (uint32_t)W, (uint32_t)H, &r, NULL);
+    free(rgb);
     return r.rel_mae;
+}
+
+/* The reference's own noise as a rel. MAE against the true image: sum sqrt(2/pi) sigma / sum
+   ref (E|X - mu| of a normal mean). Every "vs reference" figure carries about this much. */
+static double reference_noise(const float *ref, const float *sigma) {
+    double s = 0.0, m = 0.0;
+    int i;
+    for (i = 0; i < W * H * 3; ++i) { s += sigma[i]; m += fabs((double)ref[i]); }
+    return m > 0.0 ? 0.7978845608 * s / m : -1.0;
 }
 
 static double mean_rel_diff(const float *a, const float *b) {
@@ -75,37 +184,37 @@ static double mean_rel_diff(const float *a, const float *b) {
     return m > 0.0 ? d / m : 0.0;
 }
 
-/* Temporal flicker (issue 7): K frames while the sun turns by STEP_DEG about the vertical per
-   frame; the mean absolute frame-to-frame change of the image over its mean. FULL has no
-   sampling noise, so its change is what the moving light itself causes; a method's flicker is
-   its change minus FULL's. The reference's own change would need far more paths per pixel
-   than its noise allows at this step. */
-#define FLICKER_FRAMES 8
-static FILE *csv;   /* bench/results.csv: one row per configuration */
+/* Temporal flicker (issue 7): sw->flicker_frames frames while the sun turns by STEP_DEG about
+   the vertical per frame; the mean absolute frame-to-frame change of the image over its mean.
+   FULL has no sampling noise, so its change is what the moving light itself causes; a method's
+   flicker is its change minus FULL's. (The reference's own change would need far more paths
+   per pixel than its noise allows at this step.) */
 #define STEP_DEG 0.25
 static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
-    static float prev[W * H * 4], cur[W * H * 4];
+    float *prev = (float *)malloc((size_t)W * H * 16), *cur = (float *)malloc((size_t)W * H * 16);
     gim_vec3 d0 = g->lights[0].direction;
     double change = 0.0;
     int k, i;
-    for (k = 0; k < FLICKER_FRAMES; ++k) {
+    for (k = 0; k < sw->flicker_frames; ++k) {
         double a = k * STEP_DEG * 3.14159265358979 / 180.0, num = 0.0, den = 0.0;
         g->lights[0].direction = gim_v3((float)(cos(a) * d0.x + sin(a) * d0.z), d0.y, (float)(-sin(a) * d0.x + cos(a) * d0.z));
         gim_set_lights(ctx, g->lights, g->light_count);
         f.frame_index = (uint32_t)k + 1u;
         f.rotate_view_samples = 1;
-        gim_update(ctx, &f);
+        update(ctx, &f);
         read_image(ctx, cur);
         if (k > 0) {
             for (i = 0; i < W * H * 4; ++i)
                 if (i % 4 != 3) { num += fabs((double)cur[i] - prev[i]); den += cur[i]; }
             change += den > 0.0 ? num / den : 0.0;
         }
-        memcpy(prev, cur, sizeof cur);
+        memcpy(prev, cur, (size_t)W * H * 16);
     }
     g->lights[0].direction = d0;
     gim_set_lights(ctx, g->lights, g->light_count);
-    return change / (FLICKER_FRAMES - 1);
+    free(prev);
+    free(cur);
+    return change / (sw->flicker_frames - 1);
 }
 
 /* The renderer's name without commas (a CSV field). */
@@ -118,146 +227,171 @@ static const char *renderer_name(void) {
     return name;
 }
 
-/* One scene's sweep: FULL, RSM gather and BRSM at each RSM size up to max_rsm, each against
-   FULL and against the reference; the flicker figures when flicker is set. source: a built-in
-   name or a glTF path. */
-static void bench_scene(gim_context *ctx, gim_env env, const char *name, const char *source, uint32_t max_rsm,
-                        int flicker) {
-    static const uint32_t rsm_sizes[3] = {256, 512, 1024}, val_counts[3] = {2048, 4096, 8192}, vs_counts[2] = {256, 512};
+static void csv_header(void) {
+    int k;
+    fprintf(csv, "sweep,scene,width,height,method,rsm,vals,view_samples,clusters,second_bounce_vpls,bounces,frame_ms,"
+                 "full_over_this,rel_diff_full,rel_mae_reference,ref_spp,ref_noise_mae");
+    for (k = 0; k < GIM_PASS_COUNT; ++k) fprintf(csv, ",%s_ms", pass_names[k]);
+    fprintf(csv, ",pass_clock,gpu_mib,image_change,flicker,renderer\n");
+}
+
+/* One row: printed and written to the CSV. change, flicker < -1: not measured. */
+static void row(const char *scene_name, const bench_method *bm, uint32_t rsm, uint32_t vs, const measure *m, double t_full,
+                double diff_full, double err_ref, double ref_noise, double change, double flicker) {
+    int k;
+    printf("| %-7s | %5u^2 | %-6s | %7u | %4u | %9.1f | %6.1f | %.4f | %6.3f |", scene_name, rsm, bm->name, m->vals, vs, m->frame_ms,
+           t_full / m->frame_ms, diff_full, err_ref);
+    for (k = 0; k < GIM_PASS_COUNT; ++k) if (m->pass_ms[k] > 0.0) printf(" %s %.1f", pass_names[k], m->pass_ms[k]);
+    printf(" |\n");
+    fflush(stdout);
+    if (!csv) return;
+    fprintf(csv, "%s,%s,%d,%d,%s,%u,%u,%u,%u,%u,%u,%.2f,%.3f,%.5f,", sw->name, scene_name, W, H, bm->name, rsm, m->vals, vs,
+            bm->clusters, bm->second_bounce_vpls, bm->bounces, m->frame_ms, t_full / m->frame_ms, diff_full);
+    if (err_ref >= 0.0) fprintf(csv, "%.5f,%d,%.5f", err_ref, sw->ref_spp, ref_noise);
+    else fprintf(csv, ",,");
+    for (k = 0; k < GIM_PASS_COUNT; ++k) fprintf(csv, ",%.3f", m->pass_ms[k]);
+    fprintf(csv, ",%d,%.2f,", m->pass_clock, m->gpu_mib);
+    if (change >= -1.0) fprintf(csv, "%.5f,%.5f", change, flicker);
+    else fprintf(csv, ",");
+    fprintf(csv, ",%s\n", renderer_name());
+    fflush(csv);
+}
+
+/* The ground truth of the same view (Embree, tools/reference) when it is built: the image and
+   its per-pixel standard error (both RGB, top row first), or NULL. */
+static float *reference(const bench_scene *bs, const char *source, float **sigma) {
+    FILE *fp = fopen("build/gimany-reference", "rb");
+    char cmd[1024], path[512], err[256];
+    float *ref = NULL;
+    uint32_t rw = 0, rh = 0, sw_ = 0, sh = 0;
+    *sigma = NULL;
+    if (!fp) return NULL;
+    fclose(fp);
+    snprintf(cmd, sizeof cmd, "build/gimany-reference --scene %s --size %dx%d --spp %d --out build/bench_frame_ref_%s_%s >/dev/null",
+             source, W, H, sw->ref_spp, sw->name, bs->name);
+    if (system(cmd) != 0) return NULL;
+    snprintf(path, sizeof path, "build/bench_frame_ref_%s_%s/reference.pfm", sw->name, bs->name);
+    if (scene_read_pfm(path, &ref, &rw, &rh, err, sizeof err) != 0 || rw != (uint32_t)W || rh != (uint32_t)H) {
+        free(ref);
+        return NULL;
+    }
+    snprintf(path, sizeof path, "build/bench_frame_ref_%s_%s/reference_stderr.pfm", sw->name, bs->name);
+    if (scene_read_pfm(path, sigma, &sw_, &sh, err, sizeof err) != 0 || sw_ != (uint32_t)W || sh != (uint32_t)H) {
+        free(*sigma);
+        *sigma = NULL;
+    }
+    return ref;
+}
+
+static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs) {
+    int which = sw == &sweeps[0] ? 0 : 1, ri, mi, vi, si;
+    const char *source = bs->source;
+    uint32_t max_rsm = bs->max_rsm[which];
     scene s;
     scene_gimany g;
     gim_frame f;
-    gim_stats st;
     char err[256];
-    float *full = (float *)malloc(W * H * 16), *img = (float *)malloc(W * H * 16), *ref = NULL;
-    int ri, vi, si, builtin = strchr(source, '.') == NULL;
-    memset(&st, 0, sizeof st);
-    if ((builtin ? scene_builtin(source, &s, err, sizeof err) : scene_load_gltf(source, &s, err, sizeof err)) != 0) {
-        printf("scene %s: %s (skipped)\n", name, err);
-        free(full); free(img);
+    float *full, *img, *ref, *sigma = NULL;
+    double ref_noise = -1.0;
+    W = bs->width[which];
+    H = bs->height[which];
+    if (strchr(source, '.')) {
+        FILE *fp = fopen(source, "rb");
+        if (fp) fclose(fp);
+        else if (bs->fallback) source = bs->fallback;
+        else {
+            printf("\nscene %s: %s absent (skipped)\n", bs->name, source);
+            return;
+        }
+    }
+    if ((strchr(source, '.') ? scene_load_gltf(source, &s, err, sizeof err) : scene_builtin(source, &s, err, sizeof err)) != 0) {
+        printf("scene %s: %s (skipped)\n", bs->name, err);
         return;
     }
-    s.camera.width = W;
-    s.camera.height = H;
+    s.camera.width = (uint32_t)W;
+    s.camera.height = (uint32_t)H;
     if (scene_gimany_load(ctx, &s, 1.0f / 32.0f, 256, env, &g) != GIM_OK || g.light_count == 0) {
-        printf("scene %s: no caches or no light (skipped)\n", name);
+        printf("scene %s: no caches or no light (skipped)\n", bs->name);
         scene_gimany_free(ctx, &g);
         scene_free(&s);
-        free(full); free(img);
         return;
     }
+    full = (float *)malloc((size_t)W * H * 16);
+    img = (float *)malloc((size_t)W * H * 16);
     memset(&f, 0, sizeof f);
     scene_gimany_camera(&s, &f.view, &f.proj);
-    f.width = W;
-    f.height = H;
+    f.width = (uint32_t)W;
+    f.height = (uint32_t)H;
     {
         uint32_t tris = 0, m;
         for (m = 0; m < s.mesh_count; ++m) tris += s.meshes[m].triangle_count;
-        printf("\nscene: %s (%s), %u triangles, %u caches, %ux%u pixels, %u light(s)\n", name, source, tris, g.cache_count, W,
-               H, g.light_count);
+        printf("\nscene: %s (%s), %u triangles, %u caches, %dx%d pixels, %u light(s); sweep %s\n", bs->name, source, tris,
+               g.cache_count, W, H, g.light_count, sw->name);
     }
-    {   /* the ground truth of the same view (Embree, tools/reference), when it is built */
-        FILE *fp = fopen("build/gimany-reference", "rb");
-        char cmd[1024];
-        uint32_t rw, rh;
-        if (fp) {
-            fclose(fp);
-            snprintf(cmd, sizeof cmd, "build/gimany-reference --scene %s --size %dx%d --spp %d --out build/bench_frame_ref_%s >/dev/null",
-                     source, W, H, REF_SPP, name);
-            snprintf(err, sizeof err, "build/bench_frame_ref_%s/reference.pfm", name);
-            if (system(cmd) == 0 && scene_read_pfm(err, &ref, &rw, &rh, err, sizeof err) == 0 && rw == W && rh == H)
-                printf("reference: build/gimany-reference, %d paths per pixel\n", REF_SPP);
-            else { free(ref); ref = NULL; }
-        }
-        if (!ref) printf("reference: none (make reference builds it)\n");
-    }
-    printf("| RSM | method | VALs | view samples | frame ms (median) | FULL : this | mean rel. diff to FULL | rel. MAE vs reference | importance ms | proxy ms | shade ms |\n");
-    printf("|---|---|---|---|---|---|---|---|---|---|---|\n");
-    for (ri = 0; ri < 3 && rsm_sizes[ri] <= max_rsm; ++ri) {
-        double t_full;
-        int runs = 3;
-        g.lights[0].rsm_size = rsm_sizes[ri];
+    ref = reference(bs, source, &sigma);
+    if (ref && sigma) ref_noise = reference_noise(ref, sigma);
+    if (ref)
+        printf("reference: build/gimany-reference, %d paths per pixel; its noise alone is a rel. MAE of %.4f\n", sw->ref_spp,
+               ref_noise);
+    else
+        printf("reference: none (make reference builds it)\n");
+    printf("| scene | RSM | method | VALs | view samples | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs ref. | "
+           "pass ms (timing 2 medians) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    for (ri = 0; ri < sw->rsm_n && sw->rsm[ri] <= max_rsm; ++ri) {
+        uint32_t rsm = sw->rsm[ri];
+        int flick = strcmp(bs->name, "street") == 0 && rsm == sw->flicker_rsm;
+        double c_full = -2.0;
+        measure m, mf;
+        g.lights[0].rsm_size = rsm;
         gim_set_lights(ctx, g.lights, g.light_count);
-        /* FULL once (a frame at 1024^2 takes minutes on llvmpipe), after a BRSM frame at this
-           size has built every program and buffer FULL shares */
+        /* FULL (no warm-up: a BRSM frame at this size has built every program and buffer it shares) */
         f.method = GIM_METHOD_LIGHTSKIN_BRSM;
-        f.val_count = 2048;
-        gim_update(ctx, &f);
-        f.method = GIM_METHOD_LIGHTSKIN_FULL;
-        t_full = frame_ms(ctx, &f, -1, &st);
+        f.val_count = sw->vals[0];
+        f.view_sample_count = sw->view_samples[0];
+        update(ctx, &f);
+        f.method = baseline.method;
+        measure_frames(ctx, &f, 0, sw->full_runs, 1, &mf);
         read_image(ctx, full);
-        printf("| %u^2 | FULL | %u | - | %.1f | 1.0 | 0 | %.3f | - | %.1f | %.1f |\n", rsm_sizes[ri], st.val_count, t_full,
-               error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
-        if (csv)
-            fprintf(csv, "%s,full,%u,%u,0,%.2f,1,0,%.5f,0,%.2f,%.2f,,%s\n", name, rsm_sizes[ri], st.val_count, t_full,
-                    error_vs(full, ref), st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE], renderer_name());
-        fflush(stdout);
-        {   /* the baseline at the same RSM: RSM gather, 256 samples over 0.15 of the RSM */
-            double t;
-            f.method = GIM_METHOD_RSM_GATHER;
-            f.gather_samples = 256;
-            t = frame_ms(ctx, &f, runs, &st);
-            read_image(ctx, img);
-            printf("| %u^2 | gather | 256 | - | %.1f | %.1f | %.4f | %.3f | - | - | %.1f |\n", rsm_sizes[ri], t, t_full / t,
-                   mean_rel_diff(img, full), error_vs(img, ref), st.pass_ms[GIM_PASS_SHADE]);
-            if (csv)
-                fprintf(csv, "%s,gather,%u,256,0,%.2f,%.3f,%.5f,%.5f,0,0,%.2f,,%s\n", name, rsm_sizes[ri], t, t_full / t,
-                        mean_rel_diff(img, full), error_vs(img, ref), st.pass_ms[GIM_PASS_SHADE], renderer_name());
+        if (flick) c_full = image_change(ctx, &g, f);
+        row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0);
+        for (mi = 0; mi < (int)METHOD_COUNT; ++mi) {
+            const bench_method *bm = &methods[mi];
+            int nv = bm->per_val ? sw->vals_n : 1, ns = bm->per_val ? sw->vs_n : 1;
+            for (vi = 0; vi < nv; ++vi)
+                for (si = 0; si < ns; ++si) {
+                    gim_frame fm = f;
+                    double c = -2.0;
+                    fm.method = bm->method;
+                    fm.val_count = bm->per_val ? sw->vals[vi] : 0;
+                    fm.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
+                    if (bm->setup) bm->setup(&fm, bm);
+                    measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m);
+                    read_image(ctx, img);
+                    if (flick && si == 0) c = image_change(ctx, &g, fm);
+                    row(bs->name, bm, rsm, fm.view_sample_count, &m, mf.frame_ms, mean_rel_diff(img, full), error_vs(img, ref),
+                        ref_noise, c, c > -1.0 ? c - c_full : 0.0);
+                }
         }
-        f.method = GIM_METHOD_LIGHTSKIN_BRSM;
-        for (vi = 0; vi < 3; ++vi)
-            for (si = 0; si < 2; ++si) {
-                double t;
-                f.val_count = val_counts[vi];
-                f.view_sample_count = vs_counts[si];
-                t = frame_ms(ctx, &f, runs, &st);
-                read_image(ctx, img);
-                printf("| %u^2 | BRSM | %u | %u | %.1f | %.1f | %.4f | %.3f | %.1f | %.1f | %.1f |\n", rsm_sizes[ri], val_counts[vi],
-                       vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
-                       st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
-                       st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE]);
-                if (csv)
-                    fprintf(csv, "%s,brsm,%u,%u,%u,%.2f,%.3f,%.5f,%.5f,%.2f,%.2f,%.2f,,%s\n", name, rsm_sizes[ri], val_counts[vi],
-                            vs_counts[si], t, t_full / t, mean_rel_diff(img, full), error_vs(img, ref),
-                            st.pass_ms[GIM_PASS_IMPORTANCE_MAP] + st.pass_ms[GIM_PASS_CUMSUM] + st.pass_ms[GIM_PASS_SELECT],
-                            st.pass_ms[GIM_PASS_PROXY_LIGHTS], st.pass_ms[GIM_PASS_SHADE], renderer_name());
-                fflush(stdout);
-            }
-    }
-    printf("GPU memory of the last frame: %.1f MiB\n", (double)st.gpu_bytes / 1048576.0);
-    if (flicker) {   /* at RSM 256^2 */
-        double c_full, c;
-        static const uint32_t fv[3] = {2048, 4096, 8192};
-        int k;
-        g.lights[0].rsm_size = 256;
-        f.method = GIM_METHOD_LIGHTSKIN_FULL;
-        c_full = image_change(ctx, &g, f);
-        printf("flicker (sun turning %.2f deg a frame, %d frames, RSM 256^2): FULL's own change %.4f of the mean; "
-               "BRSM minus FULL:", STEP_DEG, FLICKER_FRAMES, c_full);
-        f.method = GIM_METHOD_LIGHTSKIN_BRSM;
-        f.view_sample_count = 256;
-        for (k = 0; k < 3; ++k) {
-            f.val_count = fv[k];
-            c = image_change(ctx, &g, f);
-            printf(" %u VALs %.4f;", fv[k], c - c_full);
-            if (csv) fprintf(csv, "%s,brsm-flicker,256,%u,256,,,,,,,,%.5f,%s\n", name, fv[k], c - c_full, renderer_name());
-        }
-        printf("\n");
-        if (csv) fprintf(csv, "%s,full-change,256,65536,0,,,,,,,,%.5f,%s\n", name, c_full, renderer_name());
     }
     scene_gimany_free(ctx, &g);
     scene_free(&s);
     free(full);
     free(img);
     free(ref);
+    free(sigma);
 }
 
 int main(int argc, char **argv) {
-    uint32_t max_rsm = argc > 1 ? (uint32_t)atoi(argv[1]) : 1024u;
     gim_desc d;
     gim_context *ctx = NULL;
-    char err[256];
-    FILE *fp;
+    char err[256], path[256];
+    size_t i;
+    double t0 = now_s();
+    sw = &sweeps[argc > 1 && strcmp(argv[1], "full") == 0 ? 1 : 0];
+    if (argc > 1 && strcmp(argv[1], "full") != 0 && strcmp(argv[1], "ci") != 0) {
+        fprintf(stderr, "usage: bench_frame [ci|full]\n");
+        return 2;
+    }
     if (!gltest_init()) {
         const char *skip = getenv("GIMANY_SKIP_GL");
         printf("bench_frame: no GL 4.3 context: %s\n", gltest.why);
@@ -267,23 +401,13 @@ int main(int argc, char **argv) {
     d.get_proc_address = gltest_get_proc;
     d.env.logger.func = gim_log_stderr;
     if (gim_create(&d, &ctx) != GIM_OK) return 1;
-    printf("renderer: %s\n", renderer_name());
-    if (scene_make_dir("bench", err, sizeof err) == 0) csv = fopen("bench/results.csv", "w");
-    if (csv)
-        fprintf(csv, "scene,method,rsm,vals,view_samples,frame_ms,full_over_this,rel_diff_full,rel_mae_reference,"
-                     "importance_ms,proxy_ms,shade_ms,flicker,renderer\n");
-    bench_scene(ctx, d.env, "street", "street", max_rsm, 1);
-    fp = fopen(CORNELL_GLTF, "rb");   /* the measured Cornell box when present, else the built-in one */
-    if (fp) fclose(fp);
-    bench_scene(ctx, d.env, "cornell", fp ? CORNELL_GLTF : "cornell", max_rsm < 512u ? max_rsm : 512u, 0);
-    fp = fopen(SPONZA_GLB, "rb");
-    if (fp) {
-        fclose(fp);
-        bench_scene(ctx, d.env, "sponza", SPONZA_GLB, 256u, 0);
-    } else {
-        printf("\nscene: sponza absent (%s): skipped\n", SPONZA_GLB);
-    }
-    if (csv) { fclose(csv); printf("wrote bench/results.csv\n"); }
+    printf("renderer: %s; sweep %s\n", renderer_name(), sw->name);
+    snprintf(path, sizeof path, "%s/results.csv", sw->dir);
+    if (scene_make_dir(sw->dir, err, sizeof err) == 0) csv = fopen(path, "w");
+    if (csv) csv_header();
+    for (i = 0; i < sizeof scenes / sizeof scenes[0]; ++i) bench_scene_run(ctx, d.env, &scenes[i]);
+    if (csv) { fclose(csv); printf("wrote %s\n", path); }
+    printf("sweep %s took %.0f s\n", sw->name, now_s() - t0);
     gim_destroy(ctx);
     gltest_shutdown();
     return 0;

@@ -1,71 +1,107 @@
 #!/bin/sh
-# Plots and the README table from bench/results.csv (written by build/bench/bench_frame):
-#   bench/pareto_SCENE.png  error against the ground truth vs frame time, per method (the trade)
-#   bench/fig3.png          FULL : BRSM frame-time ratio vs RSM size, per VAL count (paper 000 Fig. 3; street)
-#   bench/fig5.png          mean relative difference to FULL vs VAL count, per RSM size (paper 000 Fig. 5; street)
-#   bench/flicker.png       flicker (BRSM minus FULL's own change) vs VAL count (street)
-# and the table between the <!-- bench:frame --> markers of README.md.
+# Plots and the README table from DIR/results.csv (written by build/bench/bench_frame; DIR is
+# bench for the CI-sized sweep of `make bench`, bench/full for `make bench-full`):
+#   DIR/pareto_SCENE.png  error against the ground truth vs frame time, one series per method (the trade)
+#   DIR/fig3.png          FULL : BRSM frame-time ratio vs RSM size, per VAL count (paper 000 Fig. 3; street)
+#   DIR/fig5.png          mean relative difference to FULL vs VAL count, per RSM size (paper 000 Fig. 5; street)
+#   DIR/flicker.png       flicker (change beyond FULL's own) vs VAL count, per method (street)
+# and the table between the README's markers for the CSV's sweep: <!-- bench:ci --> (ci) or
+# <!-- bench:frame --> (full). Columns are found by their names in the CSV's header.
+# Usage: tools/bench-plots.sh [DIR]
 set -eu
-csv=bench/results.csv
+dir=${1:-bench}
+csv=$dir/results.csv
 [ -f "$csv" ] || { echo "bench-plots: $csv missing (run build/bench/bench_frame)" >&2; exit 1; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-renderer=$(awk -F, 'NR == 2 { print $14 }' "$csv")
-scenes=$(awk -F, 'NR > 1 { print $1 }' "$csv" | awk '!seen[$0]++')
+# awk with the header's columns as variables: c["frame_ms"] is that column's number
+col='NR == 1 { for (i = 1; i <= NF; ++i) c[$i] = i; next }'
+head -1 "$csv" | grep -q '^sweep,scene,' || { echo "bench-plots: $csv has the old columns; rerun the bench" >&2; exit 1; }
+renderer=$(awk -F, "$col"' { print $c["renderer"]; exit }' "$csv")
+sweep=$(awk -F, "$col"' { print $c["sweep"]; exit }' "$csv")
+scenes=$(awk -F, "$col"' { print $c["scene"] }' "$csv" | awk '!seen[$0]++')
+methods=$(awk -F, "$col"' { print $c["method"] }' "$csv" | awk '!seen[$0]++')
+street_size=$(awk -F, "$col"' $c["scene"] == "street" { print $c["width"] "x" $c["height"]; exit }' "$csv")
+min_vs=$(awk -F, "$col"' $c["method"] == "brsm" && (m == "" || $c["view_samples"] < m) { m = $c["view_samples"] } END { print m }' "$csv")
 for sc in $scenes; do
-  for m in brsm full gather; do
-    awk -F, -v s="$sc" -v m="$m" 'NR > 1 && $1 == s && $2 == m && $9 != "" && $9 >= 0 { print $6, $9 }' "$csv" > "$tmp/p_${sc}_$m.dat"
+  size=$(awk -F, -v s="$sc" "$col"' $c["scene"] == s { print $c["width"] "x" $c["height"]; exit }' "$csv")
+  plot=""
+  for m in $methods; do
+    awk -F, -v s="$sc" -v m="$m" "$col"' $c["scene"] == s && $c["method"] == m && $c["rel_mae_reference"] != "" { print $c["frame_ms"], $c["rel_mae_reference"] }' "$csv" > "$tmp/p_${sc}_$m.dat"
+    [ -s "$tmp/p_${sc}_$m.dat" ] && plot="$plot${plot:+, }\"$tmp/p_${sc}_$m.dat\" with points ps 1.3 title \"$m\""
   done
+  [ -n "$plot" ] || continue
   gnuplot <<GP
 set terminal pngcairo size 720,480 font ",10" noenhanced
 set grid
 set key top right
-set output "bench/pareto_$sc.png"
-set title "$sc, 320x180: error against the ground truth vs frame time ($renderer)"
+set output "$dir/pareto_$sc.png"
+set title "$sc, $size, $sweep sweep: error vs ground truth against frame time\n$renderer"
 set xlabel "frame time, ms (median)"; set ylabel "relative mean absolute error vs reference"
 set logscale x
-plot "$tmp/p_${sc}_brsm.dat" with points pt 7 title "LightSkin + BRSM", "$tmp/p_${sc}_full.dat" with points pt 5 ps 1.5 title "LightSkin FULL", "$tmp/p_${sc}_gather.dat" with points pt 9 ps 1.5 title "RSM gather (256 samples)"
+plot $plot
 GP
 done
-for v in 2048 4096 8192; do
-  awk -F, -v v="$v" 'NR > 1 && $1 == "street" && $2 == "brsm" && $4 == v && $5 == 256 { print $3, $7 }' "$csv" > "$tmp/fig3_$v.dat"
+vals=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "brsm" { print $c["vals"] }' "$csv" | sort -n | uniq | tr '\n' ' ')
+rsms=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "brsm" { print $c["rsm"] }' "$csv" | sort -n | uniq | tr '\n' ' ')
+for v in $vals; do
+  awk -F, -v v="$v" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["vals"] == v && $c["view_samples"] == vs { print $c["rsm"], $c["full_over_this"] }' "$csv" > "$tmp/fig3_$v.dat"
 done
-for r in 256 512 1024; do
-  awk -F, -v r="$r" 'NR > 1 && $1 == "street" && $2 == "brsm" && $3 == r && $5 == 256 { print $4, $8 }' "$csv" > "$tmp/fig5_$r.dat"
+for r in $rsms; do
+  awk -F, -v r="$r" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["rsm"] == r && $c["view_samples"] == vs { print $c["vals"], $c["rel_diff_full"] }' "$csv" > "$tmp/fig5_$r.dat"
 done
-awk -F, 'NR > 1 && $1 == "street" && $2 == "brsm-flicker" { print $4, $13 }' "$csv" > "$tmp/flicker.dat"
+fl=""
+vlo=$(echo $vals | awk '{ print $1 }'); vhi=$(echo $vals | awk '{ print $NF }')
+for m in $methods; do
+  # a method without VALs (gather): a level line across the VAL range
+  awk -F, -v m="$m" -v lo="$vlo" -v hi="$vhi" "$col"' $c["scene"] == "street" && $c["method"] == m && $c["flicker"] != "" && m != "full" {
+    if ($c["vals"] > 0) print $c["vals"], $c["flicker"]; else { print lo, $c["flicker"]; print hi, $c["flicker"] } }' "$csv" > "$tmp/flicker_$m.dat"
+  [ -s "$tmp/flicker_$m.dat" ] && fl="$fl${fl:+, }\"$tmp/flicker_$m.dat\" with linespoints pt 7 title \"$m\""
+done
+flicker_rsm=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "full" && $c["flicker"] != "" { print $c["rsm"]; exit }' "$csv")
 gnuplot <<GP
 set terminal pngcairo size 720,480 font ",10" noenhanced
 set grid
 set key top left
-set output "bench/fig3.png"
-set title "street: FULL : BRSM frame-time ratio vs RSM size (256 view samples; paper 000 Fig. 3)"
+set output "$dir/fig3.png"
+set title "street, $street_size, $sweep sweep: FULL : BRSM frame-time ratio vs RSM size\n($min_vs view samples; paper 000 Fig. 3)"
 set xlabel "RSM side (texels)"; set ylabel "FULL time / BRSM time"
 set logscale x 2
-plot for [v in "2048 4096 8192"] "$tmp/fig3_".v.".dat" with linespoints title v." VALs"
+plot for [v in "$vals"] "$tmp/fig3_".v.".dat" with linespoints title v." VALs"
+unset logscale x
+set logscale x 2
 set key top right
-set output "bench/fig5.png"
-set title "street: mean relative difference to FULL vs VAL count (paper 000 Fig. 5)"
+set output "$dir/fig5.png"
+set title "street, $street_size, $sweep sweep: mean relative difference to FULL vs VALs\n(paper 000 Fig. 5)"
 set xlabel "VALs"; set ylabel "mean |BRSM - FULL| / mean FULL"
-plot for [r in "256 512 1024"] "$tmp/fig5_".r.".dat" with linespoints title "RSM ".r."^2"
-set output "bench/flicker.png"
-set title "street: flicker, mean frame-to-frame change beyond FULL's, sun turning 0.25 deg a frame"
-set xlabel "VALs"; set ylabel "flicker (fraction of the mean radiance)"
-plot "$tmp/flicker.dat" with linespoints pt 7 title "LightSkin + BRSM, RSM 256^2"
+plot for [r in "$rsms"] "$tmp/fig5_".r.".dat" with linespoints title "RSM ".r."^2"
+set output "$dir/flicker.png"
+set title "street, $street_size, $sweep sweep: flicker (frame-to-frame change beyond FULL's)\nsun turning 0.25 deg a frame, RSM ${flicker_rsm}^2"
+set xlabel "VALs (a method without VALs: a level line)"; set ylabel "flicker (fraction of the mean radiance)"
+plot $fl
 GP
-# the README table
+# the README table: the CSV's rows, pass times left to the CSV
 table="$tmp/table.md"
 {
-  echo "| scene | RSM | method | VALs | view samples | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference |"
-  echo "|---|---|---|---|---|---|---|---|---|"
-  awk -F, 'NR > 1 && ($2 == "full" || $2 == "brsm" || $2 == "gather") {
-    printf "| %s | %s^2 | %s | %s | %s | %.0f | %.1f | %.4f | %s |\n", $1, $3, ($2 == "full" ? "FULL" : ($2 == "brsm" ? "BRSM" : "gather")), $4,
-           ($5 == 0 ? "-" : $5), $6, $7, $8, ($9 < 0 ? "-" : sprintf("%.3f", $9)) }' "$csv"
+  echo "| scene | frame | RSM | method | VALs | view samples | clusters / 2nd-bounce VPLs / bounces | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference (its noise) | flicker | GPU MiB | passes over 10%, ms (timing 2) |"
+  echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+  awk -F, "$col"' {
+    n = split("rsm gbuffer view_samples importance cumsum select caches vals proxy occlusion shade", pn, " ")
+    sum = 0; for (k = 1; k <= n; ++k) sum += $c[pn[k] "_ms"]
+    passes = ""; for (k = 1; k <= n; ++k) if ($c[pn[k] "_ms"] > 0.1 * sum) passes = passes (passes == "" ? "" : ", ") sprintf("%s %.0f", pn[k], $c[pn[k] "_ms"])
+    printf "| %s | %sx%s | %s^2 | %s | %s | %s | %s / %s / %s | %.0f | %.1f | %.4f | %s | %s | %.1f | %s |\n",
+           $c["scene"], $c["width"], $c["height"], $c["rsm"], $c["method"], $c["vals"], ($c["view_samples"] == 0 ? "-" : $c["view_samples"]),
+           $c["clusters"], $c["second_bounce_vpls"], $c["bounces"], $c["frame_ms"], $c["full_over_this"], $c["rel_diff_full"],
+           ($c["rel_mae_reference"] == "" ? "-" : sprintf("%.3f (%.3f)", $c["rel_mae_reference"], $c["ref_noise_mae"])),
+           ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
-if grep -q '<!-- bench:frame -->' README.md; then
-  awk -v t="$table" '
-    /<!-- bench:frame -->/ { print; while ((getline line < t) > 0) print line; skip = 1; next }
-    /<!-- \/bench:frame -->/ { skip = 0 }
+if [ "$sweep" = full ]; then marker=frame; else marker=$sweep; fi
+if grep -q "<!-- bench:$marker -->" README.md; then
+  awk -v t="$table" -v op="<!-- bench:$marker -->" -v cl="<!-- /bench:$marker -->" '
+    $0 == op { print; while ((getline line < t) > 0) print line; skip = 1; next }
+    $0 == cl { skip = 0 }
     !skip { print }' README.md > "$tmp/README.md" && cp "$tmp/README.md" README.md
+else
+  echo "bench-plots: README.md has no <!-- bench:$marker --> markers; table not written" >&2
 fi
-echo "bench-plots: bench/pareto_*.png bench/fig3.png bench/fig5.png bench/flicker.png, README table"
+echo "bench-plots: $dir/pareto_*.png $dir/fig3.png $dir/fig5.png $dir/flicker.png, README table ($sweep sweep)"
