@@ -18,7 +18,8 @@
    relative difference to FULL's image (the paper's Fig. 3/5 comparison); the relative MAE
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
    standard error alone gives against the true image); flicker.
-   Usage: bench_frame [ci|full] */
+   Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
+   MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep). */
 #include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -150,17 +151,25 @@ static void update(gim_context *ctx, const gim_frame *f) {
 }
 
 /* runs untimed frames (after a warm-up frame when warm), then timed_runs frames with timing 2
-   for the per-pass medians */
-static void measure_frames(gim_context *ctx, const gim_frame *f, int warm, int runs, int timed_runs, measure *m) {
+   for the per-pass medians. 0 when the first frame fails (FULL past the GL's limits: its VALs
+   at 2048^2 exceed llvmpipe's 128 MiB storage blocks), 1 when measured. */
+static int measure_frames(gim_context *ctx, const gim_frame *f, int warm, int runs, int timed_runs, measure *m) {
     double t[MAX_RUNS], p[GIM_PASS_COUNT][MAX_RUNS];
     gim_stats st;
     gim_frame timed = *f;
     int r, k;
     memset(&st, 0, sizeof st);
-    if (warm) { update(ctx, f); glFinish(); }
+    if (warm) {
+        if (gim_update(ctx, f) != GIM_OK) return 0;
+        glFinish();
+    }
     for (r = 0; r < runs; ++r) {
         double t0 = now_ms();
-        update(ctx, f);
+        if (r == 0 && !warm) {
+            if (gim_update(ctx, f) != GIM_OK) return 0;
+        } else {
+            update(ctx, f);
+        }
         glFinish();
         t[r] = now_ms() - t0;
     }
@@ -176,6 +185,7 @@ static void measure_frames(gim_context *ctx, const gim_frame *f, int warm, int r
     }
     for (k = 0; k < GIM_PASS_COUNT; ++k) m->pass_ms[k] = median(p[k], timed_runs);
     m->pass_clock = st.cpu_clock;
+    return 1;
 }
 
 static void read_image(gim_context *ctx, float *rgba) {
@@ -289,18 +299,21 @@ static void csv_header(void) {
     fprintf(csv, ",pass_clock,gpu_mib,image_change,flicker,renderer\n");
 }
 
-/* One row: printed and written to the CSV. change, flicker < -1: not measured. */
+/* One row: printed and written to the CSV. t_full 0: no FULL at this size (its columns empty);
+   change, flicker < -1: not measured. */
 static void row(const char *scene_name, const bench_method *bm, uint32_t rsm, uint32_t vs, const measure *m, double t_full,
                 double diff_full, double err_ref, double ref_noise, double change, double flicker) {
     int k;
     printf("| %-7s | %5u^2 | %-6s | %7u | %4u | %9.1f | %6.1f | %.4f | %6.3f |", scene_name, rsm, bm->name, m->vals, vs, m->frame_ms,
-           t_full / m->frame_ms, diff_full, err_ref);
+           t_full > 0.0 ? t_full / m->frame_ms : -1.0, t_full > 0.0 ? diff_full : -1.0, err_ref);
     for (k = 0; k < GIM_PASS_COUNT; ++k) if (m->pass_ms[k] > 0.0) printf(" %s %.1f", pass_names[k], m->pass_ms[k]);
     printf(" |\n");
     fflush(stdout);
     if (!csv) return;
-    fprintf(csv, "%s,%s,%d,%d,%s,%u,%u,%u,%u,%u,%u,%.2f,%.3f,%.5f,", sw->name, scene_name, W, H, bm->name, rsm, m->vals, vs,
-            bm->clusters, bm->second_bounce_vpls, bm->bounces, m->frame_ms, t_full / m->frame_ms, diff_full);
+    fprintf(csv, "%s,%s,%d,%d,%s,%u,%u,%u,%u,%u,%u,%.2f,", sw->name, scene_name, W, H, bm->name, rsm, m->vals, vs,
+            bm->clusters, bm->second_bounce_vpls, bm->bounces, m->frame_ms);
+    if (t_full > 0.0) fprintf(csv, "%.3f,%.5f,", t_full / m->frame_ms, diff_full);
+    else fprintf(csv, ",,");
     if (err_ref >= 0.0) fprintf(csv, "%.5f,%d,%.5f", err_ref, sw->ref_spp, ref_noise);
     else fprintf(csv, ",,");
     for (k = 0; k < GIM_PASS_COUNT; ++k) fprintf(csv, ",%.3f", m->pass_ms[k]);
@@ -338,7 +351,7 @@ static float *reference(const bench_scene *bs, const char *source, int bounces, 
     return ref;
 }
 
-static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs) {
+static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs, uint32_t min_rsm) {
     int which = sw == &sweeps[0] ? 0 : 1, ri, mi, vi, si;
     const char *source = bs->source;
     uint32_t max_rsm = bs->max_rsm[which];
@@ -396,9 +409,10 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
            "pass ms (timing 2 medians) |\n|---|---|---|---|---|---|---|---|---|---|\n");
     for (ri = 0; ri < sw->rsm_n && sw->rsm[ri] <= max_rsm; ++ri) {
         uint32_t rsm = sw->rsm[ri];
-        int flick = strcmp(bs->name, "street") == 0 && rsm == sw->flicker_rsm;
+        int flick = strcmp(bs->name, "street") == 0 && rsm == sw->flicker_rsm, have_full;
         double c_full = -2.0;
         measure m, mf;
+        if (rsm < min_rsm) continue;
         g.lights[0].rsm_size = rsm;
         gim_set_lights(ctx, g.lights, g.light_count);
         /* FULL (no warm-up: a BRSM frame at this size has built every program and buffer it shares) */
@@ -407,10 +421,16 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         f.view_sample_count = sw->view_samples[0];
         update(ctx, &f);
         f.method = baseline.method;
-        measure_frames(ctx, &f, 0, sw->full_runs, 1, &mf);
-        read_image(ctx, full);
-        if (flick) c_full = image_change(ctx, &g, f);
-        row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0);
+        have_full = measure_frames(ctx, &f, 0, sw->full_runs, 1, &mf);
+        if (have_full) {
+            read_image(ctx, full);
+            if (flick) c_full = image_change(ctx, &g, f);
+            row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0);
+        } else {
+            printf("| %-7s | %5u^2 | full   | does not run here (see the error above): no FULL columns at this size |\n", bs->name, rsm);
+            mf.frame_ms = 0.0;
+            flick = 0;
+        }
         for (mi = 0; mi < (int)METHOD_COUNT; ++mi) {
             const bench_method *bm = &methods[mi];
             int nv = bm->per_val ? sw->vals_n : 1, ns = bm->per_val ? sw->vs_n : 1;
@@ -424,12 +444,12 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
-                    measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m);
+                    if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
                     read_image(ctx, img);
                     if (flick && si == 0) c = image_change(ctx, &g, fm);
                     if (bm->vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
-                    row(bs->name, bm, rsm, fm.view_sample_count, &m, mf.frame_ms, mean_rel_diff(img, full),
+                    row(bs->name, bm, rsm, fm.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
                         error_vs(img, bm->bounces == 2 ? ref2 : ref), bm->bounces == 2 ? ref2_noise : ref_noise, c,
                         c > -1.0 ? c - c_full : 0.0);
                 }
@@ -451,6 +471,7 @@ int main(int argc, char **argv) {
     char err[256], path[256];
     size_t i;
     double t0 = now_s();
+    int a, append = argc > 2;
     sw = &sweeps[argc > 1 && strcmp(argv[1], "full") == 0 ? 1 : 0];
     if (argc > 1 && strcmp(argv[1], "full") != 0 && strcmp(argv[1], "ci") != 0) {
         fprintf(stderr, "usage: bench_frame [ci|full]\n");
@@ -467,9 +488,21 @@ int main(int argc, char **argv) {
     if (gim_create(&d, &ctx) != GIM_OK) return 1;
     printf("renderer: %s; sweep %s\n", renderer_name(), sw->name);
     snprintf(path, sizeof path, "%s/results.csv", sw->dir);
-    if (scene_make_dir(sw->dir, err, sizeof err) == 0) csv = fopen(path, "w");
-    if (csv) csv_header();
-    for (i = 0; i < sizeof scenes / sizeof scenes[0]; ++i) bench_scene_run(ctx, d.env, &scenes[i]);
+    if (scene_make_dir(sw->dir, err, sizeof err) == 0) csv = fopen(path, append ? "a" : "w");
+    if (csv) fseek(csv, 0, SEEK_END);
+    if (csv && ftell(csv) == 0) csv_header();
+    for (i = 0; i < sizeof scenes / sizeof scenes[0]; ++i) {
+        uint32_t min_rsm = 0;
+        int run = !append;
+        for (a = 2; a < argc; ++a) {
+            size_t n = strlen(scenes[i].name);
+            if (strncmp(argv[a], scenes[i].name, n) == 0 && (argv[a][n] == 0 || argv[a][n] == ':')) {
+                run = 1;
+                if (argv[a][n] == ':') min_rsm = (uint32_t)atoi(argv[a] + n + 1);
+            }
+        }
+        if (run) bench_scene_run(ctx, d.env, &scenes[i], min_rsm);
+    }
     if (csv) { fclose(csv); printf("wrote %s\n", path); }
     printf("sweep %s took %.0f s\n", sw->name, now_s() - t0);
     gim_destroy(ctx);

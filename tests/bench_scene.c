@@ -88,7 +88,8 @@ int main(void) {
     printf("bench_scene (%s): floor + 64 boxes, G-buffer %ux%u, %u view samples, %u VALs; median of %d, ms\n",
            (const char *)glGetString(GL_RENDERER), fr.width, fr.height, fr.view_sample_count, fr.val_count, RUNS);
     for (s = 0; s < sizeof rsm_sizes / sizeof rsm_sizes[0]; ++s) {
-        float bmin[3], bmax[3];
+        float bmin[3], bmax[3], fmin[3], fmax[3];
+        gim_light fitted;
         memset(&sun, 0, sizeof sun);
         sun.irradiance = 3.0f;
         sun.direction = gim_v3(0.3f, 1.0f, 0.2f);
@@ -98,10 +99,12 @@ int main(void) {
         glFinish();
         memcpy(bmin, gim_outputs(ctx).bounds_min, sizeof bmin);
         memcpy(bmax, gim_outputs(ctx).bounds_max, sizeof bmax);
+        /* the light as gim_update renders it (fitted to the view) */
+        if (gim_light_fit_view(&sun, bmin, bmax, fr.view, fr.proj, fr.view_distance, &fitted, fmin, fmax) != GIM_OK) return 1;
         for (r = 0; r < RUNS; ++r) {
             double t0 = now_ms();
             gim__gl_enter(ctx, "bench");
-            gim__gl_rsm(ctx, 0, bmin, bmax);
+            gim__gl_rsm(ctx, 0, &fitted, fmin, fmax);
             gim__gl_leave(ctx, GIM_OK);
             glFinish();
             t[r] = now_ms() - t0;

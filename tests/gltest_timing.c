@@ -3,8 +3,9 @@
    to the frame's (they tile it) and stay within the wall time measured around gim_update by the
    same clock, and the heaviest pass of a FULL frame (proxy lights: every RSM texel against
    every cache) is the one charged most. Timing 1 reports GL timestamps (cpu_clock 0), timing 0
-   nothing. */
-#ifndef _POSIX_C_SOURCE
+   nothing. Built with -DGLTEST_TIMING_GL_CLOCK (no POSIX clock), it checks gimany's fallback
+   clock, the GL's own (cpu_clock 2), against that same clock. */
+#if !defined(_POSIX_C_SOURCE) && !defined(GLTEST_TIMING_GL_CLOCK)
 #define _POSIX_C_SOURCE 199309L   /* before any system header: clock_gettime, as gimany.h's clock */
 #endif
 #include <time.h>
@@ -14,9 +15,15 @@
 #define GRID 24   /* caches per side of each quad */
 
 static double wall_ms(void) {
+#ifdef CLOCK_MONOTONIC
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
     return (double)t.tv_sec * 1e3 + (double)t.tv_nsec * 1e-6;
+#else
+    GLint64 t = 0;
+    glGetInteger64v(GL_TIMESTAMP, &t);
+    return (double)t * 1e-6;
+#endif
 }
 
 /* A quad of side 4 in the plane through origin spanned by u and v (normal n), with GRID^2

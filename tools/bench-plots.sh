@@ -43,12 +43,12 @@ plot $plot
 GP
 done
 vals=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "brsm" { print $c["vals"] }' "$csv" | sort -n | uniq | tr '\n' ' ')
-rsms=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "brsm" { print $c["rsm"] }' "$csv" | sort -n | uniq | tr '\n' ' ')
+rsms=$(awk -F, "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["rel_diff_full"] != "" { print $c["rsm"] }' "$csv" | sort -n | uniq | tr '\n' ' ')
 for v in $vals; do
-  awk -F, -v v="$v" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["vals"] == v && $c["view_samples"] == vs { print $c["rsm"], $c["full_over_this"] }' "$csv" > "$tmp/fig3_$v.dat"
+  awk -F, -v v="$v" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["vals"] == v && $c["view_samples"] == vs && $c["full_over_this"] != "" { print $c["rsm"], $c["full_over_this"] }' "$csv" > "$tmp/fig3_$v.dat"
 done
 for r in $rsms; do
-  awk -F, -v r="$r" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["rsm"] == r && $c["view_samples"] == vs { print $c["vals"], $c["rel_diff_full"] }' "$csv" > "$tmp/fig5_$r.dat"
+  awk -F, -v r="$r" -v vs="$min_vs" "$col"' $c["scene"] == "street" && $c["method"] == "brsm" && $c["rsm"] == r && $c["view_samples"] == vs && $c["rel_diff_full"] != "" { print $c["vals"], $c["rel_diff_full"] }' "$csv" > "$tmp/fig5_$r.dat"
 done
 fl=""
 vlo=$(echo $vals | awk '{ print $1 }'); vhi=$(echo $vals | awk '{ print $NF }')
@@ -89,9 +89,10 @@ table="$tmp/table.md"
     n = split("rsm gbuffer view_samples importance cumsum select caches vals proxy occlusion shade vpls kmeans paraboloid second_bounce blur", pn, " ")
     sum = 0; for (k = 1; k <= n; ++k) sum += $c[pn[k] "_ms"]
     passes = ""; for (k = 1; k <= n; ++k) if ($c[pn[k] "_ms"] > 0.1 * sum) passes = passes (passes == "" ? "" : ", ") sprintf("%s %.0f", pn[k], $c[pn[k] "_ms"])
-    printf "| %s | %sx%s | %s^2 | %s | %s | %s | %s / %s / %s | %.0f | %.1f | %.4f | %s | %s | %.1f | %s |\n",
+    printf "| %s | %sx%s | %s^2 | %s | %s | %s | %s / %s / %s | %.0f | %s | %s | %s | %s | %.1f | %s |\n",
            $c["scene"], $c["width"], $c["height"], $c["rsm"], $c["method"], $c["vals"], ($c["view_samples"] == 0 ? "-" : $c["view_samples"]),
-           $c["clusters"], $c["second_bounce_vpls"], $c["bounces"], $c["frame_ms"], $c["full_over_this"], $c["rel_diff_full"],
+           $c["clusters"], $c["second_bounce_vpls"], $c["bounces"], $c["frame_ms"],
+           ($c["full_over_this"] == "" ? "-" : sprintf("%.1f", $c["full_over_this"])), ($c["rel_diff_full"] == "" ? "-" : sprintf("%.4f", $c["rel_diff_full"])),
            ($c["rel_mae_reference"] == "" ? "-" : sprintf("%.3f (%.3f)", $c["rel_mae_reference"], $c["ref_noise_mae"])),
            ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
