@@ -4953,6 +4953,24 @@ typedef struct gim__twin_hit {
     uint32_t triangle;
 } gim__twin_hit;
 
+/* Moller-Trumbore in double: the ray o + t d against triangle v (9 floats); 1 with t and the
+   barycentrics (u, w) of v[1], v[2] on a hit (t unbounded: the caller clips it). */
+static int gim__ray_triangle(const double o[3], const double d[3], const float *v, double *t, double *u, double *w) {
+    double e1[3], e2[3], pv[3], tv[3], qv[3], det;
+    int i;
+    for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; tv[i] = o[i] - v[i]; }
+    pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
+    det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+    if (det == 0.0) return 0;
+    *u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
+    if (*u < 0.0 || *u > 1.0) return 0;
+    qv[0] = tv[1] * e1[2] - tv[2] * e1[1]; qv[1] = tv[2] * e1[0] - tv[0] * e1[2]; qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
+    *w = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+    if (*w < 0.0 || *u + *w > 1.0) return 0;
+    *t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+    return 1;
+}
+
 static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj, uint32_t width, uint32_t height,
                           uint32_t x, uint32_t y, gim__twin_hit *h) {
     gim_mat4 vp = gim_mat4_mul(proj, view), inv;
@@ -4971,19 +4989,9 @@ static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj,
     a[3] = b[3] = 1.0;
     gim__mat4_apply_d(&inv, a, clip); for (i = 0; i < 3; ++i) o[i] = clip[i] / clip[3];
     gim__mat4_apply_d(&inv, b, clip); for (i = 0; i < 3; ++i) d[i] = clip[i] / clip[3] - o[i];
-    for (t = 0; t < s->triangle_count; ++t) { /* Moller-Trumbore, t in [0, 1] from near to far */
-        const float *v = s->positions + (size_t)t * 9;
-        double e1[3], e2[3], pv[3], tv[3], qv[3], det, u, w, tt;
-        for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; tv[i] = o[i] - v[i]; }
-        pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
-        det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-        if (det == 0.0) continue;
-        u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
-        if (u < 0.0 || u > 1.0) continue;
-        qv[0] = tv[1] * e1[2] - tv[2] * e1[1]; qv[1] = tv[2] * e1[0] - tv[0] * e1[2]; qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
-        w = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
-        if (w < 0.0 || u + w > 1.0) continue;
-        tt = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+    for (t = 0; t < s->triangle_count; ++t) { /* t in [0, 1] from near to far */
+        double u, w, tt;
+        if (!gim__ray_triangle(o, d, s->positions + (size_t)t * 9, &tt, &u, &w)) continue;
         if (tt < 0.0 || tt > 1.0 || tt >= best) continue;
         best = tt; best_t = t; bu = u; bv = w;
     }
@@ -5231,19 +5239,9 @@ GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
     d[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
     len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     for (i = 0; i < 3; ++i) { d[i] /= len; o[i] = map->origin[i]; }
-    for (tri = 0; tri < scene->triangle_count; ++tri) { /* Moller-Trumbore, s the distance along unit d */
-        const float *v = scene->positions + (size_t)tri * 9;
-        double e1[3], e2[3], pv[3], tv[3], qv[3], det, u, vv, s;
-        for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; tv[i] = o[i] - v[i]; }
-        pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
-        det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
-        if (det == 0.0) continue;
-        u = (tv[0] * pv[0] + tv[1] * pv[1] + tv[2] * pv[2]) / det;
-        if (u < 0.0 || u > 1.0) continue;
-        qv[0] = tv[1] * e1[2] - tv[2] * e1[1]; qv[1] = tv[2] * e1[0] - tv[0] * e1[2]; qv[2] = tv[0] * e1[1] - tv[1] * e1[0];
-        vv = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
-        if (vv < 0.0 || u + vv > 1.0) continue;
-        s = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+    for (tri = 0; tri < scene->triangle_count; ++tri) { /* s the distance along unit d */
+        double u, vv, s;
+        if (!gim__ray_triangle(o, d, scene->positions + (size_t)tri * 9, &s, &u, &vv)) continue;
         /* nearer than near_distance: the VAL's own surface (Dong fig. 7), not a blocker */
         if (!(s > (double)map->near_distance) || (best_t != UINT32_MAX && s >= best)) continue;
         best = s; best_t = tri; bu = u; bv = vv;
