@@ -343,6 +343,61 @@ static void only_what_is_enabled(void **state) {
     GLTEST_END();
 }
 
+/* Unit-free: the box scaled by 1e-3 and by 1e3 (and the large one moved 50 of its diagonals
+   from the origin), its spot's intensity by the square of the scale so the irradiance stays,
+   gives the same image: every length threshold of the VPL methods (the VALs' lift and near
+   distance, the clamp, the blur, the maps' depth, the visibility bias) follows the scene scale. */
+static void same_image_at_any_scale(void **state) {
+    static const double scales[2] = {1e-3, 1e3};
+    frame_fixture ff;
+    float *ref = (float *)malloc(W * H * 16), *img = (float *)malloc(W * H * 16);
+    int k, m;
+    (void)state;
+    GLTEST_BEGIN();
+    for (m = 0; m < 2; ++m) {
+        gim_light l0;
+        gim_frame f0;
+        vpl_frame_begin(&ff, m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
+        ff.fr.kmeans_restart = 1;   /* each frame from the same seeds */
+        assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+        { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, ref); }
+        l0 = ff.g.lights[0];   /* the box's own spot, which wall_light turns */
+        f0 = ff.fr;
+        for (k = 0; k < 2; ++k) {
+            double sc = scales[k], off = k ? 50.0 * 0.96 * sc : 0.0, d;
+            gim_instance in = ff.g.instances[0];
+            gim_mat4 S = gim_mat4_identity(), Sinv = gim_mat4_identity();
+            gim_light l;
+            int a;
+            S.m[0] = S.m[5] = S.m[10] = (float)sc;
+            S.m[12] = S.m[13] = S.m[14] = (float)off;
+            Sinv.m[0] = Sinv.m[5] = Sinv.m[10] = (float)(1.0 / sc);
+            Sinv.m[12] = Sinv.m[13] = Sinv.m[14] = (float)(-off / sc);
+            in.model = gim_mat4_mul(S, ff.g.instances[0].model);
+            assert_int_equal(gim_set_instances(ff.f.ctx, &in, 1), GIM_OK);
+            l = l0;   /* wall_light's spot, scaled and moved with the box */
+            l.position = gim_v3((float)(0.10 * sc + off), (float)(0.42 * sc + off), (float)(-0.12 * sc + off));
+            l.direction = gim_v3(1.0f, 0.1f, 0.0f);
+            l.cone_angle = 0.45f;
+            l.intensity = (float)(l0.intensity * sc * sc);
+            assert_int_equal(gim_set_lights(ff.f.ctx, &l, 1), GIM_OK);
+            ff.fr = f0;
+            ff.fr.view = gim_mat4_mul(f0.view, Sinv);
+            assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+            { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
+            d = mean_rel_diff(img, ref);
+            for (a = 0; a < W * H * 4; ++a) assert_true(isfinite(img[a]));
+            print_message("%s at scale %g%s: mean relative difference to scale 1: %.2e\n", m ? "ssvp" : "clustered", sc,
+                          k ? ", 50 diagonals from the origin" : "", d);
+            assert_true(d < 0.01);
+        }
+        frame_end(&ff);
+    }
+    free(ref);
+    free(img);
+    GLTEST_END();
+}
+
 /* Bad VPL settings are refused before any GL work. */
 static void bad_settings(void **state) {
     frame_fixture ff;
@@ -374,6 +429,7 @@ int main(void) {
         cmocka_unit_test(shadows_and_second_bounce),
         cmocka_unit_test(clusters_move_smoothly),
         cmocka_unit_test(only_what_is_enabled),
+        cmocka_unit_test(same_image_at_any_scale),
         cmocka_unit_test(bad_settings),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
