@@ -4974,6 +4974,21 @@ static int gim__ray_triangle(const double o[3], const double d[3], const float *
     return 1;
 }
 
+/* The unnormalised normal at barycentrics (bu, bv) of triangle tri: the interpolated vertex
+   normals, or the face normal without them (the GPU's interpolation, before it normalises). */
+static void gim__twin_normal(const gim_twin_scene *s, uint32_t tri, double bu, double bv, double nn[3]) {
+    const float *v = s->positions + (size_t)tri * 9;
+    int i;
+    if (s->normals) {
+        const float *n = s->normals + (size_t)tri * 9;
+        for (i = 0; i < 3; ++i) nn[i] = (1.0 - bu - bv) * n[i] + bu * n[3 + i] + bv * n[6 + i];
+    } else {
+        double e1[3], e2[3];
+        for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; }
+        nn[0] = e1[1] * e2[2] - e1[2] * e2[1]; nn[1] = e1[2] * e2[0] - e1[0] * e2[2]; nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
+    }
+}
+
 static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj, uint32_t width, uint32_t height,
                           uint32_t x, uint32_t y, gim__twin_hit *h) {
     gim_mat4 vp = gim_mat4_mul(proj, view), inv;
@@ -5004,16 +5019,8 @@ static int gim__twin_cast(const gim_twin_scene *s, gim_mat4 view, gim_mat4 proj,
     len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     for (i = 0; i < 3; ++i) h->toward[i] /= len;
     {
-        const float *v = s->positions + (size_t)best_t * 9;
         double nn[3];
-        if (s->normals) {
-            const float *n = s->normals + (size_t)best_t * 9;
-            for (i = 0; i < 3; ++i) nn[i] = (1.0 - bu - bv) * n[i] + bu * n[3 + i] + bv * n[6 + i];
-        } else {
-            double e1[3], e2[3];
-            for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; }
-            nn[0] = e1[1] * e2[2] - e1[2] * e2[1]; nn[1] = e1[2] * e2[0] - e1[0] * e2[2]; nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        }
+        gim__twin_normal(s, best_t, bu, bv, nn);
         len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
         if (len > 0.0) {
             double side = nn[0] * h->toward[0] + nn[1] * h->toward[1] + nn[2] * h->toward[2];
@@ -5254,16 +5261,8 @@ GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
     out->triangle = best_t;
     out->distance = (float)best;
     {
-        const float *v = scene->positions + (size_t)best_t * 9;
         double nn[3], side = 0.0;
-        if (scene->normals) {
-            const float *vn = scene->normals + (size_t)best_t * 9;
-            for (i = 0; i < 3; ++i) nn[i] = (1.0 - bu - bv) * vn[i] + bu * vn[3 + i] + bv * vn[6 + i];
-        } else {
-            double e1[3], e2[3];
-            for (i = 0; i < 3; ++i) { e1[i] = (double)v[3 + i] - v[i]; e2[i] = (double)v[6 + i] - v[i]; }
-            nn[0] = e1[1] * e2[2] - e1[2] * e2[1]; nn[1] = e1[2] * e2[0] - e1[0] * e2[2]; nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
-        }
+        gim__twin_normal(scene, best_t, bu, bv, nn);
         len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
         for (i = 0; i < 3; ++i) side -= nn[i] * d[i];
         for (i = 0; i < 3; ++i) {
@@ -5795,6 +5794,8 @@ enum {
     GIM__GL_DYNAMIC_COPY = 0x88EA,
     GIM__GL_STREAM_READ = 0x88E1,
     GIM__GL_R32F = 0x822E,
+    GIM__GL_R32UI = 0x8236,
+    GIM__GL_RED_INTEGER = 0x8D94,
     GIM__GL_RGBA32F = 0x8814,
     GIM__GL_READ_ONLY = 0x88B8,
     GIM__GL_RED = 0x1903,
@@ -5952,6 +5953,8 @@ enum {
     X(void, CopyBufferSubData, (gim__GLenum read_target, gim__GLenum write_target,               \
                                 gim__GLintptr read_offset, gim__GLintptr write_offset,           \
                                 gim__GLsizeiptr size))                                           \
+    X(void, ClearBufferData, (gim__GLenum target, gim__GLenum internalformat, gim__GLenum format, \
+                              gim__GLenum type, const void *data))                               \
     X(gim__GLboolean, IsEnabledi, (gim__GLenum cap, gim__GLuint index))                          \
     X(void, Enablei, (gim__GLenum cap, gim__GLuint index))                                       \
     X(void, Disablei, (gim__GLenum cap, gim__GLuint index))                                      \
@@ -8873,15 +8876,13 @@ static gim_result gim__gl_clusters(gim_context *ctx, uint32_t vpl_count, uint32_
 }
 
 /* Every VPL's cluster reset to none (0xffffffff): the k-means' first assignment, and the
-   second bounce's "unshadowed". */
-static gim_result gim__gl_clusters_reset(gim_context *ctx, uint32_t count) {
-    uint32_t *none = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof(uint32_t));
-    if (!none) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, "gim_update", "%u VPL clusters", (unsigned)count);
-    memset(none, 0xff, (size_t)count * sizeof(uint32_t));
+   second bounce's "unshadowed"; a GPU clear, no upload. */
+static gim_result gim__gl_clusters_reset(gim_context *ctx) {
+    static const uint32_t none = 0xffffffffu;
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->vpl.cluster_of);
-    ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 4, none);
-    gim__free(&ctx->env, none);
-    return GIM_OK;
+    ctx->gl.ClearBufferData(GIM__GL_COPY_WRITE_BUFFER, GIM__GL_R32UI, GIM__GL_RED_INTEGER, GIM__GL_UNSIGNED_INT, &none);
+    ctx->gl.MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+    return gim__gl_check(ctx, "gim_update");
 }
 
 static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
@@ -8923,7 +8924,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
     warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
-    if (r == GIM_OK) r = gim__gl_clusters_reset(ctx, total);
+    if (r == GIM_OK) r = gim__gl_clusters_reset(ctx);
     if (r == GIM_OK && !warm) r = gim__gl_clusters(ctx, first, s.clusters, scale, 1u);
     iterations = warm || s.iterations >= 8u || f->kmeans_iterations ? s.iterations : 8u;   /* from seeds: 8 at least */
     for (it = 0; it < iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */

@@ -196,6 +196,23 @@ typedef struct gltest_fixture {
     gim__gl_state before;
 } gltest_fixture;
 
+/* Model matrices for the scenes of the tests (column-major, as gimany's). */
+static GIM__UNUSED gim_mat4 translate(float x, float y, float z) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[12] = x; m.m[13] = y; m.m[14] = z;
+    return m;
+}
+static GIM__UNUSED gim_mat4 scale3(float x, float y, float z) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[0] = x; m.m[5] = y; m.m[10] = z;
+    return m;
+}
+static GIM__UNUSED gim_mat4 rotate_y(float a) {
+    gim_mat4 m = gim_mat4_identity();
+    m.m[0] = cosf(a); m.m[8] = sinf(a); m.m[2] = -sinf(a); m.m[10] = cosf(a);
+    return m;
+}
+
 static GIM__UNUSED void gltest_fixture_begin(gltest_fixture *f) {
     gim_desc d;
     memset(&d, 0, sizeof d);

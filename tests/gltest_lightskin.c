@@ -27,12 +27,6 @@ static void make_room(room *r, float L) {
 #undef SET3
 }
 
-static const gim_material room_materials[4] = {
-    {{0.8f, 0.8f, 0.8f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.8f, 0.1f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.1f, 0.8f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.3f, 0.3f, 0.3f}, {0.4f, 0.4f, 0.4f}, 12.0f}};
-
 static gim_mesh_data room_mesh(const room *r) {
     gim_mesh_data m;
     memset(&m, 0, sizeof m);
@@ -297,30 +291,12 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
         uint32_t *map = (uint32_t *)malloc(W * H * 4);
         for (i = 0; i < W * H; ++i) {
             gim_receiver *rc = rec + nrec;
-            double l = 0.0;
-            int a;
-            if (!(vs[i].normal.x != 0.0f || vs[i].normal.y != 0.0f || vs[i].normal.z != 0.0f)) {
+            if (!room_receiver(&vs[i], eye, alb + i * 4, mat[i], sc->host, rc)) {
                 /* nothing drawn: the pass writes 0 */
                 assert_true(gpu[i * 4] == 0.0f && gpu[i * 4 + 1] == 0.0f && gpu[i * 4 + 2] == 0.0f && gpu[i * 4 + 3] == 0.0f);
                 continue;
             }
             assert_true(gpu[i * 4 + 3] == 1.0f);
-            rc->position[0] = vs[i].position.x; rc->position[1] = vs[i].position.y; rc->position[2] = vs[i].position.z;
-            rc->normal[0] = vs[i].normal.x; rc->normal[1] = vs[i].normal.y; rc->normal[2] = vs[i].normal.z;
-            for (a = 0; a < 3; ++a) {
-                double d = (a == 0 ? eye.x : a == 1 ? eye.y : eye.z) - (double)rc->position[a];
-                rc->view[a] = (float)d;
-                l += d * d;
-            }
-            for (a = 0; a < 3; ++a) rc->view[a] = (float)(rc->view[a] / sqrt(l));
-            if (sc->host) {
-                rc->albedo[0] = rc->albedo[1] = rc->albedo[2] = 1.0f;
-            } else {
-                const gim_material *m = &room_materials[(int)mat[i]];
-                memcpy(rc->albedo, alb + i * 4, 12);
-                memcpy(rc->glossy, m->glossy, 12);
-                rc->exponent = m->exponent;
-            }
             memcpy(pos_nrm + nrec * 6, rc->position, 12);
             memcpy(pos_nrm + nrec * 6 + 3, rc->normal, 12);
             map[nrec++] = i;

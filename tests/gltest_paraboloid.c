@@ -23,21 +23,6 @@
 #define MAX_TRI 600
 #define GRID 16
 
-static gim_mat4 translate(float x, float y, float z) {
-    gim_mat4 m = gim_mat4_identity();
-    m.m[12] = x; m.m[13] = y; m.m[14] = z;
-    return m;
-}
-static gim_mat4 scale3(float x, float y, float z) {
-    gim_mat4 m = gim_mat4_identity();
-    m.m[0] = x; m.m[5] = y; m.m[10] = z;
-    return m;
-}
-static gim_mat4 rotate_y(float a) {
-    gim_mat4 m = gim_mat4_identity();
-    m.m[0] = cosf(a); m.m[8] = sinf(a); m.m[2] = -sinf(a); m.m[10] = cosf(a);
-    return m;
-}
 
 static const gim_material materials[4] = {
     {{0.75f, 0.75f, 0.75f}, {0, 0, 0}, 0}, {{0.8f, 0.1f, 0.1f}, {0, 0, 0}, 0},

@@ -27,12 +27,6 @@ static void make_room(room *r, float L, const float o[3]) {
     for (i = 0; i < r->quads * 4; ++i) { r->pos[i * 3] += o[0]; r->pos[i * 3 + 1] += o[1]; r->pos[i * 3 + 2] += o[2]; }
 }
 
-static const gim_material room_materials[4] = {
-    {{0.8f, 0.8f, 0.8f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.8f, 0.1f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.1f, 0.8f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
-    {{0.3f, 0.3f, 0.3f}, {0.4f, 0.4f, 0.4f}, 12.0f}};
-
 /* --- the case ------------------------------------------------------------------------------- */
 
 enum { W = 80, H = 60, NV = 240, M = 3, S = 64 };
@@ -202,27 +196,7 @@ static void run_case(const shade_case *sc) {
     for (i = 0; i < pix_count; ++i) { pixels[i * 2] = i % W; pixels[i * 2 + 1] = i / W; }
     assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pixels, W * H, vs), GIM_OK);
     for (i = 0; i < pix_count; ++i) {
-        gim_receiver *rc = rec + i;
-        double l = 0.0;
-        int k;
-        if (!(vs[i].normal.x != 0.0f || vs[i].normal.y != 0.0f || vs[i].normal.z != 0.0f)) continue;
-        surface[i] = 1;
-        rc->position[0] = vs[i].position.x; rc->position[1] = vs[i].position.y; rc->position[2] = vs[i].position.z;
-        rc->normal[0] = vs[i].normal.x; rc->normal[1] = vs[i].normal.y; rc->normal[2] = vs[i].normal.z;
-        for (k = 0; k < 3; ++k) {
-            double d = (k == 0 ? eye.x : k == 1 ? eye.y : eye.z) - (double)rc->position[k];
-            rc->view[k] = (float)d;
-            l += d * d;
-        }
-        for (k = 0; k < 3; ++k) rc->view[k] = (float)(rc->view[k] / sqrt(l));
-        if (sc->host) {
-            rc->albedo[0] = rc->albedo[1] = rc->albedo[2] = 1.0f;
-        } else {
-            const gim_material *m = &room_materials[(int)mat[i]];
-            memcpy(rc->albedo, alb + i * 4, 12);
-            memcpy(rc->glossy, m->glossy, 12);
-            rc->exponent = m->exponent;
-        }
+        surface[i] = room_receiver(&vs[i], eye, alb + i * 4, mat[i], sc->host, rec + i);
     }
     memset(&sd, 0, sizeof sd);
     sd.vpls = vpls; sd.vpl_count = NV;

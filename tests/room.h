@@ -4,6 +4,7 @@
 #define GIMANY_TESTS_ROOM_H
 #include <math.h>
 #include <stdint.h>
+#include <string.h>
 
 #define MAX_Q 16
 typedef struct room {
@@ -27,6 +28,39 @@ static void add_quad(room *r, const float c[3], const float u[3], const float v[
     r->idx[q * 6 + 0] = q * 4; r->idx[q * 6 + 1] = q * 4 + 1; r->idx[q * 6 + 2] = q * 4 + 2;
     r->idx[q * 6 + 3] = q * 4; r->idx[q * 6 + 4] = q * 4 + 2; r->idx[q * 6 + 5] = q * 4 + 3;
     r->mat[q * 2] = r->mat[q * 2 + 1] = material;
+}
+
+/* The rooms' materials: floor white, left wall red, right wall green, back wall glossy. */
+static const gim_material room_materials[4] = {
+    {{0.8f, 0.8f, 0.8f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.8f, 0.1f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.1f, 0.8f, 0.1f}, {0.0f, 0.0f, 0.0f}, 0.0f},
+    {{0.3f, 0.3f, 0.3f}, {0.4f, 0.4f, 0.4f}, 12.0f}};
+
+/* A G-buffer pixel (its view sample vs, albedo rgba, material id) as a gim_receiver seen from
+   eye: 0 where nothing is drawn. host: the host's G-buffer (albedo 1, no glossy term). */
+static int room_receiver(const gim_view_sample *vs, gim_vec3 eye, const float *albedo, float material, int host,
+                         gim_receiver *rc) {
+    double l = 0.0;
+    int k;
+    if (!(vs->normal.x != 0.0f || vs->normal.y != 0.0f || vs->normal.z != 0.0f)) return 0;
+    rc->position[0] = vs->position.x; rc->position[1] = vs->position.y; rc->position[2] = vs->position.z;
+    rc->normal[0] = vs->normal.x; rc->normal[1] = vs->normal.y; rc->normal[2] = vs->normal.z;
+    for (k = 0; k < 3; ++k) {
+        double d = (k == 0 ? eye.x : k == 1 ? eye.y : eye.z) - (double)rc->position[k];
+        rc->view[k] = (float)d;
+        l += d * d;
+    }
+    for (k = 0; k < 3; ++k) rc->view[k] = (float)(rc->view[k] / sqrt(l));
+    if (host) {
+        rc->albedo[0] = rc->albedo[1] = rc->albedo[2] = 1.0f;
+    } else {
+        const gim_material *m = &room_materials[(int)material];
+        memcpy(rc->albedo, albedo, 12);
+        memcpy(rc->glossy, m->glossy, 12);
+        rc->exponent = m->exponent;
+    }
+    return 1;
 }
 
 #endif
