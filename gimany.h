@@ -671,18 +671,19 @@ typedef struct gim_shade_desc {
           cache's glossy proxy mirrored at n_x and at n_c. Guards: d_c,max <= 1e-6 scene_scale
           (coincident caches) makes the distance factor 1; where every w' is 0 (a lone
           neighbour at exactly d_c,max) the distance factor is dropped, leaving the normal one.
-   eq. 9: flux Phi_v = sum w' Phi_p visibility / sum w'; the proxies "move along with the
-          surface point": each is translated by x - c_j before eq. 9 averages positions, so
-          x_v = x + sum W' (x_p,j - c_j) / sum W' (the receiver sees each light at its cache's
-          offset; with one neighbour at x = c_j the cache's own radiance is reproduced exactly).
-          Positions weigh W' = w' lum(Phi_p visibility): a dark neighbour dims the light but
-          does not move it (eq. 9's w' alone would pull an unlit cache's proxy position in and
-          brighten the receiver through 1/|l|^2); equal fluxes give eq. 9 exactly.
-   shading: l = x_v - x, E = Phi_v (n_x . l / |l|)+ / (4 pi |l|^2) with |l|^2 floored at a
-          quarter of the W'-mean of |x_p,j - c_j|^2 (the interpolated light never comes more
-          than twice as close as its caches saw theirs, so offsets that cancel give no spike)
-          and at (1e-6 scene_scale)^2;
-          L = rho_d / pi E_d + rho_g (k+2) / (2 pi) ((r . view)+)^k E_g, r = l mirrored at n_x.
+   eq. 9, as irradiance: the proxies "move along with the surface point": neighbour j's proxy
+          is seen at x + (x_p,j - c_j), so it delivers
+            E_j = Phi_p,j visibility_j (n_x . l_j)+ / (4 pi |x_p,j - c_j|^2),  l_j its unit offset,
+          (|x_p,j - c_j|^2 floored at (1e-6 scene_scale)^2) and the receiver takes
+            E = sum w' E_j / sum w'            (diffuse),
+            G = sum w' E_j f_j / sum w',  f_j = (k+2) / (2 pi) ((r_j . view)+)^k,
+                                          r_j = l_j mirrored at n_x   (glossy, per neighbour).
+          eq. 9 as printed averages flux and position and applies 1 / |l|^2 afterwards; eq. 7
+          makes a proxy's flux grow with the square of its distance, so that is biased dark
+          (0.5-0.85 of the light near contact edges) with flux-weighted positions and bright
+          with eq. 9's w' alone. One neighbour at x = c_j, or neighbours that agree, give the
+          cache's own radiance exactly.
+   shading: L = rho_d / pi E + rho_g G.
    Receivers with no neighbour get 0. Errors: NULL arrays, zero counts, an index >= cache_count
    (other than the UINT32_MAX pad), NaN/Inf or out-of-range inputs (the first is logged). */
 GIMANY_API gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *radiance_out);
@@ -4281,22 +4282,30 @@ GIMANY_DEF gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cach
     return GIM_OK;
 }
 
-/* One proxy light set interpolated at x (eq. 8-9) and its irradiance there: E (rgb) into
-   e_out, the unit direction towards the interpolated light into l_out. Sums per pass: [0] with
-   eq. 8's weights, [1] with the normal term alone (used when every eq. 8 weight is 0). */
+/* One proxy light set interpolated at x (eq. 8-9): the irradiance each neighbour's proxy
+   light delivers at x, moved along with the surface point (at x + x_p,j - c_j), averaged with
+   eq. 8's weights w'. For the glossy set the receiver's lobe is evaluated per neighbour, in
+   the direction of its own proxy: out = sum w' E_j f_j / sum w', f_j = (k+2)/(2 pi)
+   ((r_j . view)+)^k (f = 1 for the diffuse set). Sums per pass: [0] with eq. 8's weights,
+   [1] with the normal term alone (used when every eq. 8 weight is 0).
+   Why irradiance and not eq. 9's flux and position: eq. 7 makes a proxy's flux grow with the
+   square of its distance, so averaging fluxes and positions separately and then applying
+   1 / |l|^2 gives E_v / E = M2^3 / M3^2 <= 1 for neighbours at different distances (M_k the
+   weighted moments of the offsets; 0.5-0.85 of the light measured near contact edges), and
+   eq. 9's plain w' gives M2 / M1^2 >= 1. Averaging what each neighbour delivers is exact for
+   one neighbour and for any neighbours that agree, and never divides one cache's flux by
+   another's distance. */
 static void gim__interp_light(const gim_shade_desc *d, const gim_proxy_light *lights, int glossy,
                               const gim_receiver *rc, const uint32_t *idx, uint32_t cnt, float dcmax,
-                              float near_, double *e_out, double *l_out) {
-    double sw[2] = {0, 0}, sp[2] = {0, 0}, dq[2] = {0, 0}, o[2][3] = {{0, 0, 0}, {0, 0, 0}},
-           phi[2][3] = {{0, 0, 0}, {0, 0, 0}}, lo2 = 0.0, len, cos_x = 0.0, ein;
+                              float near_, double *e_out) {
+    double sw[2] = {0, 0}, se[2][3] = {{0, 0, 0}, {0, 0, 0}};
     uint32_t j;
     int a, pass, use;
     e_out[0] = e_out[1] = e_out[2] = 0.0;
-    l_out[0] = l_out[1] = l_out[2] = 0.0;
     for (j = 0; j < cnt; ++j) {
         const gim_cache *c;
         const gim_proxy_light *p;
-        double dist = 0.0, tent, nterm = 0.0, op[3], dp2 = 0.0, lp, fl[3], lum;
+        double dist = 0.0, tent, nterm = 0.0, op[3], dp2 = 0.0, lp, cos_x = 0.0, f = 1.0, ej[3];
         if (idx[j] == UINT32_MAX) continue;
         c = d->caches + idx[j];
         p = lights + idx[j];
@@ -4305,43 +4314,40 @@ static void gim__interp_light(const gim_shade_desc *d, const gim_proxy_light *li
             dist += dx * dx;
             op[a] = (double)p->position[a] - c->position[a];          /* the proxy's offset */
             dp2 += op[a] * op[a];
-            fl[a] = (double)p->flux[a] * p->visibility;
         }
         dist = sqrt(dist);
         tent = dcmax > near_ ? 1.0 - dist / dcmax : 1.0;             /* eq. 8 distance term */
         if (tent < 0.0) tent = 0.0;
         lp = sqrt(dp2);
+        if (lp > 0.0)
+            for (a = 0; a < 3; ++a) cos_x += rc->normal[a] * op[a] / lp;
         if (glossy && lp > 0.0) {
             /* r_x . r_c: the direction towards the proxy, mirrored at n_x and at n_c */
-            double w_[3], cx = 0.0, cc = 0.0;
-            for (a = 0; a < 3; ++a) { w_[a] = op[a] / lp; cx += rc->normal[a] * w_[a]; cc += c->normal[a] * w_[a]; }
-            for (a = 0; a < 3; ++a) nterm += (2.0 * cx * rc->normal[a] - w_[a]) * (2.0 * cc * c->normal[a] - w_[a]);
+            double w_[3], cc = 0.0, re = 0.0;
+            for (a = 0; a < 3; ++a) { w_[a] = op[a] / lp; cc += c->normal[a] * w_[a]; }
+            for (a = 0; a < 3; ++a) {
+                nterm += (2.0 * cos_x * rc->normal[a] - w_[a]) * (2.0 * cc * c->normal[a] - w_[a]);
+                re += (2.0 * cos_x * rc->normal[a] - w_[a]) * rc->view[a];
+            }
+            f = (rc->exponent + 2.0) / (2.0 * GIM__PI) * gim__lobe((float)re, rc->exponent);
         } else {   /* diffuse, or a glossy proxy with no direction (dark): the normals */
             for (a = 0; a < 3; ++a) nterm += (double)rc->normal[a] * c->normal[a];
         }
         nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
-        lum = 0.2126 * fl[0] + 0.7152 * fl[1] + 0.0722 * fl[2];
+        /* E_j at x: the proxy at x + op, never nearer than 1e-6 scene scales */
+        if (dp2 < (double)near_ * near_) dp2 = (double)near_ * near_;
+        for (a = 0; a < 3; ++a)
+            ej[a] = cos_x > 0.0 ? (double)p->flux[a] * p->visibility * cos_x / (4.0 * GIM__PI * dp2) * f : 0.0;
         for (pass = 0; pass < 2; ++pass) {
             double w = pass == 0 ? tent * nterm : nterm;
             if (!(w > 0.0)) continue;
             sw[pass] += w;
-            sp[pass] += w * lum;
-            dq[pass] += w * lum * dp2;
-            for (a = 0; a < 3; ++a) { o[pass][a] += w * lum * op[a]; phi[pass][a] += w * fl[a]; }
+            for (a = 0; a < 3; ++a) se[pass][a] += w * ej[a];
         }
     }
     use = sw[0] > 0.0 ? 0 : 1;
-    if (!(sw[use] > 0.0) || !(sp[use] > 0.0)) return;                  /* no neighbour, or all dark */
-    for (a = 0; a < 3; ++a) { o[use][a] /= sp[use]; phi[use][a] /= sw[use]; lo2 += o[use][a] * o[use][a]; }  /* eq. 9 */
-    if (!(lo2 > 0.0)) return;                                          /* no direction: dark */
-    len = sqrt(lo2);
-    for (a = 0; a < 3; ++a) { l_out[a] = o[use][a] / len; cos_x += rc->normal[a] * l_out[a]; }
-    if (!(cos_x > 0.0)) return;
-    dq[use] /= sp[use];
-    if (lo2 < 0.25 * dq[use]) lo2 = 0.25 * dq[use];                    /* no spike where offsets cancel */
-    if (lo2 < (double)near_ * near_) lo2 = (double)near_ * near_;      /* and never closer than 1e-6 scale */
-    ein = cos_x / (4.0 * GIM__PI * lo2);
-    for (a = 0; a < 3; ++a) e_out[a] = phi[use][a] * ein;
+    if (!(sw[use] > 0.0)) return;                                      /* no neighbour */
+    for (a = 0; a < 3; ++a) e_out[a] = se[use][a] / sw[use];
 }
 
 /* The arguments of the shading pass; lights 0 leaves out the proxy lights (gim_lightskin_cpu
@@ -4403,17 +4409,13 @@ GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *rad
         const gim_receiver *rc = desc->receivers + i;
         const uint32_t *idx = desc->neighbour_index + (size_t)i * desc->neighbour_stride;
         uint32_t cnt = desc->neighbour_count ? desc->neighbour_count[i] : desc->neighbour_stride;
-        double ed[3], eg[3], ld[3], lg[3], out[3];
+        double ed[3], eg[3], out[3];
         int a;
-        gim__interp_light(desc, desc->diffuse, 0, rc, idx, cnt, desc->d_cmax[i], near_, ed, ld);
+        gim__interp_light(desc, desc->diffuse, 0, rc, idx, cnt, desc->d_cmax[i], near_, ed);
         for (a = 0; a < 3; ++a) out[a] = rc->albedo[a] / GIM__PI * ed[a];
         if (desc->glossy) {
-            double cx = 0.0, re = 0.0, f;
-            gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg, lg);
-            for (a = 0; a < 3; ++a) cx += rc->normal[a] * lg[a];
-            for (a = 0; a < 3; ++a) re += (2.0 * cx * rc->normal[a] - lg[a]) * rc->view[a];
-            f = (rc->exponent + 2.0) / (2.0 * GIM__PI) * gim__lobe((float)re, rc->exponent);
-            for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * f * eg[a];
+            gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg);
+            for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * eg[a];
         }
         for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + a] = gim__clamp_flt(out[a]);
     }
