@@ -192,17 +192,17 @@ static void visibility_umbra_penumbra(void **state) {
     (void)state;
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 10.0f);
     for (i = 0; i < S * S; ++i) dist[i] = GIM_PARABOLOID_EMPTY;
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* a plate at height 1, 2 x 2: under its centre at height 2 every tap is blocked */
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 0.0f);
     /* between the VAL and the plate: lit */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* behind the VAL's plane: 1 whatever the map */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* out of the shadow along t at height 2: the shadow of the plate's edge (x = 1 at h = 1)
        from the VAL's centre is at x = 2, the exact penumbra [2 - Delta / 2, 2 + Delta / 2]
@@ -211,8 +211,8 @@ static void visibility_umbra_penumbra(void **state) {
     for (i = 0; i <= 60; ++i) {
         float x = 1.0f + 3.5f * (float)i / 60.0f, vb;
         gim_paraboloid big = test_map(1.2f);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), &v), GIM_OK);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), &vb), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), NULL, &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), NULL, &vb), GIM_OK);
         if (v > 0.0f && v < 1.0f) ++frac;
         if (vb > 0.0f && vb < 1.0f) ++frac_big;
         if (v < prev) ++drops;
@@ -260,7 +260,7 @@ static void visibility_near_exact(void **state) {
         m.size = (float)D;
         vs_plate_map(dist, S, (float)h, (float)cx, (float)cy, (float)half);
         ex = exact_visibility(D, h, cx, cy, half, a, b, c);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), NULL, &v), GIM_OK);
         assert_true(v >= 0.0f && v <= 1.0f);
         if (ex > 0.999 && v > 0.999f) continue;   /* far from any shadow */
         ++n;
@@ -292,8 +292,8 @@ static void visibility_unit_free(void **state) {
         for (i = 0; i < S * S; ++i) dist_s[i] = dist[i] < GIM_PARABOLOID_EMPTY ? dist[i] * k : dist[i];
         for (i = 0; i < 200; ++i) {
             float a = test_rnd(-3, 3), b = test_rnd(-3, 3), c = test_rnd(0.2f, 3.0f), v, vs;
-            assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, a, b, c), &v), GIM_OK);
-            assert_int_equal(gim_paraboloid_visibility(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), &vs), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, a, b, c), NULL, &v), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), NULL, &vs), GIM_OK);
             if (fabsf(v - vs) > 1.0f / 16.0f + 1e-6f) fail_msg("scale %g: V %g against %g", (double)k, (double)v, (double)vs);
             differ += v != vs;
             ++total;
@@ -513,21 +513,26 @@ static void bad_input(void **state) {
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     /* visibility (it has no env: errors are results only) */
-    assert_int_equal(gim_paraboloid_visibility(NULL, 2, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 0, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, NULL, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(NAN, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(NULL, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 0, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, NULL, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(NAN, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    {
+        gim_vec3 bad = gim_v3(0, 0, 2), nan_ = gim_v3(NAN, 0, 1);
+        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &bad, &v0), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &nan_, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    }
     m.origin[0] = INFINITY;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
     m = test_map(0.2f);
     /* NaN and negative texels block nothing; a receiver at the origin or far away is lit */
     dist[0] = NAN; dist[1] = -1.0f; dist[2] = 0.0f; dist[3] = NAN;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0, 0, 0), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0, 0, 0), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), NULL, &v0), GIM_OK);
     assert_true(v0 >= 0.0f && v0 <= 1.0f);
     /* blur */
     memset(&b, 0, sizeof b);
