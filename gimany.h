@@ -723,8 +723,11 @@ GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
    the weight 1 / (N pdf) = 2 pi r_i radius / N, the inverse of the pattern's density per
    texel, so the sum is an unbiased estimate of the sum over every texel within radius of p
    (the FULL sum when the disk holds the RSM); the receiver's own texel (r -> 0) weighs ~0,
-   which removes the singularity of the paper's weighting. A receiver behind a perspective
-   light's eye (w <= 0) or a texel outside the RSM or unlit gets nothing.
+   which removes the singularity of the paper's weighting. A receiver that projects outside
+   the RSM centres the pattern on the RSM's nearest point, one behind a perspective light's
+   eye (w <= 0) on its centre (the Cornell box's ceiling, behind its spot, got nothing
+   before), so with a radius of the whole RSM every receiver gets the FULL sum's estimate. A
+   texel outside the RSM or unlit adds nothing.
      L = rho_d / pi sum e_j + rho_g (k+2) / (2 pi) sum g_j e_j, e_j as in gim_proxy_lights with
      x for c, g_j = ((r_j . view)+)^k, r_j the direction to the VAL mirrored at the normal. */
 typedef struct gim_gather_desc {
@@ -1218,7 +1221,9 @@ typedef struct gim_frame {
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
     float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
     uint32_t gather_samples;    /* RSM_GATHER: texels per pixel and light; 0: 256; at most 16384 */
-    float gather_radius;        /* RSM_GATHER: pattern radius as a fraction of the RSM side; 0: 0.15 */
+    float gather_radius;        /* RSM_GATHER: pattern radius as a fraction of the RSM side; 0: 1.5, the whole
+                                   RSM from any point of it (Dachsbacher's 0.15 left 0.24 of an open
+                                   corner's light, tests/gltest_physics.c) */
     /* the VPL methods (CLUSTERED, SSVP); see the twins of the VPL methods in @section twins */
     uint32_t vpl_count;         /* first-bounce VPLs per light; 0: 4096 (with the default interleave of 8, 64 per
                                    pixel: at 1024, 57-79% of the pixels of an open corner came within 20%
@@ -4523,9 +4528,15 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
             clip[a] = mm[a] * (double)rc->position[0] + mm[4 + a] * (double)rc->position[1] + mm[8 + a] * (double)rc->position[2] +
                       mm[12 + a];
         radiance_out[i * 3] = radiance_out[i * 3 + 1] = radiance_out[i * 3 + 2] = 0.0f;
-        if (!(clip[3] > 0.0)) continue;
-        px = (clip[0] / clip[3] * 0.5 + 0.5) * m->width;   /* texel space: texel t covers [t, t + 1) */
-        py = (clip[1] / clip[3] * 0.5 + 0.5) * m->height;
+        if (clip[3] > 0.0) {
+            px = (clip[0] / clip[3] * 0.5 + 0.5) * m->width;   /* texel space: texel t covers [t, t + 1) */
+            py = (clip[1] / clip[3] * 0.5 + 0.5) * m->height;
+            px = px < 0.0 ? 0.0 : (px > m->width ? (double)m->width : px);   /* off the map: its nearest point */
+            py = py < 0.0 ? 0.0 : (py > m->height ? (double)m->height : py);
+        } else {   /* behind the light's eye: the map's centre */
+            px = 0.5 * m->width;
+            py = 0.5 * m->height;
+        }
         for (j = 0; j < d->sample_count; ++j) {
             float o[3];
             double tx, ty, w, dd[3], d2 = 0.0, inv, cx = 0.0, cl = 0.0, e;
@@ -8530,7 +8541,7 @@ static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim_
 /* --- RSM gather (Dachsbacher 2005) ---------------------------------------------------------- */
 
 #define GIM__GATHER_DEFAULT_SAMPLES 256u
-#define GIM__GATHER_DEFAULT_RADIUS 0.15f
+#define GIM__GATHER_DEFAULT_RADIUS 1.5f   /* from any point of the RSM the disk holds all of it */
 
 /* The sample pattern of RSM gather: Hammersley points (u = i / N stratifies the radius),
    the same for every pixel and frame; the twin takes the same floats. */

@@ -9,9 +9,10 @@
      CLUSTERED and SSVP        median within 10%, 80% of pixels within 20% (the scenes are open:
                                visibility changes nothing here, so this is the VPL estimate,
                                the clamp, the interleaving and the blur);
-     RSM gather                printed only: it sums the RSM texels inside a radius around the
-                               pixel's own projection, without visibility or the rest of the RSM
-                               (the no-visibility baseline). */
+     RSM gather                median within 5%, 60% of pixels within 20%: a 256-sample estimate
+                               of every texel's light, without visibility (the baseline; open
+                               scenes need none), noisier per pixel than the methods that
+                               share or blur their samples. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "physics.h"
@@ -171,6 +172,9 @@ static void check_scene(phys_which which, double scale, const double *offset) {
         } else if (methods[k] == GIM_METHOD_CLUSTERED || methods[k] == GIM_METHOD_SSVP) {
             assert_true(fabs(st.median - 1.0) <= 0.10);
             assert_true(st.within20 >= 0.80);
+        } else {
+            assert_true(fabs(st.median - 1.0) <= 0.05);
+            assert_true(st.within20 >= 0.60);
         }
     }
     frame_end(p);
