@@ -5843,7 +5843,27 @@ enum {
     GIM__GL_TEXTURE_INTERNAL_FORMAT = 0x1003,
     GIM__GL_RGBA32UI = 0x8D70,
     GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
-    GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317
+    GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317,
+    GIM__GL_UNPACK_SWAP_BYTES = 0x0CF0,
+    GIM__GL_UNPACK_LSB_FIRST = 0x0CF1,
+    GIM__GL_UNPACK_SKIP_ROWS = 0x0CF3,
+    GIM__GL_UNPACK_SKIP_PIXELS = 0x0CF4,
+    GIM__GL_UNPACK_IMAGE_HEIGHT = 0x806E,
+    GIM__GL_UNPACK_SKIP_IMAGES = 0x806D,
+    GIM__GL_PACK_SWAP_BYTES = 0x0D00,
+    GIM__GL_PACK_LSB_FIRST = 0x0D01,
+    GIM__GL_PACK_SKIP_ROWS = 0x0D03,
+    GIM__GL_PACK_SKIP_PIXELS = 0x0D04,
+    GIM__GL_PACK_IMAGE_HEIGHT = 0x806C,
+    GIM__GL_PACK_SKIP_IMAGES = 0x806B,
+    GIM__GL_COLOR_LOGIC_OP = 0x0BF2,
+    GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX = 0x8D69,
+    GIM__GL_PROVOKING_VERTEX = 0x8E4F,
+    GIM__GL_LAST_VERTEX_CONVENTION = 0x8E4E,
+    GIM__GL_CLIP_ORIGIN = 0x935C,
+    GIM__GL_CLIP_DEPTH_MODE = 0x935D,
+    GIM__GL_LOWER_LEFT = 0x8CA1,
+    GIM__GL_NEGATIVE_ONE_TO_ONE = 0x935E
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -5974,13 +5994,17 @@ enum {
     X(void, FramebufferTexture, (gim__GLenum target, gim__GLenum attachment, gim__GLuint texture, \
                                  gim__GLint level))                                              \
     X(void, DrawElementsInstanced, (gim__GLenum mode, gim__GLsizei count, gim__GLenum type,      \
-                                    const void *indices, gim__GLsizei instancecount))
+                                    const void *indices, gim__GLsizei instancecount))            \
+    X(void, ProvokingVertex, (gim__GLenum mode))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
 #define GIM__X(ret, name, args) ret(GIM__APIENTRY *name) args;
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
+    /* GL 4.5 (NULL before): a host's GL_ZERO_TO_ONE or GL_UPPER_LEFT would move or flip every
+       draw, so gimany sets the default around its passes when it can */
+    void(GIM__APIENTRY *ClipControl)(gim__GLenum origin, gim__GLenum depth);
     int unused_; /* keeps the struct non-empty whatever the list holds */
 } gim__gl;
 
@@ -5999,6 +6023,9 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 #endif
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
+    /* optional: kept by gim_create only on a 4.5 context */
+    if (get_proc_address)
+        gl->ClipControl = (void(GIM__APIENTRY *)(gim__GLenum, gim__GLenum))get_proc_address("glClipControl");
 #define GIM__X(ret, name, args)                                                                  \
     if (!gl->name) {                                                                             \
         gim__log(env, GIM_LOG_ERROR, "gim_create", "GL function gl%s not found", #name);        \
@@ -6033,7 +6060,10 @@ static const gim__GLenum gim__gl_state_caps[] = {
        distance); polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
     GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2, GIM__GL_CLIP_DISTANCE0 + 3,
     GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5, GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7,
-    GIM__GL_POLYGON_SMOOTH};
+    GIM__GL_POLYGON_SMOOTH,
+    /* a logic op replaces the writes to integer targets (the G-buffer's material); a fixed
+       restart index would cut a mesh with 65535 or 2^32-1 vertices */
+    GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
 #define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
 
 /* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
@@ -6051,9 +6081,13 @@ static const gim__GLenum gim__gl_state_buffers[][2] = {
     {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
 #define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
 
-/* glPixelStorei parameters */
+/* glPixelStorei parameters, every one: the unpack ones apply to glClearBufferData's clear
+   value too, so a host's row length or skips would make the driver read past it */
 static const gim__GLenum gim__gl_state_pixel_store[] = {
-    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH};
+    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH,
+    GIM__GL_PACK_SWAP_BYTES, GIM__GL_UNPACK_SWAP_BYTES, GIM__GL_PACK_LSB_FIRST, GIM__GL_UNPACK_LSB_FIRST,
+    GIM__GL_PACK_SKIP_ROWS, GIM__GL_UNPACK_SKIP_ROWS, GIM__GL_PACK_SKIP_PIXELS, GIM__GL_UNPACK_SKIP_PIXELS,
+    GIM__GL_PACK_IMAGE_HEIGHT, GIM__GL_UNPACK_IMAGE_HEIGHT, GIM__GL_PACK_SKIP_IMAGES, GIM__GL_UNPACK_SKIP_IMAGES};
 #define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
 
 /* One image unit (glBindImageTexture's arguments). */
@@ -6089,6 +6123,8 @@ typedef struct gim__gl_state {
     gim__gl_image_binding image[GIM__GL_IMAGE_UNITS];
     gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS], ubo[GIM__GL_UBO_BINDINGS];
     gim__GLint pixel_store[GIM__GL_STATE_PIXEL_STORE];
+    gim__GLint provoking_vertex;
+    gim__GLint clip_origin, clip_depth_mode;  /* with ClipControl only */
 } gim__gl_state;
 
 static void gim__gl_indexed_save(const gim__gl *gl, gim__GLenum binding, gim__GLenum start, gim__GLenum size,
@@ -6172,6 +6208,24 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     gim__gl_indexed_save(gl, GIM__GL_UNIFORM_BUFFER_BINDING, GIM__GL_UNIFORM_BUFFER_START,
                          GIM__GL_UNIFORM_BUFFER_SIZE, s->ubo, GIM__GL_UBO_BINDINGS);
     for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->GetIntegerv(gim__gl_state_pixel_store[i], &s->pixel_store[i]);
+    gl->GetIntegerv(GIM__GL_PROVOKING_VERTEX, &s->provoking_vertex);
+    if (gl->ClipControl) {
+        gl->GetIntegerv(GIM__GL_CLIP_ORIGIN, &s->clip_origin);
+        gl->GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &s->clip_depth_mode);
+    }
+}
+
+/* State gimany's passes read but do not each set, put to GL's defaults for the whole call
+   (after the save): pixel store, clip control, provoking vertex. The raster passes set the
+   rest of the list themselves (gim__gl_raster_state). */
+static void gim__gl_state_baseline(const gim__gl *gl) {
+    unsigned i;
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) {
+        gim__GLenum p = gim__gl_state_pixel_store[i];
+        gl->PixelStorei(p, p == GIM__GL_PACK_ALIGNMENT || p == GIM__GL_UNPACK_ALIGNMENT ? 4 : 0);
+    }
+    gl->ProvokingVertex(GIM__GL_LAST_VERTEX_CONVENTION);
+    if (gl->ClipControl) gl->ClipControl(GIM__GL_LOWER_LEFT, GIM__GL_NEGATIVE_ONE_TO_ONE);
 }
 
 static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
@@ -6224,6 +6278,8 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i)
         gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
     for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->PixelStorei(gim__gl_state_pixel_store[i], s->pixel_store[i]);
+    gl->ProvokingVertex((gim__GLenum)s->provoking_vertex);
+    if (gl->ClipControl) gl->ClipControl((gim__GLenum)s->clip_origin, (gim__GLenum)s->clip_depth_mode);
 }
 
 /* --- the context ----------------------------------------------------------------------- */
@@ -6414,6 +6470,7 @@ static void gim__gl_enter(gim_context *ctx, const char *where) {
     (void)where;
 #endif
     gim__gl_state_save(&ctx->gl, &ctx->saved);
+    gim__gl_state_baseline(&ctx->gl);
 }
 
 /* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
@@ -7697,7 +7754,8 @@ static void gim__gl_raster_state(const gim__gl *gl, gim__GLuint fbo, uint32_t w,
                                       GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
                                       GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2,
                                       GIM__GL_CLIP_DISTANCE0 + 3, GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5,
-                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH};
+                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH,
+                                      GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
     unsigned i;
     gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, fbo);
     gl->Viewport(0, 0, (gim__GLsizei)w, (gim__GLsizei)h);
@@ -9095,6 +9153,19 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     int full, gather, vplm;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
+    /* without a current context every GL call is a no-op returning 0: say so before a pass
+       reports a failure that only follows from it */
+    if (!ctx->gl.GetString(GIM__GL_VERSION))
+        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
+    if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
+        gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &mode);
+        if (origin != GIM__GL_LOWER_LEFT || mode != GIM__GL_NEGATIVE_ONE_TO_ONE)
+            return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                             "the host's glClipControl is not the default and glClipControl was not loaded "
+                             "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
+    }
     r = gim__frame_check(ctx, frame, bmin, bmax);
     if (r != GIM_OK) return r;
     diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
@@ -9377,6 +9448,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
+    if (major == 4 && minor < 5) gl.ClipControl = NULL; /* 4.5 core */
     ctx->gl = gl;
     ctx->gl_major = (int)major;
     ctx->gl_minor = (int)minor;
