@@ -5863,7 +5863,8 @@ enum {
     GIM__GL_CLIP_ORIGIN = 0x935C,
     GIM__GL_CLIP_DEPTH_MODE = 0x935D,
     GIM__GL_LOWER_LEFT = 0x8CA1,
-    GIM__GL_NEGATIVE_ONE_TO_ONE = 0x935E
+    GIM__GL_NEGATIVE_ONE_TO_ONE = 0x935E,
+    GIM__GL_TEXTURE_TARGET = 0x1006
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -6005,6 +6006,8 @@ typedef struct gim__gl {
     /* GL 4.5 (NULL before): a host's GL_ZERO_TO_ONE or GL_UPPER_LEFT would move or flip every
        draw, so gimany sets the default around its passes when it can */
     void(GIM__APIENTRY *ClipControl)(gim__GLenum origin, gim__GLenum depth);
+    /* GL 4.5: asks a host texture's target without a failing bind (a GL error for the host) */
+    void(GIM__APIENTRY *GetTextureParameteriv)(gim__GLuint texture, gim__GLenum pname, gim__GLint *params);
     int unused_; /* keeps the struct non-empty whatever the list holds */
 } gim__gl;
 
@@ -6024,8 +6027,11 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
     /* optional: kept by gim_create only on a 4.5 context */
-    if (get_proc_address)
+    if (get_proc_address) {
         gl->ClipControl = (void(GIM__APIENTRY *)(gim__GLenum, gim__GLenum))get_proc_address("glClipControl");
+        gl->GetTextureParameteriv = (void(GIM__APIENTRY *)(gim__GLuint, gim__GLenum, gim__GLint *))get_proc_address(
+            "glGetTextureParameteriv");
+    }
 #define GIM__X(ret, name, args)                                                                  \
     if (!gl->name) {                                                                             \
         gim__log(env, GIM_LOG_ERROR, "gim_create", "GL function gl%s not found", #name);        \
@@ -6450,6 +6456,7 @@ struct gim_context {
     gim__GLuint vpl_raw;          /* the VPL shading before the geometry-aware blur (gim__gl_vpl_raw_texture) */
     uint32_t vpl_raw_width, vpl_raw_height;
     gim__GLenum vpl_raw_format;
+    int half_warned;              /* the RGBA16F saturation warning was given for these lights */
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -6667,12 +6674,19 @@ static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, con
     gim__GLint w = 0, h = 0;
     if (!texture || !ctx->gl.IsTexture(texture))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
+    if (ctx->gl.GetTextureParameteriv) {
+        gim__GLint target = 0;
+        ctx->gl.GetTextureParameteriv(texture, GIM__GL_TEXTURE_TARGET, &target);
+        if (target != GIM__GL_TEXTURE_2D)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture (target 0x%04x)",
+                             what, (unsigned)texture, (unsigned)target);
+    }
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, texture);
     ctx->gl.GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &w);
     if ((gim__GLuint)w != texture) { /* GL 4.3 cannot ask a texture's target: the bind failed */
-#ifdef GIMANY_DEBUG
-        ctx->gl.GetError(); /* that GL_INVALID_OPERATION is ours (enter cleared the host's) */
-#endif
+        /* that GL_INVALID_OPERATION is ours, with or without GIMANY_DEBUG: the host must not
+           find it in its queue (under GIMANY_DEBUG enter cleared the host's own) */
+        ctx->gl.GetError();
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture", what,
                          (unsigned)texture);
     }
@@ -6681,6 +6695,30 @@ static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, con
     if (w < 0 || h < 0 || (uint32_t)w < width || (uint32_t)h < height)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s is %dx%d, the pass reads %ux%u", what, (int)w,
                          (int)h, (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
+/* The host's G-buffer formats: depth a depth format (a colour texture reads as garbage depth),
+   the normal a float or signed-normalised RGB(A) (RGBA8 clamps every negative component to 0). */
+static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where, gim__GLuint depth, gim__GLuint normal) {
+    static const gim__GLint depth_formats[] = {0x81A5, 0x81A6, 0x81A7, 0x8CAC, 0x88F0, 0x8CAD};
+    static const gim__GLint normal_formats[] = {0x881A, 0x8814, 0x881B, 0x8815, 0x8F9B, 0x8F97, 0x8F9A, 0x8F96};
+    gim__GLint f = 0;
+    unsigned i, ok = 0;
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
+    for (i = 0; i < sizeof depth_formats / sizeof depth_formats[0]; ++i) ok |= f == depth_formats[i];
+    if (!ok)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_depth has internal format 0x%04x: it must be a depth format (GL_DEPTH_COMPONENT16/24/32/32F, "
+                         "GL_DEPTH24_STENCIL8, GL_DEPTH32F_STENCIL8)", (unsigned)f);
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, normal);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
+    for (i = 0, ok = 0; i < sizeof normal_formats / sizeof normal_formats[0]; ++i) ok |= f == normal_formats[i];
+    if (!ok)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_normal has internal format 0x%04x: normals need signed values (GL_RGB(A)16F/32F, "
+                         "GL_RGB(A)8_SNORM, GL_RGB(A)16_SNORM)", (unsigned)f);
     return GIM_OK;
 }
 
@@ -7319,6 +7357,16 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
    spot's 4 pi I, times its brightest colour): the proxy lights' flux and second moments must
    stay floats. tests/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
 #define GIM__MAX_LIGHT_POWER 1e36
+/* An explicit scene_scale sets every unit-free threshold (clamps, epsilons, blur and cache
+   distances); beyond these multiples of the scene's diagonal they all collapse or swallow the
+   scene (1e30 gave a black image) */
+#define GIM__MIN_SCALE_DIAGONALS 1e-3
+#define GIM__MAX_SCALE_DIAGONALS 1e3
+/* Below this side an RSM gives a light a handful of VALs/VPLs: blotchy or saturated images
+   (accepted, as the twins test 1^2, with a warning) */
+#define GIM__MIN_GOOD_RSM 16u
+/* RGBA16F's largest finite value: the passes clamp the indirect radiance to it */
+#define GIM__HALF_MAX 65504.0
 
 static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
     uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
@@ -7668,6 +7716,13 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above the GL limit %u",
                              (unsigned)i, (unsigned)gim__light_rsm_size(&lights[i]), (unsigned)limit);
     }
+    for (i = 0; i < count; ++i)
+        if (gim__light_rsm_size(&lights[i]) < GIM__MIN_GOOD_RSM)
+            gim__log(&ctx->env, GIM_LOG_WARNING, where,
+                     "light %u: a %u^2 RSM gives it %u VALs: expect a blotchy or saturated image (good: %u..16384)",
+                     (unsigned)i, (unsigned)lights[i].rsm_size, (unsigned)(lights[i].rsm_size * lights[i].rsm_size),
+                     GIM__MIN_GOOD_RSM);
+    ctx->half_warned = 0;
     if (count) memcpy(ctx->lights, lights, (size_t)count * sizeof(gim_light));
     if (count < ctx->light_count) { /* buffers sized to what is used: drop the removed lights' */
         gim__gl_enter(ctx, where);
@@ -9110,6 +9165,9 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view_distance must be finite and >= 0");
+    if (f->timing < 0 || f->timing > 2)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "timing %d: 0 (off), 1 (GL timestamps) or 2 (glFinish and the CPU clock)", f->timing);
     if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
@@ -9177,6 +9235,11 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the scene is %g across, outside %g..%g", diag,
                          GIM__MIN_SCENE_DIAGONAL, GIM__MAX_SCENE_DIAGONAL);
+    if (frame->scene_scale > 0.0f &&
+        !(scale >= GIM__MIN_SCALE_DIAGONALS * diag && scale <= GIM__MAX_SCALE_DIAGONALS * diag))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "scene_scale %g is %g times the scene's diagonal %g: valid within %g..%g diagonals (0: the diagonal)",
+                         (double)scale, scale / diag, diag, GIM__MIN_SCALE_DIAGONALS, GIM__MAX_SCALE_DIAGONALS);
     for (i = 0; i < ctx->light_count; ++i) {
         const gim_light *l = &ctx->lights[i];
         float c[3];
@@ -9189,6 +9252,15 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                              "light %u brings %g into the scene, above %g: its fluxes would overflow float", (unsigned)i,
                              p, GIM__MAX_LIGHT_POWER);
+        /* a bounce's radiance is at most the irradiance / pi (a spot's mean over the scene's
+           sphere: 4 I / diag^2); above RGBA16F's range the passes clamp it */
+        p = l->type == GIM_LIGHT_SPOT ? p / (3.14159265358979323846 * diag * diag) : p / (diag * diag);
+        if (!frame->indirect_float32 && !ctx->half_warned && p / 3.14159265358979323846 > GIM__HALF_MAX) {
+            ctx->half_warned = 1;
+            gim__log(&ctx->env, GIM_LOG_WARNING, where,
+                     "light %u: indirect radiance up to %g, RGBA16F holds up to %g (clamped there): set indirect_float32",
+                     (unsigned)i, p / 3.14159265358979323846, GIM__HALF_MAX);
+        }
     }
     for (i = 0; i < 3; ++i) {
         double d = fabs((double)bmin[i]) > fabs((double)bmax[i]) ? fabs((double)bmin[i]) : fabs((double)bmax[i]);
@@ -9219,6 +9291,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         normal = frame->gbuffer_normal;
         r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
+        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, depth, normal);
     } else if (r == GIM_OK) {
         r = gim__gl_gbuffer(ctx, frame);
         depth = ctx->gbuffer_depth;
@@ -9448,7 +9521,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
-    if (major == 4 && minor < 5) gl.ClipControl = NULL; /* 4.5 core */
+    if (major == 4 && minor < 5) gl.ClipControl = NULL, gl.GetTextureParameteriv = NULL; /* 4.5 core */
     ctx->gl = gl;
     ctx->gl_major = (int)major;
     ctx->gl_minor = (int)minor;
