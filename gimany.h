@@ -820,7 +820,7 @@ typedef struct gim_light {
     float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
     float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
                                0: the radius of the scene bounds' sphere, so it covers the scene */
-    uint32_t rsm_size;      /* RSM side in texels; 0: 512 */
+    uint32_t rsm_size;      /* RSM side in texels; 0: 512; below 16 a warning (few VALs) */
     int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
                                (gim_light_fit_view), the open-world case: its texels go where the
                                view is, not over the whole world; 0: the scene bounds */
@@ -1205,7 +1205,7 @@ typedef struct gim_frame {
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
     uint32_t val_count;         /* VALs selected per light (paper 000 sec. 4); 0: 2048 */
     float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
-                                   bounds of the instances */
+                                   bounds of the instances; else within 1e-3..1e3 of it */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
     int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
@@ -1238,7 +1238,8 @@ typedef struct gim_frame {
                                    2: glFinish after every pass, then the CPU's clock (see
                                    gim_stats.cpu_clock): a driver that runs queued work at a later
                                    flush (llvmpipe, even between timestamps) still charges it to
-                                   its pass; it serialises the frame, for profiling only */
+                                   its pass; it serialises the frame, for profiling only;
+                                   other values: GIM_ERROR_OUT_OF_RANGE */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1264,7 +1265,12 @@ typedef struct gim_frame {
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
    "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
    bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
-   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36. */
+   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
+   A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
+   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
+   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
+   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
+   (read a frame late). No current context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
