@@ -5870,7 +5870,11 @@ enum {
     GIM__GL_CLIP_DEPTH_MODE = 0x935D,
     GIM__GL_LOWER_LEFT = 0x8CA1,
     GIM__GL_NEGATIVE_ONE_TO_ONE = 0x935E,
-    GIM__GL_TEXTURE_TARGET = 0x1006
+    GIM__GL_TEXTURE_TARGET = 0x1006,
+    GIM__GL_TEXTURE_SWIZZLE_R = 0x8E42,
+    GIM__GL_TEXTURE_BASE_LEVEL = 0x813C,
+    GIM__GL_DEPTH_STENCIL_TEXTURE_MODE = 0x90EA,
+    GIM__GL_DEPTH_COMPONENT = 0x1902
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -6003,7 +6007,8 @@ enum {
     X(void, DrawElementsInstanced, (gim__GLenum mode, gim__GLsizei count, gim__GLenum type,      \
                                     const void *indices, gim__GLsizei instancecount))            \
     X(void, ProvokingVertex, (gim__GLenum mode))                                                 \
-    X(void, GetBufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size, void *data))
+    X(void, GetBufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size, void *data)) \
+    X(void, GetTexParameteriv, (gim__GLenum target, gim__GLenum pname, gim__GLint *params))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -6730,6 +6735,28 @@ static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
                          "gbuffer_normal has internal format 0x%04x: normals need signed values (GL_RGB(A)16F/32F, "
                          "GL_RGB(A)8_SNORM, GL_RGB(A)16_SNORM)", (unsigned)f);
+    /* texture state texelFetch obeys and no sampler overrides: the host's to keep, so refused */
+    for (i = 0; i < 2; ++i) {
+        gim__GLint v = 0, k;
+        ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, i ? normal : depth);
+        for (k = 0; k < 4; ++k) {
+            ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_SWIZZLE_R + (gim__GLenum)k, &v);
+            if (v != (k == 0 ? 0x1903 : k == 1 ? 0x1904 : k == 2 ? 0x1905 : 0x1906)) /* GL_RED .. GL_ALPHA */
+                return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                                 "%s has a texture swizzle: gimany reads the components as stored (set the identity)",
+                                 i ? "gbuffer_normal" : "gbuffer_depth");
+        }
+        ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_BASE_LEVEL, &v);
+        if (v != 0)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "%s has GL_TEXTURE_BASE_LEVEL %d: gimany reads level 0 (set 0)",
+                             i ? "gbuffer_normal" : "gbuffer_depth", (int)v);
+    }
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
+    ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_DEPTH_STENCIL_TEXTURE_MODE, &f);
+    if (f != GIM__GL_DEPTH_COMPONENT)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_depth's GL_DEPTH_STENCIL_TEXTURE_MODE is not GL_DEPTH_COMPONENT: it would read stencil");
     return GIM_OK;
 }
 

@@ -147,6 +147,28 @@ static void host_gbuffer_formats(void **state) {
     assert_int_equal(glGetError(), GL_NO_ERROR);
     fr.gbuffer_depth = depth;   /* the right formats pass */
     assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
+    /* texture state that texelFetch obeys: a swizzle, a base level, stencil reads */
+    glBindTexture(GL_TEXTURE_2D, normal);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_SWIZZLE_G, GL_RED);
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "gbuffer_normal has a texture swizzle");
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_SWIZZLE_G, GL_GREEN);
+    glDeleteTextures(1, &normal);   /* a base level needs a second level (immutable storage clamps it) */
+    glGenTextures(1, &normal);
+    glBindTexture(GL_TEXTURE_2D, normal);
+    glTexStorage2D(GL_TEXTURE_2D, 2, GL_RGBA16F, 2 * W, 2 * H);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_BASE_LEVEL, 1);
+    fr.gbuffer_normal = normal;
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "GL_TEXTURE_BASE_LEVEL 1");
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_BASE_LEVEL, 0);
+    glDeleteTextures(1, &depth);
+    glGenTextures(1, &depth);
+    glBindTexture(GL_TEXTURE_2D, depth);
+    glTexStorage2D(GL_TEXTURE_2D, 1, GL_DEPTH24_STENCIL8, W, H);
+    glTexParameteri(GL_TEXTURE_2D, GL_DEPTH_STENCIL_TEXTURE_MODE, GL_STENCIL_INDEX);
+    glBindTexture(GL_TEXTURE_2D, 0);
+    fr.gbuffer_depth = depth;
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "would read stencil");
+    assert_int_equal(glGetError(), GL_NO_ERROR);
     glDeleteTextures(1, &depth);
     glDeleteTextures(1, &normal);
     glDeleteTextures(1, &rgba8);
