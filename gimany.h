@@ -6062,7 +6062,13 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    The GL state gimany may touch, in one place. gim__gl_enter saves it on the way into the
    outermost call that touches GL, gim__gl_leave restores it on the way out; what is not listed
    here gimany must not change. Units and bindings are those gimany's passes use (within
-   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units). */
+   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units).
+   State the calls read that a host may have set: glClearBufferData reads the unpack pixel
+   store, the draws read clip control, provoking vertex and the raster state; all set for the
+   call (gim__gl_state_baseline, gim__gl_raster_state). Texture reads go through gimany's
+   nearest sampler; the texture state of a host's G-buffer (swizzle, base level, depth-stencil
+   mode) is the host's and checked instead (gim__gl_check_host_gbuffer). No call reads or
+   writes pixels (glReadPixels, glTexSubImage, glGetTexImage). */
 #define GIM__GL_TEXTURE_UNITS 8
 #define GIM__GL_IMAGE_UNITS 8
 #define GIM__GL_SSBO_BINDINGS 8
