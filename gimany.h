@@ -1270,7 +1270,7 @@ typedef struct gim_frame {
    host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
    vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
    can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
-   (read a frame late). No current context: GIM_ERROR_GL. */
+   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -5699,6 +5699,7 @@ typedef float gim__GLfloat;
 typedef ptrdiff_t gim__GLsizeiptr;
 typedef ptrdiff_t gim__GLintptr;
 typedef int64_t gim__GLint64;
+typedef struct gim__GLsync_ *gim__GLsync;
 
 enum {
     GIM__GL_NO_ERROR = 0,
@@ -5874,7 +5875,10 @@ enum {
     GIM__GL_TEXTURE_SWIZZLE_R = 0x8E42,
     GIM__GL_TEXTURE_BASE_LEVEL = 0x813C,
     GIM__GL_DEPTH_STENCIL_TEXTURE_MODE = 0x90EA,
-    GIM__GL_DEPTH_COMPONENT = 0x1902
+    GIM__GL_DEPTH_COMPONENT = 0x1902,
+    GIM__GL_SYNC_GPU_COMMANDS_COMPLETE = 0x9117,
+    GIM__GL_ALREADY_SIGNALED = 0x911A,
+    GIM__GL_CONDITION_SATISFIED = 0x911C
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -6008,7 +6012,10 @@ enum {
                                     const void *indices, gim__GLsizei instancecount))            \
     X(void, ProvokingVertex, (gim__GLenum mode))                                                 \
     X(void, GetBufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size, void *data)) \
-    X(void, GetTexParameteriv, (gim__GLenum target, gim__GLenum pname, gim__GLint *params))
+    X(void, GetTexParameteriv, (gim__GLenum target, gim__GLenum pname, gim__GLint *params))      \
+    X(gim__GLsync, FenceSync, (gim__GLenum condition, gim__GLbitfield flags))                   \
+    X(gim__GLenum, ClientWaitSync, (gim__GLsync sync, gim__GLbitfield flags, uint64_t timeout))  \
+    X(void, DeleteSync, (gim__GLsync sync))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
@@ -6475,10 +6482,13 @@ struct gim_context {
     uint32_t vpl_raw_width, vpl_raw_height;
     gim__GLenum vpl_raw_format;
     int half_warned;              /* the RGBA16F saturation warning was given for these lights */
-    /* LightSkin frames: fragments of gimany's G-buffer seen from behind their normal (gbuffer.frag),
-       read one frame later so the count costs no stall */
+    /* LightSkin frames: fragments of gimany's G-buffer seen from behind their normal
+       (gbuffer.frag), counted one frame in GIM__FACING_PERIOD (atomics on one address are slow
+       on a GPU) and read once its fence has passed, so the count never stalls */
     gim__GLuint facing;           /* SSBO: uint drawn, uint back-facing */
-    int facing_pending, facing_warned;
+    gim__GLsync facing_sync;      /* the counted frame's fence; 0: none pending */
+    uint32_t facing_frame;        /* G-buffer passes drawn */
+    int facing_warned;
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -7797,6 +7807,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
     if (ctx->facing) gl->DeleteBuffers(1, &ctx->facing);
+    if (ctx->facing_sync) gl->DeleteSync(ctx->facing_sync);
     gim__vpl_release(ctx);
     if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
@@ -7962,7 +7973,9 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, 
 
 /* gimany's own G-buffer: depth (32-bit float), world normal towards the eye (RGBA16F, w = 1
    where drawn), diffuse albedo (RGBA8), material id (R32F). */
-/* The last LightSkin frame's G-buffer counts (ctx->facing, bound to COPY_WRITE_BUFFER): when
+#define GIM__FACING_PERIOD 32u
+
+/* The counted LightSkin frame's G-buffer counts (ctx->facing, bound to COPY_WRITE_BUFFER): when
    most fragments showed the back of their surface, warn once. LightSkin's caches receive on
    their normal's side only (the other methods are two-sided), so a closed object whose normals
    face outward, seen from inside, gets no indirect light: measured on the Cornell box with
@@ -8004,8 +8017,6 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
         ctx->gbuffer_height = f->height;
     }
     gim__camera_eye(f->view, f->proj, eye);
-    count = !ctx->facing_warned && (f->method == GIM_METHOD_DEFAULT || f->method == GIM_METHOD_LIGHTSKIN_BRSM ||
-                                    f->method == GIM_METHOD_LIGHTSKIN_FULL);
     if (!ctx->facing) {
         static const uint32_t zero[2] = {0u, 0u};
         gl->GenBuffers(1, &ctx->facing);
@@ -8013,8 +8024,17 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
         gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, sizeof zero, zero, GIM__GL_DYNAMIC_COPY);
     }
     gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->facing);
-    if (count && ctx->facing_pending) gim__facing_check(ctx);
-    ctx->facing_pending = count;
+    if (ctx->facing_sync) {   /* no flush, no wait: read when the counted frame is done */
+        gim__GLenum st = gl->ClientWaitSync(ctx->facing_sync, 0u, 0u);
+        if (st == GIM__GL_ALREADY_SIGNALED || st == GIM__GL_CONDITION_SATISFIED) {
+            gl->DeleteSync(ctx->facing_sync);
+            ctx->facing_sync = 0;
+            gim__facing_check(ctx);
+        }
+    }
+    count = !ctx->facing_warned && !ctx->facing_sync && ctx->facing_frame++ % GIM__FACING_PERIOD == 0u &&
+            (f->method == GIM_METHOD_DEFAULT || f->method == GIM_METHOD_LIGHTSKIN_BRSM ||
+             f->method == GIM_METHOD_LIGHTSKIN_FULL);
     if (count) {
         static const uint32_t zero[2] = {0u, 0u};
         gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, sizeof zero, zero);
@@ -8028,6 +8048,7 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->facing);
     gim__gl_draw_instances(ctx, gim_mat4_mul(f->proj, f->view));
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    if (count) ctx->facing_sync = gl->FenceSync(GIM__GL_SYNC_GPU_COMMANDS_COMPLETE, 0u);
     return gim__gl_check(ctx, where);
 }
 
