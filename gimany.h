@@ -824,7 +824,7 @@ typedef struct gim_light {
     float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
     float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
                                0: the radius of the scene bounds' sphere, so it covers the scene */
-    uint32_t rsm_size;      /* RSM side in texels; 0: 512 */
+    uint32_t rsm_size;      /* RSM side in texels; 0: 512; below 16 a warning (few VALs) */
     int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
                                (gim_light_fit_view), the open-world case: its texels go where the
                                view is, not over the whole world; 0: the scene bounds */
@@ -1213,7 +1213,7 @@ typedef struct gim_frame {
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
     uint32_t val_count;         /* VALs selected per light (paper 000 sec. 4); 0: 2048 */
     float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
-                                   bounds of the instances */
+                                   bounds of the instances; else within 1e-3..1e3 of it */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
     int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
@@ -1250,7 +1250,8 @@ typedef struct gim_frame {
                                    2: glFinish after every pass, then the CPU's clock (see
                                    gim_stats.cpu_clock): a driver that runs queued work at a later
                                    flush (llvmpipe, even between timestamps) still charges it to
-                                   its pass; it serialises the frame, for profiling only */
+                                   its pass; it serialises the frame, for profiling only;
+                                   other values: GIM_ERROR_OUT_OF_RANGE */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1276,7 +1277,12 @@ typedef struct gim_frame {
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
    "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
    bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
-   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36. */
+   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
+   A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
+   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
+   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
+   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
+   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -5780,6 +5786,7 @@ typedef float gim__GLfloat;
 typedef ptrdiff_t gim__GLsizeiptr;
 typedef ptrdiff_t gim__GLintptr;
 typedef int64_t gim__GLint64;
+typedef struct gim__GLsync_ *gim__GLsync;
 
 enum {
     GIM__GL_NO_ERROR = 0,
@@ -5930,7 +5937,35 @@ enum {
     GIM__GL_TEXTURE_INTERNAL_FORMAT = 0x1003,
     GIM__GL_RGBA32UI = 0x8D70,
     GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
-    GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317
+    GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317,
+    GIM__GL_UNPACK_SWAP_BYTES = 0x0CF0,
+    GIM__GL_UNPACK_LSB_FIRST = 0x0CF1,
+    GIM__GL_UNPACK_SKIP_ROWS = 0x0CF3,
+    GIM__GL_UNPACK_SKIP_PIXELS = 0x0CF4,
+    GIM__GL_UNPACK_IMAGE_HEIGHT = 0x806E,
+    GIM__GL_UNPACK_SKIP_IMAGES = 0x806D,
+    GIM__GL_PACK_SWAP_BYTES = 0x0D00,
+    GIM__GL_PACK_LSB_FIRST = 0x0D01,
+    GIM__GL_PACK_SKIP_ROWS = 0x0D03,
+    GIM__GL_PACK_SKIP_PIXELS = 0x0D04,
+    GIM__GL_PACK_IMAGE_HEIGHT = 0x806C,
+    GIM__GL_PACK_SKIP_IMAGES = 0x806B,
+    GIM__GL_COLOR_LOGIC_OP = 0x0BF2,
+    GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX = 0x8D69,
+    GIM__GL_PROVOKING_VERTEX = 0x8E4F,
+    GIM__GL_LAST_VERTEX_CONVENTION = 0x8E4E,
+    GIM__GL_CLIP_ORIGIN = 0x935C,
+    GIM__GL_CLIP_DEPTH_MODE = 0x935D,
+    GIM__GL_LOWER_LEFT = 0x8CA1,
+    GIM__GL_NEGATIVE_ONE_TO_ONE = 0x935E,
+    GIM__GL_TEXTURE_TARGET = 0x1006,
+    GIM__GL_TEXTURE_SWIZZLE_R = 0x8E42,
+    GIM__GL_TEXTURE_BASE_LEVEL = 0x813C,
+    GIM__GL_DEPTH_STENCIL_TEXTURE_MODE = 0x90EA,
+    GIM__GL_DEPTH_COMPONENT = 0x1902,
+    GIM__GL_SYNC_GPU_COMMANDS_COMPLETE = 0x9117,
+    GIM__GL_ALREADY_SIGNALED = 0x911A,
+    GIM__GL_CONDITION_SATISFIED = 0x911C
 };
 
 /* Every GL function gimany calls: X(return type, name without "gl", parameter list). */
@@ -6061,13 +6096,24 @@ enum {
     X(void, FramebufferTexture, (gim__GLenum target, gim__GLenum attachment, gim__GLuint texture, \
                                  gim__GLint level))                                              \
     X(void, DrawElementsInstanced, (gim__GLenum mode, gim__GLsizei count, gim__GLenum type,      \
-                                    const void *indices, gim__GLsizei instancecount))
+                                    const void *indices, gim__GLsizei instancecount))            \
+    X(void, ProvokingVertex, (gim__GLenum mode))                                                 \
+    X(void, GetBufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size, void *data)) \
+    X(void, GetTexParameteriv, (gim__GLenum target, gim__GLenum pname, gim__GLint *params))      \
+    X(gim__GLsync, FenceSync, (gim__GLenum condition, gim__GLbitfield flags))                   \
+    X(gim__GLenum, ClientWaitSync, (gim__GLsync sync, gim__GLbitfield flags, uint64_t timeout))  \
+    X(void, DeleteSync, (gim__GLsync sync))
 
 /* The function table, filled by gim__gl_load. */
 typedef struct gim__gl {
 #define GIM__X(ret, name, args) ret(GIM__APIENTRY *name) args;
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
+    /* GL 4.5 (NULL before): a host's GL_ZERO_TO_ONE or GL_UPPER_LEFT would move or flip every
+       draw, so gimany sets the default around its passes when it can */
+    void(GIM__APIENTRY *ClipControl)(gim__GLenum origin, gim__GLenum depth);
+    /* GL 4.5: asks a host texture's target without a failing bind (a GL error for the host) */
+    void(GIM__APIENTRY *GetTextureParameteriv)(gim__GLuint texture, gim__GLenum pname, gim__GLint *params);
     int unused_; /* keeps the struct non-empty whatever the list holds */
 } gim__gl;
 
@@ -6086,6 +6132,12 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 #endif
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
+    /* optional: kept by gim_create only on a 4.5 context */
+    if (get_proc_address) {
+        gl->ClipControl = (void(GIM__APIENTRY *)(gim__GLenum, gim__GLenum))get_proc_address("glClipControl");
+        gl->GetTextureParameteriv = (void(GIM__APIENTRY *)(gim__GLuint, gim__GLenum, gim__GLint *))get_proc_address(
+            "glGetTextureParameteriv");
+    }
 #define GIM__X(ret, name, args)                                                                  \
     if (!gl->name) {                                                                             \
         gim__log(env, GIM_LOG_ERROR, "gim_create", "GL function gl%s not found", #name);        \
@@ -6104,7 +6156,13 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    The GL state gimany may touch, in one place. gim__gl_enter saves it on the way into the
    outermost call that touches GL, gim__gl_leave restores it on the way out; what is not listed
    here gimany must not change. Units and bindings are those gimany's passes use (within
-   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units). */
+   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units).
+   State the calls read that a host may have set: glClearBufferData reads the unpack pixel
+   store, the draws read clip control, provoking vertex and the raster state; all set for the
+   call (gim__gl_state_baseline, gim__gl_raster_state). Texture reads go through gimany's
+   nearest sampler; the texture state of a host's G-buffer (swizzle, base level, depth-stencil
+   mode) is the host's and checked instead (gim__gl_check_host_gbuffer). No call reads or
+   writes pixels (glReadPixels, glTexSubImage, glGetTexImage). */
 #define GIM__GL_TEXTURE_UNITS 8
 #define GIM__GL_IMAGE_UNITS 8
 #define GIM__GL_SSBO_BINDINGS 8
@@ -6120,7 +6178,10 @@ static const gim__GLenum gim__gl_state_caps[] = {
        distance); polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
     GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2, GIM__GL_CLIP_DISTANCE0 + 3,
     GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5, GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7,
-    GIM__GL_POLYGON_SMOOTH};
+    GIM__GL_POLYGON_SMOOTH,
+    /* a logic op replaces the writes to integer targets (the G-buffer's material); a fixed
+       restart index would cut a mesh with 65535 or 2^32-1 vertices */
+    GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
 #define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
 
 /* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
@@ -6138,9 +6199,13 @@ static const gim__GLenum gim__gl_state_buffers[][2] = {
     {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
 #define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
 
-/* glPixelStorei parameters */
+/* glPixelStorei parameters, every one: the unpack ones apply to glClearBufferData's clear
+   value too, so a host's row length or skips would make the driver read past it */
 static const gim__GLenum gim__gl_state_pixel_store[] = {
-    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH};
+    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH,
+    GIM__GL_PACK_SWAP_BYTES, GIM__GL_UNPACK_SWAP_BYTES, GIM__GL_PACK_LSB_FIRST, GIM__GL_UNPACK_LSB_FIRST,
+    GIM__GL_PACK_SKIP_ROWS, GIM__GL_UNPACK_SKIP_ROWS, GIM__GL_PACK_SKIP_PIXELS, GIM__GL_UNPACK_SKIP_PIXELS,
+    GIM__GL_PACK_IMAGE_HEIGHT, GIM__GL_UNPACK_IMAGE_HEIGHT, GIM__GL_PACK_SKIP_IMAGES, GIM__GL_UNPACK_SKIP_IMAGES};
 #define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
 
 /* One image unit (glBindImageTexture's arguments). */
@@ -6176,6 +6241,8 @@ typedef struct gim__gl_state {
     gim__gl_image_binding image[GIM__GL_IMAGE_UNITS];
     gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS], ubo[GIM__GL_UBO_BINDINGS];
     gim__GLint pixel_store[GIM__GL_STATE_PIXEL_STORE];
+    gim__GLint provoking_vertex;
+    gim__GLint clip_origin, clip_depth_mode;  /* with ClipControl only */
 } gim__gl_state;
 
 static void gim__gl_indexed_save(const gim__gl *gl, gim__GLenum binding, gim__GLenum start, gim__GLenum size,
@@ -6259,6 +6326,24 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     gim__gl_indexed_save(gl, GIM__GL_UNIFORM_BUFFER_BINDING, GIM__GL_UNIFORM_BUFFER_START,
                          GIM__GL_UNIFORM_BUFFER_SIZE, s->ubo, GIM__GL_UBO_BINDINGS);
     for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->GetIntegerv(gim__gl_state_pixel_store[i], &s->pixel_store[i]);
+    gl->GetIntegerv(GIM__GL_PROVOKING_VERTEX, &s->provoking_vertex);
+    if (gl->ClipControl) {
+        gl->GetIntegerv(GIM__GL_CLIP_ORIGIN, &s->clip_origin);
+        gl->GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &s->clip_depth_mode);
+    }
+}
+
+/* State gimany's passes read but do not each set, put to GL's defaults for the whole call
+   (after the save): pixel store, clip control, provoking vertex. The raster passes set the
+   rest of the list themselves (gim__gl_raster_state). */
+static void gim__gl_state_baseline(const gim__gl *gl) {
+    unsigned i;
+    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) {
+        gim__GLenum p = gim__gl_state_pixel_store[i];
+        gl->PixelStorei(p, p == GIM__GL_PACK_ALIGNMENT || p == GIM__GL_UNPACK_ALIGNMENT ? 4 : 0);
+    }
+    gl->ProvokingVertex(GIM__GL_LAST_VERTEX_CONVENTION);
+    if (gl->ClipControl) gl->ClipControl(GIM__GL_LOWER_LEFT, GIM__GL_NEGATIVE_ONE_TO_ONE);
 }
 
 static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
@@ -6311,6 +6396,8 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i)
         gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
     for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->PixelStorei(gim__gl_state_pixel_store[i], s->pixel_store[i]);
+    gl->ProvokingVertex((gim__GLenum)s->provoking_vertex);
+    if (gl->ClipControl) gl->ClipControl((gim__GLenum)s->clip_origin, (gim__GLenum)s->clip_depth_mode);
 }
 
 /* --- the context ----------------------------------------------------------------------- */
@@ -6481,6 +6568,14 @@ struct gim_context {
     gim__GLuint vpl_raw;          /* the VPL shading before the geometry-aware blur (gim__gl_vpl_raw_texture) */
     uint32_t vpl_raw_width, vpl_raw_height;
     gim__GLenum vpl_raw_format;
+    int half_warned;              /* the RGBA16F saturation warning was given for these lights */
+    /* LightSkin frames: fragments of gimany's G-buffer seen from behind their normal
+       (gbuffer.frag), counted one frame in GIM__FACING_PERIOD (atomics on one address are slow
+       on a GPU) and read once its fence has passed, so the count never stalls */
+    gim__GLuint facing;           /* SSBO: uint drawn, uint back-facing */
+    gim__GLsync facing_sync;      /* the counted frame's fence; 0: none pending */
+    uint32_t facing_frame;        /* G-buffer passes drawn */
+    int facing_warned;
 };
 
 static void gim__vpl_release(gim_context *ctx);
@@ -6501,6 +6596,7 @@ static void gim__gl_enter(gim_context *ctx, const char *where) {
     (void)where;
 #endif
     gim__gl_state_save(&ctx->gl, &ctx->saved);
+    gim__gl_state_baseline(&ctx->gl);
 }
 
 /* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
@@ -6697,12 +6793,19 @@ static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, con
     gim__GLint w = 0, h = 0;
     if (!texture || !ctx->gl.IsTexture(texture))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
+    if (ctx->gl.GetTextureParameteriv) {
+        gim__GLint target = 0;
+        ctx->gl.GetTextureParameteriv(texture, GIM__GL_TEXTURE_TARGET, &target);
+        if (target != GIM__GL_TEXTURE_2D)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture (target 0x%04x)",
+                             what, (unsigned)texture, (unsigned)target);
+    }
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, texture);
     ctx->gl.GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &w);
     if ((gim__GLuint)w != texture) { /* GL 4.3 cannot ask a texture's target: the bind failed */
-#ifdef GIMANY_DEBUG
-        ctx->gl.GetError(); /* that GL_INVALID_OPERATION is ours (enter cleared the host's) */
-#endif
+        /* that GL_INVALID_OPERATION is ours, with or without GIMANY_DEBUG: the host must not
+           find it in its queue (under GIMANY_DEBUG enter cleared the host's own) */
+        ctx->gl.GetError();
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a 2D texture", what,
                          (unsigned)texture);
     }
@@ -6711,6 +6814,52 @@ static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, con
     if (w < 0 || h < 0 || (uint32_t)w < width || (uint32_t)h < height)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s is %dx%d, the pass reads %ux%u", what, (int)w,
                          (int)h, (unsigned)width, (unsigned)height);
+    return GIM_OK;
+}
+
+/* The host's G-buffer formats: depth a depth format (a colour texture reads as garbage depth),
+   the normal a float or signed-normalised RGB(A) (RGBA8 clamps every negative component to 0). */
+static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where, gim__GLuint depth, gim__GLuint normal) {
+    static const gim__GLint depth_formats[] = {0x81A5, 0x81A6, 0x81A7, 0x8CAC, 0x88F0, 0x8CAD};
+    static const gim__GLint normal_formats[] = {0x881A, 0x8814, 0x881B, 0x8815, 0x8F9B, 0x8F97, 0x8F9A, 0x8F96};
+    gim__GLint f = 0;
+    unsigned i, ok = 0;
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
+    for (i = 0; i < sizeof depth_formats / sizeof depth_formats[0]; ++i) ok |= f == depth_formats[i];
+    if (!ok)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_depth has internal format 0x%04x: it must be a depth format (GL_DEPTH_COMPONENT16/24/32/32F, "
+                         "GL_DEPTH24_STENCIL8, GL_DEPTH32F_STENCIL8)", (unsigned)f);
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, normal);
+    ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
+    for (i = 0, ok = 0; i < sizeof normal_formats / sizeof normal_formats[0]; ++i) ok |= f == normal_formats[i];
+    if (!ok)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_normal has internal format 0x%04x: normals need signed values (GL_RGB(A)16F/32F, "
+                         "GL_RGB(A)8_SNORM, GL_RGB(A)16_SNORM)", (unsigned)f);
+    /* texture state texelFetch obeys and no sampler overrides: the host's to keep, so refused */
+    for (i = 0; i < 2; ++i) {
+        gim__GLint v = 0, k;
+        ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, i ? normal : depth);
+        for (k = 0; k < 4; ++k) {
+            ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_SWIZZLE_R + (gim__GLenum)k, &v);
+            if (v != (k == 0 ? 0x1903 : k == 1 ? 0x1904 : k == 2 ? 0x1905 : 0x1906)) /* GL_RED .. GL_ALPHA */
+                return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                                 "%s has a texture swizzle: gimany reads the components as stored (set the identity)",
+                                 i ? "gbuffer_normal" : "gbuffer_depth");
+        }
+        ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_TEXTURE_BASE_LEVEL, &v);
+        if (v != 0)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "%s has GL_TEXTURE_BASE_LEVEL %d: gimany reads level 0 (set 0)",
+                             i ? "gbuffer_normal" : "gbuffer_depth", (int)v);
+    }
+    ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
+    ctx->gl.GetTexParameteriv(GIM__GL_TEXTURE_2D, GIM__GL_DEPTH_STENCIL_TEXTURE_MODE, &f);
+    if (f != GIM__GL_DEPTH_COMPONENT)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "gbuffer_depth's GL_DEPTH_STENCIL_TEXTURE_MODE is not GL_DEPTH_COMPONENT: it would read stencil");
     return GIM_OK;
 }
 
@@ -7349,6 +7498,16 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
    spot's 4 pi I, times its brightest colour): the proxy lights' flux and second moments must
    stay floats. tests/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
 #define GIM__MAX_LIGHT_POWER 1e36
+/* An explicit scene_scale sets every unit-free threshold (clamps, epsilons, blur and cache
+   distances); beyond these multiples of the scene's diagonal they all collapse or swallow the
+   scene (1e30 gave a black image) */
+#define GIM__MIN_SCALE_DIAGONALS 1e-3
+#define GIM__MAX_SCALE_DIAGONALS 1e3
+/* Below this side an RSM gives a light a handful of VALs/VPLs: blotchy or saturated images
+   (accepted, as the twins test 1^2, with a warning) */
+#define GIM__MIN_GOOD_RSM 16u
+/* RGBA16F's largest finite value: the passes clamp the indirect radiance to it */
+#define GIM__HALF_MAX 65504.0
 
 static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
     uint32_t slot = (m.id & 0xFFFFu), gen = m.id >> 16;
@@ -7698,6 +7857,13 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above the GL limit %u",
                              (unsigned)i, (unsigned)gim__light_rsm_size(&lights[i]), (unsigned)limit);
     }
+    for (i = 0; i < count; ++i)
+        if (gim__light_rsm_size(&lights[i]) < GIM__MIN_GOOD_RSM)
+            gim__log(&ctx->env, GIM_LOG_WARNING, where,
+                     "light %u: a %u^2 RSM gives it %u VALs: expect a blotchy or saturated image (good: %u..16384)",
+                     (unsigned)i, (unsigned)lights[i].rsm_size, (unsigned)(lights[i].rsm_size * lights[i].rsm_size),
+                     GIM__MIN_GOOD_RSM);
+    ctx->half_warned = 0;
     if (count) memcpy(ctx->lights, lights, (size_t)count * sizeof(gim_light));
     if (count < ctx->light_count) { /* buffers sized to what is used: drop the removed lights' */
         gim__gl_enter(ctx, where);
@@ -7727,6 +7893,8 @@ static void gim__scene_destroy(gim_context *ctx) {
     gl->DeleteBuffers(6, b);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
+    if (ctx->facing) gl->DeleteBuffers(1, &ctx->facing);
+    if (ctx->facing_sync) gl->DeleteSync(ctx->facing_sync);
     gim__vpl_release(ctx);
     if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
@@ -7784,7 +7952,8 @@ static void gim__gl_raster_state(const gim__gl *gl, gim__GLuint fbo, uint32_t w,
                                       GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
                                       GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2,
                                       GIM__GL_CLIP_DISTANCE0 + 3, GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5,
-                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH};
+                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH,
+                                      GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
     unsigned i;
     gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, fbo);
     gl->Viewport(0, 0, (gim__GLsizei)w, (gim__GLsizei)h);
@@ -7891,10 +8060,31 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, 
 
 /* gimany's own G-buffer: depth (32-bit float), world normal towards the eye (RGBA16F, w = 1
    where drawn), diffuse albedo (RGBA8), material id (R32F). */
+#define GIM__FACING_PERIOD 32u
+
+/* The counted LightSkin frame's G-buffer counts (ctx->facing, bound to COPY_WRITE_BUFFER): when
+   most fragments showed the back of their surface, warn once. LightSkin's caches receive on
+   their normal's side only (the other methods are two-sided), so a closed object whose normals
+   face outward, seen from inside, gets no indirect light: measured on the Cornell box with
+   every normal and winding flipped, 4% of the image's mean, the other methods unchanged. */
+static void gim__facing_check(gim_context *ctx) {
+    uint32_t c[2] = {0u, 0u};
+    ctx->gl.GetBufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, sizeof c, c);
+    if (c[0] > 0u && c[1] > c[0] / 2u) {
+        ctx->facing_warned = 1;
+        gim__log(&ctx->env, GIM_LOG_WARNING, "gim_update",
+                 "%u of %u G-buffer fragments show the back of their surface (the normal faces away from the "
+                 "eye): LightSkin lights surfaces on their normal's side only, so these get no indirect light; "
+                 "flip those meshes' normals and winding (RSM gather, CLUSTERED and SSVP are two-sided)",
+                 (unsigned)c[1], (unsigned)c[0]);
+    }
+}
+
 static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "G-buffer (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
+    int count;
     float eye[4];
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_GBUFFER, &program);
     if (r != GIM_OK) return r;
@@ -7914,13 +8104,38 @@ static gim_result gim__gl_gbuffer(gim_context *ctx, const gim_frame *f) {
         ctx->gbuffer_height = f->height;
     }
     gim__camera_eye(f->view, f->proj, eye);
+    if (!ctx->facing) {
+        static const uint32_t zero[2] = {0u, 0u};
+        gl->GenBuffers(1, &ctx->facing);
+        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->facing);
+        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, sizeof zero, zero, GIM__GL_DYNAMIC_COPY);
+    }
+    gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->facing);
+    if (ctx->facing_sync) {   /* no flush, no wait: read when the counted frame is done */
+        gim__GLenum st = gl->ClientWaitSync(ctx->facing_sync, 0u, 0u);
+        if (st == GIM__GL_ALREADY_SIGNALED || st == GIM__GL_CONDITION_SATISFIED) {
+            gl->DeleteSync(ctx->facing_sync);
+            ctx->facing_sync = 0;
+            gim__facing_check(ctx);
+        }
+    }
+    count = !ctx->facing_warned && !ctx->facing_sync && ctx->facing_frame++ % GIM__FACING_PERIOD == 0u &&
+            (f->method == GIM_METHOD_DEFAULT || f->method == GIM_METHOD_LIGHTSKIN_BRSM ||
+             f->method == GIM_METHOD_LIGHTSKIN_FULL);
+    if (count) {
+        static const uint32_t zero[2] = {0u, 0u};
+        gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, sizeof zero, zero);
+    }
     gim__gl_raster_state(gl, ctx->gbuffer_fbo, f->width, f->height);
     gim__gl_clear_targets(gl, 3);
     gl->UseProgram(program);
     gl->Uniform1ui(3, ctx->material_count);
     gl->Uniform4f(4, eye[0], eye[1], eye[2], eye[3]);
+    gl->Uniform1ui(5, (gim__GLuint)count);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->facing);
     gim__gl_draw_instances(ctx, gim_mat4_mul(f->proj, f->view));
-    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT);
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    if (count) ctx->facing_sync = gl->FenceSync(GIM__GL_SYNC_GPU_COMMANDS_COMPLETE, 0u);
     return gim__gl_check(ctx, where);
 }
 
@@ -9139,6 +9354,9 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view_distance must be finite and >= 0");
+    if (f->timing < 0 || f->timing > 2)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "timing %d: 0 (off), 1 (GL timestamps) or 2 (glFinish and the CPU clock)", f->timing);
     if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
@@ -9182,6 +9400,19 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     int full, gather, vplm;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
+    /* without a current context every GL call is a no-op returning 0: say so before a pass
+       reports a failure that only follows from it */
+    if (!ctx->gl.GetString(GIM__GL_VERSION))
+        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
+    if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
+        gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &mode);
+        if (origin != GIM__GL_LOWER_LEFT || mode != GIM__GL_NEGATIVE_ONE_TO_ONE)
+            return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                             "the host's glClipControl is not the default and glClipControl was not loaded "
+                             "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
+    }
     r = gim__frame_check(ctx, frame, bmin, bmax);
     if (r != GIM_OK) return r;
     diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
@@ -9193,6 +9424,11 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "the scene is %g across, outside %g..%g", diag,
                          GIM__MIN_SCENE_DIAGONAL, GIM__MAX_SCENE_DIAGONAL);
+    if (frame->scene_scale > 0.0f &&
+        !(scale >= GIM__MIN_SCALE_DIAGONALS * diag && scale <= GIM__MAX_SCALE_DIAGONALS * diag))
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "scene_scale %g is %g times the scene's diagonal %g: valid within %g..%g diagonals (0: the diagonal)",
+                         (double)scale, scale / diag, diag, GIM__MIN_SCALE_DIAGONALS, GIM__MAX_SCALE_DIAGONALS);
     for (i = 0; i < ctx->light_count; ++i) {
         const gim_light *l = &ctx->lights[i];
         float c[3];
@@ -9205,6 +9441,15 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                              "light %u brings %g into the scene, above %g: its fluxes would overflow float", (unsigned)i,
                              p, GIM__MAX_LIGHT_POWER);
+        /* a bounce's radiance is at most the irradiance / pi (a spot's mean over the scene's
+           sphere: 4 I / diag^2); above RGBA16F's range the passes clamp it */
+        p = l->type == GIM_LIGHT_SPOT ? p / (3.14159265358979323846 * diag * diag) : p / (diag * diag);
+        if (!frame->indirect_float32 && !ctx->half_warned && p / 3.14159265358979323846 > GIM__HALF_MAX) {
+            ctx->half_warned = 1;
+            gim__log(&ctx->env, GIM_LOG_WARNING, where,
+                     "light %u: indirect radiance up to %g, RGBA16F holds up to %g (clamped there): set indirect_float32",
+                     (unsigned)i, p / 3.14159265358979323846, GIM__HALF_MAX);
+        }
     }
     for (i = 0; i < 3; ++i) {
         double d = fabs((double)bmin[i]) > fabs((double)bmax[i]) ? fabs((double)bmin[i]) : fabs((double)bmax[i]);
@@ -9235,6 +9480,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         normal = frame->gbuffer_normal;
         r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
+        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, depth, normal);
     } else if (r == GIM_OK) {
         r = gim__gl_gbuffer(ctx, frame);
         depth = ctx->gbuffer_depth;
@@ -9464,6 +9710,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
+    if (major == 4 && minor < 5) gl.ClipControl = NULL, gl.GetTextureParameteriv = NULL; /* 4.5 core */
     ctx->gl = gl;
     ctx->gl_major = (int)major;
     ctx->gl_minor = (int)minor;

@@ -210,6 +210,9 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     }
     have_g = 1;
     r->cache_count = g.cache_count;
+    if (demo_cost_check(&r->d, w, h, r->s.light_count, strcmp(r->d.method, "none") ? g.cache_count : 0u, r->o.bounces, err,
+                        cap))
+        goto done;
     if (!strcmp(r->d.method, "none")) { /* the same meshes without caches: gimany runs its shared passes only */
         plain = (gim_mesh *)calloc(g.mesh_count + 1u, sizeof *plain);
         plain_inst = (gim_instance *)calloc(g.mesh_count + 1u, sizeof *plain_inst);
