@@ -1076,8 +1076,13 @@ typedef struct gim_blur_desc {
 } gim_blur_desc;
 
 /* Geometry-aware blur (Dong sec. 6 after Laine et al.): each pixel with a surface becomes the
-   mean of the pixels with a surface in its window that pass both tolerances (it passes itself);
-   pixels without a surface get 0. out[width * height * 3], not the input. */
+   mean of the pixels with a surface in its window that pass both tolerances (it passes itself)
+   and are, like it, diffuse-only or glossy (a glossy colour > 0). The light is averaged, not
+   the albedo: a diffuse-only pixel takes, per channel, the mean of radiance / albedo over
+   those neighbours with albedo > 0 in that channel, times its own albedo (blurring radiance
+   smeared a bright material's light onto a dark neighbour: the Cornell box's ceiling panel
+   came out 2.29x too bright); a glossy pixel averages radiance (its lobe is in it). Pixels
+   without a surface get 0. out[width * height * 3], not the input. */
 GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
 
 #ifdef __cplusplus
@@ -5539,6 +5544,11 @@ static int gim__receiver_ok(const gim_receiver *rc) {
            rc->glossy[1] >= 0.0f && rc->glossy[2] >= 0.0f && rc->exponent >= 0.0f &&
            rc->exponent <= GIM__TWINS_MAX_EXPONENT;
 }
+/* A receiver whose material has a glossy colour: the blur keeps its radiance as it is. */
+static int gim__receiver_glossy(const gim_receiver *rc) {
+    return rc->glossy[0] > 0.0f || rc->glossy[1] > 0.0f || rc->glossy[2] > 0.0f;
+}
+
 static int gim__receiver_surface(const gim_receiver *rc) {
     return rc->normal[0] != 0.0f || rc->normal[1] != 0.0f || rc->normal[2] != 0.0f;
 }
@@ -5726,9 +5736,8 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
             const gim_receiver *rc = desc->receivers + p;
             /* the window [x - k/2, x - k/2 + k - 1]^2, clipped to the image */
             int32_t x0 = (int32_t)x - (int32_t)(k / 2u), y0 = (int32_t)y - (int32_t)(k / 2u), xx, yy;
-            float sum[3] = {0.0f, 0.0f, 0.0f};
-            uint32_t n = 0;
-            int a;
+            float sum[3] = {0.0f, 0.0f, 0.0f}, cnt[3] = {0.0f, 0.0f, 0.0f};
+            int a, gx = gim__receiver_glossy(rc);
             if (!gim__receiver_surface(rc)) {
                 out[p * 3] = out[p * 3 + 1] = out[p * 3 + 2] = 0.0f;
                 continue;
@@ -5739,7 +5748,7 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
                     const gim_receiver *nb = desc->receivers + q;
                     if (q != p) {
                         float dx, dy, dz, c;
-                        if (!gim__receiver_surface(nb)) continue;
+                        if (!gim__receiver_surface(nb) || gim__receiver_glossy(nb) != gx) continue;
                         dx = nb->position[0] - rc->position[0];
                         dy = nb->position[1] - rc->position[1];
                         dz = nb->position[2] - rc->position[2];
@@ -5747,11 +5756,19 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
                         c = nb->normal[0] * rc->normal[0] + nb->normal[1] * rc->normal[1] + nb->normal[2] * rc->normal[2];
                         if (!(c >= ncos)) continue;
                     }
-                    for (a = 0; a < 3; ++a) sum[a] += desc->radiance[q * 3 + a];
-                    ++n;
+                    for (a = 0; a < 3; ++a) {
+                        if (gx) {
+                            sum[a] += desc->radiance[q * 3 + a];
+                            cnt[a] += 1.0f;
+                        } else if (nb->albedo[a] > 0.0f) {   /* the light, without the neighbour's albedo */
+                            sum[a] += desc->radiance[q * 3 + a] / nb->albedo[a];
+                            cnt[a] += 1.0f;
+                        }
+                    }
                 }
             for (a = 0; a < 3; ++a) {
-                float o = sum[a] / (float)n;
+                float o = cnt[a] > 0.0f ? sum[a] / cnt[a] : 0.0f;
+                if (!gx) o = rc->albedo[a] * o;
                 out[p * 3 + a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
             }
         }
@@ -8702,6 +8719,7 @@ static GIM__UNUSED void gim__gl_vpl_raw_texture(gim_context *ctx, uint32_t width
 /* What the geometry-aware blur reads and writes. */
 typedef struct gim__blur_args {
     gim__GLuint depth, normal;     /* the G-buffer */
+    gim__GLuint albedo, material;  /* gimany's G-buffer's; 0 (the host's G-buffer): albedo 1, no glossy */
     uint32_t width, height;
     gim_mat4 view, proj;
     gim__GLuint input;             /* width x height rgb texture (the VPL shading's output) */
@@ -8716,9 +8734,10 @@ typedef struct gim__blur_args {
 static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim__blur_args *a) {
     static const char where[] = "geometry-aware blur (GL)";
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0, tex[3];
+    gim__GLuint program = 0, tex[5];
     gim_mat4 inv_view, inv_proj;
     float tol = a->position_tolerance, ncos = a->normal_tolerance != 0.0f ? a->normal_tolerance : 0.8f;
+    int host = a->albedo == 0 || ctx->material_count == 0;
     int i;
     gim_result r;
     if (a->width == 0 || a->height == 0 || !a->depth || !a->normal || !a->input || !a->output || a->input == a->output)
@@ -8731,9 +8750,10 @@ static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim_
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
     if ((r = gim__gl_program(ctx, GIM__PROGRAM_GEOMETRY_BLUR, &program)) != GIM_OK) return r;
     gim__gl_nearest_sampler(ctx);
-    tex[0] = a->depth; tex[1] = a->normal; tex[2] = a->input;
-    for (i = 0; i < 3; ++i) {
-        gim__GLuint unit = i == 2 ? 4u : (gim__GLuint)i;
+    tex[0] = a->depth; tex[1] = a->normal; tex[2] = host ? a->normal : a->albedo; tex[3] = host ? a->normal : a->material;
+    tex[4] = a->input;
+    for (i = 0; i < 5; ++i) {
+        gim__GLuint unit = (gim__GLuint)i;
         gl->ActiveTexture(GIM__GL_TEXTURE0 + unit);
         gl->BindTexture(GIM__GL_TEXTURE_2D, tex[i]);
         gl->BindSampler(unit, ctx->nearest_sampler);
@@ -8747,6 +8767,8 @@ static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim_
     gl->Uniform1f(5, tol * tol);
     gl->Uniform1f(6, ncos);
     gl->Uniform1f(7, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    gl->Uniform1ui(8, host ? 0u : ctx->material_count);
+    if (!host) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
     gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
@@ -9288,6 +9310,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
             memset(&b, 0, sizeof b);
             b.depth = depth;
             b.normal = normal;
+            b.albedo = a.albedo;
+            b.material = a.material;
             b.width = f->width;
             b.height = f->height;
             b.view = f->view;

@@ -179,7 +179,7 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
     else if (!strcmp(d->method, "full")) t = L * (double)caches * texels;
     else if (!strcmp(d->method, "gather")) t = L * px * 256.0;
     else if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp")) {
-        double v = d->vpls ? d->vpls : (!strcmp(d->method, "ssvp") ? 256.0 : 1024.0);
+        double v = d->vpls ? d->vpls : 4096.0;   /* the library's default */
         t = px * (L * v + (bounces == 2 || (!strcmp(d->method, "ssvp") && bounces != 1) ? 256.0 : 0.0)) / 64.0;
     }
     if (ls) t += px * 16.0 + (d->occlusion ? (double)caches * caches : 0.0);

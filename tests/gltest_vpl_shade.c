@@ -168,6 +168,7 @@ static void run_case(const shade_case *sc) {
     a.format = sc->format;
     memset(&ba, 0, sizeof ba);
     ba.depth = out.gbuffer_depth; ba.normal = out.gbuffer_normal; ba.width = W; ba.height = H;
+    ba.albedo = a.albedo; ba.material = a.material;
     ba.view = fr.view; ba.proj = fr.proj; ba.window = sc->interleave;
     ba.position_tolerance = 0.1f * 1.7320508f * L;   /* Laine et al.'s alpha: 10 % of the extent */
     ba.output = t_blur; ba.format = sc->format;

@@ -417,6 +417,39 @@ static void blur_keeps_edges(void **state) {
     assert_int_equal(st.live, 0);
 }
 
+/* The blur averages light, not materials: a plane under uniform light, half of it albedo 0.2
+   grey, half (0.8, 0.4, 0) (a channel with no albedo carries no light), one glossy pixel among
+   them. Each diffuse pixel keeps its own albedo x the light however the window straddles the
+   edge (blurring radiance gave 0.5 on both sides of it); the glossy one keeps its own
+   radiance (no other glossy pixel in reach). */
+static void blur_light_not_albedo(void **state) {
+    enum { W = 16, H = 8 };
+    test_alloc_stats st;
+    test_log lg;
+    gim_env env = test_env(&st, &lg);
+    gim_receiver r[W * H];
+    float in[W * H * 3], out[W * H * 3];
+    gim_blur_desc d;
+    int x, y, a;
+    (void)state;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            int i = y * W + x;
+            r[i] = rec(gim_v3(0.1f * x, 0.0f, 0.1f * y), gim_v3(0, 1, 0), gim_v3(0, 1, 1));
+            memset(r[i].glossy, 0, sizeof r[i].glossy);
+            for (a = 0; a < 3; ++a) r[i].albedo[a] = x < W / 2 ? 0.2f : (a == 0 ? 0.8f : a == 1 ? 0.4f : 0.0f);
+            for (a = 0; a < 3; ++a) in[i * 3 + a] = r[i].albedo[a] * 1.5f;   /* albedo x the light */
+        }
+    r[3 * W + 4].glossy[1] = 0.5f;
+    in[(3 * W + 4) * 3] = in[(3 * W + 4) * 3 + 1] = in[(3 * W + 4) * 3 + 2] = 5.0f;
+    memset(&d, 0, sizeof d);
+    d.radiance = in; d.receivers = r; d.width = W; d.height = H; d.window = 8; d.position_tolerance = 10.0f; d.env = env;
+    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    for (x = 0; x < W * H * 3; ++x) assert_true(fabs(out[x] - in[x]) <= 1e-5f);
+    assert_int_equal(lg.errors, 0);
+    assert_int_equal(st.live, 0);
+}
+
 /* Interleaved sampling then the blur (Dong sec. 6): on a smooth floor lit by VPLs on a wall,
    the k = 4 image is noisy (each pixel sees a sixteenth of the VPLs) and the 4 x 4 blur brings
    it back near the full sum; a window that does not hold every subset leaves more noise. */
@@ -562,6 +595,7 @@ int main(void) {
         cmocka_unit_test(visibility_unit_free),
         cmocka_unit_test(shade_uses_cluster_visibility),
         cmocka_unit_test(blur_keeps_edges),
+        cmocka_unit_test(blur_light_not_albedo),
         cmocka_unit_test(blur_undoes_interleaving),
         cmocka_unit_test(bad_input),
     };
