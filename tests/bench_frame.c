@@ -115,9 +115,9 @@ typedef struct bench_scene {
     int width[2], height[2];      /* frame: ci, full */
 } bench_scene;
 
-/* Sponza's views under its default sun: the atrium seen along its length from the west end
-   (4% of the pixels sunlit, 98% with indirect light at 64x36), and the court seen from above
-   the east end's south gallery (28% sunlit, 91% with indirect light). */
+/* Sponza's views under its default sun, at 64x36: the atrium along its length (4% of the
+   pixels sunlit, 99% with indirect light), and the court from above a gallery at the other end
+   (29% sunlit, 98% with indirect light). */
 static const bench_scene scenes[] = {
     {"street", "street", NULL, NULL, {256, 2048}, {160, 320}, {90, 180}},
     {"cornell", CORNELL_GLTF, "cornell", NULL, {256, 512}, {160, 320}, {90, 180}},
