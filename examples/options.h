@@ -29,6 +29,7 @@ typedef struct demo_options {
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
     float exposure;          /* 0: automatic */
+    int timing;              /* demo: gim_frame.timing, 2 (--timing cpu, default), 1 (gl) or 0 (off) */
     const char *screenshot;  /* viewer: --screenshot FILE */
     int allow_slow;          /* --allow-slow: run settings above demo_cost_check's limits */
 } demo_options;
@@ -50,7 +51,10 @@ static const char demo_usage_text[] =
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
-    "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n";
+    "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
+    "  --timing cpu|gl|off   demo: per-pass times from the CPU's clock after a glFinish per pass (cpu,\n"
+    "                        default: right on any driver), from GL timestamps (gl: no stalls, but llvmpipe\n"
+    "                        charges queued work to later passes), or none (off: the frame time only)\n";
 
 DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     memset(d, 0, sizeof *d);
@@ -61,6 +65,7 @@ DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     d->occlusion = 1;
     d->glossy = 1;
     d->frames = (flags & DEMO_PARSE_VIEWER) ? 0 : 3;
+    d->timing = 2;
 }
 
 DEMO_OPTIONS_FN int demo_parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
@@ -87,7 +92,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
     for (i = 1; i < argc; ++i) {
         const char *a = argv[i], *eq = strchr(a, '='), *v = NULL;
         size_t len = eq ? (size_t)(eq - a) : strlen(a), k;
-        int flag = -1, num = -1, is_method, is_exposure, is_shot;
+        int flag = -1, num = -1, is_method, is_exposure, is_shot, is_timing;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
         if (len == 14 && !strncmp(a, "--no-occlusion", 14)) flag = 0;
         else if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
@@ -106,7 +111,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         is_method = len == 8 && !strncmp(a, "--method", 8);
         is_exposure = len == 10 && !strncmp(a, "--exposure", 10);
         is_shot = (flags & DEMO_PARSE_VIEWER) && len == 12 && !strncmp(a, "--screenshot", 12);
-        if (num < 0 && !is_method && !is_exposure && !is_shot) {
+        is_timing = !(flags & DEMO_PARSE_VIEWER) && len == 8 && !strncmp(a, "--timing", 8);
+        if (num < 0 && !is_method && !is_exposure && !is_shot && !is_timing) {
             /* the scene layer's: every one of them takes one value */
             rest[n++] = argv[i];
             if (!strncmp(a, "--", 2) && !eq && i + 1 < argc) rest[n++] = argv[++i];
@@ -131,6 +137,11 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             for (k = 0; k < 6; ++k) ok |= !strcmp(v, methods[k]);
             if (!ok) { snprintf(err, cap, "--method wants gather|full|brsm|clustered|ssvp|none, got '%.200s'", v); return -1; }
             d->method = v;
+        } else if (is_timing) {
+            if (!strcmp(v, "cpu")) d->timing = 2;
+            else if (!strcmp(v, "gl")) d->timing = 1;
+            else if (!strcmp(v, "off")) d->timing = 0;
+            else { snprintf(err, cap, "--timing wants cpu|gl|off, got '%.200s'", v); return -1; }
         } else if (is_exposure) {
             char *end;
             double e;

@@ -7,8 +7,8 @@
                 node's world matrix (matrix, or T * R * S, down the hierarchy) applied;
                 mirroring transforms flip the winding; POINTS and LINES are skipped (a warning).
                 Indices 8, 16 or 32 bit, or none (vertices in order). Sparse accessors work.
-     normals    NORMAL when present and usable; otherwise area-weighted face normals (also
-                when any given normal is zero or not finite: a warning).
+     normals    NORMAL when present and usable; otherwise face normals, each triangle with its
+                own vertices (also when any given normal is zero or not finite: a warning).
      materials  (mirrors the glTF metallic-roughness model onto rho_d, rho_g, k)
                 base   = baseColorFactor.rgb * average of baseColorTexture (sRGB decoded)
                 m, r   = metallicFactor, roughnessFactor (times the averages of the B and G
@@ -166,25 +166,28 @@ template <class T> T *copy_out(const std::vector<T> &v) {
     return p;
 }
 
-/* Area-weighted vertex normals: the cross product's length is twice the triangle's area. */
-void compute_normals(mesh_b &m) {
-    size_t nv = m.pos.size() / 3;
-    std::vector<double> acc(nv * 3, 0.0);
+/* Face normals for a mesh without usable normals: every triangle gets its own three vertices.
+   Averaging over shared vertices invents curvature that a decimated mesh does not have (Sponza's
+   LOD averages across its sharp edges), and a shading normal that differs from the geometric
+   one is handled differently by every renderer; with face normals gimany and the reference
+   shade the same surface. */
+void flat_normals(mesh_b &m) {
+    std::vector<float> pos;
+    pos.reserve(m.idx.size() * 3);
+    m.nrm.clear();
+    m.nrm.reserve(m.idx.size() * 3);
     for (size_t t = 0; t + 2 < m.idx.size(); t += 3) {
         const float *a = &m.pos[3 * m.idx[t]], *b = &m.pos[3 * m.idx[t + 1]], *c = &m.pos[3 * m.idx[t + 2]];
         vec3 A{a[0], a[1], a[2]}, B{b[0], b[1], b[2]}, C{c[0], c[1], c[2]};
-        vec3 n = cross(sub(B, A), sub(C, A));
+        vec3 n = normalize(cross(sub(B, A), sub(C, A)));
+        if (len(n) == 0) n = {0, 1, 0}; /* degenerate: no area, never seen */
         for (int k = 0; k < 3; ++k) {
-            double *d = &acc[3 * m.idx[t + k]];
-            d[0] += n.x; d[1] += n.y; d[2] += n.z;
+            pos.insert(pos.end(), &m.pos[3 * m.idx[t + k]], &m.pos[3 * m.idx[t + k]] + 3);
+            m.nrm.push_back((float)n.x); m.nrm.push_back((float)n.y); m.nrm.push_back((float)n.z);
         }
     }
-    m.nrm.assign(nv * 3, 0.0f);
-    for (size_t v = 0; v < nv; ++v) {
-        vec3 n = normalize(vec3{acc[3 * v], acc[3 * v + 1], acc[3 * v + 2]});
-        if (len(n) == 0) n = {0, 1, 0}; /* unused or only in degenerate triangles */
-        m.nrm[3 * v] = (float)n.x; m.nrm[3 * v + 1] = (float)n.y; m.nrm[3 * v + 2] = (float)n.z;
-    }
+    m.pos.swap(pos);
+    for (size_t i = 0; i < m.idx.size(); ++i) m.idx[i] = (uint32_t)i;
 }
 
 void finish(builder &b, scene *out) {
@@ -785,7 +788,7 @@ struct gltf_loader {
             }
             if (!normals_ok) b.warn(std::string(what) + ": some NORMAL is zero or not finite, normals recomputed");
         }
-        if (!normals_ok) compute_normals(m);
+        if (!normals_ok) flat_normals(m);
         uint32_t mat = material_of(p.material);
         m.mat.assign(m.idx.size() / 3, mat);
         if (p.material >= 0) {

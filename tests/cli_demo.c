@@ -95,6 +95,7 @@ static void cornell_default(void **state) {
     assert_non_null(strstr(js, "\"triangles\": 30"));
     assert_non_null(strstr(js, "\"vals\": 2048"));
     assert_non_null(strstr(js, "\"frames\": 2"));
+    assert_non_null(strstr(js, "\"pass_timing\": \"cpu")); /* the default: glFinish per pass, CPU clock */
     free(js);
     /* deterministic: the same command gives the same files, bit for bit */
     assert_int_equal(demo("--scene cornell --size 64x48 --frames 2", OUT "/a2", &out), 0);
@@ -302,6 +303,7 @@ static void bad_input(void **state) {
         {"--method clustered --clusters 300", "--clusters"},
         {"--method clustered --vpls 40000", "--vpls"},
         {"--no-glossy=1", "--no-glossy"},
+        {"--timing gpu", "--timing"},
         {"--scene /nonexistent/x.gltf", "/nonexistent/x.gltf"},
         {"--scene nosuch", "nosuch"},
         {"--scene tests/cli_demo.c", "tests/cli_demo.c"},
