@@ -7781,6 +7781,20 @@ GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *ma
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
                              "material %u: values must be finite and >= 0, the exponent at most 1e6", (unsigned)i);
     }
+    {   /* a surface that reflects more than it receives gains energy at every bounce */
+        uint32_t over = 0, first = 0;
+        for (i = 0; i < count; ++i) {
+            const gim_material *m = &materials[i];
+            int c;
+            for (c = 0; c < 3; ++c)
+                if (m->diffuse[c] + m->glossy[c] > 1.0f) break;
+            if (c < 3 && over++ == 0) first = i;
+        }
+        if (over)
+            gim__log(&ctx->env, GIM_LOG_WARNING, where,
+                     "%u material(s) reflect more than they receive (diffuse + glossy > 1 in a channel; first: material %u): "
+                     "their bounces gain energy", (unsigned)over, (unsigned)first);
+    }
     if (count == 0) {
         gim__gl_enter(ctx, where);
         if (ctx->materials) ctx->gl.DeleteBuffers(1, &ctx->materials);

@@ -502,7 +502,8 @@ scene_material map_material(const gl::Model &model, const gl::Material &mat) {
     if (k >= 1.0) {
         for (int c = 0; c < 3; ++c) {
             double d = clamp01(f0 * spec_color[c]) * clamp01(spec_factor);
-            out.diffuse[c] = (float)clamp01(base[c] * (1 - metal));
+            /* the specular layer reflects d first, the diffuse base gets the rest: the sum stays <= 1 */
+            out.diffuse[c] = (float)clamp01(base[c] * (1 - metal) * (1 - d));
             out.glossy[c] = (float)clamp01(d * (1 - metal) + base[c] * metal);
         }
         out.exponent = (float)k;

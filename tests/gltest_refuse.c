@@ -71,6 +71,31 @@ static void small_rsm_warns(void **state) {
     GLTEST_END();
 }
 
+/* A material that reflects more than it receives (diffuse + glossy > 1 in a channel) is taken
+   with one warning naming it; 1 exactly is fine. */
+static void energy_gaining_material_warns(void **state) {
+    frame_fixture ff;
+    gim_material m[2];
+    int w;
+    (void)state;
+    GLTEST_BEGIN();
+    begin(&ff);
+    memset(m, 0, sizeof m);
+    m[0].diffuse[0] = m[0].diffuse[1] = m[0].diffuse[2] = 0.6f;
+    m[0].glossy[0] = m[0].glossy[1] = m[0].glossy[2] = 0.4f;   /* sums to 1: fine */
+    m[0].exponent = 10.0f;
+    m[1] = m[0];
+    w = ff.f.log.warnings;
+    assert_int_equal(gim_set_materials(ff.f.ctx, m, 2), GIM_OK);
+    assert_int_equal(ff.f.log.warnings - w, 0);
+    m[1].glossy[2] = 0.5f;
+    assert_int_equal(gim_set_materials(ff.f.ctx, m, 2), GIM_OK);
+    assert_int_equal(ff.f.log.warnings - w, 1);
+    assert_non_null(strstr(ff.f.log.last, "material 1"));
+    frame_end(&ff);
+    GLTEST_END();
+}
+
 /* A spot bright enough to saturate RGBA16F: the image does clamp at 65504 (measured here), a
    warning says so once, and RGBA32F holds the values. */
 static void half_saturation_warns(void **state) {
@@ -267,7 +292,7 @@ static void flipped_normals_warn(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {cmocka_unit_test(timing_and_scale), cmocka_unit_test(small_rsm_warns),
                                        cmocka_unit_test(half_saturation_warns), cmocka_unit_test(host_gbuffer_formats),
-                                       cmocka_unit_test(flipped_normals_warn)};
+                                       cmocka_unit_test(flipped_normals_warn), cmocka_unit_test(energy_gaining_material_warns)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;
