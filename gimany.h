@@ -1328,7 +1328,9 @@ typedef struct gim_frame_outputs {
     uint32_t val_count;
     uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light (visibility from occlusion) */
     uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
-    float glossy_exponent;      /* the lobe exponent of the glossy proxy lights */
+    float glossy_exponent;      /* the widest lobe of the glossy materials */
+    uint32_t cache_exponents;   /* SSBO: float per cache, its material's k (the glossy proxy lights' lobes); 0 when
+                                   no material is glossy */
     uint32_t neighbour_count;   /* n of the interpolation */
     float neighbour_cos;        /* cosine of the normal compatibility angle */
     float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
@@ -6479,6 +6481,7 @@ typedef struct gim__mesh {
     uint32_t max_material;        /* largest material id of its triangles */
     float bmin[3], bmax[3];       /* model-space bounds */
     gim_cache *caches;            /* the host's model-space caches (copied), for later passes */
+    uint32_t *cache_material;     /* per cache: the material of its nearest triangle (its glossy lobe); NULL: 0 */
     uint32_t cache_count;
     float theta_eps;              /* of the cache set (0: the generator's default) */
     uint64_t bytes;               /* of its GL buffers */
@@ -6504,6 +6507,10 @@ typedef struct gim__grid {
 typedef struct gim__lightskin_gpu {
     gim__GLuint caches, cells, buckets, vals, diffuse, glossy;
     uint64_t caches_bytes, cells_bytes, buckets_bytes, vals_bytes, diffuse_bytes, glossy_bytes;
+    gim__GLuint exponents;        /* float per world cache: its material's glossy k (glossy scenes only) */
+    uint64_t exponents_bytes;
+    uint32_t *material;           /* CPU: the material of each world cache, in the grid's order */
+    uint64_t exponents_for;       /* the materials_version the exponents were made from; 0: not made */
 } gim__lightskin_gpu;
 
 /* The GPU state of the VPL methods (see "the VPL frame"), sized to what the last frame used. */
@@ -6544,7 +6551,9 @@ struct gim_context {
     gim__GLuint materials;        /* SSBO: per material vec4 diffuse, vec4 (glossy, k) */
     uint32_t material_count;
     uint32_t glossy_material_count; /* materials with a glossy colour: the glossy pass runs */
-    float glossy_min_exponent;    /* the widest of their lobes (the glossy proxy lights' k) */
+    float glossy_min_exponent;    /* the widest of their lobes */
+    float *material_exponent;     /* CPU: each material's k (for the caches' glossy lobes) */
+    uint64_t materials_version;   /* bumped by gim_set_materials */
     /* the frame's resources, sized to what the last frame used */
     gim__light_gpu light_gpu[GIM_MAX_LIGHTS];
     uint32_t gbuffer_width, gbuffer_height;
@@ -7062,7 +7071,8 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
    val_count 0 is dark, not an error, and vals may then be 0). diffuse_out: SSBO of cache_count
    gim_proxy_light (48 bytes), written; glossy_out: the same for the glossy lobe of exponent k
    seen from eye, or 0 to skip the glossy sums (a scene without glossy materials pays nothing).
-   One k for every cache (the twin's cache_glossy_exponent is not taken). scene_scale > 0 (the
+   k per cache from exponents (cache_count floats, the twin's cache_glossy_exponent), or
+   `exponent` for every cache where exponents is 0. scene_scale > 0 (the
    twin's default 0 would need the bounds on the CPU). Sums in float, not double: on the
    twin's inputs the results agree to ~1e-5 relative (more with large exponents, whose lobe
    amplifies the float error of the reflected direction k-fold; tests/gltest_proxy.c). A VAL
@@ -7073,7 +7083,7 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
    a scratch buffer of 96 bytes a cache between them. */
 static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                    gim__GLuint vals, uint32_t val_count, gim_vec3 eye, float exponent,
-                                                   float scene_scale, gim__GLuint diffuse_out,
+                                                   gim__GLuint exponents, float scene_scale, gim__GLuint diffuse_out,
                                                    gim__GLuint glossy_out) {
     static const char where[] = "proxy lights (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -7107,6 +7117,8 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
     if (r == GIM_OK && glossy_out)
         r = gim__gl_check_buffer(ctx, where, "glossy_out", glossy_out, (uint64_t)cache_count * 48u);
+    if (r == GIM_OK && glossy_out && exponents)
+        r = gim__gl_check_buffer(ctx, where, "exponents", exponents, (uint64_t)cache_count * 4u);
     if (r == GIM_OK && (diffuse_out == glossy_out || diffuse_out == caches || diffuse_out == vals ||
                         (glossy_out && (glossy_out == caches || glossy_out == vals))))
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "an output buffer is also an input or the other output");
@@ -7119,6 +7131,7 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)cache_count * 96u, where);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, ctx->proxy_state);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, glossy_out && exponents ? exponents : caches); /* read only then */
     gl->UseProgram(program);
     gl->Uniform1ui(0, cache_count);
     gl->Uniform1ui(1, val_count);
@@ -7126,6 +7139,7 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     gl->Uniform1f(3, glossy_out ? exponent : 0.0f);
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
+    gl->Uniform1ui(9, glossy_out && exponents ? 1u : 0u);
     /* sums over the VALs chunk by chunk (mode 0), the dark caches' positions (mode 1), the
        proxy lights (mode 2); one dispatch each, the sums kept in proxy_state between them */
     for (mode = 0; mode < 3u; ++mode) {
@@ -7541,6 +7555,7 @@ static void gim__mesh_release(gim_context *ctx, gim__mesh *m) {
     if (m->indices) gl->DeleteBuffers(1, &m->indices);
     if (m->triangle_material) gl->DeleteBuffers(1, &m->triangle_material);
     gim__free(&ctx->env, m->caches);
+    gim__free(&ctx->env, m->cache_material);
     {
         uint32_t gen = m->generation + 1u;
         memset(m, 0, sizeof *m);
@@ -7563,6 +7578,81 @@ static uint32_t gim__index_at(const void *indices, gim_index_type type, size_t i
     return ((const uint32_t *)indices)[i];
 }
 
+/* The material of each cache: that of the triangle whose centroid is nearest among those facing
+   the cache's side (normals within 90 degrees; any triangle where none does), through the
+   neighbour search's k-d tree over the centroids. A cache then carries its own material's
+   glossy lobe (one lobe for every cache made a k = 50 surface's glossy light 1.8x off next to a
+   k = 1 one). *out: count ids, allocated through the context's env. */
+static gim_result gim__cache_materials(gim_context *ctx, const float *pos, const void *indices, gim_index_type index_type,
+                                       uint32_t tri_count, const uint32_t *tri_material, const gim_cache *caches,
+                                       uint32_t count, uint32_t **out) {
+    static const char where[] = "gim_add_mesh (cache materials)";
+    gim_cache *tc = (gim_cache *)gim__alloc_array(&ctx->env, tri_count ? tri_count : 1u, sizeof(gim_cache));
+    uint32_t *idx = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof(uint32_t)), i, pass;
+    uint32_t *cnt = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof(uint32_t));
+    float *dmax = (float *)gim__alloc_array(&ctx->env, count, sizeof(float));
+    uint32_t *mat = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof(uint32_t));
+    gim_result r = GIM_OK;
+    *out = NULL;
+    if (!tc || !idx || !cnt || !dmax || !mat) {
+        r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches, %u triangles", (unsigned)count, (unsigned)tri_count);
+        goto done;
+    }
+    for (i = 0; i < tri_count; ++i) {
+        uint32_t v[3], k;
+        gim_vec3 a, b, c, n;
+        for (k = 0; k < 3; ++k) v[k] = gim__index_at(indices, index_type, i * 3u + k);
+        a = gim_v3(pos[v[0] * 3], pos[v[0] * 3 + 1], pos[v[0] * 3 + 2]);
+        b = gim_v3(pos[v[1] * 3], pos[v[1] * 3 + 1], pos[v[1] * 3 + 2]);
+        c = gim_v3(pos[v[2] * 3], pos[v[2] * 3 + 1], pos[v[2] * 3 + 2]);
+        n = gim_v3_normalize(gim_v3_cross(gim_v3_sub(b, a), gim_v3_sub(c, a)));
+        if (!(n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) || !gim_v3_isfinite(n)) n = gim_v3(0.0f, 0.0f, 1.0f);
+        tc[i].position[0] = (a.x + b.x + c.x) / 3.0f;
+        tc[i].position[1] = (a.y + b.y + c.y) / 3.0f;
+        tc[i].position[2] = (a.z + b.z + c.z) / 3.0f;
+        tc[i].normal[0] = n.x; tc[i].normal[1] = n.y; tc[i].normal[2] = n.z;
+        tc[i].area = 0.0f;
+        tc[i].reflectance = 0.0f;
+    }
+    for (i = 0; i < count; ++i) mat[i] = tri_count ? tri_material[0] : 0u;
+    for (pass = 0; pass < 2u && tri_count; ++pass) {   /* facing triangles, then any for the caches left */
+        gim_cache_set set;
+        gim_neighbour_desc nd;
+        gim_neighbour_result nr;
+        memset(&set, 0, sizeof set);
+        set.caches = tc;
+        set.count = tri_count;
+        memset(&nd, 0, sizeof nd);
+        nd.mesh.positions = caches[0].position;
+        nd.mesh.position_stride = (uint32_t)sizeof(gim_cache);
+        nd.mesh.normals = caches[0].normal;
+        nd.mesh.normal_stride = (uint32_t)sizeof(gim_cache);
+        nd.mesh.vertex_count = count;
+        nd.caches = &set;
+        nd.n = 1;
+        nd.theta_eps = pass == 0 ? 1.5707963f : 3.14159265f;
+        nd.env = ctx->env;
+        nr.index = idx; nr.count = cnt; nr.d_cmax = dmax;
+        if ((r = gim_cache_neighbours(&nd, &nr)) != GIM_OK) goto done;
+        for (i = 0; i < count; ++i)
+            if (cnt[i] > 0 && (pass == 0 || mat[i] == UINT32_MAX)) mat[i] = tri_material[idx[i]];
+            else if (pass == 0) mat[i] = UINT32_MAX;   /* none facing: the second pass decides */
+        if (pass == 0) {
+            for (i = 0; i < count && mat[i] != UINT32_MAX; ++i) {}
+            if (i == count) break;
+        }
+    }
+    *out = mat;
+    mat = NULL;
+done:
+    gim__free(&ctx->env, tc);
+    gim__free(&ctx->env, idx);
+    gim__free(&ctx->env, cnt);
+    gim__free(&ctx->env, dmax);
+    gim__free(&ctx->env, mat);
+    return r;
+}
+
 GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out) {
     static const char where[] = "gim_add_mesh";
     const gim_mesh_data *d;
@@ -7570,6 +7660,7 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     uint32_t pstride, nstride, i, slot, tri_count, max_material = 0;
     float *pos = NULL, *nrm = NULL;
     uint32_t *tri_material = NULL;
+    uint32_t *cache_material = NULL;
     gim_cache *caches = NULL;
     gim__mesh m;
     gim_result r = GIM_OK;
@@ -7686,6 +7777,11 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
             goto done;
         }
         memcpy(caches, desc->caches->caches, (size_t)desc->caches->count * sizeof(gim_cache));
+        if (d->triangle_material) {
+            r = gim__cache_materials(ctx, pos, d->indices, d->index_type, tri_count, tri_material, caches,
+                                     desc->caches->count, &cache_material);
+            if (r != GIM_OK) goto done;
+        }
     }
     if (slot == ctx->mesh_slots) { /* grow the slot array */
         uint32_t n = ctx->mesh_slots ? ctx->mesh_slots * 2u : 8u;
@@ -7728,6 +7824,8 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     if (r == GIM_OK && !(m.vao && m.positions && m.normals && m.indices && m.triangle_material))
         r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGen* returned 0");
     m.caches = caches;
+    m.cache_material = cache_material;
+    cache_material = NULL;
     m.cache_count = caches ? desc->caches->count : 0u;
     m.theta_eps = caches ? desc->caches->theta_eps : 0.0f;
     m.bytes = (uint64_t)d->vertex_count * 24u + index_bytes + (uint64_t)tri_count * 4u;
@@ -7749,6 +7847,7 @@ done:
     gim__free(&ctx->env, nrm);
     gim__free(&ctx->env, tri_material);
     gim__free(&ctx->env, caches);
+    gim__free(&ctx->env, cache_material);
     return r;
 }
 
@@ -7795,6 +7894,9 @@ GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *ma
                      "%u material(s) reflect more than they receive (diffuse + glossy > 1 in a channel; first: material %u): "
                      "their bounces gain energy", (unsigned)over, (unsigned)first);
     }
+    ++ctx->materials_version;
+    gim__free(&ctx->env, ctx->material_exponent);
+    ctx->material_exponent = NULL;
     if (count == 0) {
         gim__gl_enter(ctx, where);
         if (ctx->materials) ctx->gl.DeleteBuffers(1, &ctx->materials);
@@ -7804,13 +7906,19 @@ GIMANY_DEF gim_result gim_set_materials(gim_context *ctx, const gim_material *ma
         return gim__gl_leave(ctx, gim__gl_check(ctx, where));
     }
     packed = (float *)gim__alloc_array(&ctx->env, count, 8u * sizeof(float));
-    if (!packed) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u materials", (unsigned)count);
+    ctx->material_exponent = (float *)gim__alloc_array(&ctx->env, count, sizeof(float));
+    if (!packed || !ctx->material_exponent) {
+        gim__free(&ctx->env, packed);
+        ctx->material_count = 0;
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u materials", (unsigned)count);
+    }
     for (i = 0; i < count; ++i) {
         float *p = packed + (size_t)i * 8u;
         memcpy(p, materials[i].diffuse, 3 * sizeof(float));
         p[3] = 0.0f;
         memcpy(p + 4, materials[i].glossy, 3 * sizeof(float));
         p[7] = materials[i].exponent;
+        ctx->material_exponent[i] = materials[i].exponent;
     }
     ctx->glossy_material_count = 0;
     ctx->glossy_min_exponent = 0.0f;
@@ -7910,7 +8018,7 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i;
-    gim__GLuint t[5], b[6];
+    gim__GLuint t[5], b[7];
     for (i = 0; i < ctx->mesh_slots; ++i)
         if (ctx->meshes[i].used) gim__mesh_release(ctx, &ctx->meshes[i]);
     gim__free(&ctx->env, ctx->meshes);
@@ -7920,8 +8028,10 @@ static void gim__scene_destroy(gim_context *ctx) {
     t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
     gl->DeleteTextures(5, t);
     b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets;
-    b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse; b[5] = ctx->ls.glossy;
-    gl->DeleteBuffers(6, b);
+    b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse; b[5] = ctx->ls.glossy; b[6] = ctx->ls.exponents;
+    gl->DeleteBuffers(7, b);
+    gim__free(&ctx->env, ctx->ls.material);
+    gim__free(&ctx->env, ctx->material_exponent);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
     if (ctx->facing) gl->DeleteBuffers(1, &ctx->facing);
@@ -8337,7 +8447,8 @@ static gim_result gim__grid_build(const gim_env *env, const gim_cache *in, uint3
         }
         key[i] = gim__grid_hash(c[0], c[1], c[2]) & (t - 1u);
         ++(*buckets)[key[i] + 1u];
-        (*cells)[i * 4u] = c[0]; (*cells)[i * 4u + 1u] = c[1]; (*cells)[i * 4u + 2u] = c[2]; (*cells)[i * 4u + 3u] = 0;
+        (*cells)[i * 4u] = c[0]; (*cells)[i * 4u + 1u] = c[1]; (*cells)[i * 4u + 2u] = c[2];
+        (*cells)[i * 4u + 3u] = (int32_t)i;   /* where the cache was before the sort */
     }
     for (i = 0; i < t; ++i) (*buckets)[i + 1u] += (*buckets)[i];
     memcpy(fill, *buckets, (size_t)t * sizeof(uint32_t));
@@ -8455,9 +8566,11 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
 
 static void gim__lightskin_release(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
-    gim__GLuint b[6];
+    gim__GLuint b[7];
     b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
-    ctx->gl.DeleteBuffers(6, b);
+    b[6] = ls->exponents;
+    ctx->gl.DeleteBuffers(7, b);
+    gim__free(&ctx->env, ls->material);
     memset(ls, 0, sizeof *ls);
     if (ctx->indirect) ctx->gl.DeleteTextures(1, &ctx->indirect);
     ctx->indirect = 0;
@@ -8506,19 +8619,35 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
         grid = ctx->ls_grid;   /* nothing moved: the world caches and their grid stand */
         goto vals;
     }
-    /* caches to world space, the compatibility angle (2 theta_eps of the sets, at most 90 degrees) */
+    /* caches to world space (and their materials), the compatibility angle (2 theta_eps of the
+       sets, at most 90 degrees) */
     world = (gim_cache *)gim__alloc_array(&ctx->env, total, sizeof(gim_cache));
-    if (!world) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", (unsigned)total);
+    gim__free(&ctx->env, ls->material);
+    ls->material = (uint32_t *)gim__alloc_array(&ctx->env, total, sizeof(uint32_t));
+    ls->exponents_for = 0;
+    if (!world || !ls->material) {
+        gim__free(&ctx->env, world);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", (unsigned)total);
+    }
     for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i) {
         const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
         double t = 2.0 * (m->theta_eps > 0.0f ? m->theta_eps : 0.52359877559829887);
+        uint32_t j;
         if (!m->cache_count) continue;
         r = gim_caches_to_world(m->caches, m->cache_count, ctx->instances[i].model, world + off, ctx->env);
+        for (j = 0; j < m->cache_count; ++j) ls->material[off + j] = m->cache_material ? m->cache_material[j] : 0u;
         off += m->cache_count;
         if (t > theta) theta = t;
     }
     if (theta > 1.5707963267948966) theta = 1.5707963267948966;
     if (r == GIM_OK) r = gim__grid_build(&ctx->env, world, total, scale / 32.0f, &grid, &sorted, &cells, &buckets);
+    if (r == GIM_OK) {   /* the materials in the grid's order: cell w is each cache's index before the sort */
+        uint32_t *unsorted = ls->material;
+        ls->material = (uint32_t *)gim__alloc_array(&ctx->env, total, sizeof(uint32_t));
+        if (!ls->material) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u caches", (unsigned)total);
+        for (i = 0; r == GIM_OK && i < total; ++i) ls->material[i] = unsorted[cells[i * 4u + 3u]];
+        gim__free(&ctx->env, unsorted);
+    }
     if (r == GIM_OK) r = gim__gl_upload(ctx, &ls->caches, &ls->caches_bytes, sorted, (uint64_t)total * 32u, where);
     if (r == GIM_OK) r = gim__gl_upload(ctx, &ls->cells, &ls->cells_bytes, cells, (uint64_t)total * 16u, where);
     if (r == GIM_OK)
@@ -8555,15 +8684,30 @@ vals:
     }
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_VALS);
-    /* glossy proxy lights only when a material has a glossy colour; one lobe for all caches */
+    /* glossy proxy lights only when a material has a glossy colour, each cache with the lobe of
+       its own material (made again when the caches or the materials change) */
     k_glossy = ctx->glossy_min_exponent;
     glossy = ctx->glossy_material_count > 0;
     r = gim__gl_upload(ctx, &ls->diffuse, &ls->diffuse_bytes, NULL, (uint64_t)total * 48u, where);
     if (r == GIM_OK && glossy) r = gim__gl_upload(ctx, &ls->glossy, &ls->glossy_bytes, NULL, (uint64_t)total * 48u, where);
+    if (r == GIM_OK && glossy && ls->exponents_for != ctx->materials_version) {
+        float *k = (float *)gim__alloc_array(&ctx->env, total, sizeof(float));
+        if (!k) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u cache exponents", (unsigned)total);
+        for (i = 0; i < total; ++i) {
+            float e = ls->material[i] < ctx->material_count ? ctx->material_exponent[ls->material[i]] : 0.0f;
+            k[i] = e < GIM__TWINS_MAX_EXPONENT ? e : GIM__TWINS_MAX_EXPONENT;
+        }
+        r = gim__gl_upload(ctx, &ls->exponents, &ls->exponents_bytes, k, (uint64_t)total * 4u, where);
+        gim__free(&ctx->env, k);
+        if (r == GIM_OK) ls->exponents_for = ctx->materials_version;
+    }
     if (r == GIM_OK && !glossy && ls->glossy) {
-        ctx->gl.DeleteBuffers(1, &ls->glossy);
-        ls->glossy = 0;
-        ls->glossy_bytes = 0;
+        gim__GLuint b[2];
+        b[0] = ls->glossy; b[1] = ls->exponents;
+        ctx->gl.DeleteBuffers(ls->exponents ? 2 : 1, b);
+        ls->glossy = ls->exponents = 0;
+        ls->glossy_bytes = ls->exponents_bytes = 0;
+        ls->exponents_for = 0;
     }
     if (r != GIM_OK) return r;
     gim__camera_eye(f->view, f->proj, eye);
@@ -8574,7 +8718,7 @@ vals:
         eye[0] = c[0]; eye[1] = c[1]; eye[2] = c[2];
     }
     r = gim__gl_proxy_lights(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
-                             scale, ls->diffuse, glossy ? ls->glossy : 0u);
+                             glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
     if (f->occlusion) {
@@ -8614,6 +8758,7 @@ vals:
     o->proxy_diffuse = ls->diffuse;
     o->proxy_glossy = glossy ? ls->glossy : 0u;
     o->glossy_exponent = glossy ? k_glossy : 0.0f;
+    o->cache_exponents = glossy ? ls->exponents : 0u;
     o->neighbour_count = n;
     o->neighbour_cos = sa.cos_theta;
     o->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
@@ -9658,7 +9803,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
-         ctx->ls.glossy_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
+         ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
          ctx->vpl.maps_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +

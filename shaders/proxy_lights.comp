@@ -14,15 +14,17 @@ layout(std430, binding = 0) readonly buffer Caches { Cache cache[]; };
 layout(std430, binding = 1) readonly buffer Vals { Val val[]; };
 layout(std430, binding = 2) writeonly buffer Diffuse { Proxy diffuse_out[]; };
 layout(std430, binding = 3) writeonly buffer Glossy { Proxy glossy_out[]; };
+layout(std430, binding = 5) readonly buffer Exponents { float cache_k[]; };   /* per cache, when per_cache_k */
 
 layout(location = 0) uniform uint cache_count;
 layout(location = 1) uniform uint val_count;
 layout(location = 2) uniform vec3 eye;
-layout(location = 3) uniform float exponent;     /* Phong k of the glossy lobe */
+layout(location = 3) uniform float exponent;     /* Phong k of the glossy lobe (every cache's unless per_cache_k) */
 layout(location = 4) uniform float coincident2;  /* (1e-6 scene_scale)^2: no direction nearer */
 layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out untouched */
 layout(location = 6) uniform uint first;         /* this dispatch's VALs: [first, first + chunk) */
 layout(location = 7) uniform uint chunk;
+layout(location = 9) uniform uint per_cache_k;  /* 1: each cache's k from cache_k (its material's lobe) */
 layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 1: the
                                                     form-factor positions of dark caches; 2: write
                                                     the proxy lights */
@@ -93,7 +95,7 @@ void rescale(inout Sums a, inout float shift, float to) {
 
 /* eq. 5/13 position, sigma, eq. 7 flux with the guard (normal irradiance <= E_n); the sums
    (not E_n) scaled by 2^-shift */
-Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float shift) {
+Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float shift, float k) {
     Proxy p;
     bool ok = a.w > 0.0 && finite4(vec4(a.mean, a.w)) && finite4(vec4(a.m2, 0.0)) && finite4(vec4(a.s, en));
     vec3 o = ok ? a.mean : vec3(0.0);
@@ -109,7 +111,7 @@ Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float s
         float cos_p = dot(n, w);
         float dproxy = max(cos_p, 0.0);
         if (glossy_lobe && dproxy > 0.0) {
-            float l = log2_lobe(dot(2.0 * cos_p * n - w, v), exponent);
+            float l = log2_lobe(dot(2.0 * cos_p * n - w, v), k);
             dproxy = l == NO_LOBE ? 0.0 : dproxy * exp2(min(l - shift, 126.0));   /* scaled as S */
         }
         dproxy = max(dproxy, lum_s / en);                       /* the guard */
@@ -148,6 +150,7 @@ void main() {
     Cache cc = cache[ii];
     vec3 c = cc.position_area.xyz, n = cc.normal_reflectance.xyz;
     bool glossy = with_glossy != 0u;
+    float k = glossy && per_cache_k != 0u ? cache_k[ii] : exponent;
     vec3 te = eye - c;
     float le = dot(te, te);
     vec3 v = glossy && le > 0.0 ? te / sqrt(le) : vec3(0.0);   /* eye at the cache: only k = 0 lights */
@@ -188,7 +191,7 @@ void main() {
                     add(sd, d, wgt, phi, e);
                     en += lphi * e_n;
                     if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
-                        float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), exponent);   /* eq. 4/15 */
+                        float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), k);   /* eq. 4/15 */
                         if (l != NO_LOBE) {
                             if (l > shift) rescale(sg, shift, l);
                             float g = exp2(l - shift);
@@ -239,7 +242,7 @@ void main() {
         state[b + 5u] = vec4(sg.m2, 0.0);
         return;
     }
-    diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0);
+    diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0, k);
     if (glossy) {
         if (!(sg.w > 0.0)) {   /* the lobe sees no light: the diffuse proxy's place, flux 0 */
             sg.w = sd.w;
@@ -247,6 +250,6 @@ void main() {
             sg.m2 = sd.m2;
             shift = 0.0;
         }
-        glossy_out[i] = finish(sg, en, c, n, v, true, shift);
+        glossy_out[i] = finish(sg, en, c, n, v, true, shift, k);
     }
 }

@@ -223,11 +223,11 @@ int main(void) {
         for (k = 0; k < 2; ++k)
             for (g = 0; g < 2; ++g) {
                 double t[RUNS];
-                gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 15.0f, bd, g ? bg : 0);
+                gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 0u, 15.0f, bd, g ? bg : 0);
                 glFinish();
                 for (r = 0; r < RUNS; ++r) {
                     double t0 = now_ms();
-                    gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 15.0f, bd, g ? bg : 0);
+                    gim__gl_proxy_lights(ctx, bc, C, bv, counts[k], gim_v3(5.0f, 5.0f, 20.0f), 20.0f, 0u, 15.0f, bd, g ? bg : 0);
                     glFinish();
                     t[r] = now_ms() - t0;
                 }

@@ -741,7 +741,7 @@ static void val_on_cache(void **state) {
     bv = gltest_ssbo(sizeof v, v);
     bd = gltest_ssbo(sizeof gd, NULL);
     bg = gltest_ssbo(sizeof gg, NULL);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, NC, bv, NV, pd.eye, 20.0f, s, bd, bg), GIM_OK);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, NC, bv, NV, pd.eye, 20.0f, 0u, s, bd, bg), GIM_OK);
     gltest_read_buffer(bd, sizeof gd, gd);
     gltest_read_buffer(bg, sizeof gg, gg);
     for (i = 0; i < NC; ++i)

@@ -22,7 +22,7 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
     gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
     gim_cache *caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
     gim_val *vals = (gim_val *)malloc((size_t)o.val_count * sizeof *vals);
-    float *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu;
+    float *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu, *kc = NULL;
     gim_cache_set set;
     gim_neighbour_desc nd;
     gim_neighbour_result nr;
@@ -59,6 +59,11 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
     ld.eye = eye;
     ld.glossy = o.proxy_glossy != 0;
     ld.glossy_exponent = o.glossy_exponent;
+    if (o.cache_exponents) {   /* each cache's own lobe, as the frame made it */
+        kc = (float *)malloc(o.cache_count * sizeof(float));
+        gltest_read_buffer(o.cache_exponents, o.cache_count * sizeof(float), kc);
+        ld.cache_glossy_exponent = kc;
+    }
     ld.occlusion = occlusion;
     ld.receivers = rec; ld.receiver_count = nrec;
     ld.neighbour_index = nb_idx; ld.neighbour_count = nb_cnt; ld.neighbour_stride = n; ld.d_cmax = dcmax;
@@ -67,6 +72,7 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
     assert_int_equal(gim_lightskin_cpu(&ld, cpu), GIM_OK);
     bad = compare_pixels(gpu, cpu, map, nrec, tol, max_rel);
     free(pos_nrm); free(rec); free(caches); free(vals); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
+    free(kc);
     return bad;
 }
 
@@ -194,6 +200,7 @@ static void rsm_gather_matches_twin(void **state) {
     frame_begin(&ff, NULL, 32);
     ff.fr.method = GIM_METHOD_RSM_GATHER;
     ff.fr.gather_samples = 64;
+    ff.fr.gather_radius = 0.15f;   /* Dachsbacher's narrow pattern (the default holds the whole RSM) */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     gltest_state_unchanged(&ff.f);
     o = gim_outputs(ff.f.ctx);

@@ -152,12 +152,12 @@ static void compare(const config *c, const gim_proxy_light *cpu, const gim_proxy
 
 /* Run the twin and the pass on c; errors of the diffuse set in ed, of the glossy set (k >= 0)
    in eg (k < 0: diffuse only, no glossy buffer). */
-static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, errors *ed, errors *eg) {
+static void run_both_k(gltest_fixture *f, const config *c, gim_vec3 eye, float k, const float *kc, errors *ed, errors *eg) {
     gim_proxy_desc d;
     size_t n = c->cache_count;
     gim_proxy_light *cd = (gim_proxy_light *)calloc(n, sizeof *cd), *cg = (gim_proxy_light *)calloc(n, sizeof *cg);
     gim_proxy_light *gd = (gim_proxy_light *)calloc(n, sizeof *gd), *gg = (gim_proxy_light *)calloc(n, sizeof *gg);
-    GLuint bc, bv, bd, bg = 0;
+    GLuint bc, bv, bd, bg = 0, bk = 0;
     memset(&d, 0, sizeof d);
     d.caches = c->caches;
     d.cache_count = c->cache_count;
@@ -165,6 +165,7 @@ static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, 
     d.val_count = c->val_count;
     d.eye = eye;
     d.glossy_exponent = k < 0.0f ? 0.0f : k;
+    d.cache_glossy_exponent = kc;
     d.scene_scale = c->scale;
     d.env = f->env;
     assert_int_equal(gim_proxy_lights(&d, cd, k >= 0.0f ? cg : NULL), GIM_OK);
@@ -172,7 +173,8 @@ static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, 
     bv = gltest_ssbo((size_t)c->val_count * sizeof(gim_val), c->vals);
     bd = gltest_ssbo(n * sizeof(gim_proxy_light), NULL);
     if (k >= 0.0f) bg = gltest_ssbo(n * sizeof(gim_proxy_light), NULL);
-    assert_int_equal(gim__gl_proxy_lights(f->ctx, bc, c->cache_count, bv, c->val_count, eye, k < 0.0f ? 0.0f : k,
+    if (kc) bk = gltest_ssbo(n * sizeof(float), kc);
+    assert_int_equal(gim__gl_proxy_lights(f->ctx, bc, c->cache_count, bv, c->val_count, eye, k < 0.0f ? 0.0f : k, bk,
                                           c->scale, bd, bg),
                      GIM_OK);
     gltest_state_unchanged(f);
@@ -186,7 +188,12 @@ static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, 
     glDeleteBuffers(1, &bv);
     glDeleteBuffers(1, &bd);
     if (bg) glDeleteBuffers(1, &bg);
+    if (bk) glDeleteBuffers(1, &bk);
     free(cd); free(cg); free(gd); free(gg);
+}
+
+static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, errors *ed, errors *eg) {
+    run_both_k(f, c, eye, k, NULL, ed, eg);
 }
 
 /* --- tests ----------------------------------------------------------------------------------- */
@@ -237,6 +244,18 @@ static void matches_twin(void **state) {
                 assert_true(eg.lit > 20);
                 assert_true(eg.position < tol_gp[ki] && eg.sigma < tol_gp[ki]);
                 assert_true(eg.flux < tol_g[ki]);
+            }
+            {   /* each cache its own lobe (its material's): k = 1 and 20 alternating, as the twin's
+                   cache_glossy_exponent; the uniform k (1000) must not be what the pass takes */
+                float *kc = (float *)malloc(c.cache_count * sizeof(float));
+                uint32_t i;
+                for (i = 0; i < c.cache_count; ++i) kc[i] = i % 2u ? 1.0f : 20.0f;
+                run_both_k(&f, &c, eye, 1000.0f, kc, &ed, &eg);
+                print_message("  + glossy k per cache (1, 20): glossy position %.3g sigma %.3g flux %.3g (%u lit)\n",
+                              eg.position, eg.sigma, eg.flux, eg.lit);
+                assert_true(eg.lit > 20);
+                assert_true(eg.position < tol_gp[1] && eg.sigma < tol_gp[1] && eg.flux < tol_g[1]);
+                free(kc);
             }
             free_config(&c);
         }
@@ -352,7 +371,7 @@ static void broken_vals_add_nothing(void **state) {
     bc = gltest_ssbo(64 * sizeof(gim_cache), c.caches);
     bv = gltest_ssbo(128 * sizeof(gim_val), c.vals);
     bd = gltest_ssbo(64 * sizeof(gim_proxy_light), NULL);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 64, bv, 128, gim_v3(0, 0, 0), 0.0f, c.scale, bd, 0), GIM_OK);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 64, bv, 128, gim_v3(0, 0, 0), 0.0f, 0u, c.scale, bd, 0), GIM_OK);
     gltest_read_buffer(bd, 64 * sizeof(gim_proxy_light), gpu);
     memset(c.vals + 10, 0, 3 * sizeof(gim_val));
     memset(&d, 0, sizeof d);
@@ -389,23 +408,23 @@ static void pass_arguments(void **state) {
         bg = gltest_ssbo(16 * sizeof(gim_proxy_light), fill);
         small = gltest_ssbo(15 * sizeof(gim_proxy_light), NULL);
     }
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, 0, 16, bv, 16, eye, 1.0f, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 0, bv, 16, eye, 1.0f, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, 0, 16, eye, 1.0f, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 1.0f, 0, bg), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, NAN, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, -1.0f, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 2e6f, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, gim_v3(NAN, 0, 0), 1.0f, 1.0f, bd, bg),
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, 0, 16, bv, 16, eye, 1.0f, 0u, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 0, bv, 16, eye, 1.0f, 0u, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, 0, 16, eye, 1.0f, 0u, 1.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 1.0f, 0, bg), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 0.0f, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, NAN, bd, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, -1.0f, 0u, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 2e6f, 0u, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, gim_v3(NAN, 0, 0), 1.0f, 0u, 1.0f, bd, bg),
                      GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 1.0f, small, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 1.0f, bd, small), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 17, bv, 16, eye, 1.0f, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 17, eye, 1.0f, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 1.0f, bd, bd), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 1.0f, 999999u, 0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 65535u * 64u + 1u, bv, 16, eye, 1.0f, 1.0f, bd, 0),
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 1.0f, small, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 1.0f, bd, small), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 17, bv, 16, eye, 1.0f, 0u, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 17, eye, 1.0f, 0u, 1.0f, bd, bg), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 1.0f, bd, bd), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 16, bv, 16, eye, 1.0f, 0u, 1.0f, 999999u, 0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, 65535u * 64u + 1u, bv, 16, eye, 1.0f, 0u, 1.0f, bd, 0),
                      GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(f.log.errors, 16);
     f.log.errors = 0;
