@@ -8015,10 +8015,12 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
     return GIM_OK;
 }
 
+static void gim__lightskin_drop(gim_context *ctx);
+
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i;
-    gim__GLuint t[5], b[7];
+    gim__GLuint t[5], b[2];
     for (i = 0; i < ctx->mesh_slots; ++i)
         if (ctx->meshes[i].used) gim__mesh_release(ctx, &ctx->meshes[i]);
     gim__free(&ctx->env, ctx->meshes);
@@ -8027,10 +8029,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
     t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
     gl->DeleteTextures(5, t);
-    b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets;
-    b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse; b[5] = ctx->ls.glossy; b[6] = ctx->ls.exponents;
-    gl->DeleteBuffers(7, b);
-    gim__free(&ctx->env, ctx->ls.material);
+    gim__lightskin_drop(ctx);
     gim__free(&ctx->env, ctx->material_exponent);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
@@ -8564,7 +8563,8 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
     ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
 }
 
-static void gim__lightskin_release(gim_context *ctx) {
+/* The LightSkin buffers and the caches' materials (a frame of another method keeps none). */
+static void gim__lightskin_drop(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
     gim__GLuint b[7];
     b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
@@ -8572,6 +8572,11 @@ static void gim__lightskin_release(gim_context *ctx) {
     ctx->gl.DeleteBuffers(7, b);
     gim__free(&ctx->env, ls->material);
     memset(ls, 0, sizeof *ls);
+}
+
+/* ... and the indirect texture (a LightSkin frame with nothing to light). */
+static void gim__lightskin_release(gim_context *ctx) {
+    gim__lightskin_drop(ctx);
     if (ctx->indirect) ctx->gl.DeleteTextures(1, &ctx->indirect);
     ctx->indirect = 0;
     ctx->indirect_width = ctx->indirect_height = 0;
@@ -9709,11 +9714,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     memcpy(o.bounds_min, bmin, sizeof bmin);
     memcpy(o.bounds_max, bmax, sizeof bmax);
     if (r == GIM_OK && gather) {
-        gim__GLuint b[6];   /* no LightSkin buffers in a gather frame */
-        b[0] = ctx->ls.caches; b[1] = ctx->ls.cells; b[2] = ctx->ls.buckets; b[3] = ctx->ls.vals; b[4] = ctx->ls.diffuse;
-        b[5] = ctx->ls.glossy;
-        ctx->gl.DeleteBuffers(6, b);
-        memset(&ctx->ls, 0, sizeof ctx->ls);
+        gim__lightskin_drop(ctx);   /* no LightSkin buffers in a gather frame */
         gim__vpl_release(ctx);
         r = ctx->light_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
                                                   frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
@@ -9729,11 +9730,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         ctx->gather_samples = ctx->gather_sum = 0;
         ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
         if (vplm) {
-            gim__GLuint l[6];   /* no LightSkin buffers in a VPL frame */
-            l[0] = ctx->ls.caches; l[1] = ctx->ls.cells; l[2] = ctx->ls.buckets; l[3] = ctx->ls.vals;
-            l[4] = ctx->ls.diffuse; l[5] = ctx->ls.glossy;
-            ctx->gl.DeleteBuffers(6, l);
-            memset(&ctx->ls, 0, sizeof ctx->ls);
+            gim__lightskin_drop(ctx);   /* no LightSkin buffers in a VPL frame */
             r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o);
         } else {
             gim__vpl_release(ctx);

@@ -183,6 +183,46 @@ static void check_scene(phys_which which, double scale, const double *offset) {
 
 static const double origin[3] = {0.0, 0.0, 0.0};
 
+/* Each cache carries its own surface's glossy lobe: the corner's floor k = 1 and wall k = 50,
+   and every floor cache (normal +y) reads 1, every wall cache (+x) 50. */
+static void caches_take_their_material(void **state) {
+    phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
+    gim_material m[2];
+    gim_frame_outputs o;
+    gim_cache *caches;
+    float *k;
+    uint32_t i, floor_ = 0, wall = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    frame_begin(p, PHYS_CORNER_SUN, 1.0, origin);
+    memset(m, 0, sizeof m);
+    for (i = 0; i < 2; ++i) {
+        m[i].diffuse[0] = m[i].diffuse[1] = m[i].diffuse[2] = 0.5f;
+        m[i].glossy[0] = m[i].glossy[1] = m[i].glossy[2] = 0.2f;
+    }
+    m[0].exponent = 1.0f;
+    m[1].exponent = 50.0f;
+    assert_int_equal(gim_set_materials(p->f.ctx, m, 2), GIM_OK);
+    p->fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
+    o = gim_outputs(p->f.ctx);
+    assert_true(o.cache_exponents != 0 && o.cache_count > 0);
+    caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
+    k = (float *)malloc(o.cache_count * sizeof *k);
+    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
+    gltest_read_buffer(o.cache_exponents, o.cache_count * sizeof *k, k);
+    for (i = 0; i < o.cache_count; ++i) {
+        if (caches[i].normal[1] > 0.9f) { assert_true(k[i] == 1.0f); ++floor_; }
+        if (caches[i].normal[0] > 0.9f) { assert_true(k[i] == 50.0f); ++wall; }
+    }
+    assert_true(floor_ > 0 && wall > 0 && floor_ + wall == o.cache_count);
+    free(caches);
+    free(k);
+    frame_end(p);
+    free(p);
+    GLTEST_END();
+}
+
 static void corner_sun(void **state) {
     (void)state;
     GLTEST_BEGIN();
@@ -222,6 +262,7 @@ int main(void) {
         cmocka_unit_test(corner_spot),
         cmocka_unit_test(corner_scales),
         cmocka_unit_test(plates_and_patch),
+        cmocka_unit_test(caches_take_their_material),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
