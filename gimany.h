@@ -587,6 +587,8 @@ typedef struct gim_proxy_desc {
     float glossy_exponent;       /* k >= 0 of every cache (<= 1e6) */
     const float *cache_glossy_exponent; /* cache_count values of k, or NULL: glossy_exponent */
     float scene_scale;           /* > 0; 0: diagonal of the bounds of caches and VALs */
+    const float *visibility;     /* cache_count * val_count V(c, x_j) in [0,1], row per cache (e.g.
+                                    gim_ism_visibility), or NULL: every VAL seen */
     gim_env env;
 } gim_proxy_desc;
 
@@ -613,7 +615,9 @@ typedef struct gim_proxy_desc {
      rises above its VALs); where it bites the cache's own radiance is underestimated by
      D_p / floor (a glossy lobe narrower than the spread of the light around the mirror
      direction), never overestimated.
-   visibility = 1. A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
+   With visibility, e_j (and its E_n term) is multiplied by V(c, x_j): a VAL the cache cannot
+   see neither lights nor places the proxy. visibility = 1 (the proxy light's field, for
+   gim_proxy_occlusion). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
    weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
    (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
    or breaks the ranges above (the first offender is logged), k out of range. */
@@ -705,6 +709,7 @@ typedef struct gim_lightskin_desc {
     uint32_t neighbour_stride;
     const float *d_cmax;
     float scene_scale;                /* > 0; 0: diagonal of the bounds of caches and VALs */
+    const float *visibility;          /* as gim_proxy_desc.visibility, or NULL */
     gim_env env;
 } gim_lightskin_desc;
 
@@ -1008,6 +1013,85 @@ GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
    kernel and the bias. */
 GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
                                                 gim_vec3 receiver, float *out);
+
+/* Imperfect shadow maps (Ritschel et al. 2008): the scene as points, one small paraboloid
+   depth map per cache (the hemisphere around its normal, the convention above) in which a
+   subset of the points is splatted, holes filled by pull-push. Each point is splatted as a
+   surfel, a disk of the area it stands for in its triangle's plane, written at the depth of
+   that plane along each texel's ray: one texel per point (the paper's splat) leaves most
+   texels of a sparsely sampled near wall to the points behind it (light through walls), and
+   a texel's nearest point lies up to a texel's slope nearer than the surface at its centre
+   (false shadow on surfaces seen at grazing angles). The maps
+   are looked up per VAL inside the proxy-light sum, so a proxy light carries only the light
+   its cache sees. Sizes: map side GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, a power of two (the
+   pull-push pyramid of one map fits a GPU work group's shared memory), 1..GIM_ISM_MAX_POINTS
+   points per map. */
+#define GIM_ISM_MIN_SIZE 4u
+#define GIM_ISM_MAX_SIZE 64u
+#define GIM_ISM_MAX_POINTS 65536u
+#define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
+#define GIM_ISM_DEFAULT_POINTS 16384u
+#define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
+#define GIM_ISM_BIAS 0.04f            /* depth bias, a fraction of the distance (unit-free) */
+#define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
+#define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
+#define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
+#define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
+
+/* count points area-uniform over the scene's triangles, deterministic and low-discrepancy:
+   point i takes u = (i + 0.5) / count of the cumulative area (which picks the triangle and a
+   fraction r along it) and v = frac(i phi), phi the golden ratio (a radical inverse would put
+   every point of a stride-2^k subset in one 2^-k band of v), and lands at the barycentrics
+   (1 - sqrt(r), v sqrt(r)) of vertices 1, 2 (area-uniform inside the triangle). Consecutive
+   points walk the triangles in order, so any stride through them covers the scene evenly.
+   out: count * 8 floats, two vec4 as the GPU buffer: (x, y, z, A / count) with A the scene's
+   area, (the triangle's unit face normal, 0). A scene of zero area is
+   GIM_ERROR_INVALID_ARGUMENT. */
+GIMANY_API gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count, float *out);
+
+/* Input of gim_ism_render and gim_ism_visibility; zero means default. */
+typedef struct gim_ism_desc {
+    const gim_cache *caches;        /* one map per cache: origin c + GIM_ISM_LIFT scene_scale n */
+    uint32_t cache_count;
+    const float *points;            /* point_count * 8 (gim_ism_points) */
+    uint32_t point_count;
+    uint32_t size;                  /* map side; 0: GIM_ISM_DEFAULT_SIZE */
+    uint32_t points_per_map;        /* P; 0: GIM_ISM_DEFAULT_POINTS (at most point_count are taken) */
+    float bias;                     /* relative depth bias; 0: GIM_ISM_BIAS */
+    float slope;                    /* slope bias; 0: GIM_ISM_SLOPE */
+    float scene_scale;              /* > 0 */
+    gim_env env;
+} gim_ism_desc;
+
+/* The maps, distance_out[cache_count * size^2] (map m row-major at m size^2). Map m splats
+   the P points offset + k stride, k < P, stride = point_count / P, offset = frac(m phi) stride
+   (phi the golden ratio; a stratified subset of the points, shifted per map: each map sees a
+   different subset, all evenly spread), each standing for area a = stride x its .w. A point p
+   in front of the map's plane (w.z > 0) at distance dist > GIM_ISM_LIFT scene_scale lands in
+   the texel under w.xy / (1 + w.z) (floor, clamped). As a surfel of radius
+   rs = GIM_ISM_SPLAT sqrt(a / pi) in its plane it covers each texel within
+   R = min(ceil(rs / dist size / 2), GIM_ISM_SPLAT_TEXELS) of that one whose centre ray meets
+   the plane (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's
+   distance; its own texel wherever the ray meets the plane beyond the lift, else at dist. The
+   nearest wins; texels nothing covered are GIM_PARABOLOID_EMPTY before pull-push. Pull: each
+   coarser texel is the farthest of its non-empty children (the paper's mean lets a near
+   occluder's depth into the holes around it: false shadow); push: an empty texel takes its
+   parent's value, from the coarsest level down. A map no point reached stays empty (sees
+   nothing: visibility 1). Float arithmetic in the order of ism.comp. */
+GIMANY_API gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out);
+
+/* Visibility V(c, x_j) of every VAL from every cache through the maps (desc's caches, size,
+   bias, slope, scene_scale; points unused): out[cache * val_count + j] in {0, 1}. 1 where x_j
+   is behind the map's plane (w.z <= 0); else, with z the distance in its texel and d_ref the
+   distance along that texel's centre ray to the VAL's own plane (the VAL's distance dist
+   where the ray runs along the plane or meets it outside (0, 2 dist)), 1 where
+   d_ref <= z + dist (bias + slope 2 / size min(tan theta_l, GIM_ISM_MAX_TAN)), theta_l the
+   angle between the VAL's normal and the direction to the cache. Measured on the same ray as
+   the surfels, a VAL on the surface its texel holds compares equal whatever the angle it is
+   seen at; the slope term absorbs the surfels' own tilt. (proxy_lights.comp's lookup, in
+   float.) The matrix gim_proxy_desc.visibility takes. */
+GIMANY_API gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+                                         uint32_t val_count, float *out);
 
 /* Input of gim_second_bounce_vpls; zero means default. */
 typedef struct gim_second_bounce_desc {
@@ -4098,8 +4182,9 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
 }
 
 /* One invocation of the proxy pass: cache c against every VAL. */
-static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t val_count, const float *v,
-                             float k, float coincident2, gim_proxy_light *diffuse, gim_proxy_light *glossy) {
+static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t val_count, const float *vis,
+                             const float *v, float k, float coincident2, gim_proxy_light *diffuse,
+                             gim_proxy_light *glossy) {
     gim__proxy_sums sd, sg;
     uint32_t j;
     const float *n = c->normal;
@@ -4121,6 +4206,7 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
         den = l->area + (float)GIM__PI * d2;
         /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
         en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
+        if (vis) en *= vis[j];                                     /* V(c, x_j) */
         e = en * cos_x;
         if (!(e > 0.0)) continue;          /* behind, grazing, coincident or weight 0: adds nothing */
         lphi = 0.2126 * l->flux[0] + 0.7152 * l->flux[1] + 0.0722 * l->flux[2];
@@ -4194,6 +4280,12 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
     }
     if ((r = gim__check_caches(env, fn, desc->caches, desc->cache_count)) != GIM_OK) return r;
     if ((r = gim__check_vals(env, fn, desc->vals, desc->val_count)) != GIM_OK) return r;
+    if (desc->visibility) {
+        size_t m = (size_t)desc->cache_count * desc->val_count, q;
+        for (q = 0; q < m; ++q)
+            if (!(desc->visibility[q] >= 0.0f && desc->visibility[q] <= 1.0f))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "visibility[%zu] is not in [0, 1]", q);
+    }
     scale = desc->scene_scale > 0.0f ? desc->scene_scale
                                      : gim__twins_scale(desc->caches, desc->cache_count, desc->vals, desc->val_count);
     coincident2 = GIM__TWINS_COINCIDENT * scale * (GIM__TWINS_COINCIDENT * scale);
@@ -4206,7 +4298,9 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
             v[0] = vv.x; v[1] = vv.y; v[2] = vv.z;    /* an eye at the cache: v = 0, only k = 0 lights */
             k = desc->cache_glossy_exponent ? desc->cache_glossy_exponent[i] : desc->glossy_exponent;
         }
-        gim__proxy_cache(c, desc->vals, desc->val_count, v, k, coincident2, diffuse_out + i,
+        gim__proxy_cache(c, desc->vals, desc->val_count,
+                         desc->visibility ? desc->visibility + (size_t)i * desc->val_count : NULL, v, k, coincident2,
+                         diffuse_out + i,
                          glossy_out ? glossy_out + i : NULL);
     }
     return GIM_OK;
@@ -4444,6 +4538,7 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     pd.eye = desc->eye; pd.glossy_exponent = desc->glossy_exponent;
     pd.cache_glossy_exponent = desc->cache_glossy_exponent;
     pd.scene_scale = scale; pd.env = desc->env;
+    pd.visibility = desc->visibility;
     memset(&sd, 0, sizeof sd);
     sd.caches = desc->caches; sd.cache_count = desc->cache_count;
     sd.receivers = desc->receivers; sd.receiver_count = desc->receiver_count;
@@ -5462,6 +5557,275 @@ GIMANY_DEF gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
     if (!gim_v3_isfinite(receiver)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver is not finite");
     x[0] = receiver.x; x[1] = receiver.y; x[2] = receiver.z;
     *out = gim__paraboloid_vis(distance, size, map, x);
+    return GIM_OK;
+}
+
+/* --- imperfect shadow maps (Ritschel et al. 2008) ------------------------------------------ */
+
+GIMANY_DEF gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count, float *out) {
+    float per;
+    static const char where[] = "gim_ism_points";
+    double *cdf, total = 0.0;
+    uint32_t t, i, tri = 0;
+    gim_env env;
+    gim_result r;
+    memset(&env, 0, sizeof env);
+    if (!out || count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL or count is 0");
+    if ((r = gim__twin_scene_check(scene, where)) != GIM_OK) return r;
+    cdf = (double *)gim__alloc_array(&env, scene->triangle_count, sizeof(double));
+    if (!cdf) return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "%u triangles", scene->triangle_count);
+    for (t = 0; t < scene->triangle_count; ++t) {
+        const float *v = scene->positions + (size_t)t * 9;
+        double e1[3], e2[3], c[3];
+        int a;
+        for (a = 0; a < 3; ++a) { e1[a] = (double)v[3 + a] - v[a]; e2[a] = (double)v[6 + a] - v[a]; }
+        c[0] = e1[1] * e2[2] - e1[2] * e2[1]; c[1] = e1[2] * e2[0] - e1[0] * e2[2]; c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        total += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        cdf[t] = total;
+    }
+    if (!(total > 0.0) || !(total <= DBL_MAX)) {
+        gim__free(&env, cdf);
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "the scene has no area");
+    }
+    per = gim__clamp_flt(total / count);
+    for (i = 0; i < count; ++i) {
+        double u = (i + 0.5) / count * total, lo, rr, su, b1, b2, e1[3], e2[3], c[3], len;
+        const float *v;
+        float *o = out + (size_t)i * 8;
+        int a;
+        while (tri + 1u < scene->triangle_count && cdf[tri] <= u) ++tri;   /* u increases with i */
+        lo = tri > 0 ? cdf[tri - 1] : 0.0;
+        rr = cdf[tri] > lo ? (u - lo) / (cdf[tri] - lo) : 0.5;
+        rr = rr < 0.0 ? 0.0 : rr > 1.0 ? 1.0 : rr;
+        su = sqrt(rr);
+        b1 = 1.0 - su;
+        b2 = fmod((double)i * 0.61803398874989485, 1.0) * su;
+        v = scene->positions + (size_t)tri * 9;
+        for (a = 0; a < 3; ++a) {
+            o[a] = (float)((1.0 - b1 - b2) * v[a] + b1 * v[3 + a] + b2 * v[6 + a]);
+            e1[a] = (double)v[3 + a] - v[a];
+            e2[a] = (double)v[6 + a] - v[a];
+        }
+        c[0] = e1[1] * e2[2] - e1[2] * e2[1]; c[1] = e1[2] * e2[0] - e1[0] * e2[2]; c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        for (a = 0; a < 3; ++a) o[4 + a] = len > 0.0 ? (float)(c[a] / len) : 0.0f;
+        o[3] = per;
+        o[7] = 0.0f;
+    }
+    gim__free(&env, cdf);
+    return GIM_OK;
+}
+
+static gim_result gim__ism_check(const gim_ism_desc *d, const char *fn, int points, uint32_t *size, uint32_t *per_map,
+                                 float *bias, float *slope) {
+    const gim_env *env = &d->env;
+    gim_result r;
+    *size = d->size ? d->size : GIM_ISM_DEFAULT_SIZE;
+    *per_map = d->points_per_map ? d->points_per_map : GIM_ISM_DEFAULT_POINTS;
+    *bias = d->bias > 0.0f ? d->bias : GIM_ISM_BIAS;
+    *slope = d->slope > 0.0f ? d->slope : GIM_ISM_SLOPE;
+    if (!d->caches || d->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (*size < GIM_ISM_MIN_SIZE || *size > GIM_ISM_MAX_SIZE || (*size & (*size - 1u)))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u: a power of two in %u..%u", *size, GIM_ISM_MIN_SIZE,
+                         GIM_ISM_MAX_SIZE);
+    if (*per_map > GIM_ISM_MAX_POINTS)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "points_per_map %u above %u", *per_map, GIM_ISM_MAX_POINTS);
+    if (!gim__isfinitef(d->bias) || d->bias < 0.0f || *bias > 1.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "bias must be in [0, 1]");
+    if (!gim__isfinitef(d->slope) || d->slope < 0.0f || *slope > 64.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "slope must be in [0, 64]");
+    if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if (points) {
+        if (!d->points || d->point_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no points");
+        if (!gim__all_finite(d->points, (size_t)d->point_count * 8))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "a point is not finite");
+    }
+    if ((r = gim__check_caches(env, fn, d->caches, d->cache_count)) != GIM_OK) return r;
+    return GIM_OK;
+}
+
+/* Map m's frame: origin (c + lift n), t, b, n, in float as ism.comp. */
+static void gim__ism_frame(const gim_cache *c, float lift, float o[3], gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
+    int a;
+    *n = gim_v3(c->normal[0], c->normal[1], c->normal[2]);
+    gim_basis(*n, t, b);
+    for (a = 0; a < 3; ++a) o[a] = c->position[a] + lift * c->normal[a];
+}
+
+/* The texel of direction d (unnormalised, length dist > 0) on a size^2 map of frame (t, b, n);
+   -1 behind the map's plane. */
+static int32_t gim__ism_texel(const float d[3], float dist, gim_vec3 t, gim_vec3 b, gim_vec3 n, uint32_t size) {
+    float wz = (d[0] * n.x + d[1] * n.y + d[2] * n.z) / dist, wx, wy, fx, fy;
+    int32_t ix, iy;
+    if (!(wz > 0.0f)) return -1;
+    wx = (d[0] * t.x + d[1] * t.y + d[2] * t.z) / dist;
+    wy = (d[0] * b.x + d[1] * b.y + d[2] * b.z) / dist;
+    fx = floorf((wx / (1.0f + wz) + 1.0f) * 0.5f * (float)size);
+    fy = floorf((wy / (1.0f + wz) + 1.0f) * 0.5f * (float)size);
+    ix = fx < 0.0f ? 0 : fx > (float)(size - 1u) ? (int32_t)size - 1 : (int32_t)fx;
+    iy = fy < 0.0f ? 0 : fy > (float)(size - 1u) ? (int32_t)size - 1 : (int32_t)fy;
+    return iy * (int32_t)size + ix;
+}
+
+/* Map m's subset: stride = point_count / P (>= 1), offset = frac(m phi) stride in 32-bit
+   fixed point (umulExtended in ism.comp); point k is offset + k stride. */
+static uint32_t gim__ism_offset(uint32_t m, uint32_t stride) {
+    return (uint32_t)(((uint64_t)(uint32_t)(m * 2654435769u) * stride) >> 32);
+}
+
+/* Pull-push of one size^2 map in place; scratch: size^2 floats. */
+static void gim__ism_pull_push(float *map, uint32_t size, float *scratch) {
+    float *lv[8];
+    uint32_t sz[8], l, levels = 0, x, y;
+    size_t off = 0;
+    lv[0] = map; sz[0] = size;
+    for (l = 0; sz[l] > 1u; ++l) {      /* pull: the mean of the non-empty children */
+        sz[l + 1] = sz[l] / 2u;
+        lv[l + 1] = scratch + off;
+        off += (size_t)sz[l + 1] * sz[l + 1];
+        for (y = 0; y < sz[l + 1]; ++y)
+            for (x = 0; x < sz[l + 1]; ++x) {
+                float s = 0.0f, cnt = 0.0f, c;
+                int k;
+                for (k = 0; k < 4; ++k) {
+                    c = lv[l][(2u * y + (uint32_t)(k >> 1)) * sz[l] + 2u * x + (uint32_t)(k & 1)];
+                    if (c < GIM_PARABOLOID_EMPTY) { s = c > s ? c : s; cnt += 1.0f; }
+                }
+                lv[l + 1][y * sz[l + 1] + x] = cnt > 0.0f ? s : GIM_PARABOLOID_EMPTY;
+            }
+    }
+    levels = l;
+    for (l = levels; l-- > 0;)           /* push: holes take the parent's value */
+        for (y = 0; y < sz[l]; ++y)
+            for (x = 0; x < sz[l]; ++x) {
+                float *c = lv[l] + y * sz[l] + x;
+                if (!(*c < GIM_PARABOLOID_EMPTY)) *c = lv[l + 1][(y / 2u) * sz[l + 1] + x / 2u];
+            }
+}
+
+/* The unit direction (world) of texel tx's centre ray. */
+static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b, gim_vec3 n, float dir[3]) {
+    float fs = (float)size, u, v, r2, k, w[3];
+    u = (2.0f * (float)(tx % (int32_t)size) + 1.0f) / fs - 1.0f;
+    v = (2.0f * (float)(tx / (int32_t)size) + 1.0f) / fs - 1.0f;
+    r2 = u * u + v * v;
+    k = 1.0f / (1.0f + r2);
+    w[0] = 2.0f * u * k; w[1] = 2.0f * v * k; w[2] = (1.0f - r2) * k;
+    dir[0] = w[0] * t.x + w[1] * b.x + w[2] * n.x;
+    dir[1] = w[0] * t.y + w[1] * b.y + w[2] * n.y;
+    dir[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
+}
+
+/* One surfel into a map (see gim_ism_render), in float as ism.comp. */
+static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
+                           const float *p, float area) {
+    float d[3], dist, rs, rs2, dn, fs = (float)size;
+    int32_t tx, cx, cy, x, y, r, own;
+    d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
+    dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(dist > lift)) return;                         /* the cache's own point */
+    tx = gim__ism_texel(d, dist, t, b, n, size);
+    if (tx < 0) return;
+    cx = tx % (int32_t)size;
+    cy = tx / (int32_t)size;
+    rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
+    rs2 = rs * rs;
+    r = (int32_t)ceilf(rs / dist * fs * 0.5f);
+    r = r < GIM_ISM_SPLAT_TEXELS ? r : GIM_ISM_SPLAT_TEXELS;
+    dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
+    own = 0;
+    for (y = cy - r; y <= cy + r; ++y)
+        for (x = cx - r; x <= cx + r; ++x) {
+            float dir[3], den, s, h[3];
+            if (x < 0 || y < 0 || x >= (int32_t)size || y >= (int32_t)size) continue;
+            gim__ism_texel_ray(y * (int32_t)size + x, size, t, b, n, dir);
+            den = dir[0] * p[4] + dir[1] * p[5] + dir[2] * p[6];
+            if (!(den >= 1e-3f || den <= -1e-3f)) continue;   /* the ray runs along the plane */
+            s = dn / den;
+            if (!(s > lift)) continue;
+            h[0] = s * dir[0] - d[0]; h[1] = s * dir[1] - d[1]; h[2] = s * dir[2] - d[2];
+            /* its own texel is its plane's wherever the ray meets it (a texel seen at a grazing
+               angle spans depths far beyond rs) */
+            if (!(x == cx && y == cy) && h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
+            if (s < map[y * (int32_t)size + x]) map[y * (int32_t)size + x] = s;
+            own |= x == cx && y == cy;
+        }
+    if (!own && dist < map[tx]) map[tx] = dist;         /* its own texel, where the ray misses */
+}
+
+GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out) {
+    static const char fn[] = "gim_ism_render";
+    uint32_t size, per, m, k, stride, n_take;
+    float bias, slope, lift, *scratch;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!distance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance_out is NULL");
+    if ((r = gim__ism_check(desc, fn, 1, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    scratch = (float *)gim__alloc_array(&desc->env, (size_t)size * size, sizeof(float));
+    if (!scratch) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u^2 floats", size);
+    lift = GIM_ISM_LIFT * desc->scene_scale;
+    n_take = per < desc->point_count ? per : desc->point_count;
+    stride = desc->point_count / n_take;
+    for (m = 0; m < desc->cache_count; ++m) {
+        float *map = distance_out + (size_t)m * size * size, o[3];
+        gim_vec3 t, b, n;
+        uint32_t off = gim__ism_offset(m, stride);
+        size_t q;
+        for (q = 0; q < (size_t)size * size; ++q) map[q] = GIM_PARABOLOID_EMPTY;
+        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
+        for (k = 0; k < n_take; ++k) {
+            const float *p = desc->points + (size_t)(off + k * stride) * 8;
+            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
+        }
+        gim__ism_pull_push(map, size, scratch);
+    }
+    gim__free(&desc->env, scratch);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+                                         uint32_t val_count, float *out) {
+    static const char fn[] = "gim_ism_visibility";
+    uint32_t size, per, m, j;
+    float bias, slope, lift, texel;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!distance || !out || (val_count > 0 && !vals))
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance, vals and out are required");
+    if ((r = gim__ism_check(desc, fn, 0, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    lift = GIM_ISM_LIFT * desc->scene_scale;
+    texel = slope * 2.0f / (float)size;
+    for (m = 0; m < desc->cache_count; ++m) {
+        const float *map = distance + (size_t)m * size * size;
+        float o[3];
+        gim_vec3 t, b, n;
+        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
+        for (j = 0; j < val_count; ++j) {
+            const float *x = vals[j].position, *nl = vals[j].normal;
+            float d[3], dist, z, v = 1.0f, cl, tn;
+            int32_t tx;
+            d[0] = x[0] - o[0]; d[1] = x[1] - o[1]; d[2] = x[2] - o[2];
+            dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            tx = dist > 0.0f ? gim__ism_texel(d, dist, t, b, n, size) : -1;
+            if (tx >= 0) {
+                float dref = dist, dir[3], den;
+                z = map[tx];
+                gim__ism_texel_ray(tx, size, t, b, n, dir);
+                den = dir[0] * nl[0] + dir[1] * nl[1] + dir[2] * nl[2];
+                if (den >= 1e-3f || den <= -1e-3f) {    /* the VAL's plane along the texel's ray */
+                    float s_ = (d[0] * nl[0] + d[1] * nl[1] + d[2] * nl[2]) / den;
+                    if (s_ > 0.0f && s_ < 2.0f * dist) dref = s_;
+                }
+                cl = -(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) / dist;   /* cos theta_l */
+                cl = cl < 0.0f ? -cl : cl;
+                tn = cl * GIM_ISM_MAX_TAN > sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) ? sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) / cl
+                                                                                    : GIM_ISM_MAX_TAN;
+                if (z < GIM_PARABOLOID_EMPTY && dref > z + dist * (bias + texel * tn)) v = 0.0f;
+            }
+            out[(size_t)m * val_count + j] = v;
+        }
+    }
     return GIM_OK;
 }
 
