@@ -5720,7 +5720,7 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
 /* One surfel into a map (see gim_ism_render), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
                            const float *p, float area) {
-    float d[3], dist, rs, rs2, dn, fs = (float)size;
+    float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
     int32_t tx, cx, cy, x, y, r, own;
     d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
     dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
@@ -5731,8 +5731,8 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     cy = tx / (int32_t)size;
     rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
     rs2 = rs * rs;
-    r = (int32_t)ceilf(rs / dist * fs * 0.5f);
-    r = r < GIM_ISM_SPLAT_TEXELS ? r : GIM_ISM_SPLAT_TEXELS;
+    rf = ceilf(rs / dist * fs * 0.5f);
+    r = rf < (float)GIM_ISM_SPLAT_TEXELS ? (int32_t)rf : GIM_ISM_SPLAT_TEXELS;
     dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
     own = 0;
     for (y = cy - r; y <= cy + r; ++y)
@@ -6615,6 +6615,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_SECOND_BOUNCE,      /* second-bounce VPLs from the maps (SSVP sec. 3.C) */
     GIM__PROGRAM_VPL_SHADE,          /* VPL shading per pixel: soft visibility, clamping, interleaving (Dong sec. 6) */
     GIM__PROGRAM_GEOMETRY_BLUR,      /* geometry-aware blur (Dong sec. 6, Laine et al.) */
+    GIM__PROGRAM_ISM,                /* imperfect shadow maps of the caches (Ritschel et al. 2008) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -6640,7 +6641,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"paraboloid.vert", "paraboloid.geom", "paraboloid.frag"},
     {"second_bounce.comp", NULL},
     {"vpl_shade.comp", NULL},
-    {"geometry_blur.comp", NULL}};
+    {"geometry_blur.comp", NULL},
+    {"ism.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -7182,11 +7184,33 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
    a scratch buffer of 96 bytes a cache between them. */
+/* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
+   gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
+typedef struct gim__gl_ism {
+    gim__GLuint maps;
+    uint32_t size;
+    float bias, slope;
+} gim__gl_ism;
+
+static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
+                                           uint32_t val_count, gim_vec3 eye, float exponent, float scene_scale,
+                                           gim__GLuint diffuse_out, gim__GLuint glossy_out, const gim__gl_ism *ism);
+
 static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                    gim__GLuint vals, uint32_t val_count, gim_vec3 eye, float exponent,
                                                    float scene_scale, gim__GLuint diffuse_out,
                                                    gim__GLuint glossy_out) {
+    return gim__gl_proxy_lights_ism(ctx, caches, cache_count, vals, val_count, eye, exponent, scene_scale, diffuse_out,
+                                    glossy_out, NULL);
+}
+
+/* gim__gl_proxy_lights with each VAL's contribution to a cache times its visibility through
+   the cache's imperfect shadow map (gim_ism_visibility's lookup; ism NULL or ism->maps 0: none). */
+static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
+                                           uint32_t val_count, gim_vec3 eye, float exponent, float scene_scale,
+                                           gim__GLuint diffuse_out, gim__GLuint glossy_out, const gim__gl_ism *ism) {
     static const char where[] = "proxy lights (GL)";
+    int with_ism = ism && ism->maps;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
@@ -7211,9 +7235,15 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "exponent %g must be in [0, 1e6]",
                              (double)exponent);
     }
+    if (with_ism && (ism->size < GIM_ISM_MIN_SIZE || ism->size > GIM_ISM_MAX_SIZE || (ism->size & (ism->size - 1u)) ||
+                     !(ism->bias >= 0.0f && ism->bias <= 1.0f) || !(ism->slope >= 0.0f && ism->slope <= 64.0f)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u, bias %g or slope %g out of range",
+                         (unsigned)ism->size, (double)ism->bias, (double)ism->slope);
     coincident = GIM__TWINS_COINCIDENT * scene_scale;
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK && with_ism)
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 4u);
     if (r == GIM_OK && val_count > 0) r = gim__gl_check_buffer(ctx, where, "vals", vals, (uint64_t)val_count * 48u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
     if (r == GIM_OK && glossy_out)
@@ -7237,6 +7267,11 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     gl->Uniform1f(3, glossy_out ? exponent : 0.0f);
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 7, with_ism ? ism->maps : caches);  /* never read without */
+    gl->Uniform1ui(12, with_ism ? ism->size : 0u);
+    gl->Uniform1f(13, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
+    gl->Uniform1f(14, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
+    gl->Uniform1f(15, GIM_ISM_LIFT * scene_scale);
     /* sums over the VALs chunk by chunk (mode 0), the dark caches' positions (mode 1), the
        proxy lights (mode 2); one dispatch each, the sums kept in proxy_state between them */
     for (mode = 0; mode < 3u; ++mode) {
@@ -7250,6 +7285,70 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
             gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
             first += n;
         } while (mode != 2u && first < val_count);
+    }
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
+#define GIM__ISM_CHUNK 4096u
+
+/* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render (same subsets,
+   surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
+   pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
+   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 floats,
+   written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
+   1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
+   work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
+static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
+                                                 gim__GLuint points, uint32_t point_count, uint32_t size,
+                                                 uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
+    static const char where[] = "imperfect shadow maps (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    uint32_t take, stride, first;
+    gim_result r;
+    if (!caches || !points || !maps_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (cache_count == 0 || point_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no caches or no points");
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "map size %u: a power of two in %u..%u",
+                         (unsigned)size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (points_per_map == 0 || points_per_map > GIM_ISM_MAX_POINTS)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%u points per map: 1..%u", (unsigned)points_per_map,
+                         GIM_ISM_MAX_POINTS);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if ((uint64_t)cache_count * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes ||
+        (uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%u maps of %u^2 or %u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
+                         (unsigned)cache_count, (unsigned)size, (unsigned)point_count, (long long)ctx->max_ssbo_bytes);
+    take = points_per_map < point_count ? points_per_map : point_count;
+    stride = point_count / take;
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 4u);
+    if (r == GIM_OK && (maps_out == caches || maps_out == points))
+        r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, points);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out);
+    gl->UseProgram(program);
+    gl->Uniform1ui(1, size);
+    gl->Uniform1ui(2, stride);
+    gl->Uniform1ui(3, take);
+    gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
+    gl->Uniform1f(5, GIM_ISM_SPLAT);
+    gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
+    for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
+        uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
+        gl->Uniform1ui(0, first);
+        gl->DispatchCompute(n, 1u, 1u);
     }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
