@@ -1274,6 +1274,15 @@ typedef enum gim_method {
                                        second-bounce VPLs; both bounces shade (bounces = 2 by default) */
 } gim_method;
 
+/* Visibility of the indirect light (DESIGN.md sec. 6c). */
+typedef enum gim_visibility {
+    GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
+    GIM_VISIBILITY_OFF,             /* no pass, no memory */
+    GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
+                                       looked up per VAL in the proxy-light sum; made once per scene
+                                       change (mesh or instance), not per frame */
+} gim_visibility;
+
 /* Input of gim_update; zero means default. */
 typedef struct gim_frame {
     gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
@@ -1323,6 +1332,10 @@ typedef struct gim_frame {
                                    gim_stats.cpu_clock): a driver that runs queued work at a later
                                    flush (llvmpipe, even between timestamps) still charges it to
                                    its pass; it serialises the frame, for profiling only */
+    gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM */
+    uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384); at most
+                                   GIM_ISM_MAX_POINTS */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1404,6 +1417,9 @@ typedef struct gim_frame_outputs {
     uint32_t paraboloid_size;
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
+    /* visibility ISM (0 otherwise) */
+    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render) */
+    uint32_t ism_size;
 } gim_frame_outputs;
 
 /* The outputs of the last gim_update (all zero for NULL). */
@@ -6276,6 +6292,7 @@ enum {
     X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
     X(gim__GLboolean, IsBuffer, (gim__GLuint buffer))                                           \
     X(void, GetBufferParameteri64v, (gim__GLenum target, gim__GLenum pname, gim__GLint64 *data)) \
+    X(void, GetBufferSubData, (gim__GLenum target, gim__GLintptr offset, gim__GLsizeiptr size, void *data)) \
     X(gim__GLboolean, IsTexture, (gim__GLuint texture))                                         \
     X(void, GetTexLevelParameteriv, (gim__GLenum target, gim__GLint level, gim__GLenum pname,    \
                                      gim__GLint *params))                                        \
@@ -6731,6 +6748,10 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
+    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' maps and the scene's points */
+    uint64_t ism_maps_bytes, ism_points_bytes, ism_version;
+    uint32_t ism_size, ism_per_map, ism_point_count;
+    float ism_scale;
     uint64_t scene_version;       /* bumped when meshes or instances change */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
     float ls_scale;               /* and the scene scale */
@@ -8086,6 +8107,8 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
     return GIM_OK;
 }
 
+static void gim__ism_release(gim_context *ctx);
+
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i;
@@ -8103,6 +8126,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     gl->DeleteBuffers(6, b);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
+    gim__ism_release(ctx);
     gim__vpl_release(ctx);
     if (ctx->query_count) gl->DeleteQueries((gim__GLsizei)ctx->query_count, ctx->queries);
     if (ctx->gbuffer_fbo) gl->DeleteFramebuffers(1, &ctx->gbuffer_fbo);
@@ -8583,6 +8607,71 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
     ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
 }
 
+/* The ISM buffers: visibility off costs no memory. */
+static void gim__ism_release(gim_context *ctx) {
+    gim__GLuint b[2];
+    b[0] = ctx->ism_maps; b[1] = ctx->ism_points;
+    if (b[0] || b[1]) ctx->gl.DeleteBuffers(2, b);
+    ctx->ism_maps = ctx->ism_points = 0;
+    ctx->ism_maps_bytes = ctx->ism_points_bytes = 0;
+    ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
+    ctx->ism_version = 0;
+}
+
+static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
+                                 const char *where);
+
+/* The scene's ISM points (gim_ism_points over every instance's world triangles, read back
+   from the meshes' buffers), uploaded to ctx->ism_points; count of them in *count. */
+static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    uint32_t i, tris = 0, t;
+    float *pos, *alb, *pts;
+    gim_twin_scene sc;
+    gim_result r;
+    for (i = 0; i < ctx->instance_count; ++i) tris += gim__mesh_get(ctx, ctx->instances[i].mesh)->triangle_count;
+    pos = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 9u, sizeof(float));
+    alb = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 3u, sizeof(float));
+    pts = (float *)gim__alloc_array(&ctx->env, (size_t)count * 8u, sizeof(float));
+    if (!pos || !alb || !pts) {
+        gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "ISM points of %u triangles", (unsigned)tris);
+    }
+    memset(alb, 0, (size_t)tris * 3u * sizeof(float));
+    for (i = 0, t = 0; i < ctx->instance_count; ++i) {
+        const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
+        gim__GLint64 vbytes = 0;
+        size_t ibytes = (size_t)m->index_count * (m->index_type == GIM__GL_UNSIGNED_SHORT ? 2u : 4u), k;
+        float *v;
+        void *idx;
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->positions);
+        gl->GetBufferParameteri64v(GIM__GL_COPY_READ_BUFFER, GIM__GL_BUFFER_SIZE, &vbytes);
+        v = (float *)gim__alloc_array(&ctx->env, (size_t)vbytes / 4u + 1u, sizeof(float));
+        idx = gim__alloc_array(&ctx->env, ibytes + 4u, 1u);
+        if (!v || !idx) {
+            gim__free(&ctx->env, v); gim__free(&ctx->env, idx);
+            gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a mesh's copy");
+        }
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)vbytes, v);
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->indices);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)ibytes, idx);
+        for (k = 0; k < (size_t)m->triangle_count * 3u; ++k) {
+            uint32_t vi = m->index_type == GIM__GL_UNSIGNED_SHORT ? ((const uint16_t *)idx)[k] : ((const uint32_t *)idx)[k];
+            gim_vec3 w = gim_mat4_point(ctx->instances[i].model, gim_v3(v[vi * 3u], v[vi * 3u + 1u], v[vi * 3u + 2u]));
+            pos[(size_t)t * 9u + k * 3u] = w.x; pos[(size_t)t * 9u + k * 3u + 1u] = w.y; pos[(size_t)t * 9u + k * 3u + 2u] = w.z;
+        }
+        t += m->triangle_count;
+        gim__free(&ctx->env, v);
+        gim__free(&ctx->env, idx);
+    }
+    sc.positions = pos; sc.normals = NULL; sc.albedo = alb; sc.triangle_count = tris;
+    r = gim_ism_points(&sc, count, pts);
+    if (r == GIM_OK) r = gim__gl_upload(ctx, &ctx->ism_points, &ctx->ism_points_bytes, pts, (uint64_t)count * 32u, where);
+    gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+    return r;
+}
+
 static void gim__lightskin_release(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
     gim__GLuint b[6];
@@ -8623,12 +8712,14 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
     float k_glossy, eye[4];
     gim__grid grid;
     gim__shade_args sa;
+    gim__gl_ism ism;
     gim__GLenum format = f->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F;
     gim_result r = GIM_OK;
     int glossy = 0;
     for (i = 0; i < ctx->instance_count; ++i) total += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     if (total == 0 || ctx->light_count == 0) { /* nothing to light with: no passes, no buffers */
         gim__lightskin_release(ctx);
+        gim__ism_release(ctx);
         return GIM_OK;
     }
     n = f->neighbour_count ? f->neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
@@ -8703,8 +8794,30 @@ vals:
         for (k = 0; k < 3; ++k) c[k] = 0.5f * (o->bounds_min[k] + o->bounds_max[k]) + eye[k] * 1e4f * scale;
         eye[0] = c[0]; eye[1] = c[1]; eye[2] = c[2];
     }
-    r = gim__gl_proxy_lights(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
-                             scale, ls->diffuse, glossy ? ls->glossy : 0u);
+    memset(&ism, 0, sizeof ism);
+    if (f->visibility == GIM_VISIBILITY_ISM) {
+        /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
+        uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+        uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
+        uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
+        if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
+            ctx->ism_scale != scale || ctx->ism_point_count != pool) {
+            ctx->ism_version = ctx->scene_version - 1u;
+            r = gim__gl_ism_scene_points(ctx, pool, where);
+            if (r == GIM_OK)
+                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 4u, where);
+            if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
+            if (r != GIM_OK) return r;
+            ctx->ism_version = ctx->scene_version;
+            ctx->ism_size = size; ctx->ism_per_map = per; ctx->ism_scale = scale; ctx->ism_point_count = pool;
+        }
+        ism.maps = ctx->ism_maps;
+        ism.size = size;   /* its time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
+    } else if (ctx->ism_maps || ctx->ism_points) {
+        gim__ism_release(ctx);
+    }
+    r = gim__gl_proxy_lights_ism(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
+                                 scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
     if (f->occlusion) {
@@ -8747,6 +8860,8 @@ vals:
     o->neighbour_count = n;
     o->neighbour_cos = sa.cos_theta;
     o->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
+    o->ism_maps = ism.maps;
+    o->ism_size = ism.maps ? ism.size : 0u;
     return GIM_OK;
 }
 
@@ -9547,6 +9662,28 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     return GIM_OK;
 }
 
+/* The visibility settings, before any GL work: a known mode, a map side that is a power of two
+   in range, a point count in range, and every cache's map within one shader storage block. */
+static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
+    uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE, i;
+    uint64_t caches = 0;
+    if (f->visibility != GIM_VISIBILITY_DEFAULT && f->visibility != GIM_VISIBILITY_OFF && f->visibility != GIM_VISIBILITY_ISM)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility);
+    if (f->visibility != GIM_VISIBILITY_ISM) return GIM_OK;
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
+                         (unsigned)f->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (f->ism_points > GIM_ISM_MAX_POINTS)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
+                         GIM_ISM_MAX_POINTS);
+    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
+                         (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_update";
     gim_frame_outputs o;
@@ -9559,6 +9696,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     r = gim__frame_check(ctx, frame, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
     if (r != GIM_OK) return r;
     diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
                 ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
@@ -9755,7 +9893,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->vpl.maps_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
-    b += ctx->vpl_partial_bytes;
+    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes;
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }
