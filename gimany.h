@@ -1190,7 +1190,9 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
-   f.occlusion and f.neighbour_count trade speed for accuracy at run time. */
+   f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
+   GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
+   cache; off by default, and off costs nothing). */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -1342,8 +1344,10 @@ typedef struct gim_frame {
    host's) -> view samples -> per light (BRSM only): importance map (eq. 10-11) -> cumulative
    sums (eq. 12) -> selection of val_count VALs; then, when an instanced mesh has caches:
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
-   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> diffuse proxy lights
-   per cache (eq. 3-7, 13-15), glossy ones too when a material has a glossy colour (one lobe
+   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
+   the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
+   world triangles, read back from the meshes, pool 4 P; gim_ism_render) -> diffuse proxy lights
+   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility), glossy ones too when a material has a glossy colour (one lobe
    exponent for all caches: the smallest of those materials, the widest lobe) -> occlusion
    (when on) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
