@@ -1032,7 +1032,7 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
 #define GIM_ISM_DEFAULT_POINTS 16384u
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
-#define GIM_ISM_BIAS 0.04f            /* depth bias, a fraction of the distance (unit-free) */
+#define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
