@@ -124,6 +124,23 @@ static void no_light_through_walls(void **state) {
     ism = inside(&s);
     print_message("mean indirect inside / sunlit ground: %.4f without visibility, %.4f with ISMs (%u caches)\n", off, ism,
                   s.set.count);
+    {   /* the cost (printed, not tested): a frame that makes the maps (16^2 first, so that the
+           default 32^2 ones are made again), a later frame that reuses them, one without */
+        gim_stats st[3];
+        int k;
+        s.fr.timing = 2;
+        for (k = 0; k < 3; ++k) {
+            if (k == 0) { s.fr.ism_size = 16; assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK); s.fr.ism_size = 0; }
+            if (k == 2) s.fr.visibility = GIM_VISIBILITY_OFF;
+            assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+            assert_int_equal(gim_frame_stats(s.f.ctx, &st[k]), GIM_OK);
+        }
+        print_message("proxy-light pass: %.1f ms making the maps, %.1f ms with them, %.1f ms without; frames %.1f / %.1f / "
+                      "%.1f ms\n", st[0].pass_ms[GIM_PASS_PROXY_LIGHTS], st[1].pass_ms[GIM_PASS_PROXY_LIGHTS],
+                      st[2].pass_ms[GIM_PASS_PROXY_LIGHTS], st[0].frame_ms, st[1].frame_ms, st[2].frame_ms);
+        s.fr.timing = 0;
+        s.fr.visibility = GIM_VISIBILITY_ISM;
+    }
     assert_true(off > 0.05);
     assert_true(ism < 0.01);
     gltest_state_unchanged(&s.f);
