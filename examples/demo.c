@@ -5,7 +5,7 @@
      final.png     direct + indirect, Reinhard tone mapped, sRGB
      indirect.pfm  gimany's indirect output: linear RGB radiance towards the eye, 0 where no geometry
      direct.pfm    the direct light, likewise
-     stats.json    method, parameters, GL renderer, per-pass median GPU ms, frame median ms, counts
+     stats.json    method, parameters, GL renderer, per-pass median ms (--timing), frame median ms, counts
    and prints a table of the passes. Every image is of the last frame; timings are medians over
    the frames. Run with --help for the options. Exit status: 0 done, 2 bad options, 1 anything
    else (file missing or malformed, no GL 4.3, a GL failure), with one line on stderr. */
@@ -111,6 +111,8 @@ static int write_stats(const demo_run *r, const char *path, char *err, size_t ca
     json_string(f, r->o.scene);
     fprintf(f, ",\n  \"renderer\": ");
     json_string(f, r->renderer);
+    fprintf(f, ",\n  \"pass_timing\": ");
+    json_string(f, r->d.timing == 2 ? "cpu: glFinish after each pass, CPU clock" : r->d.timing == 1 ? "gl: timestamps" : "off");
     fprintf(f,
             ",\n  \"parameters\": {\"width\": %u, \"height\": %u, \"rsm\": %u, \"vals\": %u, \"view_samples\": %u, "
             "\"vpls\": %u, \"clusters\": %u, \"bounces\": %d, \"occlusion\": %s, \"glossy\": %s, \"frames\": %u, "
@@ -157,13 +159,16 @@ static void print_table(const demo_run *r) {
     printf("gimany-demo: %s, %s, %ux%u, %llu triangles, %u caches, %u VALs, %u view samples, %u light(s)\n", r->o.scene,
            r->d.method, (unsigned)r->o.width, (unsigned)r->o.height, (unsigned long long)r->triangles,
            (unsigned)r->cache_count, (unsigned)r->st.val_count, (unsigned)r->st.view_sample_count, (unsigned)r->s.light_count);
-    printf("renderer: %s; medians of %u frame(s)\n", r->renderer, (unsigned)r->d.frames);
+    printf("renderer: %s; medians of %u frame(s); pass times: %s\n", r->renderer, (unsigned)r->d.frames,
+           r->d.timing == 2 ? "glFinish after each pass, CPU clock" : r->d.timing == 1 ? "GL timestamps" : "off");
     printf("%-16s %10s\n", "pass", "ms");
     for (p = 0; p < GIM_PASS_COUNT; ++p)
         if (r->pass_ms[p] > 0.0) printf("%-16s %10.2f\n", pass_names[p], r->pass_ms[p]);
-    printf("%-16s %10.2f\n", "direct", r->direct_ms);
-    printf("%-16s %10.2f\n", "compose", r->compose_ms);
-    printf("%-16s %10.2f\n", "gimany frame", r->gimany_ms);
+    if (r->d.timing) { /* off: no pass is timed, gimany's frame neither */
+        printf("%-16s %10.2f\n", "direct", r->direct_ms);
+        printf("%-16s %10.2f\n", "compose", r->compose_ms);
+        printf("%-16s %10.2f\n", "gimany frame", r->gimany_ms);
+    }
     printf("%-16s %10.2f   (wall clock: gim_update + direct + compose + glFinish)\n", "frame", r->frame_ms);
     printf("wrote %s/final.png, indirect.pfm, direct.pfm, stats.json\n", r->o.out_dir);
 }
@@ -210,6 +215,9 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     }
     have_g = 1;
     r->cache_count = g.cache_count;
+    if (demo_cost_check(&r->d, w, h, r->s.light_count, strcmp(r->d.method, "none") ? g.cache_count : 0u, r->o.bounces, err,
+                        cap))
+        goto done;
     if (!strcmp(r->d.method, "none")) { /* the same meshes without caches: gimany runs its shared passes only */
         plain = (gim_mesh *)calloc(g.mesh_count + 1u, sizeof *plain);
         plain_inst = (gim_instance *)calloc(g.mesh_count + 1u, sizeof *plain_inst);
@@ -251,7 +259,7 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     f.ism_size = r->d.ism_size;
     f.indirect_float32 = 1;
     f.rotate_view_samples = 1;
-    f.timing = 1;
+    f.timing = r->d.timing;
     samples = (double *)calloc((size_t)r->d.frames * (GIM_PASS_COUNT + 4), sizeof *samples);
     direct = (float *)malloc(npx * 16);
     indirect = (float *)calloc(npx, 16);
@@ -269,13 +277,26 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
             r->d.vpls = o.first_bounce_count / (o.light_count ? o.light_count : 1u);
             r->d.clusters = o.cluster_count;
         }
-        display_direct(&dp, &o, g.lights, f.view, f.proj, 1);
-        display_compose(&dp, o.indirect, 1.0f);
-        glFinish();
+        if (f.timing == 2) { /* as gimany's passes: finish, then the CPU's clock */
+            double t1, t2;
+            glFinish();
+            t1 = now_ms();
+            display_direct(&dp, &o, g.lights, f.view, f.proj, 0);
+            glFinish();
+            t2 = now_ms();
+            display_compose(&dp, o.indirect, 1.0f);
+            glFinish();
+            row[GIM_PASS_COUNT] = t2 - t1;
+            row[GIM_PASS_COUNT + 1] = now_ms() - t2;
+        } else {
+            display_direct(&dp, &o, g.lights, f.view, f.proj, f.timing == 1);
+            display_compose(&dp, o.indirect, 1.0f);
+            glFinish();
+        }
         row[GIM_PASS_COUNT + 3] = now_ms() - t0;
         if (gim_frame_stats(ctx, &r->st) != GIM_OK) { snprintf(err, cap, "gim_frame_stats failed"); goto done; }
         for (p = 0; p < GIM_PASS_COUNT; ++p) row[p] = r->st.pass_ms[p];
-        display_timings(&dp, &row[GIM_PASS_COUNT], &row[GIM_PASS_COUNT + 1]);
+        if (f.timing == 1) display_timings(&dp, &row[GIM_PASS_COUNT], &row[GIM_PASS_COUNT + 1]);
         row[GIM_PASS_COUNT + 2] = r->st.frame_ms;
     }
     {   /* medians, one column at a time */

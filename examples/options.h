@@ -31,7 +31,9 @@ typedef struct demo_options {
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
     float exposure;          /* 0: automatic */
+    int timing;              /* demo: gim_frame.timing, 2 (--timing cpu, default), 1 (gl) or 0 (off) */
     const char *screenshot;  /* viewer: --screenshot FILE */
+    int allow_slow;          /* --allow-slow: run settings above demo_cost_check's limits */
 } demo_options;
 
 #define DEMO_PARSE_VIEWER 1u /* accept --screenshot; --frames defaults to 0 (run until closed) */
@@ -44,15 +46,19 @@ static const char demo_usage_text[] =
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
-    "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 1024, 30 clustered;\n"
-    "                        256, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
+    "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 4096, 30 clustered;\n"
+    "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --no-occlusion        no occlusion of the proxy lights (default: on)\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --ism                 brsm, full: imperfect shadow maps per cache, no light through walls (default: off);\n"
     "                        --ism-size N their side, a power of two in 4..64 (default 32)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
-    "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n";
+    "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
+    "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
+    "  --timing cpu|gl|off   demo: per-pass times from the CPU's clock after a glFinish per pass (cpu,\n"
+    "                        default: right on any driver), from GL timestamps (gl: no stalls, but llvmpipe\n"
+    "                        charges queued work to later passes), or none (off: the frame time only)\n";
 
 DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     memset(d, 0, sizeof *d);
@@ -63,6 +69,7 @@ DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     d->occlusion = 1;
     d->glossy = 1;
     d->frames = (flags & DEMO_PARSE_VIEWER) ? 0 : 3;
+    d->timing = 2;
 }
 
 DEMO_OPTIONS_FN int demo_parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out) {
@@ -89,15 +96,19 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
     for (i = 1; i < argc; ++i) {
         const char *a = argv[i], *eq = strchr(a, '='), *v = NULL;
         size_t len = eq ? (size_t)(eq - a) : strlen(a), k;
-        int flag = -1, num = -1, is_method, is_exposure, is_shot;
+        int flag = -1, num = -1, is_method, is_exposure, is_shot, is_timing;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
         if (len == 14 && !strncmp(a, "--no-occlusion", 14)) flag = 0;
         else if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
         else if (len == 15 && !strncmp(a, "--no-visibility", 15)) flag = 2;
-        else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 3;
+        else if (len == 12 && !strncmp(a, "--allow-slow", 12)) flag = 3;
+        else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 4;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
-            if (flag == 0) d->occlusion = 0; else if (flag == 1) d->glossy = 0; else if (flag == 2) d->no_visibility = 1;
+            if (flag == 0) d->occlusion = 0;
+            else if (flag == 1) d->glossy = 0;
+            else if (flag == 2) d->no_visibility = 1;
+            else if (flag == 3) d->allow_slow = 1;
             else d->ism = 1;
             continue;
         }
@@ -106,7 +117,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         is_method = len == 8 && !strncmp(a, "--method", 8);
         is_exposure = len == 10 && !strncmp(a, "--exposure", 10);
         is_shot = (flags & DEMO_PARSE_VIEWER) && len == 12 && !strncmp(a, "--screenshot", 12);
-        if (num < 0 && !is_method && !is_exposure && !is_shot) {
+        is_timing = !(flags & DEMO_PARSE_VIEWER) && len == 8 && !strncmp(a, "--timing", 8);
+        if (num < 0 && !is_method && !is_exposure && !is_shot && !is_timing) {
             /* the scene layer's: every one of them takes one value */
             rest[n++] = argv[i];
             if (!strncmp(a, "--", 2) && !eq && i + 1 < argc) rest[n++] = argv[++i];
@@ -131,6 +143,11 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             for (k = 0; k < 6; ++k) ok |= !strcmp(v, methods[k]);
             if (!ok) { snprintf(err, cap, "--method wants gather|full|brsm|clustered|ssvp|none, got '%.200s'", v); return -1; }
             d->method = v;
+        } else if (is_timing) {
+            if (!strcmp(v, "cpu")) d->timing = 2;
+            else if (!strcmp(v, "gl")) d->timing = 1;
+            else if (!strcmp(v, "off")) d->timing = 0;
+            else { snprintf(err, cap, "--timing wants cpu|gl|off, got '%.200s'", v); return -1; }
         } else if (is_exposure) {
             char *end;
             double e;
@@ -157,6 +174,49 @@ DEMO_OPTIONS_FN gim_method demo_method(const demo_options *d) {
            : !strcmp(d->method, "clustered") ? GIM_METHOD_CLUSTERED
            : !strcmp(d->method, "ssvp")      ? GIM_METHOD_SSVP
                                              : GIM_METHOD_LIGHTSKIN_BRSM;
+}
+
+/* A frame's work from the cost model (DESIGN.md sec. 7), in terms (one VAL or VPL or texel
+   evaluated for one cache, pixel or view sample) and bytes of GL and CPU memory:
+     brsm      importance rsm^2 x view samples + accumulation caches x VALs, per light
+     full      caches x rsm^2 per light
+     gather    pixels x 256 pattern texels per light
+     clustered, ssvp   pixels x VPLs / 64 (8x8 interleaving), second bounce included
+     LightSkin occlusion caches^2; interpolation pixels x 16 neighbours
+   memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
+   Measured on llvmpipe (2 cores): 3.9e7 terms/s (full, the Cornell box's 8960 caches x 256^2
+   in 15 s), so DEMO_MAX_TERMS is about a minute a frame; a GPU is 100x faster: --allow-slow. */
+#define DEMO_MAX_TERMS 2e9
+#define DEMO_MAX_BYTES 2147483648.0
+DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t height, uint32_t lights, uint32_t caches,
+                               int bounces, double *terms, double *bytes) {
+    double px = (double)width * height, texels = (double)d->rsm * d->rsm, L = lights ? lights : 1, t = 0.0;
+    int ls = !strcmp(d->method, "brsm") || !strcmp(d->method, "full");
+    if (!strcmp(d->method, "brsm")) t = L * (texels * d->view_samples + (double)caches * d->vals);
+    else if (!strcmp(d->method, "full")) t = L * (double)caches * texels;
+    else if (!strcmp(d->method, "gather")) t = L * px * 256.0;
+    else if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp")) {
+        double v = d->vpls ? d->vpls : 4096.0;   /* the library's default */
+        t = px * (L * v + (bounces == 2 || (!strcmp(d->method, "ssvp") && bounces != 1) ? 256.0 : 0.0)) / 64.0;
+    }
+    if (ls) t += px * 16.0 + (d->occlusion ? (double)caches * caches : 0.0);
+    *terms = t;
+    *bytes = L * texels * (52.0 + (!strcmp(d->method, "brsm") ? 12.0 : 0.0)) + px * 140.0;
+}
+
+/* 0, or 1 with one line in err: the frame's estimate is above a limit and --allow-slow is off. */
+DEMO_OPTIONS_FN int demo_cost_check(const demo_options *d, uint32_t width, uint32_t height, uint32_t lights, uint32_t caches,
+                                    int bounces, char *err, size_t cap) {
+    double terms, bytes;
+    if (d->allow_slow) return 0;
+    demo_cost(d, width, height, lights, caches, bounces, &terms, &bytes);
+    if (terms <= DEMO_MAX_TERMS && bytes <= DEMO_MAX_BYTES) return 0;
+    snprintf(err, cap,
+             "%s at --rsm %u, --vals %u, %ux%u, %u caches is estimated at %.2g terms and %.2g GiB a frame, above %.0g terms "
+             "(about a minute on llvmpipe) or %.0f GiB: lower them, or pass --allow-slow",
+             d->method, (unsigned)d->rsm, (unsigned)d->vals, (unsigned)width, (unsigned)height, (unsigned)caches, terms,
+             bytes / 1073741824.0, DEMO_MAX_TERMS, DEMO_MAX_BYTES / 1073741824.0);
+    return 1;
 }
 
 /* One line refusing a --bounces the method cannot give, or NULL. */

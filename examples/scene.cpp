@@ -7,8 +7,8 @@
                 node's world matrix (matrix, or T * R * S, down the hierarchy) applied;
                 mirroring transforms flip the winding; POINTS and LINES are skipped (a warning).
                 Indices 8, 16 or 32 bit, or none (vertices in order). Sparse accessors work.
-     normals    NORMAL when present and usable; otherwise area-weighted face normals (also
-                when any given normal is zero or not finite: a warning).
+     normals    NORMAL when present and usable; otherwise face normals, each triangle with its
+                own vertices (also when any given normal is zero or not finite: a warning).
      materials  (mirrors the glTF metallic-roughness model onto rho_d, rho_g, k)
                 base   = baseColorFactor.rgb * average of baseColorTexture (sRGB decoded)
                 m, r   = metallicFactor, roughnessFactor (times the averages of the B and G
@@ -166,25 +166,28 @@ template <class T> T *copy_out(const std::vector<T> &v) {
     return p;
 }
 
-/* Area-weighted vertex normals: the cross product's length is twice the triangle's area. */
-void compute_normals(mesh_b &m) {
-    size_t nv = m.pos.size() / 3;
-    std::vector<double> acc(nv * 3, 0.0);
+/* Face normals for a mesh without usable normals: every triangle gets its own three vertices.
+   Averaging over shared vertices invents curvature that a decimated mesh does not have (Sponza's
+   LOD averages across its sharp edges), and a shading normal that differs from the geometric
+   one is handled differently by every renderer; with face normals gimany and the reference
+   shade the same surface. */
+void flat_normals(mesh_b &m) {
+    std::vector<float> pos;
+    pos.reserve(m.idx.size() * 3);
+    m.nrm.clear();
+    m.nrm.reserve(m.idx.size() * 3);
     for (size_t t = 0; t + 2 < m.idx.size(); t += 3) {
         const float *a = &m.pos[3 * m.idx[t]], *b = &m.pos[3 * m.idx[t + 1]], *c = &m.pos[3 * m.idx[t + 2]];
         vec3 A{a[0], a[1], a[2]}, B{b[0], b[1], b[2]}, C{c[0], c[1], c[2]};
-        vec3 n = cross(sub(B, A), sub(C, A));
+        vec3 n = normalize(cross(sub(B, A), sub(C, A)));
+        if (len(n) == 0) n = {0, 1, 0}; /* degenerate: no area, never seen */
         for (int k = 0; k < 3; ++k) {
-            double *d = &acc[3 * m.idx[t + k]];
-            d[0] += n.x; d[1] += n.y; d[2] += n.z;
+            pos.insert(pos.end(), &m.pos[3 * m.idx[t + k]], &m.pos[3 * m.idx[t + k]] + 3);
+            m.nrm.push_back((float)n.x); m.nrm.push_back((float)n.y); m.nrm.push_back((float)n.z);
         }
     }
-    m.nrm.assign(nv * 3, 0.0f);
-    for (size_t v = 0; v < nv; ++v) {
-        vec3 n = normalize(vec3{acc[3 * v], acc[3 * v + 1], acc[3 * v + 2]});
-        if (len(n) == 0) n = {0, 1, 0}; /* unused or only in degenerate triangles */
-        m.nrm[3 * v] = (float)n.x; m.nrm[3 * v + 1] = (float)n.y; m.nrm[3 * v + 2] = (float)n.z;
-    }
+    m.pos.swap(pos);
+    for (size_t i = 0; i < m.idx.size(); ++i) m.idx[i] = (uint32_t)i;
 }
 
 void finish(builder &b, scene *out) {
@@ -377,11 +380,43 @@ void build_street(builder &b) {
 
 namespace gl = tinygltf;
 
+/* What a hostile file may cost the loader (README "Reliability"): the JSON parser recurses once
+   per nesting level (16,000 levels overflowed the stack); a 261 KB PNG can decode to 16384^2
+   (1 GiB); a node graph listing each child twice, 18 deep, expands to 262,144 instances. */
+const unsigned MAX_JSON_DEPTH = SCENE_MAX_JSON_DEPTH;
+const uint64_t MAX_FILE_BYTES = SCENE_MAX_FILE_BYTES;
+const uint64_t MAX_IMAGE_PIXELS = SCENE_MAX_IMAGE_PIXELS;
+const uint64_t MAX_DECODED_BYTES = SCENE_MAX_DECODED_BYTES;
+const double MAX_INSTANCES = SCENE_MAX_INSTANCES;
+const double MAX_TRIANGLES = SCENE_MAX_TRIANGLES;
+
+/* Bytes of RGBA8 decoded so far in one load (the image loader's user data). */
+struct image_budget {
+    uint64_t decoded = 0;
+};
+
 /* Images decode through stb_image into RGBA8; an image that fails to decode is a warning
-   (the material keeps its factor), never a failure of the whole file. */
-bool load_image(gl::Image *image, const int /*index*/, std::string * /*err*/, std::string *warn, int, int,
-                const unsigned char *bytes, int size, void *) {
+   (the material keeps its factor), never a failure of the whole file. The scene layer only
+   averages base colour and metal/roughness textures, so an image above MAX_IMAGE_PIXELS, or
+   past MAX_DECODED_BYTES in all, is skipped the same way before it is decoded. */
+bool load_image(gl::Image *image, const int index, std::string * /*err*/, std::string *warn, int, int,
+                const unsigned char *bytes, int size, void *user) {
+    image_budget *budget = static_cast<image_budget *>(user);
     int w = 0, h = 0, comp = 0;
+    if (size > 0 && stbi_info_from_memory(bytes, size, &w, &h, &comp) && w > 0 && h > 0) {
+        uint64_t px = (uint64_t)w * (uint64_t)h;
+        if (px > MAX_IMAGE_PIXELS || (budget && budget->decoded + px * 4 > MAX_DECODED_BYTES)) {
+            char buf[200];
+            std::snprintf(buf, sizeof buf, "image %d is %dx%d: above %llu pixels, or %llu MiB decoded in all; skipped\n",
+                          index, w, h, (unsigned long long)MAX_IMAGE_PIXELS,
+                          (unsigned long long)(MAX_DECODED_BYTES >> 20));
+            if (warn) *warn += buf;
+            image->width = image->height = 0;
+            image->image.clear();
+            return true;
+        }
+        if (budget) budget->decoded += px * 4;
+    }
     unsigned char *data = size > 0 ? stbi_load_from_memory(bytes, size, &w, &h, &comp, 4) : nullptr;
     if (!data || w <= 0 || h <= 0) {
         if (data) stbi_image_free(data);
@@ -467,7 +502,8 @@ scene_material map_material(const gl::Model &model, const gl::Material &mat) {
     if (k >= 1.0) {
         for (int c = 0; c < 3; ++c) {
             double d = clamp01(f0 * spec_color[c]) * clamp01(spec_factor);
-            out.diffuse[c] = (float)clamp01(base[c] * (1 - metal));
+            /* the specular layer reflects d first, the diffuse base gets the rest: the sum stays <= 1 */
+            out.diffuse[c] = (float)clamp01(base[c] * (1 - metal) * (1 - d));
             out.glossy[c] = (float)clamp01(d * (1 - metal) + base[c] * metal);
         }
         out.exponent = (float)k;
@@ -753,7 +789,7 @@ struct gltf_loader {
             }
             if (!normals_ok) b.warn(std::string(what) + ": some NORMAL is zero or not finite, normals recomputed");
         }
-        if (!normals_ok) compute_normals(m);
+        if (!normals_ok) flat_normals(m);
         uint32_t mat = material_of(p.material);
         m.mat.assign(m.idx.size() / 3, mat);
         if (p.material >= 0) {
@@ -812,6 +848,61 @@ struct gltf_loader {
         on_path[index] = 0;
     }
 
+    /* Triangles of one primitive as declared by its accessors (0 where they are unusable: the
+       expansion reports those). */
+    double declared_triangles(const gl::Primitive &p) const {
+        int mode = p.mode < 0 ? TINYGLTF_MODE_TRIANGLES : p.mode;
+        int acc = p.indices;
+        if (acc < 0) {
+            auto pa = p.attributes.find("POSITION");
+            acc = pa == p.attributes.end() ? -1 : pa->second;
+        }
+        if (acc < 0 || acc >= (int)model.accessors.size()) return 0;
+        double n = (double)model.accessors[acc].count;
+        if (mode == TINYGLTF_MODE_TRIANGLES) return std::floor(n / 3);
+        if (mode == TINYGLTF_MODE_TRIANGLE_STRIP || mode == TINYGLTF_MODE_TRIANGLE_FAN) return n > 2 ? n - 2 : 0;
+        return 0;
+    }
+
+    /* What the node graph expands to, counted over its paths before anything is expanded
+       (each node once, memoised; a node reached twice is expanded twice): mesh instances and
+       declared triangles above the limits are refused with the totals. */
+    void expansion_check(const std::vector<int> &roots) {
+        size_t n = model.nodes.size();
+        std::vector<double> inst(n, 0), tris(n, 0);
+        std::vector<char> state(n, 0); /* 0 new, 1 on the path, 2 done */
+        struct walk {
+            const gltf_loader &L;
+            std::vector<double> &inst, &tris;
+            std::vector<char> &state;
+            void go(int i, int depth) {
+                if (i < 0 || i >= (int)state.size() || depth > 1000) return; /* the expansion reports these */
+                if (state[i]) return;                                     /* a cycle: reported there too */
+                state[i] = 1;
+                const gl::Node &nd = L.model.nodes[i];
+                double a = 0, t = 0;
+                if (nd.mesh >= 0 && nd.mesh < (int)L.model.meshes.size()) {
+                    a = 1;
+                    for (const gl::Primitive &p : L.model.meshes[nd.mesh].primitives) t += L.declared_triangles(p);
+                }
+                for (int c : nd.children) {
+                    go(c, depth + 1);
+                    if (c >= 0 && c < (int)state.size() && state[c] == 2) { a += inst[c]; t += tris[c]; }
+                }
+                inst[i] = a; tris[i] = t;
+                state[i] = 2;
+            }
+        } w{*this, inst, tris, state};
+        double a = 0, t = 0;
+        for (int r : roots) {
+            w.go(r, 0);
+            if (r >= 0 && r < (int)n && state[r] == 2) { a += inst[r]; t += tris[r]; }
+        }
+        if (a > MAX_INSTANCES || t > MAX_TRIANGLES)
+            fail("the node graph expands to %.0f mesh instances and %.0f triangles, above the loader's limits "
+                 "(%.0f instances, %.0f triangles)", a, t, MAX_INSTANCES, MAX_TRIANGLES);
+    }
+
     void punctual(const gl::Light &gl_light, const mat4 &world) {
         scene_light l;
         std::memset(&l, 0, sizeof l);
@@ -856,6 +947,7 @@ struct gltf_loader {
             for (size_t i = 0; i < model.nodes.size(); ++i)
                 if (!child[i]) roots.push_back((int)i);
         }
+        expansion_check(roots);
         for (int r : roots) node(r, identity(), 0);
         size_t tris = 0;
         for (auto &m : b.meshes) tris += m.idx.size() / 3;
@@ -902,10 +994,94 @@ struct gltf_loader {
 
 bool is_glb(const unsigned char *d, size_t n) { return n >= 4 && std::memcmp(d, "glTF", 4) == 0; }
 
+/* Deepest nesting of objects and arrays in JSON text (strings skipped), counted up to
+   MAX_JSON_DEPTH + 1: the parser recurses once per level, so the text is refused first. */
+unsigned json_depth(const unsigned char *d, size_t n) {
+    unsigned depth = 0, deepest = 0;
+    bool in_string = false, escaped = false;
+    for (size_t i = 0; i < n && deepest <= MAX_JSON_DEPTH; ++i) {
+        unsigned char c = d[i];
+        if (in_string) {
+            if (escaped) escaped = false;
+            else if (c == '\\') escaped = true;
+            else if (c == '"') in_string = false;
+        } else if (c == '"') {
+            in_string = true;
+        } else if (c == '{' || c == '[') {
+            if (++depth > deepest) deepest = depth;
+        } else if ((c == '}' || c == ']') && depth > 0) {
+            --depth;
+        }
+    }
+    return deepest;
+}
+
+/* A regular file of at most MAX_FILE_BYTES, read by its size: a FIFO would block, a device
+   (a symlink to /dev/zero) would read without end. Empty string: fine; else why not. */
+std::string check_regular(const std::string &path, uint64_t *size) {
+    struct stat st;
+    if (stat(path.c_str(), &st) != 0) return std::string("cannot open: ") + std::strerror(errno);
+    if (!S_ISREG(st.st_mode)) return "not a regular file (a FIFO, device or directory)";
+    if ((uint64_t)st.st_size > MAX_FILE_BYTES) return "larger than the loader's limit";
+    *size = (uint64_t)st.st_size;
+    return std::string();
+}
+
+std::string read_regular(std::vector<unsigned char> *out, const std::string &path) {
+    uint64_t size = 0;
+    std::string why = check_regular(path, &size);
+    if (why.empty()) {
+        std::ifstream f(path, std::ios::binary);
+        if (!f) why = std::string("cannot open: ") + std::strerror(errno);
+        else {
+            out->resize((size_t)size);
+            if (size && !f.read(reinterpret_cast<char *>(out->data()), (std::streamsize)size)) why = "read error";
+        }
+    }
+    return why;
+}
+
+/* tinygltf's file access for buffers and images given by uri: regular files only (fs_read
+   says why not; "exists" only sends the path there), no path expansion. */
+bool fs_exists(const std::string &path, void *) {
+    struct stat st;
+    return stat(path.c_str(), &st) == 0;
+}
+std::string fs_expand(const std::string &path, void *) { return path; }
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
+    std::string why = read_regular(out, path);
+    if (!why.empty() && err) *err += path + ": " + why + "\n";
+    return why.empty();
+}
+bool fs_write(std::string *err, const std::string &, const std::vector<unsigned char> &, void *) {
+    if (err) *err += "the loader writes no files\n";
+    return false;
+}
+
 void load_gltf(const unsigned char *data, size_t size, const std::string &base_dir, builder &b) {
     if (size > 0xffffffffu) fail("file too large");
+    {
+        const unsigned char *text = data;
+        size_t text_size = size;
+        if (is_glb(data, size) && size >= 20) { /* the JSON chunk; its length is checked by the parser */
+            uint32_t len = 0;
+            std::memcpy(&len, data + 12, 4);
+            text = data + 20;
+            text_size = std::min((size_t)len, size - 20);
+        }
+        if (json_depth(text, text_size) > MAX_JSON_DEPTH)
+            fail("the JSON nests objects and arrays more than %u levels deep", MAX_JSON_DEPTH);
+    }
     gl::TinyGLTF ctx;
-    ctx.SetImageLoader(load_image, nullptr);
+    image_budget budget;
+    gl::FsCallbacks fs;
+    fs.FileExists = fs_exists;
+    fs.ExpandFilePath = fs_expand;
+    fs.ReadWholeFile = fs_read;
+    fs.WriteWholeFile = fs_write;
+    fs.user_data = nullptr;
+    ctx.SetFsCallbacks(fs);
+    ctx.SetImageLoader(load_image, &budget);
     gl::Model model;
     std::string err, warn;
     bool ok = is_glb(data, size)
@@ -991,10 +1167,9 @@ struct file_args {
 };
 void run_file(void *p, builder &b) {
     file_args *a = static_cast<file_args *>(p);
-    std::ifstream f(a->path, std::ios::binary);
-    if (!f) fail("cannot open: %s", std::strerror(errno));
-    std::vector<unsigned char> data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-    if (f.bad()) fail("read error");
+    std::vector<unsigned char> data;
+    std::string why = read_regular(&data, a->path);
+    if (!why.empty()) fail("%s", why.c_str());
     if (data.empty()) fail("the file is empty");
     load_gltf(data.data(), data.size(), dir_of(a->path), b);
     b.name = base_name(a->path);

@@ -144,6 +144,19 @@ int scene_load(const scene_options *opt, scene *out, char *err, size_t err_cap);
      "street"   tests/street.h's street (about 100k triangles, metres), its sun (E = 1), a
                 camera at the start of the road looking down it */
 int scene_builtin(const char *name, scene *out, char *err, size_t err_cap);
+/* What the glTF loaders accept (a file beyond is refused with one line, before the expensive
+   step): JSON nested at most SCENE_MAX_JSON_DEPTH levels (the parser recurses per level);
+   the file and its external buffers and images regular files (no FIFO, device or directory)
+   of at most SCENE_MAX_FILE_BYTES, read by their size; a node graph expanding to at most
+   SCENE_MAX_INSTANCES mesh instances and SCENE_MAX_TRIANGLES declared triangles. Images above
+   SCENE_MAX_IMAGE_PIXELS, or past SCENE_MAX_DECODED_BYTES decoded in one file, are skipped
+   with a warning (their materials keep the factors). */
+#define SCENE_MAX_JSON_DEPTH 128u
+#define SCENE_MAX_FILE_BYTES (1ull << 31)
+#define SCENE_MAX_INSTANCES 65536.0
+#define SCENE_MAX_TRIANGLES 16777216.0
+#define SCENE_MAX_IMAGE_PIXELS (4096ull * 4096ull)
+#define SCENE_MAX_DECODED_BYTES (256ull << 20)
 /* A glTF 2.0 file (.gltf or .glb). See scene.cpp for the material mapping and the lights. */
 int scene_load_gltf(const char *path, scene *out, char *err, size_t err_cap);
 /* The same from memory; base_dir resolves external URIs (NULL: none allowed). */

@@ -326,6 +326,14 @@ int main(int argc, char **argv) {
     gd.env.logger.func = viewer_log;
     if (gim_create(&gd, &v.ctx) != GIM_OK) goto out;
     if (scene_gimany_load(v.ctx, &v.s, 0.0f, v.d.rsm, gd.env, &v.g) != GIM_OK) goto out;
+    {   /* the demo's limits on the starting settings (the keys can still raise them) */
+        char why[512];
+        if (demo_cost_check(&v.d, v.s.camera.width, v.s.camera.height, v.s.light_count,
+                            strcmp(v.d.method, "none") ? v.g.cache_count : 0u, v.bounces, why, sizeof why)) {
+            fprintf(stderr, PROG ": %s\n", why);
+            goto out;
+        }
+    }
     memcpy(v.lights, v.g.lights, sizeof v.lights);
     v.plain = (gim_mesh *)calloc(v.g.mesh_count + 1u, sizeof *v.plain);
     v.plain_inst = (gim_instance *)calloc(v.g.mesh_count + 1u, sizeof *v.plain_inst);

@@ -45,7 +45,6 @@ layout(location = 13) uniform float max_value;  /* largest value of the output f
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
-const vec3 LUM = vec3(0.2126, 0.7152, 0.0722);
 
 bool finite3(vec3 v) {
     uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
@@ -85,62 +84,46 @@ void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
     }
 }
 
-/* One proxy light set interpolated at x (eq. 8-9): the irradiance E there and the unit
-   direction l towards the light (gim__interp_light). */
-void interp_light(bool is_glossy, vec3 x, vec3 nx, float dcmax, out vec3 e_out, out vec3 l_out) {
-    float sw[2] = float[2](0.0, 0.0), sp[2] = float[2](0.0, 0.0), dq[2] = float[2](0.0, 0.0);
-    vec3 o[2] = vec3[2](vec3(0.0), vec3(0.0)), phi[2] = vec3[2](vec3(0.0), vec3(0.0));
-    e_out = vec3(0.0);
-    l_out = vec3(0.0);
-    /* the luminance weights W' relative to the brightest neighbour's: eq. 9 needs only their
-       ratios, and absolute ones overflow or flush (w lum |op|^2 goes as scale^4: past ~1e9
-       length units it is Inf, below ~1e-9 it is 0, and the image went dark) */
-    float lum_ref = 0.0;
+/* One proxy light set interpolated at x (eq. 8-9, gim__interp_light): the mean, with eq. 8's
+   weights, of what each neighbour's proxy light delivers at x when it moves along with the
+   surface point (seen at x + its offset from its cache); for the glossy set each term carries
+   the receiver's lobe in that proxy's direction (k, view). */
+vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
+    float sw[2] = float[2](0.0, 0.0);
+    vec3 se[2] = vec3[2](vec3(0.0), vec3(0.0));
     for (uint j = 0u; j < found; ++j) {
-        Proxy p = is_glossy ? glossy[best_i[j]] : diffuse[best_i[j]];
-        lum_ref = max(lum_ref, dot(LUM, p.flux_visibility.xyz * p.flux_visibility.w));
-    }
-    if (!(lum_ref > 0.0)) return;                            /* all dark */
-    for (uint j = 0u; j < found; ++j) {
-        uint k = best_i[j];
-        vec3 c = cache[k].position_area.xyz, nc = cache[k].normal_reflectance.xyz;
-        Proxy p = is_glossy ? glossy[k] : diffuse[k];
+        uint i = best_i[j];
+        vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
+        Proxy p = is_glossy ? glossy[i] : diffuse[i];
         vec3 op = p.position_radius.xyz - c;             /* the proxy's offset */
         float dp2 = dot(op, op);
-        vec3 fl = p.flux_visibility.xyz * p.flux_visibility.w;
         float dist = length(x - c);
         float tent = dcmax > near_ ? max(1.0 - dist / dcmax, 0.0) : 1.0;   /* eq. 8 distance term */
-        float lp = sqrt(dp2), nterm;
+        float lp = sqrt(dp2), nterm, f = 1.0;
+        vec3 w = lp > 0.0 ? op / lp : vec3(0.0);
+        float cos_x = dot(nx, w);
         if (is_glossy && lp > 0.0) {   /* r_x . r_c: the direction to the proxy mirrored at n_x and n_c */
-            vec3 w = op / lp;
-            nterm = dot(2.0 * dot(nx, w) * nx - w, 2.0 * dot(nc, w) * nc - w);
+            vec3 rx = 2.0 * cos_x * nx - w;
+            nterm = dot(rx, 2.0 * dot(nc, w) * nc - w);
+            float re = dot(rx, view);
+            f = (k + 2.0) / (2.0 * PI) * (k == 0.0 ? 1.0 : (re > 0.0 ? pow(re, k) : 0.0));
         } else {
             nterm = dot(nx, nc);
         }
         nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
-        float lum = dot(LUM, fl) / lum_ref;
+        /* E_j at x, the proxy never nearer than 1e-6 scene scales; the division first keeps
+           flux / distance^2 (an irradiance) in range at any scale */
+        vec3 ej = cos_x > 0.0 ? p.flux_visibility.xyz / (4.0 * PI * max(dp2, near_ * near_)) * (p.flux_visibility.w * cos_x * f)
+                              : vec3(0.0);
         for (int pass = 0; pass < 2; ++pass) {
-            float w = pass == 0 ? tent * nterm : nterm;
-            if (!(w > 0.0)) continue;
-            sw[pass] += w;
-            sp[pass] += w * lum;
-            dq[pass] += w * lum * dp2;
-            o[pass] += w * lum * op;
-            phi[pass] += w * fl;
+            float wt = pass == 0 ? tent * nterm : nterm;
+            if (!(wt > 0.0)) continue;
+            sw[pass] += wt;
+            se[pass] += wt * ej;
         }
     }
     int use = sw[0] > 0.0 ? 0 : 1;
-    if (!(sw[use] > 0.0) || !(sp[use] > 0.0)) return;        /* no neighbour, or all dark */
-    vec3 ov = o[use] / sp[use];                              /* eq. 9 */
-    vec3 ph = phi[use] / sw[use];
-    float lo2 = dot(ov, ov);
-    if (!(lo2 > 0.0)) return;                                /* no direction: dark */
-    l_out = ov / sqrt(lo2);
-    float cos_x = dot(nx, l_out);
-    if (!(cos_x > 0.0)) { l_out = vec3(0.0); return; }
-    lo2 = max(lo2, 0.25 * dq[use] / sp[use]);                /* no spike where offsets cancel */
-    lo2 = max(lo2, near_ * near_);
-    e_out = ph * (cos_x / (4.0 * PI * lo2));
+    return sw[use] > 0.0 ? se[use] / sw[use] : vec3(0.0);
 }
 
 void main() {
@@ -189,16 +172,8 @@ void main() {
         gcol = material[id].glossy.rgb;
         k = material[id].glossy.w;
     }
-    vec3 ed, ld;
-    interp_light(false, x, nx, dcmax, ed, ld);
-    vec3 outc = albedo / PI * ed;
-    if ((flags & 1u) != 0u) {
-        vec3 eg, lg;
-        interp_light(true, x, nx, dcmax, eg, lg);
-        float re = dot(2.0 * dot(nx, lg) * nx - lg, view);
-        float lobe = k == 0.0 ? 1.0 : (re > 0.0 ? pow(re, k) : 0.0);
-        outc += gcol * ((k + 2.0) / (2.0 * PI) * lobe) * eg;
-    }
+    vec3 outc = albedo / PI * interp_light(false, x, nx, view, k, dcmax);
+    if ((flags & 1u) != 0u) outc += gcol * interp_light(true, x, nx, view, k, dcmax);
     /* clamped to the format: GL leaves a float beyond RGBA16F's range to the implementation
        (llvmpipe stores 65504, others Inf) */
     imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));

@@ -64,8 +64,10 @@ void main() {
         vec4 clip = light_view_proj * vec4(x, 1.0);
         ivec2 rsize = textureSize(rsm_position, 0);
         vec3 sd = vec3(0.0), sg = vec3(0.0);
-        if (clip.w > 0.0) {
-            vec2 p = (clip.xy / clip.w * 0.5 + 0.5) * vec2(rsize);
+        {
+            /* off the map: its nearest point; behind the light's eye: its centre (gim_rsm_gather) */
+            vec2 p = clip.w > 0.0 ? clamp((clip.xy / clip.w * 0.5 + 0.5) * vec2(rsize), vec2(0.0), vec2(rsize))
+                                  : 0.5 * vec2(rsize);
             for (uint j = 0u; j < sample_count; ++j) {
                 vec2 t = floor(p + sample_[j].xy);
                 if (any(lessThan(t, vec2(0.0))) || any(greaterThanEqual(t, vec2(rsize)))) continue;

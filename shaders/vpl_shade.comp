@@ -1,6 +1,7 @@
 /* VPL shading per pixel (Dong sec. 6, SSVP eq. 6; units in gimany.h "twins of the VPL
    methods"), the GPU twin of gim_vpl_shade: one invocation per G-buffer pixel sums the VPLs
-   of its interleaved subset (i = s, s + k^2, ...; s = x mod k + k (y mod k)) in index order,
+   of its interleaved subset (members j = s, s + k^2, ...; s = x mod k + k (y mod k); member j
+   is VPL scramble(j), a bijection that spreads each subset over the list) in member order,
    each with its cluster's soft visibility from the paraboloid maps (gim_paraboloid_visibility,
    the same float steps; `precise` keeps the compiler from fusing them into multiply-adds),
    clamped at d_c (Krivanek), diffuse + Phong lobe. The subset is split into dispatches of
@@ -58,20 +59,33 @@ bool finite3(vec3 v) {
     return all(notEqual(e, uvec3(0xffu)));
 }
 
-/* gim__paraboloid_fetch */
-float fetch(int layer, precise float u, precise float v) {
+/* gim__paraboloid_block: 1 where the texel under (u, v) holds a blocker nearer than the
+   reference (the receiver's plane along the texel's centre ray when pl_on, else ref) */
+bool blocks(int layer, precise float u, precise float v, bool pl_on, precise vec3 pl, precise float pd, precise float ref,
+            out float z) {
+    z = 0.0;
     precise float r2 = u * u + v * v;
-    if (!(r2 <= 1.0)) return EMPTY;
+    if (!(r2 <= 1.0)) return false;
     precise float fs = float(map_size);
     precise float fx = floor((u + 1.0) * fs * 0.5);
     precise float fy = floor((v + 1.0) * fs * 0.5);
     int x = fx < 0.0 ? 0 : (fx > fs - 1.0 ? int(map_size) - 1 : int(fx));
     int y = fy < 0.0 ? 0 : (fy > fs - 1.0 ? int(map_size) - 1 : int(fy));
-    return texelFetch(distance_map, ivec3(x, y, layer), 0).r;
+    z = texelFetch(distance_map, ivec3(x, y, layer), 0).r;
+    if (!(z > 0.0)) return false;
+    precise float r = ref;
+    if (pl_on) {
+        precise float uc = (2.0 * float(x) + 1.0) / fs - 1.0;
+        precise float vc = (2.0 * float(y) + 1.0) / fs - 1.0;
+        precise float q = 1.0 + uc * uc + vc * vc;
+        precise float den = pl.x * (2.0 * uc / q) + pl.y * (2.0 * vc / q) + pl.z * ((1.0 - uc * uc - vc * vc) / q);
+        r = den * pd > 0.0 ? 0.99 * (pd / den) : FLT_MAX;
+    }
+    return z < r;
 }
 
 /* gim__paraboloid_vis: PCSS on map m's paraboloid map in angles (read the twin) */
-float visibility(uint m, vec3 x) {
+float visibility(uint m, vec3 x, vec3 nx) {
     precise vec3 n = map[m].normal_size.xyz;
     precise vec3 o = map[m].origin_near.xyz;
     precise float delta = map[m].normal_size.w;
@@ -97,27 +111,49 @@ float visibility(uint m, vec3 x) {
     precise float texel = 2.0 * opz / fs;
     precise float bias = d * (0.01 + 4.0 * opz / fs);
     precise float ref = d - bias;
+    precise vec3 pl = vec3(nx.x * t.x + nx.y * t.y + nx.z * t.z, nx.x * b.x + nx.y * b.y + nx.z * b.z,
+                           nx.x * n.x + nx.y * n.y + nx.z * n.z);   /* the receiver's plane in the map's frame */
+    precise float pd = pl.x * lx + pl.y * ly + pl.z * lz;
+    bool pl_on = pd > 1e-6 * d || pd < -1e-6 * d;
     precise float dv = delta * sqrt(wz);                  /* the foreshortened VAL */
     precise float as_ = 1.5 * dv / d;
     as_ = as_ < 0.5 ? as_ : 0.5;
     precise float s = jac * as_;
     precise float zsum = 0.0;
     int found = 0, open = 0, layer = int(m);
-    for (int j = 0; j < TAPS; ++j) {                      /* blocker search */
-        float z = fetch(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y);
-        if (z > 0.0 && z < ref) { zsum += z; ++found; }
-    }
+    float z;
+    for (int j = 0; j < TAPS; ++j)                        /* blocker search */
+        if (blocks(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y, pl_on, pl, pd, ref, z)) { zsum += z; ++found; }
     if (found == 0) return 1.0;
     precise float zavg = zsum / float(found);
     precise float ap = 0.5 * dv * (1.0 / zavg - 1.0 / d);      /* penumbra half-width */
     precise float af = ap > texel ? ap : texel;
     af = af < 0.5 ? af : 0.5;
     s = jac * af;
-    for (int j = 0; j < TAPS; ++j) {                      /* PCF */
-        float z = fetch(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y);
-        if (!(z > 0.0 && z < ref)) ++open;
-    }
+    for (int j = 0; j < TAPS; ++j)                        /* PCF */
+        if (!blocks(layer, u + s * VOGEL[j].x, v + s * VOGEL[j].y, pl_on, pl, pd, ref, z)) ++open;
     return float(open) / float(TAPS);
+}
+
+/* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n)) */
+uint scramble(uint i, uint n) {
+    uint half_ = 1u;
+    while (half_ < 15u && (1u << (2u * half_)) < n) ++half_;
+    uint mask = (1u << half_) - 1u;
+    do {
+        uint l = i >> half_, r = i & mask;
+        for (uint round_ = 0u; round_ < 4u; ++round_) {
+            uint t = r * 0x9E3779B1u + round_ * 0x7F4A7C15u;
+            t ^= t >> 15;
+            t *= 0x2C1B3C6Du;
+            t ^= t >> 12;
+            t = l ^ (t & mask);
+            l = r;
+            r = t;
+        }
+        i = (l << half_) | r;
+    } while (i >= n);
+    return i;
 }
 
 void main() {
@@ -154,8 +190,9 @@ void main() {
     }
     uint step = k * k, s = uint(px.x) % k + k * (uint(px.y) % k);
     for (uint j = range.x; j < range.y; ++j) {
-        uint i = s + j * step;
-        if (i >= vpl_count) break;
+        uint member = s + j * step;
+        if (member >= vpl_count) break;
+        uint i = scramble(member, vpl_count);
         Vpl p = vpl[i];
         if (!(p.position_lit.w > 0.0)) continue;
         precise float dx = x.x - p.position_lit.x, dy = x.y - p.position_lit.y, dz = x.z - p.position_lit.z;
@@ -167,7 +204,7 @@ void main() {
         precise float cx = -(nx.x * ox + nx.y * oy + nx.z * oz);
         if (!(cl > 0.0) || !(cx > 0.0)) continue;
         precise float vv = 1.0;
-        if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x);
+        if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;

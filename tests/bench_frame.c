@@ -2,15 +2,20 @@
    gim_update frames of every method in `methods` below against LightSkin FULL (every RSM texel
    a VAL, the paper's own reference) and against the Embree ground truth of the same view
    (build/gimany-reference), side by side in one run, on the procedural street (the paper's
-   open-world case), the measured Cornell box and Sponza (../shared/scenes, when present).
+   open-world case), the measured Cornell box and two views inside Sponza's atrium
+   (../shared/scenes, when present; the file has no camera, and the loader's framing looks at an
+   outer wall that gets no indirect light).
 
    Two sweeps (the CSV's `sweep` column, the README's table between its markers):
      ci    (`make bench`, default): 160x90 frames (64x36 on Sponza), RSM 128^2 and 256^2,
-           1024 / 4096 VALs, 256 view samples, reference at 1024 paths per pixel; a few minutes
-           on a 2-core llvmpipe machine. Writes bench/results.csv and the plots.
+           1024 / 4096 VALs, 256 view samples, reference at 16384 paths per pixel; a few minutes
+           on a 2-core llvmpipe machine once the references are cached. Writes
+           bench/results.csv and the plots.
      full  (`make bench-full`): 320x180 frames, RSM 128^2 .. 2048^2 (street; Cornell box to
            512^2, Sponza to 256^2), 2048 / 4096 / 8192 VALs, 256 / 512 view samples, reference at
-           1024 paths per pixel. Writes bench/full/results.csv and bench/full/PLOT.png.
+           16384 paths per pixel. Writes bench/full/results.csv and bench/full/PLOT.png.
+   References are cached in build/bench_ref/, one folder per scene, view, size, paths per pixel
+   and bounces, and rendered again only when build/gimany-reference is newer than the cache.
    Per configuration: the median frame time (wall clock around gim_update + glFinish, untimed
    frames), then per-pass medians from separate frames with gim_frame.timing = 2 (glFinish after
    each pass and the CPU's clock: the only per-pass times that mean something on llvmpipe, whose
@@ -19,8 +24,10 @@
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
    standard error alone gives against the true image); flicker.
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
-   MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep). */
+   MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
+   prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery). */
 #include "benchutil.h"
+#include <sys/stat.h>
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "scene_gimany.h"
@@ -103,14 +110,19 @@ static const bench_method methods[] = {
 typedef struct bench_scene {
     const char *name, *source;    /* a built-in name or a glTF path */
     const char *fallback;         /* the built-in scene when the file is absent; NULL: skipped */
+    const char *camera;           /* "EX,EY,EZ,TX,TY,TZ,FOVY_DEG" (--camera's form); NULL: the scene's own */
     uint32_t max_rsm[2];          /* largest RSM side (FULL's frame grows with it): ci, full */
     int width[2], height[2];      /* frame: ci, full */
 } bench_scene;
 
+/* Sponza's views under its default sun, at 64x36: the atrium along its length (4% of the
+   pixels sunlit, 99% with indirect light), and the court from above a gallery at the other end
+   (29% sunlit, 98% with indirect light). */
 static const bench_scene scenes[] = {
-    {"street", "street", NULL, {256, 2048}, {160, 320}, {90, 180}},
-    {"cornell", CORNELL_GLTF, "cornell", {256, 512}, {160, 320}, {90, 180}},
-    {"sponza", SPONZA_GLB, NULL, {128, 256}, {64, 320}, {36, 180}},
+    {"street", "street", NULL, NULL, {256, 2048}, {160, 320}, {90, 180}},
+    {"cornell", CORNELL_GLTF, "cornell", NULL, {256, 512}, {160, 320}, {90, 180}},
+    {"sponza-atrium", SPONZA_GLB, NULL, "-11,2.5,0.5,12,5,0,60", {128, 256}, {64, 320}, {36, 180}},
+    {"sponza-gallery", SPONZA_GLB, NULL, "12,8,5,-10,1,-3,60", {128, 256}, {64, 320}, {36, 180}},
 };
 
 typedef struct bench_sweep {
@@ -124,8 +136,8 @@ typedef struct bench_sweep {
 } bench_sweep;
 
 static const bench_sweep sweeps[2] = {
-    {"ci", "bench", {128, 256, 0, 0, 0}, {1024, 4096, 0}, {256, 0}, 2, 2, 1, 1024, 3, 3, 128, 6},
-    {"full", "bench/full", {128, 256, 512, 1024, 2048}, {2048, 4096, 8192}, {256, 512}, 5, 3, 2, 1024, 3, 1, 256, 8},
+    {"ci", "bench", {128, 256, 0, 0, 0}, {1024, 4096, 0}, {256, 0}, 2, 2, 1, 16384, 3, 3, 128, 6},
+    {"full", "bench/full", {128, 256, 512, 1024, 2048}, {2048, 4096, 8192}, {256, 512}, 5, 3, 2, 16384, 3, 1, 256, 8},
 };
 
 /* --- measuring --------------------------------------------------------------------------- */
@@ -324,31 +336,57 @@ static void row(const char *scene_name, const bench_method *bm, uint32_t rsm, ui
     fflush(csv);
 }
 
+/* mtime of path, 0 when absent */
+static double file_time(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 ? (double)st.st_mtime : 0.0;
+}
+
 /* The ground truth of the same view (Embree, tools/reference) when it is built: the image and
-   its per-pixel standard error (both RGB, top row first), or NULL. */
+   its per-pixel standard error (both RGB, top row first), or NULL. Rendered once per scene,
+   view, size, paths per pixel and bounces into build/bench_ref/ (the folder's name holds a hash
+   of the command), and again when the renderer (which links the scene loader) is newer. */
 static float *reference(const bench_scene *bs, const char *source, int bounces, float **sigma) {
-    FILE *fp = fopen("build/gimany-reference", "rb");
-    char cmd[1024], path[512], err[256];
+    char cmd[1024], dir[512], path[600], err[256];
     float *ref = NULL;
-    uint32_t rw = 0, rh = 0, sw_ = 0, sh = 0;
+    uint32_t rw = 0, rh = 0, sw_ = 0, sh = 0, hash = 2166136261u;
+    double bin = file_time("build/gimany-reference");
+    size_t i;
     *sigma = NULL;
-    if (!fp) return NULL;
-    fclose(fp);
-    snprintf(cmd, sizeof cmd,
-             "build/gimany-reference --scene %s --size %dx%d --spp %d --bounces %d --out build/bench_frame_ref_%s_%s_%d >/dev/null",
-             source, W, H, sw->ref_spp, bounces, sw->name, bs->name, bounces);
-    if (system(cmd) != 0) return NULL;
-    snprintf(path, sizeof path, "build/bench_frame_ref_%s_%s_%d/reference.pfm", sw->name, bs->name, bounces);
+    if (bin == 0.0) return NULL;
+    snprintf(cmd, sizeof cmd, "--scene %s%s%s --size %dx%d --spp %d --bounces %d --seed 1", source,
+             bs->camera ? " --camera " : "", bs->camera ? bs->camera : "", W, H, sw->ref_spp, bounces);
+    for (i = 0; cmd[i]; ++i) hash = (hash ^ (unsigned char)cmd[i]) * 16777619u;
+    snprintf(dir, sizeof dir, "build/bench_ref/%s_%dx%d_%dspp_%db_%08x", bs->name, W, H, sw->ref_spp, bounces, hash);
+    snprintf(path, sizeof path, "%s/reference_stderr.pfm", dir);
+    if (file_time(path) < bin) {
+        char run[1600];
+        double t0 = now_s();
+        snprintf(run, sizeof run, "build/gimany-reference %s --out %s >/dev/null", cmd, dir);
+        if (system(run) != 0) return NULL;
+        printf("reference: rendered %s in %.0f s\n", dir, now_s() - t0);
+    } else {
+        printf("reference: cached %s\n", dir);
+    }
+    snprintf(path, sizeof path, "%s/reference.pfm", dir);
     if (scene_read_pfm(path, &ref, &rw, &rh, err, sizeof err) != 0 || rw != (uint32_t)W || rh != (uint32_t)H) {
         free(ref);
         return NULL;
     }
-    snprintf(path, sizeof path, "build/bench_frame_ref_%s_%s_%d/reference_stderr.pfm", sw->name, bs->name, bounces);
+    snprintf(path, sizeof path, "%s/reference_stderr.pfm", dir);
     if (scene_read_pfm(path, sigma, &sw_, &sh, err, sizeof err) != 0 || sw_ != (uint32_t)W || sh != (uint32_t)H) {
         free(*sigma);
         *sigma = NULL;
     }
     return ref;
+}
+
+/* The fraction of pixels whose reference indirect light is not zero: a view that measures
+   something has most of them. */
+static double lit_fraction(const float *ref) {
+    int i, n = 0;
+    for (i = 0; i < W * H; ++i) n += ref[i * 3] + ref[i * 3 + 1] + ref[i * 3 + 2] > 0.0f;
+    return (double)n / (W * H);
 }
 
 static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs, uint32_t min_rsm) {
@@ -378,6 +416,16 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     }
     s.camera.width = (uint32_t)W;
     s.camera.height = (uint32_t)H;
+    if (bs->camera) {
+        float v[7];
+        if (sscanf(bs->camera, "%f,%f,%f,%f,%f,%f,%f", &v[0], &v[1], &v[2], &v[3], &v[4], &v[5], &v[6]) != 7) {
+            fprintf(stderr, "scene %s: bad camera %s\n", bs->name, bs->camera);
+            exit(1);
+        }
+        memcpy(s.camera.eye, v, sizeof s.camera.eye);
+        memcpy(s.camera.target, v + 3, sizeof s.camera.target);
+        s.camera.fovy = v[6] * 3.14159265f / 180.0f;
+    }
     if (scene_gimany_load(ctx, &s, 1.0f / 32.0f, 256, env, &g) != GIM_OK || g.light_count == 0) {
         printf("scene %s: no caches or no light (skipped)\n", bs->name);
         scene_gimany_free(ctx, &g);
@@ -393,16 +441,16 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     {
         uint32_t tris = 0, m;
         for (m = 0; m < s.mesh_count; ++m) tris += s.meshes[m].triangle_count;
-        printf("\nscene: %s (%s), %u triangles, %u caches, %dx%d pixels, %u light(s); sweep %s\n", bs->name, source, tris,
-               g.cache_count, W, H, g.light_count, sw->name);
+        printf("\nscene: %s (%s%s%s), %u triangles, %u caches, %dx%d pixels, %u light(s); sweep %s\n", bs->name, source,
+               bs->camera ? ", camera " : "", bs->camera ? bs->camera : "", tris, g.cache_count, W, H, g.light_count, sw->name);
     }
     ref = reference(bs, source, 1, &sigma);
     if (ref && sigma) ref_noise = reference_noise(ref, sigma);
     ref2 = reference(bs, source, 2, &sigma2);   /* the two-bounce rows' ground truth */
     if (ref2 && sigma2) ref2_noise = reference_noise(ref2, sigma2);
     if (ref)
-        printf("reference: build/gimany-reference, %d paths per pixel; its noise alone is a rel. MAE of %.4f\n", sw->ref_spp,
-               ref_noise);
+        printf("reference: build/gimany-reference, %d paths per pixel; %.1f%% of the pixels carry indirect light; its noise "
+               "alone is a rel. MAE of %.4f (%.4f two bounces)\n", sw->ref_spp, 100.0 * lit_fraction(ref), ref_noise, ref2_noise);
     else
         printf("reference: none (make reference builds it)\n");
     printf("| scene | RSM | method | VALs | view samples | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs ref. | "
@@ -474,7 +522,7 @@ int main(int argc, char **argv) {
     int a, append = argc > 2;
     sw = &sweeps[argc > 1 && strcmp(argv[1], "full") == 0 ? 1 : 0];
     if (argc > 1 && strcmp(argv[1], "full") != 0 && strcmp(argv[1], "ci") != 0) {
-        fprintf(stderr, "usage: bench_frame [ci|full]\n");
+        fprintf(stderr, "usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]\n");
         return 2;
     }
     if (!gltest_init()) {
@@ -495,10 +543,12 @@ int main(int argc, char **argv) {
         uint32_t min_rsm = 0;
         int run = !append;
         for (a = 2; a < argc; ++a) {
-            size_t n = strlen(scenes[i].name);
-            if (strncmp(argv[a], scenes[i].name, n) == 0 && (argv[a][n] == 0 || argv[a][n] == ':')) {
+            const char *colon = strchr(argv[a], ':');
+            size_t n = colon ? (size_t)(colon - argv[a]) : strlen(argv[a]);
+            /* the whole name, or a prefix that ends where the name has a '-' */
+            if (n > 0 && strncmp(argv[a], scenes[i].name, n) == 0 && (scenes[i].name[n] == 0 || scenes[i].name[n] == '-')) {
                 run = 1;
-                if (argv[a][n] == ':') min_rsm = (uint32_t)atoi(argv[a] + n + 1);
+                if (colon) min_rsm = (uint32_t)atoi(colon + 1);
             }
         }
         if (run) bench_scene_run(ctx, d.env, &scenes[i], min_rsm);

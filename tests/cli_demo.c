@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <math.h>
+#include <time.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <cmocka.h>
@@ -94,6 +95,7 @@ static void cornell_default(void **state) {
     assert_non_null(strstr(js, "\"triangles\": 30"));
     assert_non_null(strstr(js, "\"vals\": 2048"));
     assert_non_null(strstr(js, "\"frames\": 2"));
+    assert_non_null(strstr(js, "\"pass_timing\": \"cpu")); /* the default: glFinish per pass, CPU clock */
     free(js);
     /* deterministic: the same command gives the same files, bit for bit */
     assert_int_equal(demo("--scene cornell --size 64x48 --frames 2", OUT "/a2", &out), 0);
@@ -108,6 +110,27 @@ static void cornell_default(void **state) {
             if (rc != 0) fail_msg("%s differs between two runs: %s", files[i], c1);
             free(c1);
         }
+    }
+    /* stats.json: equal but for its three timing lines (the README says so) */
+    {
+        char *a = cli_read_file(OUT "/a/stats.json"), *b = cli_read_file(OUT "/a2/stats.json");
+        char *pa, *pb, *la, *lb;
+        int timing = 0;
+        assert_true(a && b);
+        for (la = strtok_r(a, "\n", &pa), lb = strtok_r(b, "\n", &pb); la || lb;
+             la = strtok_r(NULL, "\n", &pa), lb = strtok_r(NULL, "\n", &pb)) {
+            assert_true(la && lb);
+            if (!strncmp(la, "  \"pass_ms\"", 11) || !strncmp(la, "  \"gimany_frame_ms\"", 19) ||
+                !strncmp(la, "  \"frame_ms\"", 12)) {
+                assert_int_equal(strncmp(la, lb, 12), 0);
+                timing++;
+                continue;
+            }
+            if (strcmp(la, lb)) fail_msg("stats.json differs outside the timings: '%s' against '%s'", la, lb);
+        }
+        assert_int_equal(timing, 3);
+        free(a);
+        free(b);
     }
     /* the PNG is not black */
     {
@@ -280,6 +303,7 @@ static void bad_input(void **state) {
         {"--method clustered --clusters 300", "--clusters"},
         {"--method clustered --vpls 40000", "--vpls"},
         {"--no-glossy=1", "--no-glossy"},
+        {"--timing gpu", "--timing"},
         {"--scene /nonexistent/x.gltf", "/nonexistent/x.gltf"},
         {"--scene nosuch", "nosuch"},
         {"--scene tests/cli_demo.c", "tests/cli_demo.c"},
@@ -305,6 +329,41 @@ static void bad_input(void **state) {
         assert_false(cli_exists(OUT "/bad/stats.json"));
         free(out);
     }
+}
+
+/* Settings a frame cannot finish in reasonable time or memory are refused up front from the
+   cost model (examples/options.h demo_cost), one line naming --allow-slow, in seconds. */
+static void too_slow(void **state) {
+    static const char *slow[] = {
+        "--vals 1048576",                     /* 3330 caches x 2^20 VALs */
+        "--method full --rsm 1024",           /* 3330 caches x 2^20 texels */
+        "--method gather --rsm 8192",         /* 3.3 GiB of RSM */
+        "--method gather --size 8192x8192",   /* 1.7e10 gather terms */
+        "--size 16384x16384",                 /* 35 GiB of frame */
+    };
+    size_t k;
+    char *out = NULL;
+    (void)state;
+    for (k = 0; k < sizeof slow / sizeof slow[0]; ++k) {
+        struct timespec t0, t1;
+        double s;
+        int rc;
+        clock_gettime(CLOCK_MONOTONIC, &t0);
+        rc = demo(slow[k], OUT "/slow", &out);
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        s = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+        print_message("%s -> %d in %.1f s: %s", slow[k], rc, s, out);
+        assert_int_equal(rc, 1);
+        assert_true(strncmp(out, "gimany-demo: ", 13) == 0);
+        assert_true(strchr(out, '\n') == out + strlen(out) - 1);
+        assert_non_null(strstr(out, "pass --allow-slow"));
+        assert_false(cli_exists(OUT "/slow/stats.json"));
+        assert_true(s < 60.0);
+        free(out);
+    }
+    /* the flag is accepted (a cheap frame runs as before) */
+    assert_int_equal(demo("--scene cornell --size 16x8 --frames 1 --rsm 16 --vals 64 --allow-slow", OUT "/slow", &out), 0);
+    free(out);
 }
 
 /* A glTF that loads but has no triangle: black images, a warning, exit 0. */
@@ -385,7 +444,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),   cmocka_unit_test(direct_closed_form),
         cmocka_unit_test(direct_glossy),   cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
-        cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),
+        cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

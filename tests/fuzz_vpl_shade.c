@@ -83,8 +83,12 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         uint32_t m;
         for (m = 0; m < nm; ++m) {
             float vis = -1.0f;
+            gim_vec3 nrm = gim_v3(rc[i].normal[0], rc[i].normal[1], rc[i].normal[2]);
             res = gim_paraboloid_visibility(dist + (size_t)m * ms * ms, ms, &maps[m],
-                                            gim_v3(rc[i].position[0], rc[i].position[1], rc[i].position[2]), &vis);
+                                            gim_v3(rc[i].position[0], rc[i].position[1], rc[i].position[2]), NULL, &vis);
+            if (res == GIM_OK && !(vis >= 0.0f && vis <= 1.0f)) abort();
+            res = gim_paraboloid_visibility(dist + (size_t)m * ms * ms, ms, &maps[m],
+                                            gim_v3(rc[i].position[0], rc[i].position[1], rc[i].position[2]), &nrm, &vis);
             if (res == GIM_OK && !(vis >= 0.0f && vis <= 1.0f)) abort();
         }
     }

@@ -45,8 +45,35 @@ static void external_loader(void **state) {
     GLTEST_END();
 }
 
+/* Without get_proc_address the optional GL 4.5 glClipControl is not loaded, so gimany cannot
+   set the clip state: a host's non-default glClipControl is refused (it would flip or blacken
+   the image), the default one passes that check. */
+static void external_clip_control(void **state) {
+    test_alloc_stats stats;
+    test_log log;
+    gim_desc d;
+    gim_frame fr;
+    gim_context *ctx = NULL;
+    (void)state;
+    GLTEST_BEGIN();
+    memset(&d, 0, sizeof d);
+    d.env = test_env(&stats, &log);
+    assert_int_equal(gim_create(&d, &ctx), GIM_OK);
+    assert_null(ctx->gl.ClipControl);
+    memset(&fr, 0, sizeof fr);
+    glClipControl(GL_UPPER_LEFT, GL_ZERO_TO_ONE);
+    assert_int_equal(gim_update(ctx, &fr), GIM_ERROR_UNSUPPORTED);
+    assert_non_null(strstr(log.last, "glClipControl"));
+    glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+    assert_int_equal(gim_update(ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);   /* past it: the zero view */
+    assert_int_equal(log.errors, 2);
+    gim_destroy(ctx);
+    assert_int_equal(stats.live, 0);
+    GLTEST_END();
+}
+
 int main(void) {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(external_loader)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(external_loader), cmocka_unit_test(external_clip_control)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;

@@ -168,6 +168,7 @@ static void run_case(const shade_case *sc) {
     a.format = sc->format;
     memset(&ba, 0, sizeof ba);
     ba.depth = out.gbuffer_depth; ba.normal = out.gbuffer_normal; ba.width = W; ba.height = H;
+    ba.albedo = a.albedo; ba.material = a.material;
     ba.view = fr.view; ba.proj = fr.proj; ba.window = sc->interleave;
     ba.position_tolerance = 0.1f * 1.7320508f * L;   /* Laine et al.'s alpha: 10 % of the extent */
     ba.output = t_blur; ba.format = sc->format;
@@ -269,9 +270,12 @@ static void run_case(const shade_case *sc) {
             for (i = 0; i < pix_count; ++i) if (cpu[i * 3] > ref_max) ref_max = cpu[i * 3];
             for (i = 0; i < pix_count; ++i) {
                 float vc;
+                gim_vec3 rn;
                 if (!surface[i] || !(cpu[i * 3] > 1e-3 * ref_max)) continue;
+                rn = gim_v3(rec[i].normal[0], rec[i].normal[1], rec[i].normal[2]);
                 assert_int_equal(gim_paraboloid_visibility(dist + (size_t)m * S * S, S, &maps[m],
-                                                           gim_v3(rec[i].position[0], rec[i].position[1], rec[i].position[2]), &vc),
+                                                           gim_v3(rec[i].position[0], rec[i].position[1], rec[i].position[2]),
+                                                           &rn, &vc),
                                  GIM_OK);
                 lit++;
                 if (vc > 0.0f && vc < 1.0f) partial++;

@@ -192,17 +192,17 @@ static void visibility_umbra_penumbra(void **state) {
     (void)state;
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 10.0f);
     for (i = 0; i < S * S; ++i) dist[i] = GIM_PARABOLOID_EMPTY;
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* a plate at height 1, 2 x 2: under its centre at height 2 every tap is blocked */
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 0.0f);
     /* between the VAL and the plate: lit */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* behind the VAL's plane: 1 whatever the map */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* out of the shadow along t at height 2: the shadow of the plate's edge (x = 1 at h = 1)
        from the VAL's centre is at x = 2, the exact penumbra [2 - Delta / 2, 2 + Delta / 2]
@@ -211,8 +211,8 @@ static void visibility_umbra_penumbra(void **state) {
     for (i = 0; i <= 60; ++i) {
         float x = 1.0f + 3.5f * (float)i / 60.0f, vb;
         gim_paraboloid big = test_map(1.2f);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), &v), GIM_OK);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), &vb), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), NULL, &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), NULL, &vb), GIM_OK);
         if (v > 0.0f && v < 1.0f) ++frac;
         if (vb > 0.0f && vb < 1.0f) ++frac_big;
         if (v < prev) ++drops;
@@ -260,7 +260,7 @@ static void visibility_near_exact(void **state) {
         m.size = (float)D;
         vs_plate_map(dist, S, (float)h, (float)cx, (float)cy, (float)half);
         ex = exact_visibility(D, h, cx, cy, half, a, b, c);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), NULL, &v), GIM_OK);
         assert_true(v >= 0.0f && v <= 1.0f);
         if (ex > 0.999 && v > 0.999f) continue;   /* far from any shadow */
         ++n;
@@ -292,8 +292,8 @@ static void visibility_unit_free(void **state) {
         for (i = 0; i < S * S; ++i) dist_s[i] = dist[i] < GIM_PARABOLOID_EMPTY ? dist[i] * k : dist[i];
         for (i = 0; i < 200; ++i) {
             float a = test_rnd(-3, 3), b = test_rnd(-3, 3), c = test_rnd(0.2f, 3.0f), v, vs;
-            assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, a, b, c), &v), GIM_OK);
-            assert_int_equal(gim_paraboloid_visibility(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), &vs), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, a, b, c), NULL, &v), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), NULL, &vs), GIM_OK);
             if (fabsf(v - vs) > 1.0f / 16.0f + 1e-6f) fail_msg("scale %g: V %g against %g", (double)k, (double)v, (double)vs);
             differ += v != vs;
             ++total;
@@ -417,6 +417,39 @@ static void blur_keeps_edges(void **state) {
     assert_int_equal(st.live, 0);
 }
 
+/* The blur averages light, not materials: a plane under uniform light, half of it albedo 0.2
+   grey, half (0.8, 0.4, 0) (a channel with no albedo carries no light), one glossy pixel among
+   them. Each diffuse pixel keeps its own albedo x the light however the window straddles the
+   edge (blurring radiance gave 0.5 on both sides of it); the glossy one keeps its own
+   radiance (no other glossy pixel in reach). */
+static void blur_light_not_albedo(void **state) {
+    enum { W = 16, H = 8 };
+    test_alloc_stats st;
+    test_log lg;
+    gim_env env = test_env(&st, &lg);
+    gim_receiver r[W * H];
+    float in[W * H * 3], out[W * H * 3];
+    gim_blur_desc d;
+    int x, y, a;
+    (void)state;
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            int i = y * W + x;
+            r[i] = rec(gim_v3(0.1f * x, 0.0f, 0.1f * y), gim_v3(0, 1, 0), gim_v3(0, 1, 1));
+            memset(r[i].glossy, 0, sizeof r[i].glossy);
+            for (a = 0; a < 3; ++a) r[i].albedo[a] = x < W / 2 ? 0.2f : (a == 0 ? 0.8f : a == 1 ? 0.4f : 0.0f);
+            for (a = 0; a < 3; ++a) in[i * 3 + a] = r[i].albedo[a] * 1.5f;   /* albedo x the light */
+        }
+    r[3 * W + 4].glossy[1] = 0.5f;
+    in[(3 * W + 4) * 3] = in[(3 * W + 4) * 3 + 1] = in[(3 * W + 4) * 3 + 2] = 5.0f;
+    memset(&d, 0, sizeof d);
+    d.radiance = in; d.receivers = r; d.width = W; d.height = H; d.window = 8; d.position_tolerance = 10.0f; d.env = env;
+    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    for (x = 0; x < W * H * 3; ++x) assert_true(fabs(out[x] - in[x]) <= 1e-5f);
+    assert_int_equal(lg.errors, 0);
+    assert_int_equal(st.live, 0);
+}
+
 /* Interleaved sampling then the blur (Dong sec. 6): on a smooth floor lit by VPLs on a wall,
    the k = 4 image is noisy (each pixel sees a sixteenth of the VPLs) and the 4 x 4 blur brings
    it back near the full sum; a window that does not hold every subset leaves more noise. */
@@ -513,21 +546,26 @@ static void bad_input(void **state) {
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     /* visibility (it has no env: errors are results only) */
-    assert_int_equal(gim_paraboloid_visibility(NULL, 2, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 0, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, NULL, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(NAN, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(NULL, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 0, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, NULL, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(NAN, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    {
+        gim_vec3 bad = gim_v3(0, 0, 2), nan_ = gim_v3(NAN, 0, 1);
+        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &bad, &v0), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &nan_, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    }
     m.origin[0] = INFINITY;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
     m = test_map(0.2f);
     /* NaN and negative texels block nothing; a receiver at the origin or far away is lit */
     dist[0] = NAN; dist[1] = -1.0f; dist[2] = 0.0f; dist[3] = NAN;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0, 0, 0), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0, 0, 0), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), NULL, &v0), GIM_OK);
     assert_true(v0 >= 0.0f && v0 <= 1.0f);
     /* blur */
     memset(&b, 0, sizeof b);
@@ -557,6 +595,7 @@ int main(void) {
         cmocka_unit_test(visibility_unit_free),
         cmocka_unit_test(shade_uses_cluster_visibility),
         cmocka_unit_test(blur_keeps_edges),
+        cmocka_unit_test(blur_light_not_albedo),
         cmocka_unit_test(blur_undoes_interleaving),
         cmocka_unit_test(bad_input),
     };

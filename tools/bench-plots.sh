@@ -83,7 +83,7 @@ GP
 # the README table: the CSV's rows, pass times left to the CSV
 table="$tmp/table.md"
 {
-  echo "| scene | frame | RSM | method | VALs | view samples | clusters / 2nd-bounce VPLs / bounces | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference (its noise) | flicker | GPU MiB | passes over 10%, ms (timing 2) |"
+  echo "| scene | frame | RSM | method | VALs | view samples | clusters / 2nd-bounce VPLs / bounces | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference (its noise floor; its paths per pixel) | flicker | GPU MiB | passes over 10%, ms (timing 2) |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   awk -F, "$col"' {
     n = split("rsm gbuffer view_samples importance cumsum select caches vals proxy occlusion shade vpls kmeans paraboloid second_bounce blur", pn, " ")
@@ -93,7 +93,7 @@ table="$tmp/table.md"
            $c["scene"], $c["width"], $c["height"], $c["rsm"], $c["method"], $c["vals"], ($c["view_samples"] == 0 ? "-" : $c["view_samples"]),
            $c["clusters"], $c["second_bounce_vpls"], $c["bounces"], $c["frame_ms"],
            ($c["full_over_this"] == "" ? "-" : sprintf("%.1f", $c["full_over_this"])), ($c["rel_diff_full"] == "" ? "-" : sprintf("%.4f", $c["rel_diff_full"])),
-           ($c["rel_mae_reference"] == "" ? "-" : sprintf("%.3f (%.3f)", $c["rel_mae_reference"], $c["ref_noise_mae"])),
+           ($c["rel_mae_reference"] == "" ? "-" : sprintf("%.3f (%.3f; %d)", $c["rel_mae_reference"], $c["ref_noise_mae"], $c["ref_spp"])),
            ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
 if [ "$sweep" = full ]; then marker=frame; else marker=$sweep; fi

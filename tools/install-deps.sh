@@ -6,7 +6,7 @@ pkgs=()
 for g in "$@"; do
   case "$g" in
     build)     pkgs+=(gcc g++ make) ;;
-    test)      pkgs+=(gcc g++ clang libcmocka-dev valgrind) ;;
+    test)      pkgs+=(gcc g++ clang libcmocka-dev valgrind zlib1g-dev) ;;   # zlib: test_loader makes its PNG
     gl)        pkgs+=(libegl-dev libgl-dev libgl1-mesa-dri libegl-mesa0) ;;
     shaders)   pkgs+=(glslang-tools) ;;
     fuzz)      pkgs+=(clang libclang-rt-14-dev) ;;

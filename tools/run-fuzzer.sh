@@ -8,6 +8,7 @@ seed=tests/corpus/$name
 work=$(dirname "$bin")/corpus-$name
 mkdir -p "$work"
 dirs=("$work"); [ -d "$seed" ] && dirs+=("$seed")
+dict=(); [ -f "tests/$name.dict" ] && dict=(-dict="tests/$name.dict")   # keywords, nesting depth
 echo "fuzz: $name for ${secs}s"
-"$bin" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 -print_final_stats=0 "${dirs[@]}" >"$work.log" 2>&1 || {
+"$bin" "${dict[@]}" -max_total_time="$secs" -timeout=10 -rss_limit_mb=2048 -print_final_stats=0 "${dirs[@]}" >"$work.log" 2>&1 || {
   echo "fuzz: $name FAILED, log follows"; tail -n 60 "$work.log"; exit 1; }

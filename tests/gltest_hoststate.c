@@ -1,0 +1,230 @@
+/* A host that leaves GL state away from its defaults around gim_update: ordinary texture-upload
+   pixel store (row length, skips), glClipControl, a logic op, primitive restart, the provoking
+   vertex, polygon mode, scissor, masks, depth range, culling, blending, stencil, samplers. Every
+   method's image must equal the one made from GL's default state, and every item must be as the
+   host left it afterwards. And gim_update with no current context says so. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+#include "scene_gimany.h"
+
+#define W 16
+#define H 16
+#include "framefix.h"
+
+typedef struct hostile {
+    GLuint samplers[8], program;
+} hostile;
+
+static GLuint hostile_program(void) {
+    static const char *src = "#version 430 core\nlayout(local_size_x = 1) in;\nvoid main() {}\n";
+    GLuint s = glCreateShader(GL_COMPUTE_SHADER), p = glCreateProgram();
+    glShaderSource(s, 1, &src, NULL);
+    glCompileShader(s);
+    glAttachShader(p, s);
+    glLinkProgram(p);
+    glDeleteShader(s);
+    return p;
+}
+
+/* pixel store {parameter, hostile value}: large skips make a driver that applies them to a
+   clear value read far outside it */
+static const GLint pixel_store[][2] = {
+    {GL_UNPACK_ROW_LENGTH, 4096}, {GL_UNPACK_SKIP_ROWS, 4096}, {GL_UNPACK_SKIP_PIXELS, 4096},
+    {GL_UNPACK_ALIGNMENT, 8}, {GL_UNPACK_IMAGE_HEIGHT, 64}, {GL_UNPACK_SKIP_IMAGES, 3},
+    {GL_UNPACK_SWAP_BYTES, GL_TRUE}, {GL_UNPACK_LSB_FIRST, GL_TRUE},
+    {GL_PACK_ROW_LENGTH, 4096}, {GL_PACK_SKIP_ROWS, 4096}, {GL_PACK_SKIP_PIXELS, 4096},
+    {GL_PACK_ALIGNMENT, 8}, {GL_PACK_IMAGE_HEIGHT, 64}, {GL_PACK_SKIP_IMAGES, 3},
+    {GL_PACK_SWAP_BYTES, GL_TRUE}, {GL_PACK_LSB_FIRST, GL_TRUE}};
+#define N_PIXEL_STORE (sizeof pixel_store / sizeof pixel_store[0])
+
+static const GLenum enabled[] = {GL_COLOR_LOGIC_OP, GL_PRIMITIVE_RESTART, GL_PRIMITIVE_RESTART_FIXED_INDEX,
+                                 GL_SCISSOR_TEST, GL_CULL_FACE, GL_BLEND, GL_STENCIL_TEST, GL_POLYGON_OFFSET_FILL,
+                                 GL_DEPTH_CLAMP, GL_FRAMEBUFFER_SRGB, GL_CLIP_DISTANCE0, GL_RASTERIZER_DISCARD,
+                                 GL_DEPTH_TEST, GL_POLYGON_SMOOTH};
+#define N_ENABLED (sizeof enabled / sizeof enabled[0])
+
+static void set_hostile(hostile *h) {
+    unsigned i;
+    for (i = 0; i < N_PIXEL_STORE; ++i) glPixelStorei((GLenum)pixel_store[i][0], pixel_store[i][1]);
+    glClipControl(GL_UPPER_LEFT, GL_ZERO_TO_ONE);
+    for (i = 0; i < N_ENABLED; ++i) glEnable(enabled[i]);
+    glDisable(GL_DITHER);
+    glLogicOp(GL_INVERT);
+    glPrimitiveRestartIndex(0);
+    glProvokingVertex(GL_FIRST_VERTEX_CONVENTION);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_LINE);
+    glScissor(0, 0, 1, 1);
+    glColorMask(GL_FALSE, GL_FALSE, GL_FALSE, GL_FALSE);
+    glDepthMask(GL_FALSE);
+    glDepthRange(0.5, 0.25);
+    glDepthFunc(GL_GREATER);
+    glCullFace(GL_FRONT);
+    glFrontFace(GL_CW);
+    glBlendFunc(GL_ONE, GL_ONE);
+    glBlendColor(0.5f, 0.5f, 0.5f, 0.5f);
+    glStencilFunc(GL_NEVER, 1, 0xff);
+    glPolygonOffset(1000.0f, 1000.0f);
+    glViewport(1, 1, 3, 3);
+    glClearColor(0.5f, 0.25f, 0.125f, 1.0f);
+    glClearDepth(0.0);
+    glGenSamplers(8, h->samplers);
+    for (i = 0; i < 8; ++i) {
+        glSamplerParameteri(h->samplers[i], GL_TEXTURE_MIN_FILTER, GL_LINEAR_MIPMAP_LINEAR);
+        glSamplerParameteri(h->samplers[i], GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
+        glBindSampler(i, h->samplers[i]);
+    }
+    glActiveTexture(GL_TEXTURE3);
+    h->program = hostile_program();
+    glUseProgram(h->program);
+    assert_int_equal(gltest_errors(), 0);
+}
+
+/* Read back with the test's own calls: everything as set_hostile left it. */
+static void check_hostile(const hostile *h) {
+    GLint v, v4[4];
+    GLboolean b4[4];
+    GLfloat f4[4];
+    unsigned i;
+    for (i = 0; i < N_PIXEL_STORE; ++i) {
+        glGetIntegerv((GLenum)pixel_store[i][0], &v);
+        assert_int_equal(v, pixel_store[i][1]);
+    }
+    glGetIntegerv(GL_CLIP_ORIGIN, &v); assert_int_equal(v, GL_UPPER_LEFT);
+    glGetIntegerv(GL_CLIP_DEPTH_MODE, &v); assert_int_equal(v, GL_ZERO_TO_ONE);
+    for (i = 0; i < N_ENABLED; ++i) assert_true(glIsEnabled(enabled[i]));
+    assert_false(glIsEnabled(GL_DITHER));
+    glGetIntegerv(GL_LOGIC_OP_MODE, &v); assert_int_equal(v, GL_INVERT);
+    glGetIntegerv(GL_PRIMITIVE_RESTART_INDEX, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_PROVOKING_VERTEX, &v); assert_int_equal(v, GL_FIRST_VERTEX_CONVENTION);
+    glGetIntegerv(GL_POLYGON_MODE, v4); assert_int_equal(v4[0], GL_LINE);
+    glGetIntegerv(GL_SCISSOR_BOX, v4); assert_true(v4[0] == 0 && v4[1] == 0 && v4[2] == 1 && v4[3] == 1);
+    glGetBooleanv(GL_COLOR_WRITEMASK, b4); assert_true(!b4[0] && !b4[1] && !b4[2] && !b4[3]);
+    glGetBooleanv(GL_DEPTH_WRITEMASK, b4); assert_false(b4[0]);
+    glGetFloatv(GL_DEPTH_RANGE, f4); assert_true(f4[0] == 0.5f && f4[1] == 0.25f);
+    glGetIntegerv(GL_DEPTH_FUNC, &v); assert_int_equal(v, GL_GREATER);
+    glGetIntegerv(GL_CULL_FACE_MODE, &v); assert_int_equal(v, GL_FRONT);
+    glGetIntegerv(GL_FRONT_FACE, &v); assert_int_equal(v, GL_CW);
+    glGetIntegerv(GL_BLEND_SRC_RGB, &v); assert_int_equal(v, GL_ONE);
+    glGetIntegerv(GL_BLEND_DST_RGB, &v); assert_int_equal(v, GL_ONE);
+    glGetIntegerv(GL_STENCIL_FUNC, &v); assert_int_equal(v, GL_NEVER);
+    glGetFloatv(GL_POLYGON_OFFSET_UNITS, f4); assert_true(f4[0] == 1000.0f);
+    glGetIntegerv(GL_VIEWPORT, v4); assert_true(v4[0] == 1 && v4[1] == 1 && v4[2] == 3 && v4[3] == 3);
+    glGetFloatv(GL_DEPTH_CLEAR_VALUE, f4); assert_true(f4[0] == 0.0f);
+    for (i = 0; i < 8; ++i) {
+        glActiveTexture(GL_TEXTURE0 + i);
+        glGetIntegerv(GL_SAMPLER_BINDING, &v); assert_int_equal(v, h->samplers[i]);
+    }
+    glActiveTexture(GL_TEXTURE3);
+    glGetIntegerv(GL_CURRENT_PROGRAM, &v); assert_int_equal(v, h->program);
+}
+
+/* Back to GL's defaults, so the test reads its images with its own known state. */
+static void set_default(hostile *h) {
+    unsigned i;
+    for (i = 0; i < N_PIXEL_STORE; ++i) {
+        GLenum p = (GLenum)pixel_store[i][0];
+        glPixelStorei(p, p == GL_PACK_ALIGNMENT || p == GL_UNPACK_ALIGNMENT ? 4 : 0);
+    }
+    glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+    for (i = 0; i < N_ENABLED; ++i) glDisable(enabled[i]);
+    glEnable(GL_DITHER);
+    glLogicOp(GL_COPY);
+    glPrimitiveRestartIndex(0);
+    glProvokingVertex(GL_LAST_VERTEX_CONVENTION);
+    glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    glDepthMask(GL_TRUE);
+    glDepthRange(0.0, 1.0);
+    glDepthFunc(GL_LESS);
+    glCullFace(GL_BACK);
+    glFrontFace(GL_CCW);
+    glBlendFunc(GL_ONE, GL_ZERO);
+    glStencilFunc(GL_ALWAYS, 0, 0xff);
+    glPolygonOffset(0.0f, 0.0f);
+    glViewport(0, 0, W, H);
+    glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
+    glClearDepth(1.0);
+    for (i = 0; i < 8; ++i) glBindSampler(i, 0);
+    glActiveTexture(GL_TEXTURE0);
+    glUseProgram(0);
+    if (h) {
+        glDeleteSamplers(8, h->samplers);
+        glDeleteProgram(h->program);
+    }
+}
+
+/* One frame of method m on the built-in Cornell box from the default state, then one from the
+   hostile state: the same image, bit for bit (the same inputs on the same driver), and the
+   host's state kept. The VPL methods restart k-means from the same seeds so that both frames
+   cluster alike. */
+static void same_image(gim_method m) {
+    frame_fixture ff;
+    float a[W * H * 4], b[W * H * 4], peak = 0.0f;
+    hostile h;
+    gim_frame_outputs o;
+    int i;
+    GLTEST_BEGIN();
+    assert_int_equal(frame_begin(&ff, NULL, 16), 0);
+    ff.fr.method = m;
+    ff.fr.view_sample_count = 16;
+    ff.fr.val_count = 64;
+    ff.fr.gather_samples = 16;
+    ff.fr.vpl_count = 64;
+    ff.fr.cluster_count = 4;
+    ff.fr.paraboloid_size = 16;
+    ff.fr.second_bounce_vpls = 16;
+    ff.fr.interleave = 2;
+    ff.fr.kmeans_restart = 1;
+    set_default(NULL);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    o = gim_outputs(ff.f.ctx);
+    read_indirect(&o, a);
+    for (i = 0; i < W * H * 4; ++i) if (a[i] > peak) peak = a[i];
+    assert_true(peak > 0.0f);   /* a black image would match anything black */
+    set_hostile(&h);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    assert_int_equal(gltest_errors(), 0);
+    check_hostile(&h);
+    set_default(&h);
+    o = gim_outputs(ff.f.ctx);
+    read_indirect(&o, b);
+    for (i = 0; i < W * H * 4; ++i)
+        if (a[i] != b[i]) fail_msg("method %d: pixel %d channel %d: %g from the default state, %g from the host's",
+                                   (int)m, i / 4, i % 4, (double)a[i], (double)b[i]);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+static void lightskin_brsm(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_BRSM); }
+static void lightskin_full(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_FULL); }
+static void rsm_gather(void **state) { (void)state; same_image(GIM_METHOD_RSM_GATHER); }
+static void clustered(void **state) { (void)state; same_image(GIM_METHOD_CLUSTERED); }
+static void ssvp(void **state) { (void)state; same_image(GIM_METHOD_SSVP); }
+
+/* gim_update on a thread with no current context says so, and nothing else happens. */
+static void no_current_context(void **state) {
+    frame_fixture ff;
+    (void)state;
+    GLTEST_BEGIN();
+    assert_int_equal(frame_begin(&ff, NULL, 16), 0);
+    assert_true(eglMakeCurrent(gltest.display, EGL_NO_SURFACE, EGL_NO_SURFACE, EGL_NO_CONTEXT));
+    ff.f.log.errors = 0;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_GL);
+    assert_int_equal(ff.f.log.errors, 1);
+    assert_non_null(strstr(ff.f.log.last, "no GL context is current"));
+    assert_true(eglMakeCurrent(gltest.display, EGL_NO_SURFACE, EGL_NO_SURFACE, gltest.context));
+    ff.f.log.errors = 0;   /* the one expected */
+    ff.fr.view_sample_count = 16;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
+        cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context)};
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}

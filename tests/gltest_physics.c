@@ -1,0 +1,229 @@
+/* Physics of the whole GPU frame: every method through gim_update, at default settings (small
+   image and RSM), on the closed-form scenes of tests/physics.h, each pixel against the exact
+   one-bounce radiance of the surface it shows (the G-buffer twin gives the point, its normal
+   towards the eye and its quad). Counted are the pixels whose exact radiance is above 1% of
+   the image's largest; the statistics are the median of gimany / exact and the fractions of
+   pixels within 10% and 20%.
+   Tolerances (what a user may expect at defaults; measured figures are printed):
+     LightSkin FULL and BRSM   median within 5%, 90% of pixels within 10%;
+     CLUSTERED and SSVP        median within 10%, 80% of pixels within 20% (the scenes are open:
+                               visibility changes nothing here, so this is the VPL estimate,
+                               the clamp, the interleaving and the blur);
+     RSM gather                median within 5%, 60% of pixels within 20%: a 256-sample estimate
+                               of every texel's light, without visibility (the baseline; open
+                               scenes need none), noisier per pixel than the methods that
+                               share or blur their samples. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+#include "physics.h"
+
+#define W 64
+#define H 48
+#define RSM 128u
+
+typedef struct phys_frame {
+    gltest_fixture f;
+    phys_scene s;
+    float tri[PHYS_MAX_QUADS * 18], alb[PHYS_MAX_QUADS * 6];
+    gim_twin_scene ts;
+    gim_cache_set caches;
+    gim_mesh mesh;
+    gim_frame fr;
+    double exact[W * H];
+    double top;
+} phys_frame;
+
+/* The camera of each scene: it looks at the receiver quads from their open side. */
+static void phys_camera(phys_which which, double scale, const double *offset, gim_mat4 *view, gim_mat4 *proj) {
+    double eye[3] = {2.6, 1.4, 0.4}, at[3] = {0.4, 0.3, 0.0};
+    int a;
+    if (which == PHYS_PLATES_SUN) { eye[0] = 0.7; eye[1] = 0.05; eye[2] = 0.5; at[0] = 0.0; at[1] = 0.5; at[2] = 0.0; }
+    if (which == PHYS_PATCH_SUN || which == PHYS_PATCH_SPOT) {
+        eye[0] = 0.1; eye[1] = 0.16; eye[2] = 0.05; at[0] = -0.02; at[1] = 0.3; at[2] = 0.0;
+    }
+    for (a = 0; a < 3; ++a) { eye[a] = eye[a] * scale + offset[a]; at[a] = at[a] * scale + offset[a]; }
+    *view = gim_mat4_look_at(gim_v3((float)eye[0], (float)eye[1], (float)eye[2]), gim_v3((float)at[0], (float)at[1], (float)at[2]),
+                             gim_v3(0.0f, 1.0f, 0.0f));
+    *proj = gim_mat4_perspective(1.1f, (float)W / H, (float)(0.01 * scale), (float)(20.0 * scale));
+}
+
+static void frame_begin(phys_frame *p, phys_which which, double scale, const double *offset) {
+    gim_material mats[PHYS_MAX_QUADS];
+    uint32_t mat_of[PHYS_MAX_QUADS * 2], idx[PHYS_MAX_QUADS * 6], t, x, y;
+    gim_cache_desc cd;
+    gim_mesh_desc md;
+    gim_instance in;
+    gim_light light;
+    int q;
+    memset(p, 0, sizeof *p);
+    phys_scene_make(which, scale, offset, &p->s);
+    p->ts.triangle_count = phys_triangles(&p->s, p->tri, p->alb);
+    p->ts.positions = p->tri;
+    p->ts.albedo = p->alb;
+    gltest_fixture_begin(&p->f);
+    memset(mats, 0, sizeof mats);
+    for (q = 0; q < p->s.quad_count; ++q) {
+        mats[q].diffuse[0] = mats[q].diffuse[1] = mats[q].diffuse[2] = p->s.quad[q].albedo;
+        mat_of[q * 2] = mat_of[q * 2 + 1] = (uint32_t)q;
+    }
+    for (t = 0; t < p->ts.triangle_count * 3u; ++t) idx[t] = t;
+    memset(&cd, 0, sizeof cd);
+    cd.mesh.positions = p->tri;
+    cd.mesh.vertex_count = p->ts.triangle_count * 3u;
+    cd.mesh.indices = idx;
+    cd.mesh.index_count = p->ts.triangle_count * 3u;
+    cd.mesh.triangle_material = mat_of;
+    cd.env = p->f.env;
+    assert_int_equal(gim_cache_generate(&cd, &p->caches), GIM_OK);
+    memset(&md, 0, sizeof md);
+    md.data = cd.mesh;
+    md.caches = &p->caches;
+    assert_int_equal(gim_add_mesh(p->f.ctx, &md, &p->mesh), GIM_OK);
+    assert_int_equal(gim_set_materials(p->f.ctx, mats, (uint32_t)p->s.quad_count), GIM_OK);
+    in.mesh = p->mesh;
+    in.model = gim_mat4_identity();
+    assert_int_equal(gim_set_instances(p->f.ctx, &in, 1), GIM_OK);
+    light = phys_light(&p->s, RSM);
+    assert_int_equal(gim_set_lights(p->f.ctx, &light, 1), GIM_OK);
+    memset(&p->fr, 0, sizeof p->fr);
+    phys_camera(which, scale, offset, &p->fr.view, &p->fr.proj);
+    p->fr.width = W;
+    p->fr.height = H;
+    p->fr.indirect_float32 = 1;
+    /* the exact radiance at every pixel's surface point */
+    for (y = 0; y < H; ++y)
+        for (x = 0; x < W; ++x) {
+            gim_gbuffer_texel g;
+            double pt[3], n[3];
+            int a;
+            assert_int_equal(gim_gbuffer_texel_twin(&p->ts, p->fr.view, p->fr.proj, W, H, x, y, &g), GIM_OK);
+            p->exact[y * W + x] = 0.0;
+            if (g.triangle == UINT32_MAX) continue;
+            q = (int)(g.triangle / 2u);
+            for (a = 0; a < 3; ++a) { pt[a] = g.position[a]; n[a] = g.normal[a]; }
+            p->exact[y * W + x] = p->s.quad[q].albedo / PHYS_PI * phys_exact_irradiance(&p->s, q, pt, n);
+            if (p->exact[y * W + x] > p->top) p->top = p->exact[y * W + x];
+        }
+    assert_true(p->top > 0.0);
+}
+
+static void frame_end(phys_frame *p) {
+    gim_cache_set_free(&p->caches);
+    gltest_fixture_end(&p->f);
+}
+
+typedef struct phys_stats { double median, within10, within20; uint32_t counted; } phys_stats;
+
+/* Run the frame with method m and compare its indirect image with the exact radiance. */
+static phys_stats run_method(phys_frame *p, gim_method m) {
+    float *img = (float *)malloc(W * H * 16);
+    double *ratio = (double *)malloc(W * H * sizeof(double));
+    phys_stats st = {0, 0, 0, 0};
+    uint32_t i;
+    p->fr.method = m;
+    assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
+    gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, img);
+    for (i = 0; i < W * H; ++i) {
+        double v;
+        assert_true(isfinite(img[i * 4]) && img[i * 4] >= 0.0f);
+        if (!(p->exact[i] > 0.01 * p->top)) continue;
+        v = (img[i * 4] + img[i * 4 + 1] + img[i * 4 + 2]) / 3.0 / p->exact[i];
+        ratio[st.counted++] = v;
+        if (fabs(v - 1.0) <= 0.1) st.within10 += 1.0;
+        if (fabs(v - 1.0) <= 0.2) st.within20 += 1.0;
+    }
+    assert_true(st.counted > W * H / 10);   /* the scene fills a good part of the view */
+    st.within10 /= st.counted;
+    st.within20 /= st.counted;
+    st.median = phys_median(ratio, st.counted);
+    free(img);
+    free(ratio);
+    return st;
+}
+
+static const char *method_name(gim_method m) {
+    switch (m) {
+    case GIM_METHOD_LIGHTSKIN_FULL: return "LightSkin FULL";
+    case GIM_METHOD_LIGHTSKIN_BRSM: return "LightSkin BRSM";
+    case GIM_METHOD_CLUSTERED: return "clustered";
+    case GIM_METHOD_SSVP: return "SSVP";
+    case GIM_METHOD_RSM_GATHER: return "RSM gather";
+    default: return "?";
+    }
+}
+
+static void check_scene(phys_which which, double scale, const double *offset) {
+    static const gim_method methods[] = {GIM_METHOD_LIGHTSKIN_FULL, GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_CLUSTERED,
+                                         GIM_METHOD_SSVP, GIM_METHOD_RSM_GATHER};
+    phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
+    size_t k;
+    frame_begin(p, which, scale, offset);
+    for (k = 0; k < sizeof methods / sizeof methods[0]; ++k) {
+        phys_stats st;
+        if (methods[k] == GIM_METHOD_SSVP) p->fr.bounces = 1;   /* the closed forms are one bounce */
+        st = run_method(p, methods[k]);
+        p->fr.bounces = 0;
+        print_message("%-13s scale %-6g %-15s median %.3f, %3.0f%% within 10%%, %3.0f%% within 20%% (%u pixels)\n",
+                      p->s.name, scale, method_name(methods[k]), st.median, 100.0 * st.within10, 100.0 * st.within20,
+                      st.counted);
+        if (methods[k] == GIM_METHOD_LIGHTSKIN_FULL || methods[k] == GIM_METHOD_LIGHTSKIN_BRSM) {
+            assert_true(fabs(st.median - 1.0) <= 0.05);
+            assert_true(st.within10 >= 0.90);
+        } else if (methods[k] == GIM_METHOD_CLUSTERED || methods[k] == GIM_METHOD_SSVP) {
+            assert_true(fabs(st.median - 1.0) <= 0.10);
+            assert_true(st.within20 >= 0.80);
+        } else {
+            assert_true(fabs(st.median - 1.0) <= 0.05);
+            assert_true(st.within20 >= 0.60);
+        }
+    }
+    frame_end(p);
+    free(p);
+}
+
+static const double origin[3] = {0.0, 0.0, 0.0};
+
+static void corner_sun(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    check_scene(PHYS_CORNER_SUN, 1.0, origin);
+    GLTEST_END();
+}
+
+static void corner_spot(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    check_scene(PHYS_CORNER_SPOT, 1.0, origin);
+    GLTEST_END();
+}
+
+static void corner_scales(void **state) {
+    static const double far_[3] = {1e5, -1e5, 5e4};   /* 174 diagonals at scale 100 (the range is 1024) */
+    (void)state;
+    GLTEST_BEGIN();
+    check_scene(PHYS_CORNER_SUN, 1e-3, origin);
+    check_scene(PHYS_CORNER_SPOT, 1e3, origin);
+    check_scene(PHYS_CORNER_SUN, 100.0, far_);
+    GLTEST_END();
+}
+
+static void plates_and_patch(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    check_scene(PHYS_PLATES_SUN, 1.0, origin);
+    check_scene(PHYS_PATCH_SUN, 1.0, origin);
+    check_scene(PHYS_PATCH_SPOT, 1.0, origin);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(corner_sun),
+        cmocka_unit_test(corner_spot),
+        cmocka_unit_test(corner_scales),
+        cmocka_unit_test(plates_and_patch),
+    };
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
