@@ -156,6 +156,11 @@ $(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h ex
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
+# The ISM benchmark loads the Cornell box through the scene layer (CPU twins only).
+$(B)/bench/bench_ism: tests/bench_ism.c $(B)/ref/scene.o examples/scene.h $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lm -lstdc++
+
 bench: deps
 	@$(DEPS) examples reference plots
 	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES)) $(B)/gimany-reference

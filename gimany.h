@@ -587,6 +587,8 @@ typedef struct gim_proxy_desc {
     float glossy_exponent;       /* k >= 0 of every cache (<= 1e6) */
     const float *cache_glossy_exponent; /* cache_count values of k, or NULL: glossy_exponent */
     float scene_scale;           /* > 0; 0: diagonal of the bounds of caches and VALs */
+    const float *visibility;     /* cache_count * val_count V(c, x_j) in [0,1], row per cache (e.g.
+                                    gim_ism_visibility), or NULL: every VAL seen */
     gim_env env;
 } gim_proxy_desc;
 
@@ -613,7 +615,9 @@ typedef struct gim_proxy_desc {
      rises above its VALs); where it bites the cache's own radiance is underestimated by
      D_p / floor (a glossy lobe narrower than the spread of the light around the mirror
      direction), never overestimated.
-   visibility = 1. A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
+   With visibility, e_j (and its E_n term) is multiplied by V(c, x_j): a VAL the cache cannot
+   see neither lights nor places the proxy. visibility = 1 (the proxy light's field, for
+   gim_proxy_occlusion). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
    weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
    (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
    or breaks the ranges above (the first offender is logged), k out of range. */
@@ -706,6 +710,7 @@ typedef struct gim_lightskin_desc {
     uint32_t neighbour_stride;
     const float *d_cmax;
     float scene_scale;                /* > 0; 0: diagonal of the bounds of caches and VALs */
+    const float *visibility;          /* as gim_proxy_desc.visibility, or NULL */
     gim_env env;
 } gim_lightskin_desc;
 
@@ -1015,6 +1020,85 @@ GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
 GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
                                                 gim_vec3 receiver, const gim_vec3 *normal, float *out);
 
+/* Imperfect shadow maps (Ritschel et al. 2008): the scene as points, one small paraboloid
+   depth map per cache (the hemisphere around its normal, the convention above) in which a
+   subset of the points is splatted, holes filled by pull-push. Each point is splatted as a
+   surfel, a disk of the area it stands for in its triangle's plane, written at the depth of
+   that plane along each texel's ray: one texel per point (the paper's splat) leaves most
+   texels of a sparsely sampled near wall to the points behind it (light through walls), and
+   a texel's nearest point lies up to a texel's slope nearer than the surface at its centre
+   (false shadow on surfaces seen at grazing angles). The maps
+   are looked up per VAL inside the proxy-light sum, so a proxy light carries only the light
+   its cache sees. Sizes: map side GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, a power of two (the
+   pull-push pyramid of one map fits a GPU work group's shared memory), 1..GIM_ISM_MAX_POINTS
+   points per map. */
+#define GIM_ISM_MIN_SIZE 4u
+#define GIM_ISM_MAX_SIZE 64u
+#define GIM_ISM_MAX_POINTS 65536u
+#define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
+#define GIM_ISM_DEFAULT_POINTS 16384u
+#define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
+#define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
+#define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
+#define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
+#define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
+#define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
+
+/* count points area-uniform over the scene's triangles, deterministic and low-discrepancy:
+   point i takes u = (i + 0.5) / count of the cumulative area (which picks the triangle and a
+   fraction r along it) and v = frac(i phi), phi the golden ratio (a radical inverse would put
+   every point of a stride-2^k subset in one 2^-k band of v), and lands at the barycentrics
+   (1 - sqrt(r), v sqrt(r)) of vertices 1, 2 (area-uniform inside the triangle). Consecutive
+   points walk the triangles in order, so any stride through them covers the scene evenly.
+   out: count * 8 floats, two vec4 as the GPU buffer: (x, y, z, A / count) with A the scene's
+   area, (the triangle's unit face normal, 0). A scene of zero area is
+   GIM_ERROR_INVALID_ARGUMENT. */
+GIMANY_API gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count, float *out);
+
+/* Input of gim_ism_render and gim_ism_visibility; zero means default. */
+typedef struct gim_ism_desc {
+    const gim_cache *caches;        /* one map per cache: origin c + GIM_ISM_LIFT scene_scale n */
+    uint32_t cache_count;
+    const float *points;            /* point_count * 8 (gim_ism_points) */
+    uint32_t point_count;
+    uint32_t size;                  /* map side; 0: GIM_ISM_DEFAULT_SIZE */
+    uint32_t points_per_map;        /* P; 0: GIM_ISM_DEFAULT_POINTS (at most point_count are taken) */
+    float bias;                     /* relative depth bias; 0: GIM_ISM_BIAS */
+    float slope;                    /* slope bias; 0: GIM_ISM_SLOPE */
+    float scene_scale;              /* > 0 */
+    gim_env env;
+} gim_ism_desc;
+
+/* The maps, distance_out[cache_count * size^2] (map m row-major at m size^2). Map m splats
+   the P points offset + k stride, k < P, stride = point_count / P, offset = frac(m phi) stride
+   (phi the golden ratio; a stratified subset of the points, shifted per map: each map sees a
+   different subset, all evenly spread), each standing for area a = stride x its .w. A point p
+   in front of the map's plane (w.z > 0) at distance dist > GIM_ISM_LIFT scene_scale lands in
+   the texel under w.xy / (1 + w.z) (floor, clamped). As a surfel of radius
+   rs = GIM_ISM_SPLAT sqrt(a / pi) in its plane it covers each texel within
+   R = min(ceil(rs / dist size / 2), GIM_ISM_SPLAT_TEXELS) of that one whose centre ray meets
+   the plane (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's
+   distance; its own texel wherever the ray meets the plane beyond the lift, else at dist. The
+   nearest wins; texels nothing covered are GIM_PARABOLOID_EMPTY before pull-push. Pull: each
+   coarser texel is the farthest of its non-empty children (the paper's mean lets a near
+   occluder's depth into the holes around it: false shadow); push: an empty texel takes its
+   parent's value, from the coarsest level down. A map no point reached stays empty (sees
+   nothing: visibility 1). Float arithmetic in the order of ism.comp. */
+GIMANY_API gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out);
+
+/* Visibility V(c, x_j) of every VAL from every cache through the maps (desc's caches, size,
+   bias, slope, scene_scale; points unused): out[cache * val_count + j] in {0, 1}. 1 where x_j
+   is behind the map's plane (w.z <= 0); else, with z the distance in its texel and d_ref the
+   distance along that texel's centre ray to the VAL's own plane (the VAL's distance dist
+   where the ray runs along the plane or meets it outside (0, 2 dist)), 1 where
+   d_ref <= z + dist (bias + slope 2 / size min(tan theta_l, GIM_ISM_MAX_TAN)), theta_l the
+   angle between the VAL's normal and the direction to the cache. Measured on the same ray as
+   the surfels, a VAL on the surface its texel holds compares equal whatever the angle it is
+   seen at; the slope term absorbs the surfels' own tilt. (proxy_lights.comp's lookup, in
+   float.) The matrix gim_proxy_desc.visibility takes. */
+GIMANY_API gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+                                         uint32_t val_count, float *out);
+
 /* Input of gim_second_bounce_vpls; zero means default. */
 typedef struct gim_second_bounce_desc {
     const gim_paraboloid *maps;     /* map_count clusters (origin, normal, flux used) */
@@ -1119,7 +1203,9 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
-   f.occlusion and f.neighbour_count trade speed for accuracy at run time. */
+   f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
+   GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
+   cache; off by default, and off costs nothing). */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -1203,6 +1289,15 @@ typedef enum gim_method {
                                        second-bounce VPLs; both bounces shade (bounces = 2 by default) */
 } gim_method;
 
+/* Visibility of the indirect light (DESIGN.md sec. 6c). */
+typedef enum gim_visibility {
+    GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
+    GIM_VISIBILITY_OFF,             /* no pass, no memory */
+    GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
+                                       looked up per VAL in the proxy-light sum; made once per scene
+                                       change (mesh or instance), not per frame */
+} gim_visibility;
+
 /* Input of gim_update; zero means default. */
 typedef struct gim_frame {
     gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
@@ -1257,14 +1352,20 @@ typedef struct gim_frame {
                                    flush (llvmpipe, even between timestamps) still charges it to
                                    its pass; it serialises the frame, for profiling only;
                                    other values: GIM_ERROR_OUT_OF_RANGE */
+    gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM */
+    uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384); at most
+                                   GIM_ISM_MAX_POINTS */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
    host's) -> view samples -> per light (BRSM only): importance map (eq. 10-11) -> cumulative
    sums (eq. 12) -> selection of val_count VALs; then, when an instanced mesh has caches:
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
-   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> diffuse proxy lights
-   per cache (eq. 3-7, 13-15), glossy ones too when a material has a glossy colour (one lobe
+   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
+   the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
+   world triangles, read back from the meshes, pool 4 P; gim_ism_render) -> diffuse proxy lights
+   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility), glossy ones too when a material has a glossy colour (one lobe
    exponent for all caches: the smallest of those materials, the widest lobe) -> occlusion
    (when on) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
@@ -1345,6 +1446,9 @@ typedef struct gim_frame_outputs {
     uint32_t paraboloid_size;
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
+    /* visibility ISM (0 otherwise) */
+    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render) */
+    uint32_t ism_size;
 } gim_frame_outputs;
 
 /* The outputs of the last gim_update (all zero for NULL). */
@@ -4123,8 +4227,9 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
 }
 
 /* One invocation of the proxy pass: cache c against every VAL. */
-static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t val_count, const float *v,
-                             float k, float coincident2, gim_proxy_light *diffuse, gim_proxy_light *glossy) {
+static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t val_count, const float *vis,
+                             const float *v, float k, float coincident2, gim_proxy_light *diffuse,
+                             gim_proxy_light *glossy) {
     gim__proxy_sums sd, sg;
     uint32_t j;
     const float *n = c->normal;
@@ -4146,6 +4251,7 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
         den = l->area + (float)GIM__PI * d2;
         /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
         en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
+        if (vis) en *= vis[j];                                     /* V(c, x_j) */
         e = en * cos_x;
         if (!(e > 0.0)) continue;          /* behind, grazing, coincident or weight 0: adds nothing */
         lphi = 0.2126 * l->flux[0] + 0.7152 * l->flux[1] + 0.0722 * l->flux[2];
@@ -4219,6 +4325,12 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
     }
     if ((r = gim__check_caches(env, fn, desc->caches, desc->cache_count)) != GIM_OK) return r;
     if ((r = gim__check_vals(env, fn, desc->vals, desc->val_count)) != GIM_OK) return r;
+    if (desc->visibility) {
+        size_t m = (size_t)desc->cache_count * desc->val_count, q;
+        for (q = 0; q < m; ++q)
+            if (!(desc->visibility[q] >= 0.0f && desc->visibility[q] <= 1.0f))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "visibility[%zu] is not in [0, 1]", q);
+    }
     scale = desc->scene_scale > 0.0f ? desc->scene_scale
                                      : gim__twins_scale(desc->caches, desc->cache_count, desc->vals, desc->val_count);
     coincident2 = GIM__TWINS_COINCIDENT * scale * (GIM__TWINS_COINCIDENT * scale);
@@ -4231,7 +4343,9 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
             v[0] = vv.x; v[1] = vv.y; v[2] = vv.z;    /* an eye at the cache: v = 0, only k = 0 lights */
             k = desc->cache_glossy_exponent ? desc->cache_glossy_exponent[i] : desc->glossy_exponent;
         }
-        gim__proxy_cache(c, desc->vals, desc->val_count, v, k, coincident2, diffuse_out + i,
+        gim__proxy_cache(c, desc->vals, desc->val_count,
+                         desc->visibility ? desc->visibility + (size_t)i * desc->val_count : NULL, v, k, coincident2,
+                         diffuse_out + i,
                          glossy_out ? glossy_out + i : NULL);
     }
     return GIM_OK;
@@ -4470,6 +4584,7 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     pd.eye = desc->eye; pd.glossy_exponent = desc->glossy_exponent;
     pd.cache_glossy_exponent = desc->cache_glossy_exponent;
     pd.scene_scale = scale; pd.env = desc->env;
+    pd.visibility = desc->visibility;
     memset(&sd, 0, sizeof sd);
     sd.caches = desc->caches; sd.cache_count = desc->cache_count;
     sd.receivers = desc->receivers; sd.receiver_count = desc->receiver_count;
@@ -5536,6 +5651,275 @@ GIMANY_DEF gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
     return GIM_OK;
 }
 
+/* --- imperfect shadow maps (Ritschel et al. 2008) ------------------------------------------ */
+
+GIMANY_DEF gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count, float *out) {
+    float per;
+    static const char where[] = "gim_ism_points";
+    double *cdf, total = 0.0;
+    uint32_t t, i, tri = 0;
+    gim_env env;
+    gim_result r;
+    memset(&env, 0, sizeof env);
+    if (!out || count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL or count is 0");
+    if ((r = gim__twin_scene_check(scene, where)) != GIM_OK) return r;
+    cdf = (double *)gim__alloc_array(&env, scene->triangle_count, sizeof(double));
+    if (!cdf) return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "%u triangles", scene->triangle_count);
+    for (t = 0; t < scene->triangle_count; ++t) {
+        const float *v = scene->positions + (size_t)t * 9;
+        double e1[3], e2[3], c[3];
+        int a;
+        for (a = 0; a < 3; ++a) { e1[a] = (double)v[3 + a] - v[a]; e2[a] = (double)v[6 + a] - v[a]; }
+        c[0] = e1[1] * e2[2] - e1[2] * e2[1]; c[1] = e1[2] * e2[0] - e1[0] * e2[2]; c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        total += 0.5 * sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        cdf[t] = total;
+    }
+    if (!(total > 0.0) || !(total <= DBL_MAX)) {
+        gim__free(&env, cdf);
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "the scene has no area");
+    }
+    per = gim__clamp_flt(total / count);
+    for (i = 0; i < count; ++i) {
+        double u = (i + 0.5) / count * total, lo, rr, su, b1, b2, e1[3], e2[3], c[3], len;
+        const float *v;
+        float *o = out + (size_t)i * 8;
+        int a;
+        while (tri + 1u < scene->triangle_count && cdf[tri] <= u) ++tri;   /* u increases with i */
+        lo = tri > 0 ? cdf[tri - 1] : 0.0;
+        rr = cdf[tri] > lo ? (u - lo) / (cdf[tri] - lo) : 0.5;
+        rr = rr < 0.0 ? 0.0 : rr > 1.0 ? 1.0 : rr;
+        su = sqrt(rr);
+        b1 = 1.0 - su;
+        b2 = fmod((double)i * 0.61803398874989485, 1.0) * su;
+        v = scene->positions + (size_t)tri * 9;
+        for (a = 0; a < 3; ++a) {
+            o[a] = (float)((1.0 - b1 - b2) * v[a] + b1 * v[3 + a] + b2 * v[6 + a]);
+            e1[a] = (double)v[3 + a] - v[a];
+            e2[a] = (double)v[6 + a] - v[a];
+        }
+        c[0] = e1[1] * e2[2] - e1[2] * e2[1]; c[1] = e1[2] * e2[0] - e1[0] * e2[2]; c[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        len = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        for (a = 0; a < 3; ++a) o[4 + a] = len > 0.0 ? (float)(c[a] / len) : 0.0f;
+        o[3] = per;
+        o[7] = 0.0f;
+    }
+    gim__free(&env, cdf);
+    return GIM_OK;
+}
+
+static gim_result gim__ism_check(const gim_ism_desc *d, const char *fn, int points, uint32_t *size, uint32_t *per_map,
+                                 float *bias, float *slope) {
+    const gim_env *env = &d->env;
+    gim_result r;
+    *size = d->size ? d->size : GIM_ISM_DEFAULT_SIZE;
+    *per_map = d->points_per_map ? d->points_per_map : GIM_ISM_DEFAULT_POINTS;
+    *bias = d->bias > 0.0f ? d->bias : GIM_ISM_BIAS;
+    *slope = d->slope > 0.0f ? d->slope : GIM_ISM_SLOPE;
+    if (!d->caches || d->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
+    if (*size < GIM_ISM_MIN_SIZE || *size > GIM_ISM_MAX_SIZE || (*size & (*size - 1u)))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u: a power of two in %u..%u", *size, GIM_ISM_MIN_SIZE,
+                         GIM_ISM_MAX_SIZE);
+    if (*per_map > GIM_ISM_MAX_POINTS)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "points_per_map %u above %u", *per_map, GIM_ISM_MAX_POINTS);
+    if (!gim__isfinitef(d->bias) || d->bias < 0.0f || *bias > 1.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "bias must be in [0, 1]");
+    if (!gim__isfinitef(d->slope) || d->slope < 0.0f || *slope > 64.0f)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "slope must be in [0, 64]");
+    if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if (points) {
+        if (!d->points || d->point_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no points");
+        if (!gim__all_finite(d->points, (size_t)d->point_count * 8))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "a point is not finite");
+    }
+    if ((r = gim__check_caches(env, fn, d->caches, d->cache_count)) != GIM_OK) return r;
+    return GIM_OK;
+}
+
+/* Map m's frame: origin (c + lift n), t, b, n, in float as ism.comp. */
+static void gim__ism_frame(const gim_cache *c, float lift, float o[3], gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
+    int a;
+    *n = gim_v3(c->normal[0], c->normal[1], c->normal[2]);
+    gim_basis(*n, t, b);
+    for (a = 0; a < 3; ++a) o[a] = c->position[a] + lift * c->normal[a];
+}
+
+/* The texel of direction d (unnormalised, length dist > 0) on a size^2 map of frame (t, b, n);
+   -1 behind the map's plane. */
+static int32_t gim__ism_texel(const float d[3], float dist, gim_vec3 t, gim_vec3 b, gim_vec3 n, uint32_t size) {
+    float wz = (d[0] * n.x + d[1] * n.y + d[2] * n.z) / dist, wx, wy, fx, fy;
+    int32_t ix, iy;
+    if (!(wz > 0.0f)) return -1;
+    wx = (d[0] * t.x + d[1] * t.y + d[2] * t.z) / dist;
+    wy = (d[0] * b.x + d[1] * b.y + d[2] * b.z) / dist;
+    fx = floorf((wx / (1.0f + wz) + 1.0f) * 0.5f * (float)size);
+    fy = floorf((wy / (1.0f + wz) + 1.0f) * 0.5f * (float)size);
+    ix = fx < 0.0f ? 0 : fx > (float)(size - 1u) ? (int32_t)size - 1 : (int32_t)fx;
+    iy = fy < 0.0f ? 0 : fy > (float)(size - 1u) ? (int32_t)size - 1 : (int32_t)fy;
+    return iy * (int32_t)size + ix;
+}
+
+/* Map m's subset: stride = point_count / P (>= 1), offset = frac(m phi) stride in 32-bit
+   fixed point (umulExtended in ism.comp); point k is offset + k stride. */
+static uint32_t gim__ism_offset(uint32_t m, uint32_t stride) {
+    return (uint32_t)(((uint64_t)(uint32_t)(m * 2654435769u) * stride) >> 32);
+}
+
+/* Pull-push of one size^2 map in place; scratch: size^2 floats. */
+static void gim__ism_pull_push(float *map, uint32_t size, float *scratch) {
+    float *lv[8];
+    uint32_t sz[8], l, levels = 0, x, y;
+    size_t off = 0;
+    lv[0] = map; sz[0] = size;
+    for (l = 0; sz[l] > 1u; ++l) {      /* pull: the mean of the non-empty children */
+        sz[l + 1] = sz[l] / 2u;
+        lv[l + 1] = scratch + off;
+        off += (size_t)sz[l + 1] * sz[l + 1];
+        for (y = 0; y < sz[l + 1]; ++y)
+            for (x = 0; x < sz[l + 1]; ++x) {
+                float s = 0.0f, cnt = 0.0f, c;
+                int k;
+                for (k = 0; k < 4; ++k) {
+                    c = lv[l][(2u * y + (uint32_t)(k >> 1)) * sz[l] + 2u * x + (uint32_t)(k & 1)];
+                    if (c < GIM_PARABOLOID_EMPTY) { s = c > s ? c : s; cnt += 1.0f; }
+                }
+                lv[l + 1][y * sz[l + 1] + x] = cnt > 0.0f ? s : GIM_PARABOLOID_EMPTY;
+            }
+    }
+    levels = l;
+    for (l = levels; l-- > 0;)           /* push: holes take the parent's value */
+        for (y = 0; y < sz[l]; ++y)
+            for (x = 0; x < sz[l]; ++x) {
+                float *c = lv[l] + y * sz[l] + x;
+                if (!(*c < GIM_PARABOLOID_EMPTY)) *c = lv[l + 1][(y / 2u) * sz[l + 1] + x / 2u];
+            }
+}
+
+/* The unit direction (world) of texel tx's centre ray. */
+static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b, gim_vec3 n, float dir[3]) {
+    float fs = (float)size, u, v, r2, k, w[3];
+    u = (2.0f * (float)(tx % (int32_t)size) + 1.0f) / fs - 1.0f;
+    v = (2.0f * (float)(tx / (int32_t)size) + 1.0f) / fs - 1.0f;
+    r2 = u * u + v * v;
+    k = 1.0f / (1.0f + r2);
+    w[0] = 2.0f * u * k; w[1] = 2.0f * v * k; w[2] = (1.0f - r2) * k;
+    dir[0] = w[0] * t.x + w[1] * b.x + w[2] * n.x;
+    dir[1] = w[0] * t.y + w[1] * b.y + w[2] * n.y;
+    dir[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
+}
+
+/* One surfel into a map (see gim_ism_render), in float as ism.comp. */
+static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
+                           const float *p, float area) {
+    float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
+    int32_t tx, cx, cy, x, y, r, own;
+    d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
+    dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(dist > lift)) return;                         /* the cache's own point */
+    tx = gim__ism_texel(d, dist, t, b, n, size);
+    if (tx < 0) return;
+    cx = tx % (int32_t)size;
+    cy = tx / (int32_t)size;
+    rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
+    rs2 = rs * rs;
+    rf = ceilf(rs / dist * fs * 0.5f);
+    r = rf < (float)GIM_ISM_SPLAT_TEXELS ? (int32_t)rf : GIM_ISM_SPLAT_TEXELS;
+    dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
+    own = 0;
+    for (y = cy - r; y <= cy + r; ++y)
+        for (x = cx - r; x <= cx + r; ++x) {
+            float dir[3], den, s, h[3];
+            if (x < 0 || y < 0 || x >= (int32_t)size || y >= (int32_t)size) continue;
+            gim__ism_texel_ray(y * (int32_t)size + x, size, t, b, n, dir);
+            den = dir[0] * p[4] + dir[1] * p[5] + dir[2] * p[6];
+            if (!(den >= 1e-3f || den <= -1e-3f)) continue;   /* the ray runs along the plane */
+            s = dn / den;
+            if (!(s > lift)) continue;
+            h[0] = s * dir[0] - d[0]; h[1] = s * dir[1] - d[1]; h[2] = s * dir[2] - d[2];
+            /* its own texel is its plane's wherever the ray meets it (a texel seen at a grazing
+               angle spans depths far beyond rs) */
+            if (!(x == cx && y == cy) && h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
+            if (s < map[y * (int32_t)size + x]) map[y * (int32_t)size + x] = s;
+            own |= x == cx && y == cy;
+        }
+    if (!own && dist < map[tx]) map[tx] = dist;         /* its own texel, where the ray misses */
+}
+
+GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out) {
+    static const char fn[] = "gim_ism_render";
+    uint32_t size, per, m, k, stride, n_take;
+    float bias, slope, lift, *scratch;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!distance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance_out is NULL");
+    if ((r = gim__ism_check(desc, fn, 1, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    scratch = (float *)gim__alloc_array(&desc->env, (size_t)size * size, sizeof(float));
+    if (!scratch) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u^2 floats", size);
+    lift = GIM_ISM_LIFT * desc->scene_scale;
+    n_take = per < desc->point_count ? per : desc->point_count;
+    stride = desc->point_count / n_take;
+    for (m = 0; m < desc->cache_count; ++m) {
+        float *map = distance_out + (size_t)m * size * size, o[3];
+        gim_vec3 t, b, n;
+        uint32_t off = gim__ism_offset(m, stride);
+        size_t q;
+        for (q = 0; q < (size_t)size * size; ++q) map[q] = GIM_PARABOLOID_EMPTY;
+        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
+        for (k = 0; k < n_take; ++k) {
+            const float *p = desc->points + (size_t)(off + k * stride) * 8;
+            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
+        }
+        gim__ism_pull_push(map, size, scratch);
+    }
+    gim__free(&desc->env, scratch);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+                                         uint32_t val_count, float *out) {
+    static const char fn[] = "gim_ism_visibility";
+    uint32_t size, per, m, j;
+    float bias, slope, lift, texel;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!distance || !out || (val_count > 0 && !vals))
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance, vals and out are required");
+    if ((r = gim__ism_check(desc, fn, 0, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    lift = GIM_ISM_LIFT * desc->scene_scale;
+    texel = slope * 2.0f / (float)size;
+    for (m = 0; m < desc->cache_count; ++m) {
+        const float *map = distance + (size_t)m * size * size;
+        float o[3];
+        gim_vec3 t, b, n;
+        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
+        for (j = 0; j < val_count; ++j) {
+            const float *x = vals[j].position, *nl = vals[j].normal;
+            float d[3], dist, z, v = 1.0f, cl, tn;
+            int32_t tx;
+            d[0] = x[0] - o[0]; d[1] = x[1] - o[1]; d[2] = x[2] - o[2];
+            dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            tx = dist > 0.0f ? gim__ism_texel(d, dist, t, b, n, size) : -1;
+            if (tx >= 0) {
+                float dref = dist, dir[3], den;
+                z = map[tx];
+                gim__ism_texel_ray(tx, size, t, b, n, dir);
+                den = dir[0] * nl[0] + dir[1] * nl[1] + dir[2] * nl[2];
+                if (den >= 1e-3f || den <= -1e-3f) {    /* the VAL's plane along the texel's ray */
+                    float s_ = (d[0] * nl[0] + d[1] * nl[1] + d[2] * nl[2]) / den;
+                    if (s_ > 0.0f && s_ < 2.0f * dist) dref = s_;
+                }
+                cl = -(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) / dist;   /* cos theta_l */
+                cl = cl < 0.0f ? -cl : cl;
+                tn = cl * GIM_ISM_MAX_TAN > sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) ? sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) / cl
+                                                                                    : GIM_ISM_MAX_TAN;
+                if (z < GIM_PARABOLOID_EMPTY && dref > z + dist * (bias + texel * tn)) v = 0.0f;
+            }
+            out[(size_t)m * val_count + j] = v;
+        }
+    }
+    return GIM_OK;
+}
+
 /* A receiver of gim_vpl_shade / gim_geometry_blur: a surface (unit normal) or none (zero). */
 static int gim__receiver_ok(const gim_receiver *rc) {
     if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->normal, 3) || !gim__unit_or_zero(rc->normal, 1))
@@ -6444,6 +6828,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_SECOND_BOUNCE,      /* second-bounce VPLs from the maps (SSVP sec. 3.C) */
     GIM__PROGRAM_VPL_SHADE,          /* VPL shading per pixel: soft visibility, clamping, interleaving (Dong sec. 6) */
     GIM__PROGRAM_GEOMETRY_BLUR,      /* geometry-aware blur (Dong sec. 6, Laine et al.) */
+    GIM__PROGRAM_ISM,                /* imperfect shadow maps of the caches (Ritschel et al. 2008) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -6469,7 +6854,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"paraboloid.vert", "paraboloid.geom", "paraboloid.frag"},
     {"second_bounce.comp", NULL},
     {"vpl_shade.comp", NULL},
-    {"geometry_blur.comp", NULL}};
+    {"geometry_blur.comp", NULL},
+    {"ism.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -6565,6 +6951,10 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
+    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' maps and the scene's points */
+    uint64_t ism_maps_bytes, ism_points_bytes, ism_version;
+    uint32_t ism_size, ism_per_map, ism_point_count;
+    float ism_scale;
     uint64_t scene_version;       /* bumped when meshes or instances change */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
     float ls_scale;               /* and the scene scale */
@@ -7081,11 +7471,35 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
    a scratch buffer of 96 bytes a cache between them. */
+/* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
+   gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
+typedef struct gim__gl_ism {
+    gim__GLuint maps;
+    uint32_t size;
+    float bias, slope;
+} gim__gl_ism;
+
+static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
+                                           uint32_t val_count, gim_vec3 eye, float exponent, gim__GLuint exponents,
+                                           float scene_scale, gim__GLuint diffuse_out, gim__GLuint glossy_out,
+                                           const gim__gl_ism *ism);
+
 static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                    gim__GLuint vals, uint32_t val_count, gim_vec3 eye, float exponent,
                                                    gim__GLuint exponents, float scene_scale, gim__GLuint diffuse_out,
                                                    gim__GLuint glossy_out) {
+    return gim__gl_proxy_lights_ism(ctx, caches, cache_count, vals, val_count, eye, exponent, exponents, scene_scale,
+                                    diffuse_out, glossy_out, NULL);
+}
+
+/* gim__gl_proxy_lights with each VAL's contribution to a cache times its visibility through
+   the cache's imperfect shadow map (gim_ism_visibility's lookup; ism NULL or ism->maps 0: none). */
+static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
+                                           uint32_t val_count, gim_vec3 eye, float exponent, gim__GLuint exponents,
+                                           float scene_scale, gim__GLuint diffuse_out, gim__GLuint glossy_out,
+                                           const gim__gl_ism *ism) {
     static const char where[] = "proxy lights (GL)";
+    int with_ism = ism && ism->maps;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
@@ -7110,9 +7524,15 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "exponent %g must be in [0, 1e6]",
                              (double)exponent);
     }
+    if (with_ism && (ism->size < GIM_ISM_MIN_SIZE || ism->size > GIM_ISM_MAX_SIZE || (ism->size & (ism->size - 1u)) ||
+                     !(ism->bias >= 0.0f && ism->bias <= 1.0f) || !(ism->slope >= 0.0f && ism->slope <= 64.0f)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u, bias %g or slope %g out of range",
+                         (unsigned)ism->size, (double)ism->bias, (double)ism->slope);
     coincident = GIM__TWINS_COINCIDENT * scene_scale;
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK && with_ism)
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 4u);
     if (r == GIM_OK && val_count > 0) r = gim__gl_check_buffer(ctx, where, "vals", vals, (uint64_t)val_count * 48u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
     if (r == GIM_OK && glossy_out)
@@ -7140,6 +7560,11 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
     gl->Uniform1ui(9, glossy_out && exponents ? 1u : 0u);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 7, with_ism ? ism->maps : caches);  /* never read without */
+    gl->Uniform1ui(12, with_ism ? ism->size : 0u);
+    gl->Uniform1f(13, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
+    gl->Uniform1f(14, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
+    gl->Uniform1f(15, GIM_ISM_LIFT * scene_scale);
     /* sums over the VALs chunk by chunk (mode 0), the dark caches' positions (mode 1), the
        proxy lights (mode 2); one dispatch each, the sums kept in proxy_state between them */
     for (mode = 0; mode < 3u; ++mode) {
@@ -7153,6 +7578,70 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
             gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
             first += n;
         } while (mode != 2u && first < val_count);
+    }
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
+#define GIM__ISM_CHUNK 4096u
+
+/* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render (same subsets,
+   surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
+   pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
+   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 floats,
+   written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
+   1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
+   work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
+static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
+                                                 gim__GLuint points, uint32_t point_count, uint32_t size,
+                                                 uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
+    static const char where[] = "imperfect shadow maps (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    uint32_t take, stride, first;
+    gim_result r;
+    if (!caches || !points || !maps_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (cache_count == 0 || point_count == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no caches or no points");
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "map size %u: a power of two in %u..%u",
+                         (unsigned)size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (points_per_map == 0 || points_per_map > GIM_ISM_MAX_POINTS)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%u points per map: 1..%u", (unsigned)points_per_map,
+                         GIM_ISM_MAX_POINTS);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if ((uint64_t)cache_count * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes ||
+        (uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%u maps of %u^2 or %u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
+                         (unsigned)cache_count, (unsigned)size, (unsigned)point_count, (long long)ctx->max_ssbo_bytes);
+    take = points_per_map < point_count ? points_per_map : point_count;
+    stride = point_count / take;
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 4u);
+    if (r == GIM_OK && (maps_out == caches || maps_out == points))
+        r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, points);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out);
+    gl->UseProgram(program);
+    gl->Uniform1ui(1, size);
+    gl->Uniform1ui(2, stride);
+    gl->Uniform1ui(3, take);
+    gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
+    gl->Uniform1f(5, GIM_ISM_SPLAT);
+    gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
+    for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
+        uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
+        gl->Uniform1ui(0, first);
+        gl->DispatchCompute(n, 1u, 1u);
     }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -8016,6 +8505,7 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 }
 
 static void gim__lightskin_drop(gim_context *ctx);
+static void gim__ism_release(gim_context *ctx);
 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
@@ -8033,6 +8523,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     gim__free(&ctx->env, ctx->material_exponent);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
+    gim__ism_release(ctx);
     if (ctx->facing) gl->DeleteBuffers(1, &ctx->facing);
     if (ctx->facing_sync) gl->DeleteSync(ctx->facing_sync);
     gim__vpl_release(ctx);
@@ -8563,6 +9054,71 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
     ctx->stamp_pass[ctx->stamp_count++] = (unsigned char)pass;
 }
 
+/* The ISM buffers: visibility off costs no memory. */
+static void gim__ism_release(gim_context *ctx) {
+    gim__GLuint b[2];
+    b[0] = ctx->ism_maps; b[1] = ctx->ism_points;
+    if (b[0] || b[1]) ctx->gl.DeleteBuffers(2, b);
+    ctx->ism_maps = ctx->ism_points = 0;
+    ctx->ism_maps_bytes = ctx->ism_points_bytes = 0;
+    ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
+    ctx->ism_version = 0;
+}
+
+static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
+                                 const char *where);
+
+/* The scene's ISM points (gim_ism_points over every instance's world triangles, read back
+   from the meshes' buffers), uploaded to ctx->ism_points; count of them in *count. */
+static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    uint32_t i, tris = 0, t;
+    float *pos, *alb, *pts;
+    gim_twin_scene sc;
+    gim_result r;
+    for (i = 0; i < ctx->instance_count; ++i) tris += gim__mesh_get(ctx, ctx->instances[i].mesh)->triangle_count;
+    pos = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 9u, sizeof(float));
+    alb = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 3u, sizeof(float));
+    pts = (float *)gim__alloc_array(&ctx->env, (size_t)count * 8u, sizeof(float));
+    if (!pos || !alb || !pts) {
+        gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "ISM points of %u triangles", (unsigned)tris);
+    }
+    memset(alb, 0, (size_t)tris * 3u * sizeof(float));
+    for (i = 0, t = 0; i < ctx->instance_count; ++i) {
+        const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
+        gim__GLint64 vbytes = 0;
+        size_t ibytes = (size_t)m->index_count * (m->index_type == GIM__GL_UNSIGNED_SHORT ? 2u : 4u), k;
+        float *v;
+        void *idx;
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->positions);
+        gl->GetBufferParameteri64v(GIM__GL_COPY_READ_BUFFER, GIM__GL_BUFFER_SIZE, &vbytes);
+        v = (float *)gim__alloc_array(&ctx->env, (size_t)vbytes / 4u + 1u, sizeof(float));
+        idx = gim__alloc_array(&ctx->env, ibytes + 4u, 1u);
+        if (!v || !idx) {
+            gim__free(&ctx->env, v); gim__free(&ctx->env, idx);
+            gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a mesh's copy");
+        }
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)vbytes, v);
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->indices);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)ibytes, idx);
+        for (k = 0; k < (size_t)m->triangle_count * 3u; ++k) {
+            uint32_t vi = m->index_type == GIM__GL_UNSIGNED_SHORT ? ((const uint16_t *)idx)[k] : ((const uint32_t *)idx)[k];
+            gim_vec3 w = gim_mat4_point(ctx->instances[i].model, gim_v3(v[vi * 3u], v[vi * 3u + 1u], v[vi * 3u + 2u]));
+            pos[(size_t)t * 9u + k * 3u] = w.x; pos[(size_t)t * 9u + k * 3u + 1u] = w.y; pos[(size_t)t * 9u + k * 3u + 2u] = w.z;
+        }
+        t += m->triangle_count;
+        gim__free(&ctx->env, v);
+        gim__free(&ctx->env, idx);
+    }
+    sc.positions = pos; sc.normals = NULL; sc.albedo = alb; sc.triangle_count = tris;
+    r = gim_ism_points(&sc, count, pts);
+    if (r == GIM_OK) r = gim__gl_upload(ctx, &ctx->ism_points, &ctx->ism_points_bytes, pts, (uint64_t)count * 32u, where);
+    gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+    return r;
+}
+
 /* The LightSkin buffers and the caches' materials (a frame of another method keeps none). */
 static void gim__lightskin_drop(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
@@ -8611,12 +9167,14 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
     float k_glossy, eye[4];
     gim__grid grid;
     gim__shade_args sa;
+    gim__gl_ism ism;
     gim__GLenum format = f->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F;
     gim_result r = GIM_OK;
     int glossy = 0;
     for (i = 0; i < ctx->instance_count; ++i) total += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     if (total == 0 || ctx->light_count == 0) { /* nothing to light with: no passes, no buffers */
         gim__lightskin_release(ctx);
+        gim__ism_release(ctx);
         return GIM_OK;
     }
     n = f->neighbour_count ? f->neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
@@ -8722,8 +9280,30 @@ vals:
         for (k = 0; k < 3; ++k) c[k] = 0.5f * (o->bounds_min[k] + o->bounds_max[k]) + eye[k] * 1e4f * scale;
         eye[0] = c[0]; eye[1] = c[1]; eye[2] = c[2];
     }
-    r = gim__gl_proxy_lights(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
-                             glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u);
+    memset(&ism, 0, sizeof ism);
+    if (f->visibility == GIM_VISIBILITY_ISM) {
+        /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
+        uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+        uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
+        uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
+        if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
+            ctx->ism_scale != scale || ctx->ism_point_count != pool) {
+            ctx->ism_version = ctx->scene_version - 1u;
+            r = gim__gl_ism_scene_points(ctx, pool, where);
+            if (r == GIM_OK)
+                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 4u, where);
+            if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
+            if (r != GIM_OK) return r;
+            ctx->ism_version = ctx->scene_version;
+            ctx->ism_size = size; ctx->ism_per_map = per; ctx->ism_scale = scale; ctx->ism_point_count = pool;
+        }
+        ism.maps = ctx->ism_maps;
+        ism.size = size;   /* its time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
+    } else if (ctx->ism_maps || ctx->ism_points) {
+        gim__ism_release(ctx);
+    }
+    r = gim__gl_proxy_lights_ism(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
+                                 glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
     if (f->occlusion) {
@@ -8767,6 +9347,8 @@ vals:
     o->neighbour_count = n;
     o->neighbour_cos = sa.cos_theta;
     o->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
+    o->ism_maps = ism.maps;
+    o->ism_size = ism.maps ? ism.size : 0u;
     return GIM_OK;
 }
 
@@ -9577,6 +10159,28 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     return GIM_OK;
 }
 
+/* The visibility settings, before any GL work: a known mode, a map side that is a power of two
+   in range, a point count in range, and every cache's map within one shader storage block. */
+static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
+    uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE, i;
+    uint64_t caches = 0;
+    if (f->visibility != GIM_VISIBILITY_DEFAULT && f->visibility != GIM_VISIBILITY_OFF && f->visibility != GIM_VISIBILITY_ISM)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility);
+    if (f->visibility != GIM_VISIBILITY_ISM) return GIM_OK;
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
+                         (unsigned)f->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (f->ism_points > GIM_ISM_MAX_POINTS)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
+                         GIM_ISM_MAX_POINTS);
+    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
+                         (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_update";
     gim_frame_outputs o;
@@ -9602,6 +10206,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
     }
     r = gim__frame_check(ctx, frame, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
     if (r != GIM_OK) return r;
     diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
                 ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
@@ -9805,7 +10410,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->vpl.maps_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
-    b += ctx->vpl_partial_bytes;
+    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes;
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }

@@ -255,6 +255,8 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     f.val_count = r->d.vals;
     f.view_sample_count = r->d.view_samples;
     f.occlusion = r->d.occlusion;
+    f.visibility = r->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+    f.ism_size = r->d.ism_size;
     f.indirect_float32 = 1;
     f.rotate_view_samples = 1;
     f.timing = r->d.timing;

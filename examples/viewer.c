@@ -230,6 +230,8 @@ static int run(viewer *v, GLFWwindow *w) {
         f.val_count = v->d.vals;
         f.view_sample_count = v->d.view_samples;
         f.occlusion = v->d.occlusion;
+        f.visibility = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+        f.ism_size = v->d.ism_size;
         f.rotate_view_samples = 1;
         f.frame_index = frame;
         f.timing = 1;

@@ -35,6 +35,55 @@ layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 star
    length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
 layout(std430, binding = 4) buffer State { vec4 state[]; };
 
+/* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility's lookup,
+   its float arithmetic in its order); ism_size 0: every VAL seen. */
+layout(std430, binding = 7) readonly buffer IsmMaps { float ism[]; };
+layout(location = 12) uniform uint ism_size;
+layout(location = 13) uniform float ism_bias;
+layout(location = 14) uniform float ism_texel;   /* slope 2 / size */
+layout(location = 15) uniform float ism_lift;
+const float ISM_EMPTY = 3.0e38;
+const float ISM_MAX_TAN = 8.0;
+
+vec3 ism_ray(int tx, vec3 t, vec3 b, vec3 n) {
+    float fs = float(ism_size);
+    float u = (2.0 * float(tx % int(ism_size)) + 1.0) / fs - 1.0;
+    float v = (2.0 * float(tx / int(ism_size)) + 1.0) / fs - 1.0;
+    float r2 = u * u + v * v;
+    float k = 1.0 / (1.0 + r2);
+    vec3 w = vec3(2.0 * u * k, 2.0 * v * k, (1.0 - r2) * k);
+    return vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y, w.x * t.z + w.y * b.z + w.z * n.z);
+}
+
+float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
+    vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
+    float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    if (!(dist > 0.0)) return 1.0;
+    float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
+    if (!(wz > 0.0)) return 1.0;
+    float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
+    float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
+    float fs = float(ism_size);
+    float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
+    float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
+    int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
+    int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
+    int tx = iy * int(ism_size) + ix;
+    float z = ism[i * ism_size * ism_size + uint(tx)];
+    float dref = dist;
+    vec3 dir = ism_ray(tx, t, b, n);
+    float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
+    if (den >= 1e-3 || den <= -1e-3) {   /* the VAL's plane along the texel's ray */
+        float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
+        if (s > 0.0 && s < 2.0 * dist) dref = s;
+    }
+    float cl = -(nl.x * d.x + nl.y * d.y + nl.z * d.z) / dist;
+    cl = cl < 0.0 ? -cl : cl;
+    float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
+    float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
+    return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
+}
+
 shared vec4 tile_pa[TILE];    /* position, area */
 shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
 shared vec3 tile_flux[TILE];
@@ -169,6 +218,12 @@ void main() {
         shift = g1.w;
     }
     uint end = first + chunk;
+    vec3 ism_o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z), ism_t = vec3(0.0), ism_b = vec3(0.0);
+    if (ism_size != 0u) {   /* gim_basis (Duff et al. 2017) */
+        float s = n.z >= 0.0 ? 1.0 : -1.0, a = -1.0 / (s + n.z), k = n.x * n.y * a;
+        ism_t = vec3(1.0 + s * n.x * n.x * a, s * k, -s * n.x);
+        ism_b = vec3(k, s + n.y * n.y * a, -n.y);
+    }
     if (mode == 0u) {
         for (uint base = first; base < end; base += uint(TILE)) {
             load(base + local, local);
@@ -183,6 +238,7 @@ void main() {
                     float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
                     float den = tile_pa[t].w + PI * d2;
                     float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
+                    if (ism_size != 0u && e_n * cos_x > 0.0) e_n *= ism_visibility(ii, ism_o, ism_t, ism_b, n, tile_pa[t].xyz, tile_nw[t].xyz);
                     float e = e_n * cos_x;
                     if (!(e > 0.0)) continue;   /* behind, grazing, coincident or weight 0 */
                     vec3 phi = tile_flux[t];

@@ -1,0 +1,159 @@
+/* Imperfect shadow maps (Ritschel et al. 2008), the GPU twin of gim_ism_render: one work group
+   per cache's map, the map and its pull-push pyramid in shared memory. Each invocation splats
+   the points k = local, local + GROUP, ... of the map's subset (offset + k stride) as surfels
+   (atomicMin on the distance's bits: a positive float orders as its bits), then the pyramid
+   is pulled (farthest non-empty child) and pushed (holes take the parent), level by level.
+   The float arithmetic is the twin's, in its order (see gim_ism_render in gimany.h). */
+#define GROUP 256
+#define MAX_SIZE 64
+#define PYRAMID 1365                  /* 32^2 + 16^2 + ... + 1 */
+layout(local_size_x = GROUP) in;
+
+struct Cache { vec4 position_area; vec4 normal_reflectance; };   /* gim_cache */
+struct Point { vec4 position_area; vec4 normal; };                /* gim_ism_points */
+layout(std430, binding = 0) readonly buffer Caches { Cache cache[]; };
+layout(std430, binding = 1) readonly buffer Points { Point point[]; };
+layout(std430, binding = 2) writeonly buffer Maps { float map_out[]; };
+
+layout(location = 0) uniform uint first_map;   /* this dispatch's maps: first_map + work group */
+layout(location = 1) uniform uint size;        /* power of two, 4..64 */
+layout(location = 2) uniform uint stride;      /* point_count / P */
+layout(location = 3) uniform uint count;       /* P: points per map */
+layout(location = 4) uniform float lift;       /* GIM_ISM_LIFT scene_scale */
+layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
+layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
+
+const float EMPTY = 3.0e38;
+const float PI = 3.14159265358979323846;
+
+shared uint level0[MAX_SIZE * MAX_SIZE];
+shared float pyramid[PYRAMID];
+
+/* gim_basis (Duff et al. 2017) */
+void basis(vec3 n, out vec3 t, out vec3 b) {
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float c = n.x * n.y * a;
+    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
+    b = vec3(c, s + n.y * n.y * a, -n.y);
+}
+
+/* the texel of direction d (length dist) as gim__ism_texel; -1 behind the plane */
+int texel_of(vec3 d, float dist, vec3 t, vec3 b, vec3 n) {
+    float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
+    if (!(wz > 0.0)) return -1;
+    float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
+    float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
+    float fs = float(size);
+    float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
+    float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
+    int ix = fx < 0.0 ? 0 : fx > float(size - 1u) ? int(size) - 1 : int(fx);
+    int iy = fy < 0.0 ? 0 : fy > float(size - 1u) ? int(size) - 1 : int(fy);
+    return iy * int(size) + ix;
+}
+
+/* texel tx's centre ray as gim__ism_texel_ray */
+vec3 texel_ray(int tx, vec3 t, vec3 b, vec3 n) {
+    float fs = float(size);
+    float u = (2.0 * float(tx % int(size)) + 1.0) / fs - 1.0;
+    float v = (2.0 * float(tx / int(size)) + 1.0) / fs - 1.0;
+    float r2 = u * u + v * v;
+    float k = 1.0 / (1.0 + r2);
+    vec3 w = vec3(2.0 * u * k, 2.0 * v * k, (1.0 - r2) * k);
+    return vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y, w.x * t.z + w.y * b.z + w.z * n.z);
+}
+
+void put(int tx, float s) { atomicMin(level0[tx], floatBitsToUint(s)); }
+
+/* one surfel, as gim__ism_splat */
+void splat_point(vec3 o, vec3 t, vec3 b, vec3 n, Point p, float area) {
+    vec3 d = vec3(p.position_area.x - o.x, p.position_area.y - o.y, p.position_area.z - o.z);
+    float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    if (!(dist > lift)) return;
+    int tx = texel_of(d, dist, t, b, n);
+    if (tx < 0) return;
+    int cx = tx % int(size), cy = tx / int(size);
+    float rs = splat * sqrt(area / PI);
+    float rs2 = rs * rs;
+    float rf = ceil(rs / dist * float(size) * 0.5);
+    int r = rf < float(max_texels) ? int(rf) : max_texels;
+    vec3 pn = p.normal.xyz;
+    float dn = d.x * pn.x + d.y * pn.y + d.z * pn.z;
+    bool own = false;
+    for (int y = cy - r; y <= cy + r; ++y)
+        for (int x = cx - r; x <= cx + r; ++x) {
+            if (x < 0 || y < 0 || x >= int(size) || y >= int(size)) continue;
+            vec3 dir = texel_ray(y * int(size) + x, t, b, n);
+            float den = dir.x * pn.x + dir.y * pn.y + dir.z * pn.z;
+            if (!(den >= 1e-3 || den <= -1e-3)) continue;
+            float s = dn / den;
+            if (!(s > lift)) continue;
+            vec3 h = vec3(s * dir.x - d.x, s * dir.y - d.y, s * dir.z - d.z);
+            if (!(x == cx && y == cy) && h.x * h.x + h.y * h.y + h.z * h.z > rs2) continue;
+            put(y * int(size) + x, s);
+            own = own || (x == cx && y == cy);
+        }
+    if (!own) put(tx, dist);
+}
+
+float fetch(uint level, uint off, uint sz, uint x, uint y) {
+    return level == 0u ? uintBitsToFloat(level0[y * sz + x]) : pyramid[off + y * sz + x];
+}
+
+void main() {
+    uint m = first_map + gl_WorkGroupID.x;
+    uint local = gl_LocalInvocationIndex;
+    uint texels = size * size;
+    for (uint q = local; q < texels; q += uint(GROUP)) level0[q] = floatBitsToUint(EMPTY);
+    barrier();
+    vec3 n = cache[m].normal_reflectance.xyz, t, b;
+    basis(n, t, b);
+    vec3 c = cache[m].position_area.xyz;
+    vec3 o = vec3(c.x + lift * n.x, c.y + lift * n.y, c.z + lift * n.z);
+    /* the map's offset frac(m phi) stride, as gim__ism_offset */
+    uint hi, lo;
+    umulExtended(m * 2654435769u, stride, hi, lo);
+    for (uint k = local; k < count; k += uint(GROUP)) {
+        Point p = point[hi + k * stride];
+        splat_point(o, t, b, n, p, float(stride) * p.position_area.w);
+    }
+    barrier();
+    /* pull: level l + 1 from level l (offsets into the pyramid: level 1 at 0) */
+    uint sz = size, off = 0u, prev_off = 0u, levels = 0u;
+    for (uint l = 0u; sz > 1u; ++l) {
+        uint nsz = sz / 2u;
+        for (uint q = local; q < nsz * nsz; q += uint(GROUP)) {
+            uint x = q % nsz, y = q / nsz;
+            float s = 0.0, cnt = 0.0;
+            for (uint k = 0u; k < 4u; ++k) {
+                float v = fetch(l, prev_off, sz, 2u * x + (k & 1u), 2u * y + (k >> 1u));
+                if (v < EMPTY) { s = v > s ? v : s; cnt += 1.0; }
+            }
+            pyramid[off + q] = cnt > 0.0 ? s : EMPTY;
+        }
+        barrier();
+        prev_off = off;
+        off += nsz * nsz;
+        sz = nsz;
+        ++levels;
+    }
+    /* push: from the coarsest level down; level l (>= 1) sits at offset(l) */
+    for (uint l = levels; l-- > 0u;) {
+        uint lsz = size >> l, psz = lsz / 2u;
+        uint loff = 0u, poff = 0u, s2 = size / 2u;
+        for (uint j = 1u; j < l; ++j) { loff += s2 * s2; s2 /= 2u; }
+        s2 = size / 2u;
+        for (uint j = 1u; j < l + 1u; ++j) { poff += s2 * s2; s2 /= 2u; }
+        for (uint q = local; q < lsz * lsz; q += uint(GROUP)) {
+            uint x = q % lsz, y = q / lsz;
+            float parent = pyramid[poff + (y / 2u) * psz + x / 2u];
+            if (l == 0u) {
+                if (!(uintBitsToFloat(level0[q]) < EMPTY)) level0[q] = floatBitsToUint(parent);
+            } else if (!(pyramid[loff + q] < EMPTY)) {
+                pyramid[loff + q] = parent;
+            }
+        }
+        barrier();
+    }
+    for (uint q = local; q < texels; q += uint(GROUP)) map_out[m * texels + q] = uintBitsToFloat(level0[q]);
+}

@@ -1,0 +1,255 @@
+/* Visibility in the frame (gim_frame.visibility = ISM): a sealed box with 0.3-thick walls, roof
+   and floor on a sunlit ground, the camera inside. The exact indirect light inside is 0;
+   without visibility LightSkin lets the sunlit ground through the walls (12% of the ground's
+   radiance on the CPU twin, bench_ism). With the caches' imperfect shadow maps the mean inside
+   must stay under 1% of the ground's radiance (the target) while it is over 5% without. Also: the maps
+   gim_update made are gim_ism_render's on the same caches and points; they are made once and
+   again only when an instance moves; bad settings are refused before any GL work; off keeps
+   no ISM buffer. */
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+#include "room.h"
+
+enum { W = 48, H = 36 };
+
+/* Ground 24 x 24 at y = 0; box [-2, 2] x [0, 3] x [-2, 2], inside [-1.7, 1.7] x [0.3, 2.7] x [-1.7, 1.7]. */
+static void box(room *r, const float lo[3], const float hi[3], int in, int bottom) {
+    float X[3] = {hi[0] - lo[0], 0, 0}, Y[3] = {0, hi[1] - lo[1], 0}, Z[3] = {0, 0, hi[2] - lo[2]};
+    float c[3];
+#define FACE(cx, cy, cz, U, V) do { c[0] = cx; c[1] = cy; c[2] = cz; if (in) add_quad(r, c, V, U, 0); else add_quad(r, c, U, V, 0); } while (0)
+    FACE(lo[0], lo[1], lo[2], Z, Y);
+    FACE(hi[0], lo[1], lo[2], Y, Z);
+    if (bottom) FACE(lo[0], lo[1], lo[2], X, Z);
+    FACE(lo[0], hi[1], lo[2], Z, X);
+    FACE(lo[0], lo[1], lo[2], Y, X);
+    FACE(lo[0], lo[1], hi[2], X, Y);
+#undef FACE
+}
+
+static void closed_room(room *r) {
+    float g0[3] = {-12, 0, -12}, gu[3] = {0, 0, 24}, gv[3] = {24, 0, 0};
+    float olo[3] = {-2, 0, -2}, ohi[3] = {2, 3, 2}, ilo[3] = {-1.7f, 0.3f, -1.7f}, ihi[3] = {1.7f, 2.7f, 1.7f};
+    memset(r, 0, sizeof *r);
+    add_quad(r, g0, gu, gv, 0);
+    box(r, olo, ohi, 0, 0);
+    box(r, ilo, ihi, 1, 1);
+}
+
+static gim_mesh_data room_data(const room *r) {
+    gim_mesh_data m;
+    memset(&m, 0, sizeof m);
+    m.positions = r->pos; m.vertex_count = r->quads * 4;
+    m.normals = r->nrm;
+    m.indices = r->idx; m.index_count = r->quads * 6; m.index_type = GIM_INDEX_U32;
+    m.triangle_material = r->mat;
+    return m;
+}
+
+typedef struct scene_fx {
+    gltest_fixture f;
+    room r;
+    gim_cache_set set;
+    gim_mesh mesh;
+    gim_frame fr;
+} scene_fx;
+
+static void setup(scene_fx *s) {
+    gim_cache_desc cd;
+    gim_mesh_desc md;
+    gim_instance in;
+    gim_light sun;
+    gltest_fixture_begin(&s->f);
+    closed_room(&s->r);
+    memset(&cd, 0, sizeof cd);
+    cd.mesh = room_data(&s->r);
+    cd.d_eps = 1.5f;
+    assert_int_equal(gim_cache_generate(&cd, &s->set), GIM_OK);
+    memset(&md, 0, sizeof md);
+    md.data = room_data(&s->r);
+    md.caches = &s->set;
+    assert_int_equal(gim_add_mesh(s->f.ctx, &md, &s->mesh), GIM_OK);
+    assert_int_equal(gim_set_materials(s->f.ctx, room_materials, 4), GIM_OK);
+    in.mesh = s->mesh;
+    in.model = gim_mat4_identity();
+    assert_int_equal(gim_set_instances(s->f.ctx, &in, 1), GIM_OK);
+    memset(&sun, 0, sizeof sun);
+    sun.type = GIM_LIGHT_DIRECTIONAL;
+    sun.irradiance = 1.0f;
+    sun.direction = gim_v3(0.4f, 1.0f, 0.3f);
+    sun.rsm_size = 48;
+    assert_int_equal(gim_set_lights(s->f.ctx, &sun, 1), GIM_OK);
+    memset(&s->fr, 0, sizeof s->fr);
+    s->fr.view = gim_mat4_look_at(gim_v3(0, 1.5f, 1.4f), gim_v3(0.2f, 0.9f, -1.7f), gim_v3(0, 1, 0));
+    s->fr.proj = gim_mat4_perspective(1.4f, (float)W / H, 0.05f, 100.0f);
+    s->fr.width = W;
+    s->fr.height = H;
+    s->fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+}
+
+static void teardown(scene_fx *s) {
+    gim_cache_set_free(&s->set);
+    gltest_fixture_end(&s->f);
+}
+
+/* Mean luminance of the indirect light over the drawn pixels, over the ground's radiance. */
+static double inside(scene_fx *s) {
+    gim_frame_outputs o = gim_outputs(s->f.ctx);
+    float *ind = (float *)malloc(W * H * 16), *nrm = (float *)malloc(W * H * 16);
+    double sum = 0.0, ground = 0.8 * 1.0 * (1.0 / sqrt(0.16 + 1.0 + 0.09)) / 3.14159265358979;
+    uint32_t i, n = 0;
+    gltest_read_texture(o.indirect, GL_RGBA, ind);
+    gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
+    for (i = 0; i < W * H; ++i)
+        if (nrm[i * 4 + 3] > 0.0f) {
+            sum += 0.2126 * ind[i * 4] + 0.7152 * ind[i * 4 + 1] + 0.0722 * ind[i * 4 + 2];
+            ++n;
+        }
+    free(ind); free(nrm);
+    assert_true(n > W * H / 2);
+    return sum / n / ground;
+}
+
+static void no_light_through_walls(void **state) {
+    scene_fx s;
+    double off, ism;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    off = inside(&s);
+    assert_int_equal(s.f.ctx->ism_maps, 0);   /* off: no ISM buffer */
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.ism_points = 0;   /* the default */
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    ism = inside(&s);
+    print_message("mean indirect inside / sunlit ground: %.4f without visibility, %.4f with ISMs (%u caches)\n", off, ism,
+                  s.set.count);
+    {   /* the cost (printed, not tested): a frame that makes the maps (16^2 first, so that the
+           default 32^2 ones are made again), a later frame that reuses them, one without */
+        gim_stats st[3];
+        int k;
+        s.fr.timing = 2;
+        for (k = 0; k < 3; ++k) {
+            if (k == 0) { s.fr.ism_size = 16; assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK); s.fr.ism_size = 0; }
+            if (k == 2) s.fr.visibility = GIM_VISIBILITY_OFF;
+            assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+            assert_int_equal(gim_frame_stats(s.f.ctx, &st[k]), GIM_OK);
+        }
+        print_message("proxy-light pass: %.1f ms making the maps, %.1f ms with them, %.1f ms without; frames %.1f / %.1f / "
+                      "%.1f ms\n", st[0].pass_ms[GIM_PASS_PROXY_LIGHTS], st[1].pass_ms[GIM_PASS_PROXY_LIGHTS],
+                      st[2].pass_ms[GIM_PASS_PROXY_LIGHTS], st[0].frame_ms, st[1].frame_ms, st[2].frame_ms);
+        s.fr.timing = 0;
+        s.fr.visibility = GIM_VISIBILITY_ISM;
+    }
+    assert_true(off > 0.05);
+    assert_true(ism < 0.01);
+    gltest_state_unchanged(&s.f);
+    s.fr.visibility = GIM_VISIBILITY_OFF;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_maps, 0);   /* turned off: released */
+    assert_int_equal(s.f.ctx->ism_points, 0);
+    teardown(&s);
+    GLTEST_END();
+}
+
+/* The frame's maps are gim_ism_render's on the frame's caches (o.caches, grid order) and the
+   points of the world triangles; made once while nothing moves, again when an instance moves. */
+static void maps_are_the_twins(void **state) {
+    scene_fx s;
+    gim_frame_outputs o;
+    gim_cache *caches;
+    gim_twin_scene ts;
+    gim_ism_desc d;
+    gim_instance in;
+    float pos[MAX_Q * 2 * 9], alb[MAX_Q * 2 * 3], *pts, *cpu, *gpu;
+    uint32_t t, k, pool, off = 0, n;
+    uint64_t v0;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.ism_size = 16;
+    s.fr.ism_points = 2048;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    o = gim_outputs(s.f.ctx);
+    assert_true(o.ism_maps != 0);
+    assert_int_equal(o.ism_size, 16);
+    n = o.cache_count;
+    caches = (gim_cache *)malloc(n * sizeof *caches);
+    gltest_read_buffer(o.caches, n * sizeof *caches, caches);
+    for (t = 0; t < s.r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) {
+            memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
+            alb[t * 3 + k] = 0.8f;
+        }
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s.r.quads * 2;
+    pool = 4 * 2048;
+    pts = (float *)malloc(pool * 32u);
+    assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
+    memset(&d, 0, sizeof d);
+    d.caches = caches; d.cache_count = n; d.points = pts; d.point_count = pool;
+    d.size = 16; d.points_per_map = 2048; d.scene_scale = o.scene_scale; d.env = s.f.env;
+    cpu = (float *)malloc((size_t)n * 256 * 4);
+    gpu = (float *)malloc((size_t)n * 256 * 4);
+    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    gltest_read_buffer(o.ism_maps, (size_t)n * 256 * 4, gpu);
+    for (k = 0; k < n * 256; ++k) off += !(fabsf(gpu[k] - cpu[k]) <= 1e-4f * cpu[k]);
+    print_message("%u caches: %u of %u texels differ from the twin\n", n, off, n * 256);
+    assert_true(off <= n * 256 / 200);
+    /* a second frame keeps them; moving the instance makes them again */
+    v0 = s.f.ctx->ism_version;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_true(s.f.ctx->ism_version == v0);
+    in.mesh = s.mesh;
+    in.model = gim_mat4_identity();
+    in.model.m[12] = 0.5f;
+    assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_true(s.f.ctx->ism_version != v0 && s.f.ctx->ism_version == s.f.ctx->scene_version);
+    free(caches); free(pts); free(cpu); free(gpu);
+    teardown(&s);
+    GLTEST_END();
+}
+
+/* Bad settings: refused with a message before any GL work. */
+static void bad_settings(void **state) {
+    scene_fx s;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.ism_size = 48;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_size = 128;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_size = 2;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_size = 0;
+    s.fr.ism_points = GIM_ISM_MAX_POINTS + 1u;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_points = 0;
+    s.fr.visibility = (gim_visibility)7;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.f.ctx->max_ssbo_bytes = 1024;   /* a GL whose blocks cannot hold the maps */
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(s.f.log.errors, 6);
+    s.f.log.errors = 0;
+    assert_int_equal(s.f.ctx->ism_maps, 0);
+    gltest_state_unchanged(&s.f);
+    teardown(&s);
+    GLTEST_END();
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(no_light_through_walls),
+        cmocka_unit_test(maps_are_the_twins),
+        cmocka_unit_test(bad_settings),
+    };
+    int r;
+    (void)room_receiver;   /* room.h's, for the shading tests */
+    r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
