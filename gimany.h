@@ -6184,7 +6184,7 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    (each item read is a GL query, a round trip on threaded drivers): blend functions and
    equations (blending is off in every draw), clear values (glClearBuffer* takes its own), front
    face and cull mode (culling is off), the scissor box (the scissor test is off). */
-#define GIM__GL_TEXTURE_UNITS 8
+#define GIM__GL_TEXTURE_UNITS 7  /* the shaders' sampler bindings are 0-6 */
 #define GIM__GL_IMAGE_UNITS 3    /* the shaders' image bindings are 0-2 */
 #define GIM__GL_SSBO_BINDINGS 6  /* and their SSBO bindings 0-5 */
 #define GIM__GL_UBO_BINDINGS 4
