@@ -6295,6 +6295,7 @@ enum {
     GIM__GL_RED_INTEGER = 0x8D94,
     GIM__GL_RGBA32F = 0x8814,
     GIM__GL_READ_ONLY = 0x88B8,
+    GIM__GL_R8 = 0x8229,
     GIM__GL_RED = 0x1903,
     GIM__GL_RGBA = 0x1908,
     GIM__GL_FLOAT = 0x1406,
@@ -6565,10 +6566,13 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    call (gim__gl_state_baseline, gim__gl_raster_state). Texture reads go through gimany's
    nearest sampler; the texture state of a host's G-buffer (swizzle, base level, depth-stencil
    mode) is the host's and checked instead (gim__gl_check_host_gbuffer). No call reads or
-   writes pixels (glReadPixels, glTexSubImage, glGetTexImage). */
-#define GIM__GL_TEXTURE_UNITS 8
-#define GIM__GL_IMAGE_UNITS 8
-#define GIM__GL_SSBO_BINDINGS 8
+   writes pixels (glReadPixels, glTexSubImage, glGetTexImage). State no call sets is not saved
+   (each item read is a GL query, a round trip on threaded drivers): blend functions and
+   equations (blending is off in every draw), clear values (glClearBuffer* takes its own), front
+   face and cull mode (culling is off), the scissor box (the scissor test is off). */
+#define GIM__GL_TEXTURE_UNITS 7  /* the shaders' sampler bindings are 0-6 */
+#define GIM__GL_IMAGE_UNITS 3    /* the shaders' image bindings are 0-2 */
+#define GIM__GL_SSBO_BINDINGS 8  /* and their SSBO bindings 0-7 (proxy_lights.comp reads the ISM at 7) */
 #define GIM__GL_UBO_BINDINGS 4
 #define GIM__GL_DRAW_BUFFERS 8   /* per-draw-buffer blend and colour mask (GL 4.3 has >= 8) */
 
@@ -6602,13 +6606,12 @@ static const gim__GLenum gim__gl_state_buffers[][2] = {
     {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
 #define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
 
-/* glPixelStorei parameters, every one: the unpack ones apply to glClearBufferData's clear
-   value too, so a host's row length or skips would make the driver read past it */
+/* glPixelStorei's unpack parameters: they apply to glClearBufferData's clear value too, so a
+   host's row length or skips would make the driver read past it. The pack ones are left alone:
+   no call packs pixels (glGetBufferSubData takes none). */
 static const gim__GLenum gim__gl_state_pixel_store[] = {
-    GIM__GL_PACK_ALIGNMENT, GIM__GL_UNPACK_ALIGNMENT, GIM__GL_PACK_ROW_LENGTH, GIM__GL_UNPACK_ROW_LENGTH,
-    GIM__GL_PACK_SWAP_BYTES, GIM__GL_UNPACK_SWAP_BYTES, GIM__GL_PACK_LSB_FIRST, GIM__GL_UNPACK_LSB_FIRST,
-    GIM__GL_PACK_SKIP_ROWS, GIM__GL_UNPACK_SKIP_ROWS, GIM__GL_PACK_SKIP_PIXELS, GIM__GL_UNPACK_SKIP_PIXELS,
-    GIM__GL_PACK_IMAGE_HEIGHT, GIM__GL_UNPACK_IMAGE_HEIGHT, GIM__GL_PACK_SKIP_IMAGES, GIM__GL_UNPACK_SKIP_IMAGES};
+    GIM__GL_UNPACK_ALIGNMENT, GIM__GL_UNPACK_ROW_LENGTH, GIM__GL_UNPACK_SWAP_BYTES, GIM__GL_UNPACK_LSB_FIRST,
+    GIM__GL_UNPACK_SKIP_ROWS, GIM__GL_UNPACK_SKIP_PIXELS, GIM__GL_UNPACK_IMAGE_HEIGHT, GIM__GL_UNPACK_SKIP_IMAGES};
 #define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
 
 /* One image unit (glBindImageTexture's arguments). */
@@ -6625,18 +6628,14 @@ typedef struct gim__gl_indexed_buffer {
 typedef struct gim__gl_state {
     gim__GLint program, vertex_array, element_array_buffer;
     gim__GLint draw_framebuffer, read_framebuffer;
-    gim__GLint viewport[4], scissor_box[4];
+    gim__GLint viewport[4];
     gim__GLboolean caps[GIM__GL_STATE_CAPS];
     gim__GLint buffers[GIM__GL_STATE_BUFFERS];
-    gim__GLint blend_src_rgb, blend_dst_rgb, blend_src_alpha, blend_dst_alpha;
-    gim__GLint blend_equation_rgb, blend_equation_alpha;
     gim__GLint depth_func;
     gim__GLboolean depth_mask, color_mask[4];
-    /* per draw buffer (glEnablei/glBlendFunci/glColorMaski), restored after the global ones */
+    /* per draw buffer (glEnablei/glColorMaski), restored after the global ones */
     gim__GLboolean blend_i[GIM__GL_DRAW_BUFFERS], color_mask_i[GIM__GL_DRAW_BUFFERS][4];
-    gim__GLint blend_func_i[GIM__GL_DRAW_BUFFERS][6];  /* src/dst rgb, src/dst alpha, equations */
-    gim__GLint front_face, cull_face_mode, polygon_mode[2];
-    gim__GLfloat color_clear[4], depth_clear;
+    gim__GLint polygon_mode[2];
     double depth_range[2];
     gim__GLint active_texture;
     gim__GLint texture_2d[GIM__GL_TEXTURE_UNITS], texture_2d_array[GIM__GL_TEXTURE_UNITS];
@@ -6653,6 +6652,7 @@ static void gim__gl_indexed_save(const gim__gl *gl, gim__GLenum binding, gim__GL
     unsigned i;
     for (i = 0; i < count; ++i) {
         gl->GetIntegeri_v(binding, i, &b[i].buffer);
+        if (!b[i].buffer) continue; /* binding 0 resets start and size to 0: nothing more to ask */
         gl->GetInteger64i_v(start, i, &b[i].start);
         gl->GetInteger64i_v(size, i, &b[i].size);
     }
@@ -6679,33 +6679,16 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     gl->GetIntegerv(GIM__GL_DRAW_FRAMEBUFFER_BINDING, &s->draw_framebuffer);
     gl->GetIntegerv(GIM__GL_READ_FRAMEBUFFER_BINDING, &s->read_framebuffer);
     gl->GetIntegerv(GIM__GL_VIEWPORT, s->viewport);
-    gl->GetIntegerv(GIM__GL_SCISSOR_BOX, s->scissor_box);
     for (i = 0; i < GIM__GL_STATE_CAPS; ++i) s->caps[i] = gl->IsEnabled(gim__gl_state_caps[i]);
     for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i) gl->GetIntegerv(gim__gl_state_buffers[i][1], &s->buffers[i]);
-    gl->GetIntegerv(GIM__GL_BLEND_SRC_RGB, &s->blend_src_rgb);
-    gl->GetIntegerv(GIM__GL_BLEND_DST_RGB, &s->blend_dst_rgb);
-    gl->GetIntegerv(GIM__GL_BLEND_SRC_ALPHA, &s->blend_src_alpha);
-    gl->GetIntegerv(GIM__GL_BLEND_DST_ALPHA, &s->blend_dst_alpha);
-    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_RGB, &s->blend_equation_rgb);
-    gl->GetIntegerv(GIM__GL_BLEND_EQUATION_ALPHA, &s->blend_equation_alpha);
     gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
     gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
     gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
     for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
         s->blend_i[i] = gl->IsEnabledi(GIM__GL_BLEND, i);
         gl->GetBooleani_v(GIM__GL_COLOR_WRITEMASK, i, s->color_mask_i[i]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_RGB, i, &s->blend_func_i[i][0]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_DST_RGB, i, &s->blend_func_i[i][1]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_SRC_ALPHA, i, &s->blend_func_i[i][2]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_DST_ALPHA, i, &s->blend_func_i[i][3]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_RGB, i, &s->blend_func_i[i][4]);
-        gl->GetIntegeri_v(GIM__GL_BLEND_EQUATION_ALPHA, i, &s->blend_func_i[i][5]);
     }
-    gl->GetIntegerv(GIM__GL_FRONT_FACE, &s->front_face);
-    gl->GetIntegerv(GIM__GL_CULL_FACE_MODE, &s->cull_face_mode);
     gl->GetIntegerv(GIM__GL_POLYGON_MODE, s->polygon_mode); /* front and back; core has one mode */
-    gl->GetFloatv(GIM__GL_COLOR_CLEAR_VALUE, s->color_clear);
-    gl->GetFloatv(GIM__GL_DEPTH_CLEAR_VALUE, &s->depth_clear);
     gl->GetDoublev(GIM__GL_DEPTH_RANGE, s->depth_range);
     gl->GetIntegerv(GIM__GL_ACTIVE_TEXTURE, &s->active_texture);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
@@ -6718,6 +6701,11 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
         gim__gl_image_binding *b = &s->image[i];
         gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_NAME, i, &b->texture);
+        if (!b->texture) { /* unbinding resets the unit to its initial state: nothing more to ask */
+            b->access = GIM__GL_READ_ONLY;
+            b->format = GIM__GL_R8;
+            continue;
+        }
         gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LEVEL, i, &b->level);
         gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYERED, i, &b->layered);
         gl->GetIntegeri_v(GIM__GL_IMAGE_BINDING_LAYER, i, &b->layer);
@@ -6743,7 +6731,7 @@ static void gim__gl_state_baseline(const gim__gl *gl) {
     unsigned i;
     for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) {
         gim__GLenum p = gim__gl_state_pixel_store[i];
-        gl->PixelStorei(p, p == GIM__GL_PACK_ALIGNMENT || p == GIM__GL_UNPACK_ALIGNMENT ? 4 : 0);
+        gl->PixelStorei(p, p == GIM__GL_UNPACK_ALIGNMENT ? 4 : 0);
     }
     gl->ProvokingVertex(GIM__GL_LAST_VERTEX_CONVENTION);
     if (gl->ClipControl) gl->ClipControl(GIM__GL_LOWER_LEFT, GIM__GL_NEGATIVE_ONE_TO_ONE);
@@ -6757,30 +6745,19 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);
     gl->BindFramebuffer(GIM__GL_READ_FRAMEBUFFER, (gim__GLuint)s->read_framebuffer);
     gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
-    gl->Scissor(s->scissor_box[0], s->scissor_box[1], s->scissor_box[2], s->scissor_box[3]);
     for (i = 0; i < GIM__GL_STATE_CAPS; ++i) {
         if (s->caps[i]) gl->Enable(gim__gl_state_caps[i]);
         else gl->Disable(gim__gl_state_caps[i]);
     }
-    gl->BlendFuncSeparate((gim__GLenum)s->blend_src_rgb, (gim__GLenum)s->blend_dst_rgb,
-                          (gim__GLenum)s->blend_src_alpha, (gim__GLenum)s->blend_dst_alpha);
-    gl->BlendEquationSeparate((gim__GLenum)s->blend_equation_rgb, (gim__GLenum)s->blend_equation_alpha);
     gl->DepthFunc((gim__GLenum)s->depth_func);
     gl->DepthMask(s->depth_mask);
     gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
     for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
-        const gim__GLint *b = s->blend_func_i[i];
         if (s->blend_i[i]) gl->Enablei(GIM__GL_BLEND, i);
         else gl->Disablei(GIM__GL_BLEND, i);
         gl->ColorMaski(i, s->color_mask_i[i][0], s->color_mask_i[i][1], s->color_mask_i[i][2], s->color_mask_i[i][3]);
-        gl->BlendFuncSeparatei(i, (gim__GLenum)b[0], (gim__GLenum)b[1], (gim__GLenum)b[2], (gim__GLenum)b[3]);
-        gl->BlendEquationSeparatei(i, (gim__GLenum)b[4], (gim__GLenum)b[5]);
     }
-    gl->FrontFace((gim__GLenum)s->front_face);
-    gl->CullFace((gim__GLenum)s->cull_face_mode);
     gl->PolygonMode(GIM__GL_FRONT_AND_BACK, (gim__GLenum)s->polygon_mode[0]);
-    gl->ClearColor(s->color_clear[0], s->color_clear[1], s->color_clear[2], s->color_clear[3]);
-    gl->ClearDepth(s->depth_clear);
     gl->DepthRange(s->depth_range[0], s->depth_range[1]);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
@@ -6908,6 +6885,13 @@ typedef struct gim__vpl_gpu {
     gim__GLuint maps;             /* gim_paraboloid per cluster */
     uint64_t vpls_bytes, staging_bytes, cluster_of_bytes, centres_bytes, maps_bytes;
     uint32_t warm_clusters, warm_vpls, warm_metric; /* what the centres were made for (the warm start); 0: none */
+    /* gim__gl_rsm_vpls' texel list and its sums scratch, kept while its inputs stay the same */
+    gim__GLuint texels, sums;
+    uint64_t texels_bytes, sums_bytes;
+    gim__GLuint kmeans_acc;       /* gim__gl_kmeans_step's per-cluster sums (contents undefined between steps) */
+    uint64_t kmeans_acc_bytes;
+    uint32_t texels_key[3];       /* count, sequence, size of the list in texels; count 0: none */
+    float texels_offsets[3];      /* offsets[0..1], [2] = 1 when offsets were given */
 } gim__vpl_gpu;
 
 #define GIM__MAX_STAMPS 96   /* timestamps a frame may take: 1 + 4 per light + 7 */
@@ -6917,6 +6901,8 @@ struct gim_context {
     gim__gl gl;
     int gl_major, gl_minor;
     int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
+    int own_objects;            /* 1 inside gim_update's passes: every object is the context's own, made to
+                                   size by the frame, so the host-object checks (GL queries) are skipped */
     gim__gl_state saved;
     gim__GLint64 max_ssbo_bytes;  /* GL_MAX_SHADER_STORAGE_BLOCK_SIZE */
     gim__GLuint programs[GIM__PROGRAM_COUNT];
@@ -6947,6 +6933,8 @@ struct gim_context {
     gim__GLuint nearest_sampler;  /* texelFetch of a depth texture needs compare mode NONE */
     gim__GLuint view_sample_pixels, view_samples;
     uint64_t view_sample_pixels_bytes, view_samples_bytes;
+    uint32_t view_sample_key[3];  /* count, width, height of view_sample_pixels (count 0: none) */
+    float view_sample_off[3];     /* its rotation offsets, [2] = 1 when rotated */
     gim__GLuint indirect;         /* the LightSkin output (see "the LightSkin frame") */
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
@@ -6962,6 +6950,9 @@ struct gim_context {
     float ls_cos_theta;
     gim__GLuint gather_samples, gather_sum;  /* RSM gather: the pattern, the per-pixel sum over lights */
     uint64_t gather_samples_bytes, gather_sum_bytes;
+    /* what gather_samples holds: samples, lights, radius and each light's RSM size (n 0: nothing) */
+    uint32_t gather_key_n, gather_key_lights, gather_key_sizes[GIM_MAX_LIGHTS];
+    float gather_key_frac;
     gim__vpl_gpu vpl;             /* the VPL methods (CLUSTERED, SSVP; see "the VPL frame") */
     /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
     gim__GLuint queries[GIM__MAX_STAMPS];
@@ -7190,6 +7181,7 @@ static gim_result gim__gl_scratch(gim_context *ctx, gim__GLuint *buffer, size_t 
 static gim_result gim__gl_check_buffer(gim_context *ctx, const char *where, const char *what, gim__GLuint buffer,
                                        uint64_t bytes) {
     gim__GLint64 size = 0;
+    if (ctx->own_objects) return GIM_OK;
     if (!buffer || !ctx->gl.IsBuffer(buffer))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a buffer object", what, (unsigned)buffer);
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, buffer);
@@ -7207,6 +7199,7 @@ static gim_result gim__gl_check_buffer(gim_context *ctx, const char *where, cons
 static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, const char *what, gim__GLuint texture,
                                         uint32_t width, uint32_t height) {
     gim__GLint w = 0, h = 0;
+    if (ctx->own_objects) return GIM_OK;
     if (!texture || !ctx->gl.IsTexture(texture))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "%s (%u) is not a texture", what, (unsigned)texture);
     if (ctx->gl.GetTextureParameteriv) {
@@ -7716,6 +7709,7 @@ static gim_result gim__gl_check_rsm(gim_context *ctx, const char *where, const g
     static const char *const names[3] = {"rsm_position", "rsm_normal", "rsm_flux"};
     gim_result r = GIM_OK;
     int i;
+    if (ctx->own_objects) return GIM_OK;
     for (i = 0; i < 3 && r == GIM_OK; ++i) {
         gim__GLint format = 0;
         r = gim__gl_check_texture(ctx, where, names[i], textures[i], size, size);
@@ -7815,16 +7809,19 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    (row sums, block sums of the VPLs, the two totals, the scale), in double and in the twin's
    order, each loop under llvmpipe's 65535 iterations (a row of <= 16384 texels; the final sum
    over size + count / GIM_RSM_VPL_BLOCK partials). The texel list and the partial sums live
-   in two buffers made and deleted by the call. Cost: size^2 + 3 count texel reads. */
+   in two buffers of the context (ctx->vpl), the list remade only when count, sequence, size
+   or offsets change. Cost: size^2 + 3 count texel reads. */
 static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
                                                gim__GLuint rsm_flux, uint32_t size, uint32_t count,
                                                gim_vpl_sequence sequence, const float *offsets, gim__GLuint vpls_out) {
     static const char where[] = "RSM VPLs (GL)";
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0, textures[3], scratch[2] = {0, 0};
-    uint32_t *texels, i, mode, blocks;
+    gim__vpl_gpu *v = &ctx->vpl;
+    gim__GLuint program = 0, textures[3];
+    uint32_t *texels = NULL, i, mode, blocks;
     uint64_t sums_bytes;
     gim_result r = GIM_OK;
+    int same;
     if (!rsm_position || !rsm_normal || !rsm_flux || !vpls_out)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or vpls_out is 0");
     if (size == 0 || size > GIM__SCAN_MAX_SIZE)
@@ -7839,9 +7836,16 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
         count > 65535u * 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs exceed the SSBO or dispatch limits",
                          (unsigned)count);
-    texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
-    if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
-    for (i = 0; i < count; ++i) gim__rsm_vpl_texel(i, count, sequence, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+    /* the texel list depends on these only: made and uploaded when one changes */
+    same = v->texels && v->texels_key[0] == count && v->texels_key[1] == (uint32_t)sequence && v->texels_key[2] == size &&
+           (offsets ? v->texels_offsets[2] == 1.0f && v->texels_offsets[0] == offsets[0] && v->texels_offsets[1] == offsets[1]
+                    : v->texels_offsets[2] == 0.0f);
+    if (!same) {
+        texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+        if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
+        for (i = 0; i < count; ++i)
+            gim__rsm_vpl_texel(i, count, sequence, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+    }
     textures[0] = rsm_position;
     textures[1] = rsm_normal;
     textures[2] = rsm_flux;
@@ -7849,24 +7853,31 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
     r = gim__gl_check_rsm(ctx, where, textures, size);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, (uint64_t)count * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_RSM_VPLS, &program);
-    if (r == GIM_OK) {
-        gl->GenBuffers(2, scratch);
-        if (!scratch[0] || !scratch[1]) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
-    }
-    if (r == GIM_OK) {
-        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[0]);
-        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)count * 8, texels, GIM__GL_DYNAMIC_COPY);
-        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, scratch[1]);
-        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)sums_bytes, NULL, GIM__GL_DYNAMIC_COPY);
-        r = gim__gl_check(ctx, where);
+    if (r == GIM_OK && !same) {
+        v->texels_key[0] = 0;   /* none until the upload is done */
+        r = gim__gl_sized_buffer(ctx, &v->texels, &v->texels_bytes, (uint64_t)count * 8u, where);
+        if (r == GIM_OK) {
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->texels);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 8, texels);
+            r = gim__gl_check(ctx, where);
+        }
+        if (r == GIM_OK) {
+            v->texels_key[0] = count;
+            v->texels_key[1] = (uint32_t)sequence;
+            v->texels_key[2] = size;
+            v->texels_offsets[0] = offsets ? offsets[0] : 0.0f;
+            v->texels_offsets[1] = offsets ? offsets[1] : 0.0f;
+            v->texels_offsets[2] = offsets ? 1.0f : 0.0f;
+        }
     }
     gim__free(&ctx->env, texels);
+    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->sums, &v->sums_bytes, sums_bytes, where);
     if (r == GIM_OK) {
         for (i = 0; i < 3; ++i)
             gl->BindImageTexture(i, textures[i], 0, GIM__GL_FALSE, 0, GIM__GL_READ_ONLY, GIM__GL_RGBA32UI);
-        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, scratch[0]);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, v->texels);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, vpls_out);
-        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, scratch[1]);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, v->sums);
         gl->UseProgram(program);
         gl->Uniform1ui(0, size);
         gl->Uniform1ui(1, count);
@@ -7880,7 +7891,6 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
         gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
         r = gim__gl_check(ctx, where);
     }
-    if (scratch[0] || scratch[1]) gl->DeleteBuffers(2, scratch);   /* unbinds them (gim__gl_leave rebinds the host's) */
     return gim__gl_leave(ctx, r);
 }
 
@@ -7907,7 +7917,7 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
    WARM, max_iterations K (its convergence stop skips only an update that changes nothing).
    Cost: vpl_count * cluster_count distance terms and as many VPL reads in the update (a gather
    per cluster, in dispatches of ctx->proxy_chunk VPLs); a scratch buffer of 160 bytes per
-   cluster is made and deleted by the call. cluster_count <= 4096 (one loop over the centres
+   cluster, kept in the context (ctx->vpl.kmeans_acc). cluster_count <= 4096 (one loop over the centres
    per invocation stays under llvmpipe's 65535 iterations). */
 #define GIM__KMEANS_MAX_CLUSTERS 4096u
 static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint vpls, uint32_t vpl_count,
@@ -7948,15 +7958,9 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "assignment", assignment, (uint64_t)vpl_count * 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_ASSIGN, &p_assign);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_UPDATE, &p_update);
-    if (r == GIM_OK) {
-        gl->GenBuffers(1, &acc);
-        if (!acc) r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers failed");
-    }
-    if (r == GIM_OK) {
-        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, acc);
-        gl->BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)cluster_count * 160, NULL, GIM__GL_DYNAMIC_COPY);
-        r = gim__gl_check(ctx, where);
-    }
+    if (r == GIM_OK)
+        r = gim__gl_sized_buffer(ctx, &ctx->vpl.kmeans_acc, &ctx->vpl.kmeans_acc_bytes, (uint64_t)cluster_count * 160u, where);
+    acc = ctx->vpl.kmeans_acc;
     if (r == GIM_OK) {
         uint32_t first = 0, groups = (cluster_count + 63u) / 64u;
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
@@ -7989,7 +7993,6 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
         gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
         r = gim__gl_check(ctx, where);
     }
-    if (acc) gl->DeleteBuffers(1, &acc);
     return gim__gl_leave(ctx, r);
 }
 
@@ -8795,19 +8798,32 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     if (r != GIM_OK) return r;
     if (!gim_mat4_invert(f->view, &inv_view) || !gim_mat4_invert(f->proj, &inv_proj))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
-    pixels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
-    if (!pixels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u view samples", (unsigned)count);
+    off[0] = off[1] = 0.0f;
     if (f->rotate_view_samples) gim_rotation_offsets(off, 2u, f->frame_index);
-    gim_view_sample_pixels(count, f->width, f->height, f->rotate_view_samples ? off : NULL, pixels);
-    r = gim__gl_sized_buffer(ctx, &ctx->view_sample_pixels, &ctx->view_sample_pixels_bytes, (uint64_t)count * 8u, where);
-    if (r == GIM_OK)
-        r = gim__gl_sized_buffer(ctx, &ctx->view_samples, &ctx->view_samples_bytes, (uint64_t)count * 32u, where);
-    if (r == GIM_OK) {
-        gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->view_sample_pixels);
-        gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 8, pixels);
-    }
-    gim__free(&ctx->env, pixels);
+    r = gim__gl_sized_buffer(ctx, &ctx->view_samples, &ctx->view_samples_bytes, (uint64_t)count * 32u, where);
     if (r != GIM_OK) return r;
+    /* the pixels depend on these only: made and uploaded when one changes */
+    if (!ctx->view_sample_pixels || ctx->view_sample_key[0] != count || ctx->view_sample_key[1] != f->width ||
+        ctx->view_sample_key[2] != f->height || ctx->view_sample_off[0] != off[0] || ctx->view_sample_off[1] != off[1] ||
+        ctx->view_sample_off[2] != (f->rotate_view_samples ? 1.0f : 0.0f)) {
+        pixels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+        if (!pixels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u view samples", (unsigned)count);
+        gim_view_sample_pixels(count, f->width, f->height, f->rotate_view_samples ? off : NULL, pixels);
+        ctx->view_sample_key[0] = 0;
+        r = gim__gl_sized_buffer(ctx, &ctx->view_sample_pixels, &ctx->view_sample_pixels_bytes, (uint64_t)count * 8u, where);
+        if (r == GIM_OK) {
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->view_sample_pixels);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 8, pixels);
+            ctx->view_sample_key[0] = count;
+            ctx->view_sample_key[1] = f->width;
+            ctx->view_sample_key[2] = f->height;
+            ctx->view_sample_off[0] = off[0];
+            ctx->view_sample_off[1] = off[1];
+            ctx->view_sample_off[2] = f->rotate_view_samples ? 1.0f : 0.0f;
+        }
+        gim__free(&ctx->env, pixels);
+        if (r != GIM_OK) return r;
+    }
     gim__gl_nearest_sampler(ctx);
     gl->ActiveTexture(GIM__GL_TEXTURE0);
     gl->BindTexture(GIM__GL_TEXTURE_2D, depth);
@@ -9544,17 +9560,22 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     int host = f->gbuffer_depth != 0;
     gim__GLuint program = 0;
     uint64_t stride;
+    int same = ctx->gather_samples && ctx->gather_key_n == n && ctx->gather_key_lights == ctx->light_count &&
+               ctx->gather_key_frac == frac;
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_RSM_GATHER, &program);
     if (r != GIM_OK) return r;
-    r = gim__gather_pattern(&ctx->env, n, &pattern);
-    if (r == GIM_OK) {
+    for (i = 0; i < ctx->light_count && same; ++i) same = ctx->gather_key_sizes[i] == ctx->light_gpu[i].size;
+    if (!same) r = gim__gather_pattern(&ctx->env, n, &pattern);   /* the offsets change only with these */
+    if (r == GIM_OK && !same) {
         offsets = (float *)gim__alloc_array(&ctx->env, n, 16u);
         if (!offsets) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u samples", (unsigned)n);
     }
     stride = ((uint64_t)n * 16u + (uint64_t)ctx->ssbo_align - 1u) / (uint64_t)ctx->ssbo_align * (uint64_t)ctx->ssbo_align;
-    if (r == GIM_OK)
+    if (r == GIM_OK && !same) {
+        ctx->gather_key_n = 0;
         r = gim__gl_sized_buffer(ctx, &ctx->gather_samples, &ctx->gather_samples_bytes, stride * ctx->light_count, where);
-    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) { /* each light's offsets: its radius in its texels */
+    }
+    for (i = 0; i < ctx->light_count && r == GIM_OK && !same; ++i) { /* each light's offsets: its radius in its texels */
         uint32_t j;
         for (j = 0; j < n; ++j) {
             gim__gather_offset(pattern + j * 2, frac * (float)ctx->light_gpu[i].size, n, offsets + j * 4);
@@ -9562,6 +9583,12 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
         }
         gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->gather_samples);
         gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLintptr)(i * stride), (gim__GLsizeiptr)n * 16, offsets);
+        ctx->gather_key_sizes[i] = ctx->light_gpu[i].size;
+    }
+    if (r == GIM_OK && !same) {
+        ctx->gather_key_n = n;
+        ctx->gather_key_lights = ctx->light_count;
+        ctx->gather_key_frac = frac;
     }
     gim__free(&ctx->env, pattern);
     gim__free(&ctx->env, offsets);
@@ -9846,9 +9873,10 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
 
 static void gim__vpl_release(gim_context *ctx) {
     gim__vpl_gpu *v = &ctx->vpl;
-    gim__GLuint b[5];
+    gim__GLuint b[8];
     b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
-    ctx->gl.DeleteBuffers(5, b);
+    b[5] = v->texels; b[6] = v->sums; b[7] = v->kmeans_acc;
+    ctx->gl.DeleteBuffers(8, b);
     memset(v, 0, sizeof *v);
     gim__vpl_raw_release(ctx);
     gim__paraboloid_release(ctx, 1);
@@ -10260,6 +10288,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
     gim__gl_enter(ctx, where);
+    ctx->own_objects = 1;
     gim__stamp(ctx, frame->timing, GIM_PASS_COUNT);
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim_light fl;
@@ -10271,9 +10300,11 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (r == GIM_OK && frame->gbuffer_depth) {
         depth = frame->gbuffer_depth;
         normal = frame->gbuffer_normal;
+        ctx->own_objects = 0;   /* the host's */
         r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, depth, normal);
+        ctx->own_objects = 1;
     } else if (r == GIM_OK) {
         r = gim__gl_gbuffer(ctx, frame);
         depth = ctx->gbuffer_depth;
@@ -10342,6 +10373,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
         }
     }
+    ctx->own_objects = 0;
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     o.valid = 1;
     o.width = frame->width;

