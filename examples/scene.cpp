@@ -1027,9 +1027,13 @@ std::string check_regular(const std::string &path, uint64_t *size) {
     return std::string();
 }
 
-std::string read_regular(std::vector<unsigned char> *out, const std::string &path) {
+/* limit: the most bytes the caller will take from this file (UINT64_MAX: any up to
+   MAX_FILE_BYTES); a larger file is refused from its size, before anything is read. */
+std::string read_regular(std::vector<unsigned char> *out, const std::string &path, uint64_t limit = UINT64_MAX) {
     uint64_t size = 0;
     std::string why = check_regular(path, &size);
+    if (why.empty() && size > limit)
+        why = std::to_string(size) + " bytes, more than the " + std::to_string(limit) + " its buffer declares";
     if (why.empty()) {
         std::ifstream f(path, std::ios::binary);
         if (!f) why = std::string("cannot open: ") + std::strerror(errno);
@@ -1041,15 +1045,57 @@ std::string read_regular(std::vector<unsigned char> *out, const std::string &pat
     return why;
 }
 
+/* The byteLength each external buffer declares, by the path tinygltf will read it from
+   (JoinPath of the base directory or ".", as its FindFile does; no expansion, see fs_expand).
+   tinygltf takes a buffer's file only when its size equals byteLength, so a file of any
+   other size is refused without being read whole: a larger one from its size (else it was
+   read, up to MAX_FILE_BYTES, only to be refused), a shorter one by tinygltf's size check.
+   Paths named by several buffers keep the largest. */
+struct declared_sizes {
+    std::vector<std::pair<std::string, uint64_t>> paths;
+    uint64_t limit(const std::string &path) const {
+        uint64_t l = 0;
+        bool found = false;
+        for (const auto &p : paths)
+            if (p.first == path) {
+                l = std::max(l, p.second);
+                found = true;
+            }
+        return found ? l : UINT64_MAX;
+    }
+};
+
+/* Only the top-level "buffers" array is kept from the JSON (the rest is dropped while
+   parsing); text that does not parse gives no sizes, tinygltf then says why. */
+void collect_buffer_sizes(const unsigned char *text, size_t n, const std::string &base_dir, declared_sizes *out) {
+    nlohmann::json::parser_callback_t keep = [](int depth, nlohmann::json::parse_event_t ev, nlohmann::json &j) {
+        return !(depth == 1 && ev == nlohmann::json::parse_event_t::key && j != "buffers");
+    };
+    nlohmann::json doc = nlohmann::json::parse(text, text + n, keep, false);
+    if (!doc.is_object() || !doc.contains("buffers") || !doc["buffers"].is_array()) return;
+    for (const nlohmann::json &b : doc["buffers"]) {
+        if (!b.is_object() || !b.contains("uri") || !b["uri"].is_string()) continue;
+        if (!b.contains("byteLength") || !b["byteLength"].is_number_unsigned()) continue;
+        std::string uri = b["uri"].get<std::string>();
+        if (gl::IsDataURI(uri)) continue;
+        uint64_t len = b["byteLength"].get<uint64_t>();
+        std::string file = gl::dlib::urldecode(uri);
+        out->paths.emplace_back(gl::JoinPath(base_dir, file), len);
+        out->paths.emplace_back(gl::JoinPath(".", file), len);
+    }
+}
+
 /* tinygltf's file access for buffers and images given by uri: regular files only (fs_read
-   says why not; "exists" only sends the path there), no path expansion. */
+   says why not; "exists" only sends the path there), no path expansion, buffers bounded by
+   their declared sizes (user_data: the declared_sizes). */
 bool fs_exists(const std::string &path, void *) {
     struct stat st;
     return stat(path.c_str(), &st) == 0;
 }
 std::string fs_expand(const std::string &path, void *) { return path; }
-bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *) {
-    std::string why = read_regular(out, path);
+bool fs_read(std::vector<unsigned char> *out, std::string *err, const std::string &path, void *user) {
+    const declared_sizes *sizes = static_cast<const declared_sizes *>(user);
+    std::string why = read_regular(out, path, sizes ? sizes->limit(path) : UINT64_MAX);
     if (!why.empty() && err) *err += path + ": " + why + "\n";
     return why.empty();
 }
@@ -1060,6 +1106,7 @@ bool fs_write(std::string *err, const std::string &, const std::vector<unsigned 
 
 void load_gltf(const unsigned char *data, size_t size, const std::string &base_dir, builder &b) {
     if (size > 0xffffffffu) fail("file too large");
+    declared_sizes sizes;
     {
         const unsigned char *text = data;
         size_t text_size = size;
@@ -1071,6 +1118,7 @@ void load_gltf(const unsigned char *data, size_t size, const std::string &base_d
         }
         if (json_depth(text, text_size) > MAX_JSON_DEPTH)
             fail("the JSON nests objects and arrays more than %u levels deep", MAX_JSON_DEPTH);
+        collect_buffer_sizes(text, text_size, base_dir, &sizes);
     }
     gl::TinyGLTF ctx;
     image_budget budget;
@@ -1079,7 +1127,7 @@ void load_gltf(const unsigned char *data, size_t size, const std::string &base_d
     fs.ExpandFilePath = fs_expand;
     fs.ReadWholeFile = fs_read;
     fs.WriteWholeFile = fs_write;
-    fs.user_data = nullptr;
+    fs.user_data = &sizes;
     ctx.SetFsCallbacks(fs);
     ctx.SetImageLoader(load_image, &budget);
     gl::Model model;

@@ -1,8 +1,9 @@
 /* The glTF loader of the examples (examples/scene.cpp) against hostile files: deep JSON
-   nesting, special files as the scene or as a buffer, a decompression-bomb PNG referenced 8
-   times, a node graph that expands exponentially. Each load runs in a child process with an
-   alarm; the parent checks that it was refused (or loaded with the image skipped) within a
-   bounded time and peak memory. */
+   nesting, special files as the scene or as a buffer, a buffer's file far larger than its
+   declared byteLength, a decompression-bomb PNG referenced 8 times, a node graph that
+   expands exponentially. Each load runs in a child process with an alarm; the parent checks
+   that it was refused (or loaded with the image skipped) within a bounded time and peak
+   memory. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -176,6 +177,37 @@ void special_files(void **) {
     expect_refused("directory.gltf/..", "not a regular file");
 }
 
+/* A buffer declaring 1 KB whose .bin is 64 MB (sparse: no disk): refused from the file's size
+   without reading it, so the peak memory stays far below 64 MB. The exact size loads. */
+void oversized_buffer(void **) {
+    const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    std::string tri(reinterpret_cast<const char *>(p), sizeof p);
+    for (const char *name : {"big.bin", "exact.bin"}) {
+        write_file(name, tri);
+        int fd = open((dir + "/" + name).c_str(), O_WRONLY);
+        assert_true(fd >= 0);
+        assert_int_equal(ftruncate(fd, std::strcmp(name, "big.bin") == 0 ? 64L << 20 : 1024), 0);
+        close(fd);
+    }
+    std::string declare = "\"buffers\":[{\"byteLength\":36,";
+    std::string big = gltf("{\"mesh\":0}", "0", "big.bin");
+    big.replace(big.find(declare), declare.size(), "\"buffers\":[{\"byteLength\":1024,");
+    write_file("big_buffer.gltf", big);
+    outcome o = load_in_child("big_buffer.gltf");
+    assert_true(o.status > 0);
+    assert_true(o.seconds < 5 && o.peak_kb < 48 * 1024);
+    if (!std::strstr(o.err.c_str(), "more than the 1024 its buffer declares")) fail_msg("got '%s'", o.err.c_str());
+    std::string exact = gltf("{\"mesh\":0}", "0", "exact.bin");
+    exact.replace(exact.find(declare), declare.size(), "\"buffers\":[{\"byteLength\":1024,");
+    write_file("exact_buffer.gltf", exact);
+    assert_int_equal(load_in_child("exact_buffer.gltf").status, 0);
+    /* a file shorter than declared is refused by tinygltf's size check, as before */
+    std::string shorter = gltf("{\"mesh\":0}", "0", "exact.bin");
+    shorter.replace(shorter.find(declare), declare.size(), "\"buffers\":[{\"byteLength\":2048,");
+    write_file("short_buffer.gltf", shorter);
+    expect_refused("short_buffer.gltf", "File size mismatch");
+}
+
 void put32(std::string &s, uint32_t v) {
     for (int k = 3; k >= 0; --k) s += (char)((v >> (8 * k)) & 0xff);
 }
@@ -247,7 +279,8 @@ int main(void) {
     assert_int_equal(mkdir((dir + "/directory.gltf").c_str(), 0700), 0);
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(ordinary_file_loads), cmocka_unit_test(deep_nesting),      cmocka_unit_test(special_files),
-        cmocka_unit_test(decompression_bomb),  cmocka_unit_test(instancing_explosion),
+        cmocka_unit_test(oversized_buffer),    cmocka_unit_test(decompression_bomb),
+        cmocka_unit_test(instancing_explosion),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     std::string rm = "rm -rf '" + dir + "'";
