@@ -344,7 +344,8 @@ typedef struct gim_cache_desc {
     gim_mesh_data mesh;
     float d_eps;          /* max cache-to-surface distance; default scene_scale / 32 */
     float theta_eps;      /* max normal deviation in radians, (0, pi/2]; default 30 degrees */
-    float scene_scale;    /* default: diagonal of the mesh bounds */
+    float scene_scale;    /* default: diagonal of THIS mesh's bounds (a prop then gets as many
+                             caches as a room): pass the scene's, or use gim_cache_generate_scene */
     int no_snap;          /* 1: keep floating caches where averaging put them */
     int no_merge;         /* 1: skip joining similar caches of neighbouring voxels */
     gim_env env;
@@ -1122,7 +1123,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
          md.data.positions = p; md.data.vertex_count = nv;
          md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
          md.data.triangle_material = mat_ids;         NULL: material 0
-         md.caches = &caches;                         from gim_cache_generate(&cd, &caches), model space
+         md.caches = &caches;                         from gim_cache_generate_scene (one spacing for
+                                                      the whole scene), model space
          gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
          gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
          gim_instance in = {mesh, model};
@@ -1134,7 +1136,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
          gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
          ... sample o.indirect in the host's shading: add it to the direct light, then tone-map
          gim_destroy(ctx);
-   Caches come from gim_cache_generate (or a blob) once per mesh, handed over in
+   Caches come from gim_cache_generate_scene over all the meshes (or gim_cache_generate with the
+   scene's scale, or a blob) once, handed over per mesh in
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
