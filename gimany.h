@@ -344,7 +344,8 @@ typedef struct gim_cache_desc {
     gim_mesh_data mesh;
     float d_eps;          /* max cache-to-surface distance; default scene_scale / 32 */
     float theta_eps;      /* max normal deviation in radians, (0, pi/2]; default 30 degrees */
-    float scene_scale;    /* default: diagonal of the mesh bounds */
+    float scene_scale;    /* default: diagonal of THIS mesh's bounds (a prop then gets as many
+                             caches as a room): pass the scene's, or use gim_cache_generate_scene */
     int no_snap;          /* 1: keep floating caches where averaging put them */
     int no_merge;         /* 1: skip joining similar caches of neighbouring voxels */
     gim_env env;
@@ -366,6 +367,25 @@ typedef struct gim_cache_set {
    mesh extent GIM_ERROR_OUT_OF_RANGE. Deterministic; single-threaded; memory linear in the
    voxel pieces (about one per triangle, plus one per voxel a large triangle crosses). */
 GIMANY_API gim_result gim_cache_generate(const gim_cache_desc *desc, gim_cache_set *out);
+/* Input of gim_cache_generate_scene; zero means default. */
+typedef struct gim_cache_scene_desc {
+    const gim_cache_desc *meshes; /* count meshes in model space; their theta_eps, no_snap, no_merge
+                                     and env are used, their d_eps and scene_scale are not */
+    const gim_mat4 *models;       /* count model-to-world matrices placing them (finite), or NULL:
+                                     the meshes are in world space. A mesh instanced at several
+                                     scales: pass the placement with the largest */
+    uint32_t count;
+    float d_eps;                  /* world units; 0: scene_scale / 32 */
+    float scene_scale;            /* world units; 0: diagonal of the world bounds of all the meshes */
+    gim_env env;                  /* log of the scene-level checks */
+} gim_cache_scene_desc;
+
+/* Caches for every mesh of a scene at one world spacing (out: count sets, caller-owned array):
+   gim_cache_generate with d_eps and scene_scale taken from the whole scene and divided by each
+   placement's largest axis scale, so a small prop and the room around it get caches equally
+   dense per world area (each mesh's own default would give the prop as many as the room).
+   GIM_OK or the first error; out is written only on GIM_OK. */
+GIMANY_API gim_result gim_cache_generate_scene(const gim_cache_scene_desc *desc, gim_cache_set *out);
 /* Free what gim_cache_generate or gim_cache_blob_read allocated; NULL or zeroed is fine. */
 GIMANY_API void gim_cache_set_free(gim_cache_set *set);
 
@@ -1187,7 +1207,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
          md.data.positions = p; md.data.vertex_count = nv;
          md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
          md.data.triangle_material = mat_ids;         NULL: material 0
-         md.caches = &caches;                         from gim_cache_generate(&cd, &caches), model space
+         md.caches = &caches;                         from gim_cache_generate_scene (one spacing for
+                                                      the whole scene), model space
          gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
          gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
          gim_instance in = {mesh, model};
@@ -1199,7 +1220,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
          gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
          ... sample o.indirect in the host's shading: add it to the direct light, then tone-map
          gim_destroy(ctx);
-   Caches come from gim_cache_generate (or a blob) once per mesh, handed over in
+   Caches come from gim_cache_generate_scene over all the meshes (or gim_cache_generate with the
+   scene's scale, or a blob) once, handed over per mesh in
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
@@ -3258,6 +3280,91 @@ fail:
     gim__free(env, result);
     gim__free(env, g.frags);
     gim__free(env, g.caches);
+    return res;
+}
+
+/* Largest axis scale of a model matrix's 3x3 (the length of its longest column): exact for
+   rotation, translation and any axis scale, the spacing bound a cache set must meet. */
+static double gim__cg_model_scale(const gim_mat4 *m) {
+    double best = 0.0;
+    int c;
+    for (c = 0; c < 3; ++c) {
+        double x = m->m[c * 4], y = m->m[c * 4 + 1], z = m->m[c * 4 + 2], l = sqrt(x * x + y * y + z * z);
+        if (l > best) best = l;
+    }
+    return best;
+}
+
+GIMANY_DEF gim_result gim_cache_generate_scene(const gim_cache_scene_desc *desc, gim_cache_set *out) {
+    const char *fn = "gim_cache_generate_scene";
+    const gim_env *env = desc ? &desc->env : NULL;
+    double lo[3], hi[3], scale, d_eps;
+    gim_cache_set *sets;
+    gim_result res = GIM_OK;
+    uint32_t i, made = 0;
+    int k, any = 0;
+    if (!desc || !out || (desc->count && !desc->meshes))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "desc, out and meshes must not be NULL");
+    if (!(desc->d_eps >= 0.0f) || !gim__isfinitef(desc->d_eps) || !(desc->scene_scale >= 0.0f) ||
+        !gim__isfinitef(desc->scene_scale))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "d_eps and scene_scale must be finite and >= 0 (0 = default)");
+    for (k = 0; k < 3; ++k) { lo[k] = DBL_MAX; hi[k] = -DBL_MAX; }
+    /* world bounds: each mesh's finite vertices (those its triangles use) through its placement */
+    for (i = 0; i < desc->count; ++i) {
+        const gim_mesh_data *m = &desc->meshes[i].mesh;
+        size_t j;
+        double s;
+        res = gim__cg_check(&desc->meshes[i]);
+        if (res != GIM_OK) return res;
+        if (desc->models) {
+            s = gim__cg_model_scale(&desc->models[i]);
+            if (!gim_mat4_isfinite(desc->models[i]) || !(s > 0.0))
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "models[%u] must be finite with a non-zero scale", (unsigned)i);
+        }
+        for (j = 0; j < m->index_count; ++j) {
+            const float *p = gim__cg_position(m, gim__cg_index(m, j));
+            double w[3];
+            if (!gim__all_finite(p, 3)) continue;
+            if (desc->models) {
+                gim_vec3 q = gim_mat4_point(desc->models[i], gim_v3(p[0], p[1], p[2]));
+                w[0] = q.x; w[1] = q.y; w[2] = q.z;
+            } else {
+                w[0] = p[0]; w[1] = p[1]; w[2] = p[2];
+            }
+            for (k = 0; k < 3; ++k) {
+                if (w[k] < lo[k]) lo[k] = w[k];
+                if (w[k] > hi[k]) hi[k] = w[k];
+            }
+            any = 1;
+        }
+    }
+    if (!any) for (k = 0; k < 3; ++k) lo[k] = hi[k] = 0.0;
+    scale = desc->scene_scale > 0.0f ? (double)desc->scene_scale
+                                     : sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                            (hi[2] - lo[2]) * (hi[2] - lo[2]));
+    if (!(scale > 0.0) || !gim__isfinitef((float)scale)) scale = 1.0; /* one point: nothing has area */
+    d_eps = desc->d_eps > 0.0f ? (double)desc->d_eps : scale / 32.0;
+    sets = (gim_cache_set *)gim__alloc_array(env, desc->count ? desc->count : 1u, sizeof *sets);
+    if (!sets) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "allocation failed");
+    for (i = 0; i < desc->count && res == GIM_OK; ++i) {
+        gim_cache_desc cd = desc->meshes[i];
+        double s = desc->models ? gim__cg_model_scale(&desc->models[i]) : 1.0;
+        cd.d_eps = (float)(d_eps / s);
+        cd.scene_scale = (float)(scale / s);
+        if (!(cd.d_eps > 0.0f) || !gim__isfinitef(cd.d_eps) || !gim__isfinitef(cd.scene_scale)) {
+            res = gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "mesh %u: model-space d_eps %g is outside float range",
+                            (unsigned)i, d_eps / s);
+            break;
+        }
+        res = gim_cache_generate(&cd, &sets[i]);
+        if (res == GIM_OK) made = i + 1u;
+    }
+    if (res == GIM_OK) {
+        for (i = 0; i < desc->count; ++i) out[i] = sets[i];
+    } else {
+        for (i = 0; i < made; ++i) gim_cache_set_free(&sets[i]);
+    }
+    gim__free(env, sets);
     return res;
 }
 

@@ -1,5 +1,5 @@
 /* scene_gimany.h - hand a scene of examples/scene.h to a gimany context: one gimany mesh per
-   scene mesh (world space, identity instance), LightSkin caches generated for each, the
+   scene mesh (world space, identity instance), LightSkin caches at one spacing for all, the
    materials, the lights and the camera matrices. Shared by the frame tests, the benchmarks
    and the demo. Include after gimany.h and scene.h; everything here is static. */
 #ifndef GIMANY_SCENE_GIMANY_H
@@ -47,12 +47,16 @@ SCENE_GIMANY_FN gim_light scene_gimany_light(const scene_light *l, uint32_t rsm_
     return g;
 }
 
-/* Upload s into ctx: meshes with caches (d_eps = d_eps_frac x the scene's scale; 0: 1/32),
-   materials, instances and lights (RSM rsm_size). GIM_OK or the first error (logged through
-   the context's env); on error what was made is freed. */
+/* Upload s into ctx: meshes with caches at one scene-level spacing (gim_cache_generate_scene:
+   d_eps = d_eps_frac x the scene's scale; 0: 1/32; below 0: each mesh's own default, its own
+   diagonal / 32, to compare with what a host gets from gim_cache_generate alone), materials,
+   instances and lights (RSM rsm_size). GIM_OK or the first error (logged through the context's
+   env); on error what was made is freed. */
 SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, float d_eps_frac, uint32_t rsm_size,
                                     gim_env env, scene_gimany *out) {
     gim_material *mats;
+    gim_cache_desc *cds;
+    gim_cache_scene_desc sd;
     gim_result r = GIM_OK;
     uint32_t i;
     memset(out, 0, sizeof *out);
@@ -60,7 +64,13 @@ SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, f
     out->caches = (gim_cache_set *)calloc(s->mesh_count ? s->mesh_count : 1, sizeof *out->caches);
     out->instances = (gim_instance *)calloc(s->mesh_count ? s->mesh_count : 1, sizeof *out->instances);
     mats = (gim_material *)calloc(s->material_count ? s->material_count : 1, sizeof *mats);
-    if (!out->meshes || !out->caches || !out->instances || !mats) { free(mats); return GIM_ERROR_OUT_OF_MEMORY; }
+    cds = (gim_cache_desc *)calloc(s->mesh_count ? s->mesh_count : 1, sizeof *cds);
+    if (!out->meshes || !out->caches || !out->instances || !mats || !cds) {
+        free(mats); free(cds);
+        free(out->meshes); free(out->caches); free(out->instances);
+        memset(out, 0, sizeof *out);
+        return GIM_ERROR_OUT_OF_MEMORY;
+    }
     for (i = 0; i < s->material_count; ++i) {
         memcpy(mats[i].diffuse, s->materials[i].diffuse, sizeof mats[i].diffuse);
         memcpy(mats[i].glossy, s->materials[i].glossy, sizeof mats[i].glossy);
@@ -68,25 +78,32 @@ SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, f
     }
     r = gim_set_materials(ctx, mats, s->material_count);
     free(mats);
-    for (i = 0; i < s->mesh_count && r == GIM_OK; ++i) {
+    for (i = 0; i < s->mesh_count; ++i) { /* world space: the scene's meshes need no placement */
         const scene_mesh *m = &s->meshes[i];
-        gim_cache_desc cd;
+        cds[i].mesh.positions = m->positions;
+        cds[i].mesh.normals = m->normals;
+        cds[i].mesh.vertex_count = m->vertex_count;
+        cds[i].mesh.indices = m->indices;
+        cds[i].mesh.index_count = m->triangle_count * 3u;
+        cds[i].env = env;
+    }
+    memset(&sd, 0, sizeof sd);
+    sd.meshes = cds;
+    sd.count = s->mesh_count;
+    sd.d_eps = (d_eps_frac > 0.0f ? d_eps_frac : 1.0f / 32.0f) * s->scale;
+    sd.scene_scale = s->scale;
+    sd.env = env;
+    if (r == GIM_OK && d_eps_frac < 0.0f) {
+        for (i = 0; i < s->mesh_count && r == GIM_OK; ++i) r = gim_cache_generate(&cds[i], &out->caches[i]);
+    } else if (r == GIM_OK) {
+        r = gim_cache_generate_scene(&sd, out->caches);
+    }
+    for (i = 0; i < s->mesh_count && r == GIM_OK; ++i) {
         gim_mesh_desc md;
-        memset(&cd, 0, sizeof cd);
-        cd.mesh.positions = m->positions;
-        cd.mesh.normals = m->normals;
-        cd.mesh.vertex_count = m->vertex_count;
-        cd.mesh.indices = m->indices;
-        cd.mesh.index_count = m->triangle_count * 3u;
-        cd.d_eps = (d_eps_frac > 0.0f ? d_eps_frac : 1.0f / 32.0f) * s->scale;
-        cd.scene_scale = s->scale;
-        cd.env = env;
-        r = gim_cache_generate(&cd, &out->caches[i]);
-        if (r != GIM_OK) break;
         out->cache_count += out->caches[i].count;
         memset(&md, 0, sizeof md);
-        md.data = cd.mesh;
-        md.data.triangle_material = m->triangle_material;
+        md.data = cds[i].mesh;
+        md.data.triangle_material = s->meshes[i].triangle_material;
         md.caches = &out->caches[i];
         r = gim_add_mesh(ctx, &md, &out->meshes[i]);
         if (r != GIM_OK) break;
@@ -94,6 +111,7 @@ SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, f
         out->instances[i].mesh = out->meshes[i];
         out->instances[i].model = gim_mat4_identity();
     }
+    free(cds);
     if (r == GIM_OK) r = gim_set_instances(ctx, out->instances, out->mesh_count);
     for (i = 0; i < s->light_count && i < GIM_MAX_LIGHTS; ++i) out->lights[i] = scene_gimany_light(&s->lights[i], rsm_size);
     out->light_count = i;

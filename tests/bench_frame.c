@@ -399,6 +399,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     char err[256];
     float *full, *img, *ref, *sigma = NULL, *ref2 = NULL, *sigma2 = NULL;
     double ref_noise = -1.0, ref2_noise = -1.0;
+    float cache_frac = 1.0f / 32.0f;
     W = bs->width[which];
     H = bs->height[which];
     if (strchr(source, '.')) {
@@ -426,7 +427,10 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         memcpy(s.camera.target, v + 3, sizeof s.camera.target);
         s.camera.fovy = v[6] * 3.14159265f / 180.0f;
     }
-    if (scene_gimany_load(ctx, &s, 1.0f / 32.0f, 256, env, &g) != GIM_OK || g.light_count == 0) {
+    /* GIMANY_BENCH_CACHE_FRAC: cache spacing d_eps as a fraction of the scene's scale (default
+       1/32; below 0: each mesh's own diagonal / 32, what gim_cache_generate alone gives) */
+    if (getenv("GIMANY_BENCH_CACHE_FRAC")) cache_frac = (float)atof(getenv("GIMANY_BENCH_CACHE_FRAC"));
+    if (scene_gimany_load(ctx, &s, cache_frac, 256, env, &g) != GIM_OK || g.light_count == 0) {
         printf("scene %s: no caches or no light (skipped)\n", bs->name);
         scene_gimany_free(ctx, &g);
         scene_free(&s);

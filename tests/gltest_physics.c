@@ -75,6 +75,11 @@ static void frame_begin(phys_frame *p, phys_which which, double scale, const dou
     cd.mesh.triangle_material = mat_of;
     cd.env = p->f.env;
     assert_int_equal(gim_cache_generate(&cd, &p->caches), GIM_OK);
+    if (getenv("GIMANY_PHYS_CACHE_FRAC")) { /* to measure error against cache count: d_eps = frac x diagonal */
+        cd.d_eps = p->caches.d_eps * 32.0f * (float)atof(getenv("GIMANY_PHYS_CACHE_FRAC"));
+        gim_cache_set_free(&p->caches);
+        assert_int_equal(gim_cache_generate(&cd, &p->caches), GIM_OK);
+    }
     memset(&md, 0, sizeof md);
     md.data = cd.mesh;
     md.caches = &p->caches;
@@ -163,9 +168,9 @@ static void check_scene(phys_which which, double scale, const double *offset) {
         if (methods[k] == GIM_METHOD_SSVP) p->fr.bounces = 1;   /* the closed forms are one bounce */
         st = run_method(p, methods[k]);
         p->fr.bounces = 0;
-        print_message("%-13s scale %-6g %-15s median %.3f, %3.0f%% within 10%%, %3.0f%% within 20%% (%u pixels)\n",
+        print_message("%-13s scale %-6g %-15s median %.3f, %3.0f%% within 10%%, %3.0f%% within 20%% (%u pixels, %u caches)\n",
                       p->s.name, scale, method_name(methods[k]), st.median, 100.0 * st.within10, 100.0 * st.within20,
-                      st.counted);
+                      st.counted, p->caches.count);
         if (methods[k] == GIM_METHOD_LIGHTSKIN_FULL || methods[k] == GIM_METHOD_LIGHTSKIN_BRSM) {
             assert_true(fabs(st.median - 1.0) <= 0.05);
             assert_true(st.within10 >= 0.90);

@@ -897,6 +897,79 @@ static void theta_controls(void **state) {
     tm_free(&sp);
 }
 
+/* Caches per world area, in units of the spacing: count x d_eps^2 / area. */
+static double scene_density(const gim_cache_set *s, double world_per_model) {
+    double d = (double)s->d_eps * world_per_model;
+    return (double)s->count * d * d / (s->report.surface_area * world_per_model * world_per_model);
+}
+
+/* A 1 m prop in a 10 x 10 x 4 m room: generated for the scene, both get the room's spacing and
+   the same caches per area, placed in world space or through a scaled model matrix; each
+   mesh's own default gives the prop its own, far finer, spacing. */
+static void scene_spacing(void **state) {
+    test_alloc_stats st;
+    gim_env env = test_env(&st, NULL);
+    const float rlo[3] = {0, 0, 0}, rhi[3] = {10, 10, 4}, plo[3] = {4.5f, 4.5f, 0}, phi[3] = {5.5f, 5.5f, 1};
+    const float mlo[3] = {0, 0, 0}, mhi[3] = {0.5f, 0.5f, 0.5f};
+    tmesh room = tm_box(rlo, rhi, 4), prop = tm_box(plo, phi, 2), small = tm_box(mlo, mhi, 2);
+    gim_cache_desc md[2];
+    gim_mat4 models[2];
+    gim_cache_scene_desc sd;
+    gim_cache_set sets[2], own, placed[2];
+    double want = sqrt(10.0 * 10.0 + 10.0 * 10.0 + 4.0 * 4.0) / 32.0, dr, dp;
+    (void)state;
+    md[0] = tm_desc(&room, 0.0f);
+    md[1] = tm_desc(&prop, 0.0f);
+    md[0].env = md[1].env = env;
+    memset(&sd, 0, sizeof sd);
+    sd.meshes = md;
+    sd.count = 2;
+    sd.env = env;
+    assert_int_equal(gim_cache_generate_scene(&sd, sets), GIM_OK);
+    assert_true(fabs(sets[0].d_eps - want) < 1e-5 * want && fabs(sets[1].d_eps - want) < 1e-5 * want);
+    dr = scene_density(&sets[0], 1.0);
+    dp = scene_density(&sets[1], 1.0);
+    assert_true(dp > 0.5 * dr && dp < 2.0 * dr);
+    /* the old way: the prop alone, defaults, is spaced by its own diagonal */
+    assert_int_equal(gim_cache_generate(&md[1], &own), GIM_OK);
+    assert_true(own.d_eps < 0.2f * sets[1].d_eps && own.count > 10u * sets[1].count);
+    gim_cache_set_free(&own);
+
+    /* the prop in model space, placed at twice its size: d_eps halves in model units */
+    models[0] = gim_mat4_identity();
+    models[1] = gim_mat4_identity();
+    models[1].m[0] = models[1].m[5] = models[1].m[10] = 2.0f;
+    models[1].m[12] = 4.5f; models[1].m[13] = 4.5f;
+    md[1] = tm_desc(&small, 0.0f);
+    md[1].env = env;
+    sd.models = models;
+    assert_int_equal(gim_cache_generate_scene(&sd, placed), GIM_OK);
+    assert_true(fabs(placed[1].d_eps - 0.5 * want) < 1e-5 * want);
+    assert_true(placed[0].count == sets[0].count);
+    assert_true(fabs((double)placed[1].count - (double)sets[1].count) <= 0.1 * (double)sets[1].count);
+    assert_true(fabs(scene_density(&placed[1], 2.0) - dp) < 0.1 * dp);
+    gim_cache_set_free(&placed[0]);
+    gim_cache_set_free(&placed[1]);
+
+    /* an error writes nothing and frees what it made */
+    models[1].m[0] = 0.0f; models[1].m[5] = 0.0f; models[1].m[10] = 0.0f;
+    memset(placed, 0x5a, sizeof placed);
+    assert_int_equal(gim_cache_generate_scene(&sd, placed), GIM_ERROR_INVALID_ARGUMENT);
+    assert_true(placed[0].count == 0x5a5a5a5au);
+    models[1].m[0] = models[1].m[5] = models[1].m[10] = 2.0f;
+    sd.d_eps = 1e-30f;
+    assert_int_equal(gim_cache_generate_scene(&sd, placed), GIM_ERROR_OUT_OF_RANGE);
+    assert_true(placed[0].count == 0x5a5a5a5au);
+    sd.d_eps = -1.0f;
+    assert_int_equal(gim_cache_generate_scene(&sd, placed), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cache_generate_scene(NULL, placed), GIM_ERROR_INVALID_ARGUMENT);
+
+    gim_cache_set_free(&sets[0]);
+    gim_cache_set_free(&sets[1]);
+    tm_free(&room); tm_free(&prop); tm_free(&small);
+    assert_int_equal(st.live, 0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(density_plane),
@@ -915,6 +988,7 @@ int main(void) {
         cmocka_unit_test(merging),
         cmocka_unit_test(interleaved_normals),
         cmocka_unit_test(theta_controls),
+        cmocka_unit_test(scene_spacing),
     };
     return cmocka_run_group_tests_name("caches", tests, NULL, NULL);
 }
