@@ -46,6 +46,19 @@ static FRAMEFIX_UNUSED int frame_begin(frame_fixture *ff, const char *gltf, uint
     return 0;
 }
 
+/* Method m at sizes small enough for llvmpipe (every method's pass runs, little work each). */
+static FRAMEFIX_UNUSED void frame_small(frame_fixture *ff, gim_method m) {
+    ff->fr.method = m;
+    ff->fr.view_sample_count = 16;
+    ff->fr.val_count = 64;
+    ff->fr.gather_samples = 16;
+    ff->fr.vpl_count = 64;
+    ff->fr.cluster_count = 4;
+    ff->fr.paraboloid_size = 16;
+    ff->fr.second_bounce_vpls = 16;
+    ff->fr.interleave = 2;
+}
+
 static FRAMEFIX_UNUSED void frame_end(frame_fixture *ff) {
     scene_gimany_free(ff->f.ctx, &ff->g);
     scene_free(&ff->s);

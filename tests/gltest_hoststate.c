@@ -165,15 +165,7 @@ static void same_image(gim_method m) {
     int i;
     GLTEST_BEGIN();
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
-    ff.fr.method = m;
-    ff.fr.view_sample_count = 16;
-    ff.fr.val_count = 64;
-    ff.fr.gather_samples = 16;
-    ff.fr.vpl_count = 64;
-    ff.fr.cluster_count = 4;
-    ff.fr.paraboloid_size = 16;
-    ff.fr.second_bounce_vpls = 16;
-    ff.fr.interleave = 2;
+    frame_small(&ff, m);
     ff.fr.kmeans_restart = 1;
     set_default(NULL);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);

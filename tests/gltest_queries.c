@@ -81,15 +81,7 @@ static void frame_overheads(gim_method m) {
     int i;
     GLTEST_BEGIN();
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
-    ff.fr.method = m;
-    ff.fr.view_sample_count = 16;
-    ff.fr.val_count = 64;
-    ff.fr.gather_samples = 16;
-    ff.fr.vpl_count = 64;
-    ff.fr.cluster_count = 4;
-    ff.fr.paraboloid_size = 16;
-    ff.fr.second_bounce_vpls = 16;
-    ff.fr.interleave = 2;
+    frame_small(&ff, m);
     ff.fr.timing = 0;
     wrap(ff.f.ctx);
     for (i = 0; i < 3; ++i) {
