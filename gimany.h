@@ -6261,7 +6261,7 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
                 }
             for (a = 0; a < 3; ++a) {
                 float o = cnt[a] > 0.0f ? sum[a] / cnt[a] : 0.0f;
-                if (!gx) o = rc->albedo[a] * o;
+                if (!gx) o = rc->albedo[a] > 0.0f ? rc->albedo[a] * o : 0.0f;   /* no albedo: no light, even from an overflowed sum */
                 out[p * 3 + a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
             }
         }

@@ -101,7 +101,7 @@ void main() {
     precise vec3 o;
     for (int c = 0; c < 3; ++c) {
         precise float m = cnt[c] > 0.0 ? sum[c] / cnt[c] : 0.0;
-        o[c] = gx ? m : ax[c] * m;
+        o[c] = gx ? m : (ax[c] > 0.0 ? ax[c] * m : 0.0);   /* no albedo: no light (gim_geometry_blur) */
     }
     imageStore(blurred, px, vec4(clamp(o, vec3(-max_value), vec3(max_value)), 1.0));
 }
