@@ -9478,9 +9478,10 @@ vals:
 /* --- VPL shading (issue 5): clustered visibility and SSVP --------------------------------- */
 
 /* Subset members per VPL-shading dispatch: each costs an invocation up to 1 + 2 x 16 loop
-   iterations (the two visibility kernels), and llvmpipe stops an invocation's loops after
-   65535 in all; 1024 stays at ~35k. */
-#define GIM__VPL_SHADE_CHUNK 1024u
+   iterations (the two visibility kernels) plus the subset scramble's cycle walk (5 a step,
+   under 4 steps expected), and llvmpipe stops an invocation's loops after 65535 in all; 768
+   stays near 40k even with a 10-step walk. */
+#define GIM__VPL_SHADE_CHUNK 768u
 
 /* What the VPL shading pass reads and writes. */
 typedef struct gim__vpl_shade_args {

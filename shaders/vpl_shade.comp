@@ -135,10 +135,14 @@ float visibility(uint m, vec3 x, vec3 nx) {
     return float(open) / float(TAPS);
 }
 
-/* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n)) */
-uint scramble(uint i, uint n) {
+/* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n));
+   half_ (the Feistel halves' bits, scramble_bits(n)) is computed once per invocation */
+uint scramble_bits(uint n) {
     uint half_ = 1u;
     while (half_ < 15u && (1u << (2u * half_)) < n) ++half_;
+    return half_;
+}
+uint scramble(uint i, uint n, uint half_) {
     uint mask = (1u << half_) - 1u;
     do {
         uint l = i >> half_, r = i & mask;
@@ -189,10 +193,11 @@ void main() {
         sgl = partial[pix * 2u + 1u].xyz;
     }
     uint step = k * k, s = uint(px.x) % k + k * (uint(px.y) % k);
+    uint bits = scramble_bits(vpl_count);
     for (uint j = range.x; j < range.y; ++j) {
         uint member = s + j * step;
         if (member >= vpl_count) break;
-        uint i = scramble(member, vpl_count);
+        uint i = scramble(member, vpl_count, bits);
         Vpl p = vpl[i];
         if (!(p.position_lit.w > 0.0)) continue;
         precise float dx = x.x - p.position_lit.x, dy = x.y - p.position_lit.y, dz = x.z - p.position_lit.z;
