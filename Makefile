@@ -1,5 +1,5 @@
 # gimany.h - build, test, bench. `make test` and `make demo` install what they need (tools/install-deps.sh).
-.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench bench-full fuzz fuzz-short demo deps clean reference
+.PHONY: all test test-cpu test-gl test-cxx check-shaders shaders bench bench-full bench-gpu fuzz fuzz-short demo deps clean reference
 .DEFAULT_GOAL := test
 
 CC      ?= cc
@@ -13,7 +13,7 @@ DEPS    := tools/install-deps.sh
 HDRS        := gimany.h shaders_embedded.h $(wildcard tests/*.h)
 CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
 GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
-BENCHES     := $(basename $(notdir $(wildcard tests/bench_*.c tests/bench_*.cpp)))
+BENCHES     := $(filter-out bench_gpu,$(basename $(notdir $(wildcard tests/bench_*.c tests/bench_*.cpp))))
 FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
 FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of examples/scene.cpp, rule in 'ground truth'
 SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
@@ -156,6 +156,12 @@ $(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h ex
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
+# Absolute times on a real GPU (1920x1080, RSM 2048^2, 8192 VALs): refuses to run without a
+# hardware EGL device; `make bench` runs it with --small on llvmpipe so the code path stays alive.
+$(B)/bench/bench_gpu: tests/bench_gpu.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+
 # The ISM benchmark loads the Cornell box through the scene layer (CPU twins only).
 $(B)/bench/bench_ism: tests/bench_ism.c $(B)/ref/scene.o examples/scene.h $(HDRS)
 	@mkdir -p $(@D)
@@ -165,7 +171,15 @@ bench: deps
 	@$(DEPS) examples reference plots
 	@$(MAKE) --no-print-directory $(addprefix $(B)/bench/,$(BENCHES)) $(B)/gimany-reference
 	@for b in $(BENCHES); do echo "== $$b"; $(B)/bench/$$b || exit 1; done
+	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu && $(B)/bench/bench_gpu --small > /dev/null
 	@tools/bench-plots.sh bench
+
+# every method at game sizes on a real GPU: the table between the README's bench:gpu markers
+bench-gpu: deps
+	@$(DEPS) examples
+	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu
+	@mkdir -p bench/gpu && $(B)/bench/bench_gpu --out bench/gpu/table.md
+	@tools/readme-block.sh gpu bench/gpu/table.md
 
 # bench_frame's full sweep (RSM 128^2..2048^2, 320x180; about half an hour on 2 llvmpipe cores)
 bench-full: deps

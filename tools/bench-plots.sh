@@ -97,12 +97,5 @@ table="$tmp/table.md"
            ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
 if [ "$sweep" = full ]; then marker=frame; else marker=$sweep; fi
-if grep -q "<!-- bench:$marker -->" README.md; then
-  awk -v t="$table" -v op="<!-- bench:$marker -->" -v cl="<!-- /bench:$marker -->" '
-    $0 == op { print; while ((getline line < t) > 0) print line; skip = 1; next }
-    $0 == cl { skip = 0 }
-    !skip { print }' README.md > "$tmp/README.md" && cp "$tmp/README.md" README.md
-else
-  echo "bench-plots: README.md has no <!-- bench:$marker --> markers; table not written" >&2
-fi
+tools/readme-block.sh "$marker" "$table"
 echo "bench-plots: $dir/pareto_*.png $dir/fig3.png $dir/fig5.png $dir/flicker.png, README table ($sweep sweep)"
