@@ -267,6 +267,11 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     rgb_i = (float *)malloc(npx * 12);
     final_rgb = (unsigned char *)malloc(npx * 3);
     if (!samples || !direct || !indirect || !rgb_d || !rgb_i || !final_rgb) { snprintf(err, cap, "out of memory for %ux%u", w, h); goto done; }
+    {   /* every shader the frame needs, before the first frame (what a loading screen hides) */
+        double t0 = now_ms();
+        if (gim_prepare(ctx, &f) != GIM_OK) { snprintf(err, cap, "gim_prepare failed (logged above)"); goto done; }
+        printf("shaders built in %.0f ms (gim_prepare)\n", now_ms() - t0);
+    }
     for (fr = 0; fr < r->d.frames; ++fr) {
         gim_frame_outputs o;
         double t0 = now_ms(), *row = samples + (size_t)fr * (GIM_PASS_COUNT + 4);

@@ -3,7 +3,7 @@
    (each glGet / glIs / glGetError / sync wait is a round trip on a threaded driver), and a
    second frame identical to the first allocates nothing through the context's allocator and
    creates, resizes or uploads no buffer or texture. The counts come from wrapping the entries
-   of the context's loaded GL table. */
+   of the context's loaded GL table. gim_prepare builds every program the frame then uses. */
 #ifndef NDEBUG
 #define NDEBUG 1
 #endif
@@ -105,6 +105,52 @@ static void frame_overheads(gim_method m) {
     GLTEST_END();
 }
 
+static int programs_built(const gim_context *ctx) {
+    int i, n = 0;
+    for (i = 0; i < GIM__PROGRAM_COUNT; ++i) n += ctx->programs[i] != 0;
+    return n;
+}
+
+/* gim_prepare builds every program the frame then uses: the first gim_update after it builds
+   none (variant: 0 defaults, 1 visibility ISM, 2 one bounce without visibility or blur, 3 two
+   bounces). A bad frame is refused before any program is built. */
+static void prepared(gim_method m, int variant) {
+    frame_fixture ff;
+    int before;
+    GLTEST_BEGIN();
+    assert_int_equal(frame_begin(&ff, NULL, 16), 0);
+    frame_small(&ff, m);
+    if (variant == 1) ff.fr.visibility = GIM_VISIBILITY_ISM;
+    if (variant == 2) { ff.fr.no_visibility = 1; ff.fr.interleave = 1; ff.fr.bounces = 1; }
+    if (variant == 3) ff.fr.bounces = 2;
+    ff.fr.width = 0;
+    assert_int_equal(gim_prepare(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(programs_built(ff.f.ctx), 0);
+    assert_int_equal(ff.f.log.errors, 1);
+    ff.f.log.errors = 0;
+    ff.fr.width = W;
+    assert_int_equal(gim_prepare(ff.f.ctx, &ff.fr), GIM_OK);
+    before = programs_built(ff.f.ctx);
+    assert_true(before > 0);
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    print_message("method %d variant %d: %d programs prepared, %d after the first frame\n", (int)m, variant, before,
+                  programs_built(ff.f.ctx));
+    assert_int_equal(programs_built(ff.f.ctx), before);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
+static void prepare_every_method(void **state) {
+    (void)state;
+    prepared(GIM_METHOD_LIGHTSKIN_BRSM, 0);
+    prepared(GIM_METHOD_LIGHTSKIN_BRSM, 1);
+    prepared(GIM_METHOD_LIGHTSKIN_FULL, 0);
+    prepared(GIM_METHOD_RSM_GATHER, 0);
+    prepared(GIM_METHOD_CLUSTERED, 0);
+    prepared(GIM_METHOD_CLUSTERED, 2);
+    prepared(GIM_METHOD_SSVP, 3);
+}
+
 static void lightskin_brsm(void **state) { (void)state; frame_overheads(GIM_METHOD_LIGHTSKIN_BRSM); }
 static void lightskin_full(void **state) { (void)state; frame_overheads(GIM_METHOD_LIGHTSKIN_FULL); }
 static void rsm_gather(void **state) { (void)state; frame_overheads(GIM_METHOD_RSM_GATHER); }
@@ -114,7 +160,7 @@ static void ssvp(void **state) { (void)state; frame_overheads(GIM_METHOD_SSVP); 
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
-        cmocka_unit_test(clustered), cmocka_unit_test(ssvp)};
+        cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(prepare_every_method)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;
