@@ -831,10 +831,12 @@ GIMANY_API gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, g
 typedef enum gim_light_type {
     GIM_LIGHT_DEFAULT = 0,     /* = DIRECTIONAL */
     GIM_LIGHT_DIRECTIONAL,     /* the sun: parallel light, orthographic RSM */
-    GIM_LIGHT_SPOT             /* a point light in a cone, perspective RSM */
+    GIM_LIGHT_SPOT,            /* a point light in a cone, perspective RSM */
+    GIM_LIGHT_POINT            /* a point light in every direction: six square spots, the faces of
+                                  a cube around it (gim_point_light_faces), each its own RSM */
 } gim_light_type;
 
-#define GIM_MAX_LIGHTS 8              /* lights per context */
+#define GIM_MAX_LIGHTS 16             /* RSMs per context: a point light takes six, others one */
 #define GIM_RSM_MIN_COS (1.0f / 64.0f) /* floor of the cosine in a VAL's area A = ... / cos */
 
 /* A light; zero means default. */
@@ -842,14 +844,18 @@ typedef struct gim_light {
     gim_light_type type;
     float color[3];         /* rgb factor of the power, >= 0; all zero: (1, 1, 1) */
     float irradiance;       /* DIRECTIONAL: E, per unit area perpendicular to direction, >= 0 */
-    float intensity;        /* SPOT: I, per steradian inside the cone, >= 0 */
-    gim_vec3 position;      /* SPOT: where the light is */
+    float intensity;        /* SPOT, POINT: I, per steradian inside the cone (in every direction), >= 0 */
+    gim_vec3 position;      /* SPOT, POINT: where the light is */
     gim_vec3 direction;     /* DIRECTIONAL: towards the light; SPOT: the cone's axis, away from
-                               the light; non-zero (normalised internally) */
+                               the light; non-zero (normalised internally); POINT: ignored */
     float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
+    int square_cone;        /* SPOT: 1: every direction of its square RSM frustum (half-angle
+                               cone_angle to the sides' middles) is lit, as on a cube face; 0: a
+                               round cone. POINT: ignored */
     float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
                                0: the radius of the scene bounds' sphere, so it covers the scene */
-    uint32_t rsm_size;      /* RSM side in texels; 0: 512; below 16 a warning (few VALs) */
+    uint32_t rsm_size;      /* RSM side in texels (POINT: of each cube face); 0: 512; below 16 a
+                               warning (few VALs) */
     int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
                                (gim_light_fit_view), the open-world case: its texels go where the
                                view is, not over the whole world; 0: the scene bounds */
@@ -869,6 +875,12 @@ typedef struct gim_material {
    bounds' centre, the bounds' sphere inside its depth range. The GL runtime uses the same. */
 GIMANY_API gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj);
+
+/* The six square spots a POINT light is rendered as (gim_set_lights does this): axes +x, -x,
+   +y, -y, +z, -z, cone_angle pi / 4 with square_cone (their frusta tile the sphere, so the
+   faces' texels' solid angles sum to 4 pi), the point's position, intensity, colour and
+   rsm_size. Non-POINT lights: GIM_ERROR_INVALID_ARGUMENT. */
+GIMANY_API gim_result gim_point_light_faces(const gim_light *point, gim_light faces[6]);
 
 /* The bounds and light gim_light_camera takes for a fit_view sun: the part of the camera's
    frustum (near plane to min(far plane, view_distance); view_distance 0: the far plane) inside
@@ -1289,8 +1301,10 @@ typedef struct gim_instance {
 /* The instances of the frame (copied); count 0 clears them. */
 GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *instances, uint32_t count);
 
-/* The lights (gim_light, see @section twins; copied), at most GIM_MAX_LIGHTS; count 0 clears
-   them. rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS. */
+/* The lights (gim_light, see @section twins; copied); count 0 clears them. Each light is one
+   RSM, a POINT light six (its cube faces, gim_point_light_faces), at most GIM_MAX_LIGHTS RSMs;
+   gim_frame_outputs.lights and the per-light budgets (val_count, vpl_count) count RSMs.
+   rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS. */
 GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
 
 /* --- the frame ------------------------------------------------------------------------------ */
@@ -1423,6 +1437,7 @@ GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
 typedef struct gim_light_outputs {
+    gim_light light;            /* the light of this RSM: the host's, or one face of its POINT light */
     uint32_t rsm_size;
     uint32_t rsm_position;      /* RGBA32F: world xyz; w = 1 where the texel is a VAL (lit) */
     uint32_t rsm_normal;        /* RGBA32F: unit normal towards the light; w = footprint area A */
@@ -5024,23 +5039,24 @@ GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
 
 /* A light the runtime and the twins accept; index names it in the message. */
 static gim_result gim__light_check(const gim_light *l, const gim_env *env, const char *where, uint32_t index) {
-    if (l->type != GIM_LIGHT_DEFAULT && l->type != GIM_LIGHT_DIRECTIONAL && l->type != GIM_LIGHT_SPOT)
+    if (l->type != GIM_LIGHT_DEFAULT && l->type != GIM_LIGHT_DIRECTIONAL && l->type != GIM_LIGHT_SPOT &&
+        l->type != GIM_LIGHT_POINT)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: unknown type %d", (unsigned)index, (int)l->type);
     if (!gim__all_finite(l->color, 3) || l->color[0] < 0.0f || l->color[1] < 0.0f || l->color[2] < 0.0f)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: color must be finite and >= 0", (unsigned)index);
-    if (!gim_v3_isfinite(l->direction) || gim_v3_length(gim_v3_normalize(l->direction)) == 0.0f)
+    if (l->type != GIM_LIGHT_POINT && (!gim_v3_isfinite(l->direction) || gim_v3_length(gim_v3_normalize(l->direction)) == 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: direction must be finite and non-zero",
                          (unsigned)index);
     if (l->rsm_size > 16384u)
         return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above 16384", (unsigned)index,
                          (unsigned)l->rsm_size);
-    if (l->type == GIM_LIGHT_SPOT) {
+    if (l->type == GIM_LIGHT_SPOT || l->type == GIM_LIGHT_POINT) {
         if (!gim__isfinitef(l->intensity) || l->intensity < 0.0f)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: intensity %g must be finite and >= 0",
                              (unsigned)index, (double)l->intensity);
         if (!gim_v3_isfinite(l->position))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: position is not finite", (unsigned)index);
-        if (!(l->cone_angle > 0.0f && l->cone_angle <= 1.5f))
+        if (l->type == GIM_LIGHT_SPOT && !(l->cone_angle > 0.0f && l->cone_angle <= 1.5f))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: cone_angle %g outside (0, 1.5] radians",
                              (unsigned)index, (double)l->cone_angle);
     } else {
@@ -5062,7 +5078,7 @@ static uint32_t gim__light_rsm_size(const gim_light *l) { return l->rsm_size ? l
 /* The light's colour times its power: E for the sun, I for the spot (all-zero colour: white). */
 static void gim__light_power(const gim_light *l, float out[3]) {
     int white = l->color[0] == 0.0f && l->color[1] == 0.0f && l->color[2] == 0.0f, i;
-    float p = l->type == GIM_LIGHT_SPOT ? l->intensity : l->irradiance;
+    float p = l->type == GIM_LIGHT_SPOT || l->type == GIM_LIGHT_POINT ? l->intensity : l->irradiance;
     for (i = 0; i < 3; ++i) out[i] = (white ? 1.0f : l->color[i]) * p;
 }
 
@@ -5085,6 +5101,28 @@ static gim_mat4 gim__look_along(const double eye[3], gim_vec3 dir, gim_vec3 up) 
     return v;
 }
 
+GIMANY_DEF gim_result gim_point_light_faces(const gim_light *point, gim_light faces[6]) {
+    static const char where[] = "gim_point_light_faces";
+    gim_result r;
+    int k;
+    if (!point || !faces) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
+    if (point->type != GIM_LIGHT_POINT) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "not a POINT light");
+    r = gim__light_check(point, NULL, where, 0);
+    if (r != GIM_OK) return r;
+    for (k = 0; k < 6; ++k) {
+        float a[3] = {0.0f, 0.0f, 0.0f};
+        a[k / 2] = (k & 1) ? -1.0f : 1.0f;
+        faces[k] = *point;
+        faces[k].type = GIM_LIGHT_SPOT;
+        faces[k].direction = gim_v3(a[0], a[1], a[2]);
+        faces[k].cone_angle = 0.78539816f;   /* pi / 4: a 90 degree square frustum, the up vector a world axis */
+        faces[k].square_cone = 1;
+        faces[k].extent = 0.0f;
+        faces[k].fit_view = 0;
+    }
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj) {
     static const char where[] = "gim_light_camera";
@@ -5095,6 +5133,8 @@ GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
     r = gim__light_check(light, NULL, where, 0);
     if (r != GIM_OK) return r;
+    if (light->type == GIM_LIGHT_POINT)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "a POINT light has six cameras: those of gim_point_light_faces");
     for (i = 0; i < 3; ++i) {
         double h = 0.5 * ((double)bmax[i] - (double)bmin[i]);
         if (!gim__isfinitef(bmin[i]) || !gim__isfinitef(bmax[i]) || !(h >= 0.0))
@@ -5120,9 +5160,15 @@ GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[
             else if (pv > bmax[i]) e = pv - bmax[i];
             box += e * e;
         }
-        /* a lit point at distance >= box within the cone has view depth >= box cos(cone) */
+        /* a lit point at distance >= box within the cone has view depth >= box cos(cone); a
+           square cone's widest direction is its corner's, at tan^2 = 2 tan^2(cone) */
         far_d *= 1.01;
-        near_d = sqrt(box) * cos((double)light->cone_angle) * 0.99;
+        if (light->square_cone) {
+            double t = tan((double)light->cone_angle);
+            near_d = sqrt(box) / sqrt(1.0 + 2.0 * t * t) * 0.99;
+        } else {
+            near_d = sqrt(box) * cos((double)light->cone_angle) * 0.99;
+        }
         if (near_d < far_d * 1e-4) near_d = far_d * 1e-4;
         double eye[3];
         eye[0] = p.x; eye[1] = p.y; eye[2] = p.z;
@@ -5166,7 +5212,7 @@ GIMANY_DEF gim_result gim_light_fit_view(const gim_light *light, const float sce
     *out_light = *light;
     memcpy(out_min, scene_min, 3 * sizeof(float));
     memcpy(out_max, scene_max, 3 * sizeof(float));
-    if (light->type == GIM_LIGHT_SPOT || !light->fit_view) return GIM_OK;
+    if (light->type == GIM_LIGHT_SPOT || light->type == GIM_LIGHT_POINT || !light->fit_view) return GIM_OK;
     for (a = 0; a < 3; ++a) eye[a] = inv_view.m[12 + a];
     for (k = 0; k < 8; ++k) { /* the frustum's corners, the far ones pulled in to view_distance */
         double ndc[4], v[4], w[4];
@@ -5357,7 +5403,7 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
         }
         omega = s * s / pow(1.0 + u * u + v * v, 1.5);
         out->area = (float)gim__min_d(omega * dd / cosv, FLT_MAX);
-        out->lit = inside >= cos((double)light->cone_angle);
+        out->lit = light->square_cone || inside >= cos((double)light->cone_angle);
         a_perp = omega;
     } else {
         double side = 2.0 / proj.m[0] / size; /* 2 extent / size */
@@ -8588,11 +8634,14 @@ static void gim__light_gpu_release(gim_context *ctx, gim__light_gpu *g) {
 
 GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count) {
     static const char where[] = "gim_set_lights";
-    uint32_t i, limit;
+    gim_light rsms[GIM_MAX_LIGHTS];   /* what the passes light with: a POINT light's six faces */
+    uint32_t i, limit, n = 0;
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (count && !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is NULL");
-    if (count > GIM_MAX_LIGHTS)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u lights, at most %u", (unsigned)count, GIM_MAX_LIGHTS);
+    for (i = 0; i < count && n <= GIM_MAX_LIGHTS; ++i) n += lights[i].type == GIM_LIGHT_POINT ? 6u : 1u;
+    if (n > GIM_MAX_LIGHTS)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u lights need more than %u RSMs (a point light takes 6)",
+                         (unsigned)count, GIM_MAX_LIGHTS);
     limit = (uint32_t)ctx->max_texture_size;
     if ((uint32_t)ctx->max_viewport[0] < limit) limit = (uint32_t)ctx->max_viewport[0];
     if ((uint32_t)ctx->max_viewport[1] < limit) limit = (uint32_t)ctx->max_viewport[1];
@@ -8610,7 +8659,16 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
                      (unsigned)i, (unsigned)lights[i].rsm_size, (unsigned)(lights[i].rsm_size * lights[i].rsm_size),
                      GIM__MIN_GOOD_RSM);
     ctx->half_warned = 0;
-    if (count) memcpy(ctx->lights, lights, (size_t)count * sizeof(gim_light));
+    for (i = 0, n = 0; i < count; ++i) {
+        if (lights[i].type == GIM_LIGHT_POINT) {
+            gim_point_light_faces(&lights[i], rsms + n);
+            n += 6u;
+        } else {
+            rsms[n++] = lights[i];
+        }
+    }
+    count = n;
+    if (count) memcpy(ctx->lights, rsms, (size_t)count * sizeof(gim_light));
     if (count < ctx->light_count) { /* buffers sized to what is used: drop the removed lights' */
         gim__gl_enter(ctx, where);
         for (i = count; i < ctx->light_count; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
@@ -8792,7 +8850,7 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, 
         float tan_half = 1.0f / g->proj.m[5], s = 2.0f * tan_half / (float)size;
         gl->Uniform1i(5, 1);
         gl->Uniform3f(6, power[0], power[1], power[2]);                   /* flux = albedo I w */
-        gl->Uniform4f(7, axis.x, axis.y, axis.z, cosf(l->cone_angle));
+        gl->Uniform4f(7, axis.x, axis.y, axis.z, l->square_cone ? -2.0f : cosf(l->cone_angle));   /* -2: all lit */
         gl->Uniform4f(8, (float)size, tan_half, s * s, 0.0f);
     } else {
         float side = 2.0f / g->proj.m[0] / (float)size, a = side * side;  /* perpendicular texel area */
@@ -10505,6 +10563,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     for (i = 0; i < ctx->light_count; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         gim_light_outputs *lo = &o.lights[i];
+        lo->light = ctx->lights[i];
         lo->rsm_size = g->size;
         lo->rsm_position = g->position;
         lo->rsm_normal = g->normal;

@@ -286,7 +286,7 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
             double t1, t2;
             glFinish();
             t1 = now_ms();
-            display_direct(&dp, &o, g.lights, f.view, f.proj, 0);
+            display_direct(&dp, &o, f.view, f.proj, 0);
             glFinish();
             t2 = now_ms();
             display_compose(&dp, o.indirect, 1.0f);
@@ -294,7 +294,7 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
             row[GIM_PASS_COUNT] = t2 - t1;
             row[GIM_PASS_COUNT + 1] = now_ms() - t2;
         } else {
-            display_direct(&dp, &o, g.lights, f.view, f.proj, f.timing == 1);
+            display_direct(&dp, &o, f.view, f.proj, f.timing == 1);
             display_compose(&dp, o.indirect, 1.0f);
             glFinish();
         }

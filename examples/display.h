@@ -263,11 +263,10 @@ static void display__size(display *dp, uint32_t w, uint32_t h) {
     dp->height = h;
 }
 
-/* The direct light of the last gim_update (o: gim_outputs; lights: the array handed to
-   gim_set_lights, o->light_count of them; view, proj: the frame's camera) into dp->direct.
+/* The direct light of the last gim_update (o: gim_outputs, one light per RSM: a point light's
+   six cube faces are six; view, proj: the frame's camera) into dp->direct.
    timed: GL timestamps around this pass and the next display_compose (display_timings). */
-DISPLAY_FN void display_direct(display *dp, const gim_frame_outputs *o, const gim_light *lights, gim_mat4 view,
-                               gim_mat4 proj, int timed) {
+DISPLAY_FN void display_direct(display *dp, const gim_frame_outputs *o, gim_mat4 view, gim_mat4 proj, int timed) {
     gim_mat4 vp = gim_mat4_mul(proj, view), inv_vp, inv_view;
     uint32_t i, n = o->light_count;
     if (!gim_mat4_invert(vp, &inv_vp) || !gim_mat4_invert(view, &inv_view)) return;
@@ -286,7 +285,7 @@ DISPLAY_FN void display_direct(display *dp, const gim_frame_outputs *o, const gi
     glBindImageTexture(0, dp->direct, 0, GL_FALSE, 0, GL_READ_WRITE, GL_RGBA32F);
     if (dp->materials) glBindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, dp->materials);
     for (i = 0; i < (n ? n : 1u); ++i) {   /* one dispatch per light, adding up */
-        const gim_light *l = n ? &lights[i] : NULL;
+        const gim_light *l = n ? &o->lights[i].light : NULL;
         const gim_light_outputs *lo = n ? &o->lights[i] : NULL;
         float col[3] = {1.0f, 1.0f, 1.0f};
         gim_vec3 dir = gim_v3(0.0f, 1.0f, 0.0f);
@@ -300,7 +299,7 @@ DISPLAY_FN void display_direct(display *dp, const gim_frame_outputs *o, const gi
             glUniform3f(4, p * col[0], p * col[1], p * col[2]);
             glUniform3f(5, dir.x, dir.y, dir.z);
             glUniform3f(6, l->position.x, l->position.y, l->position.z);
-            glUniform1f(7, cosf(l->cone_angle));
+            glUniform1f(7, l->square_cone ? -2.0f : cosf(l->cone_angle));   /* a cube face: its whole frustum */
             glUniformMatrix4fv(8, 1, GL_FALSE, lo->view.m);
             glUniformMatrix4fv(9, 1, GL_FALSE, lo->proj.m);
             display__bind(4, lo->rsm_depth);

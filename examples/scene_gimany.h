@@ -34,7 +34,10 @@ SCENE_GIMANY_FN gim_light scene_gimany_light(const scene_light *l, uint32_t rsm_
     memcpy(g.color, l->color, sizeof g.color);
     g.rsm_size = rsm_size;
     if (l->type == SCENE_LIGHT_SPOT) {
-        g.type = GIM_LIGHT_SPOT;
+        /* a cone wider than gimany's spots (glTF point lights come as half-angle pi): a point
+           light, its six cube faces each an RSM; light outside the cone of a half-angle in
+           (1.5, pi) is bounced too, which the reference does not */
+        g.type = l->half_angle > 1.5f ? GIM_LIGHT_POINT : GIM_LIGHT_SPOT;
         g.intensity = l->intensity;
         g.position = gim_v3(l->position[0], l->position[1], l->position[2]);
         g.direction = gim_v3(l->direction[0], l->direction[1], l->direction[2]);
@@ -113,8 +116,21 @@ SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, f
     }
     free(cds);
     if (r == GIM_OK) r = gim_set_instances(ctx, out->instances, out->mesh_count);
-    for (i = 0; i < s->light_count && i < GIM_MAX_LIGHTS; ++i) out->lights[i] = scene_gimany_light(&s->lights[i], rsm_size);
-    out->light_count = i;
+    {   /* as many as fit gimany's RSMs, in order (a point light takes six) */
+        uint32_t rsms = 0;
+        for (i = 0; i < s->light_count && out->light_count < GIM_MAX_LIGHTS; ++i) {
+            gim_light g = scene_gimany_light(&s->lights[i], rsm_size);
+            rsms += g.type == GIM_LIGHT_POINT ? 6u : 1u;
+            if (rsms > GIM_MAX_LIGHTS) break;
+            out->lights[out->light_count++] = g;
+        }
+        if (i < s->light_count && env.logger.func) {
+            char msg[160];
+            snprintf(msg, sizeof msg, "scene_gimany_load: lights after the first %u skipped: they need more than "
+                     "gimany's %u RSMs (a point light takes 6)", (unsigned)i, (unsigned)GIM_MAX_LIGHTS);
+            env.logger.func(GIM_LOG_WARNING, msg, env.logger.user_data);
+        }
+    }
     if (r == GIM_OK) r = gim_set_lights(ctx, out->lights, out->light_count);
     if (r != GIM_OK) {
         for (i = 0; i < s->mesh_count; ++i) gim_cache_set_free(&out->caches[i]);

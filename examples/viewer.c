@@ -237,7 +237,7 @@ static int run(viewer *v, GLFWwindow *w) {
         f.timing = 1;
         if (gim_update(v->ctx, &f) != GIM_OK) { rc = 1; break; }
         o = gim_outputs(v->ctx);
-        display_direct(&v->dp, &o, v->lights, f.view, f.proj, 1);
+        display_direct(&v->dp, &o, f.view, f.proj, 1);
         if (v->meter || (last_frame && v->d.exposure <= 0.0f)) {
             /* Reinhard's key from this frame (the demo meters its last frame the same way) */
             float *dr = (float *)malloc((size_t)fw * fh * 16), *ir = (float *)malloc((size_t)fw * fh * 16);

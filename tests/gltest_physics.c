@@ -242,6 +242,14 @@ static void corner_spot(void **state) {
     GLTEST_END();
 }
 
+/* a point light: six cube-face RSMs, their seams on the floor and wall */
+static void corner_point(void **state) {
+    (void)state;
+    GLTEST_BEGIN();
+    check_scene(PHYS_CORNER_POINT, 1.0, origin);
+    GLTEST_END();
+}
+
 static void corner_scales(void **state) {
     static const double far_[3] = {1e5, -1e5, 5e4};   /* 174 diagonals at scale 100 (the range is 1024) */
     (void)state;
@@ -265,6 +273,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(corner_sun),
         cmocka_unit_test(corner_spot),
+        cmocka_unit_test(corner_point),
         cmocka_unit_test(corner_scales),
         cmocka_unit_test(plates_and_patch),
         cmocka_unit_test(caches_take_their_material),

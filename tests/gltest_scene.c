@@ -704,6 +704,14 @@ static void argument_errors(void **state) {
         int i;
         for (i = 0; i < GIM_MAX_LIGHTS + 1; ++i) many[i] = l;
         EXPECT(gim_set_lights(f.ctx, many, GIM_MAX_LIGHTS + 1), GIM_ERROR_OUT_OF_RANGE);
+        /* a point light takes six RSMs: two of them and four spots fill the 16, a third point does not fit */
+        many[0].type = many[1].type = GIM_LIGHT_POINT;
+        assert_int_equal(gim_set_lights(f.ctx, many, 6), GIM_OK);
+        assert_int_equal(f.ctx->light_count, 16u);
+        many[2].type = GIM_LIGHT_POINT;
+        EXPECT(gim_set_lights(f.ctx, many, 3), GIM_ERROR_OUT_OF_RANGE);
+        many[0].intensity = -1.0f;   /* checked as a spot's intensity */
+        EXPECT(gim_set_lights(f.ctx, many, 1), GIM_ERROR_INVALID_ARGUMENT);
     }
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     /* frames */

@@ -16,7 +16,8 @@
    Scenes (lengths in units of the base geometry, then p' = scale p + offset; the spot's
    intensity is scaled by scale^2 so the light's values do not depend on the scale):
      corner  floor [0,6] x [-3,3] (y = 0, albedo 0.8), wall x = 0, y in [0,1.5] (albedo 0.6),
-             meeting at a contact edge; sun from (0.6, 0.7, 0.3) or a spot above the floor; the
+             meeting at a contact edge; sun from (0.6, 0.7, 0.3), a spot above the floor, or a
+             point light (a bulb at (1.5, 1.2, 0.4): gimany's six cube faces); the
              floor is wide against the wall, so the default cache spacing (diagonal / 32 = 0.27)
              is coarse against the distances to the wall, as in an open scene;
      plates  a lit plate [-1,1]^2 (y = 0) under a smaller plate [-0.4,0.4]^2 at y = 0.5 facing
@@ -40,7 +41,7 @@
 #define PHYS_PI 3.14159265358979323846
 
 typedef enum phys_which {
-    PHYS_CORNER_SUN, PHYS_CORNER_SPOT, PHYS_PLATES_SUN, PHYS_PATCH_SUN, PHYS_PATCH_SPOT, PHYS_SCENE_COUNT
+    PHYS_CORNER_SUN, PHYS_CORNER_SPOT, PHYS_PLATES_SUN, PHYS_PATCH_SUN, PHYS_PATCH_SPOT, PHYS_CORNER_POINT, PHYS_SCENE_COUNT
 } phys_which;
 
 typedef struct phys_quad {
@@ -53,7 +54,7 @@ typedef struct phys_scene {
     const char *name;
     phys_quad quad[PHYS_MAX_QUADS];
     int quad_count;
-    int spot;                  /* 0: sun */
+    int spot;                  /* 0: sun; 1: spot; 2: point light (a spot whose cone is every direction) */
     double sun[3];             /* unit, towards the sun */
     double irradiance;         /* sun E */
     double spot_pos[3], spot_axis[3], cone, intensity;
@@ -88,7 +89,8 @@ static PHYS_UNUSED void phys_scene_make(phys_which which, double scale, const do
     switch (which) {
     case PHYS_CORNER_SUN:
     case PHYS_CORNER_SPOT:
-        s->name = which == PHYS_CORNER_SUN ? "corner, sun" : "corner, spot";
+    case PHYS_CORNER_POINT:
+        s->name = which == PHYS_CORNER_SUN ? "corner, sun" : which == PHYS_CORNER_SPOT ? "corner, spot" : "corner, point";
         phys__quad(s, 0, 0, 3, 6, 0, 0, 0, 0, -6, 0.8f, 1);     /* floor, normal +y */
         phys__quad(s, 0, 0, -3, 0, 1.5, 0, 0, 0, 6, 0.6f, 1);   /* wall, normal +x */
         break;
@@ -120,6 +122,14 @@ static PHYS_UNUSED void phys_scene_make(phys_which which, double scale, const do
         s->intensity = 6.0 * scale * scale;
         for (a = 0; a < 3; ++a) s->spot_pos[a] = s->spot_pos[a] * scale + offset[a];
     }
+    if (which == PHYS_CORNER_POINT) {   /* a bulb 1.2 above the floor, 1.5 from the wall: every cube face sees the floor */
+        s->spot = 2;
+        s->spot_pos[0] = 1.5; s->spot_pos[1] = 1.2; s->spot_pos[2] = 0.4;
+        s->spot_axis[1] = -1.0;
+        s->cone = PHYS_PI;
+        s->intensity = 4.0 * scale * scale;
+        for (a = 0; a < 3; ++a) s->spot_pos[a] = s->spot_pos[a] * scale + offset[a];
+    }
     for (i = 0; i < s->quad_count; ++i)
         for (a = 0; a < 3; ++a) {
             s->quad[i].o[a] = s->quad[i].o[a] * scale + offset[a];
@@ -134,7 +144,7 @@ static PHYS_UNUSED gim_light phys_light(const phys_scene *s, uint32_t rsm_size) 
     memset(&l, 0, sizeof l);
     l.rsm_size = rsm_size;
     if (s->spot) {
-        l.type = GIM_LIGHT_SPOT;
+        l.type = s->spot == 2 ? GIM_LIGHT_POINT : GIM_LIGHT_SPOT;
         l.intensity = (float)s->intensity;
         l.position = gim_v3((float)s->spot_pos[0], (float)s->spot_pos[1], (float)s->spot_pos[2]);
         l.direction = gim_v3((float)s->spot_axis[0], (float)s->spot_axis[1], (float)s->spot_axis[2]);

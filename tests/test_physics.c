@@ -272,6 +272,59 @@ static void lightskin_plates_patch(void **state) {
 /* The closed form itself: 48 cells per side agree with 96 where the light varies (spot,
    shadow), a uniformly lit quad in cells gives its one-cell form factor, and a floor point at
    the foot of the wall sees the wall as half its hemisphere (the infinite corner). */
+/* A point light is six square spots (gim_point_light_faces): their RSMs (the twin of the RSM
+   pass) together carry the scene's reflected power, with no texel counted twice or lost at the
+   faces' seams. */
+static void point_light_faces(void **state) {
+    enum { N = 96 };
+    phys_scene s;
+    gim_twin_scene ts;
+    gim_light point, faces[6];
+    float tri[PHYS_MAX_QUADS * 18], alb[PHYS_MAX_QUADS * 6], bmin[3] = {FLT_MAX, FLT_MAX, FLT_MAX},
+          bmax[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    double flux = 0.0, face_flux[6] = {0}, power;
+    uint32_t t, x, y;
+    int k, a;
+    (void)state;
+    phys_scene_make(PHYS_CORNER_POINT, 1.0, origin, &s);
+    memset(&ts, 0, sizeof ts);
+    ts.triangle_count = phys_triangles(&s, tri, alb);
+    ts.positions = tri;
+    ts.albedo = alb;
+    for (t = 0; t < ts.triangle_count * 3u; ++t)
+        for (a = 0; a < 3; ++a) {
+            if (tri[t * 3 + a] < bmin[a]) bmin[a] = tri[t * 3 + a];
+            if (tri[t * 3 + a] > bmax[a]) bmax[a] = tri[t * 3 + a];
+        }
+    point = phys_light(&s, N);
+    assert_int_equal(gim_point_light_faces(&point, faces), GIM_OK);
+    for (k = 0; k < 6; ++k) {
+        gim_mat4 v, p;
+        assert_int_equal(faces[k].type, GIM_LIGHT_SPOT);
+        assert_int_equal(gim_light_camera(&faces[k], bmin, bmax, &v, &p), GIM_OK);
+        for (y = 0; y < N; ++y)
+            for (x = 0; x < N; ++x) {
+                gim_rsm_texel tx;
+                assert_int_equal(gim_rsm_texel_twin(&ts, &faces[k], bmin, bmax, x, y, &tx), GIM_OK);
+                if (tx.lit) face_flux[k] += (tx.flux[0] + tx.flux[1] + tx.flux[2]) / 3.0;
+            }
+        flux += face_flux[k];
+    }
+    power = phys_reflected_power(&s);
+    print_message("point light: RSM flux of the six faces / reflected power %.4f (faces %.3f %.3f %.3f %.3f %.3f %.3f of it)\n",
+                  flux / power, face_flux[0] / power, face_flux[1] / power, face_flux[2] / power, face_flux[3] / power,
+                  face_flux[4] / power, face_flux[5] / power);
+    assert_true(fabs(flux / power - 1.0) < 0.01);
+    for (k = 0; k < 6; ++k) assert_true(k == 2 ? face_flux[k] == 0.0 : face_flux[k] > 0.0);   /* all but +y see the scene */
+    /* a POINT light has no single camera; the faces are refused as anything but spots */
+    {
+        gim_mat4 v, p;
+        assert_int_equal(gim_light_camera(&point, bmin, bmax, &v, &p), GIM_ERROR_INVALID_ARGUMENT);
+        gim_light more[6];
+        assert_int_equal(gim_point_light_faces(&faces[0], more), GIM_ERROR_INVALID_ARGUMENT);
+    }
+}
+
 static void closed_form_converges(void **state) {
     static const double pts[3][3] = {{0.3, 0.0, 0.2}, {1.5, 0.0, -0.7}, {0.05, 0.0, 0.0}};
     double n[3] = {0.0, 1.0, 0.0}, foot[3] = {1e-4, 0.0, 0.0}, lw;
@@ -303,6 +356,7 @@ static void closed_form_converges(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(closed_form_converges),
+        cmocka_unit_test(point_light_faces),
         cmocka_unit_test(lightskin_corner),
         cmocka_unit_test(lightskin_plates_patch),
     };
