@@ -1274,16 +1274,35 @@ GIMANY_API void gim_destroy(gim_context *ctx);
 typedef struct gim_mesh { uint32_t id; } gim_mesh;
 
 /* Input of gim_add_mesh; zero means default. */
+/* A mesh in the host's own GL buffers, drawn from directly: no copy on the GPU. Positions and
+   normals are float3 at offset + i * stride (interleaved layouts name the same buffer twice),
+   indices of gim_mesh_data.index_type at index_offset. gim_add_mesh reads positions and
+   indices back once (bounds, index checks, the caches' materials, ISM points); after that the
+   host may change the buffers' contents only through gim_remove_mesh / gim_add_mesh again, and
+   must keep them alive while the mesh exists (gimany never deletes them). */
+typedef struct gim_mesh_buffers {
+    uint32_t positions;         /* GL buffer name; 0: the mesh is uploaded from gim_mesh_data */
+    uint32_t position_offset;   /* bytes, a multiple of 4 */
+    uint32_t position_stride;   /* bytes, a multiple of 4; 0 = 12 */
+    uint32_t normals;           /* GL buffer name (non-zero, unit normals; not checked) */
+    uint32_t normal_offset, normal_stride;
+    uint32_t indices;           /* GL buffer name */
+    uint32_t index_offset;      /* bytes, a multiple of the index size */
+} gim_mesh_buffers;
+
 typedef struct gim_mesh_desc {
     gim_mesh_data data;         /* model space: positions (finite), normals (non-zero, finite; NULL:
                                    area-weighted vertex normals are computed), 16/32-bit indices
                                    (< vertex_count), triangle_material (ids into gim_set_materials'
                                    array, checked at gim_update; NULL: all 0); material_reflectance
-                                   and material_count are not used here */
+                                   and material_count are not used here. With buffers: only
+                                   vertex_count, index_count, index_type and triangle_material */
     const gim_cache_set *caches; /* model-space LightSkin caches of the mesh, or NULL; copied */
+    gim_mesh_buffers buffers;   /* the host's GL buffers instead of data's arrays (zero: none) */
 } gim_mesh_desc;
 
-/* Upload a mesh (vertex, index and per-triangle material buffers). *out written on GIM_OK. */
+/* Upload a mesh (vertex, index and per-triangle material buffers; with desc->buffers only the
+   materials). *out written on GIM_OK. */
 GIMANY_API gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out);
 /* Delete a mesh; instances still naming it make gim_update fail until they are replaced. */
 GIMANY_API gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh);
@@ -7002,6 +7021,8 @@ typedef struct gim__mesh {
     gim__GLuint vao, positions, normals, indices, triangle_material;
     uint32_t index_count, triangle_count;
     gim__GLenum index_type;
+    int host_buffers;             /* 1: positions, normals, indices are the host's (gim_mesh_buffers) */
+    uint32_t position_offset, position_stride, index_offset;   /* bytes (own buffers: 0, 12, 0) */
     uint32_t max_material;        /* largest material id of its triangles */
     float bmin[3], bmax[3];       /* model-space bounds */
     gim_cache *caches;            /* the host's model-space caches (copied), for later passes */
@@ -8203,9 +8224,11 @@ static gim__mesh *gim__mesh_get(gim_context *ctx, gim_mesh m) {
 static void gim__mesh_release(gim_context *ctx, gim__mesh *m) {
     const gim__gl *gl = &ctx->gl;
     if (m->vao) gl->DeleteVertexArrays(1, &m->vao);
-    if (m->positions) gl->DeleteBuffers(1, &m->positions);
-    if (m->normals) gl->DeleteBuffers(1, &m->normals);
-    if (m->indices) gl->DeleteBuffers(1, &m->indices);
+    if (!m->host_buffers) {
+        if (m->positions) gl->DeleteBuffers(1, &m->positions);
+        if (m->normals) gl->DeleteBuffers(1, &m->normals);
+        if (m->indices) gl->DeleteBuffers(1, &m->indices);
+    }
     if (m->triangle_material) gl->DeleteBuffers(1, &m->triangle_material);
     gim__free(&ctx->env, m->caches);
     gim__free(&ctx->env, m->cache_material);
@@ -8306,10 +8329,108 @@ done:
     return r;
 }
 
-GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out) {
+/* The host's mesh buffers checked (names, sizes, alignment) and read back once into tight
+   arrays (*positions: vertex_count float3, *indices: index_count of the index type). */
+static gim_result gim__host_mesh_read(gim_context *ctx, const gim_mesh_desc *desc, float **positions, void **indices) {
     static const char where[] = "gim_add_mesh";
-    const gim_mesh_data *d;
-    const gim__gl *gl;
+    const gim_mesh_buffers *b = &desc->buffers;
+    const gim_mesh_data *d = &desc->data;
+    const gim__gl *gl = &ctx->gl;
+    uint32_t ps = b->position_stride ? b->position_stride : 12u, ns = b->normal_stride ? b->normal_stride : 12u;
+    uint32_t isize = d->index_type == GIM_INDEX_U16 ? 2u : 4u, i;
+    uint64_t need[3];
+    gim__GLuint names[3];
+    unsigned char *raw = NULL;
+    gim_result r = GIM_OK;
+    int k;
+    *positions = NULL;
+    *indices = NULL;
+    if (!b->positions || !b->normals || !b->indices)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "buffers: positions, normals and indices all needed");
+    if (d->vertex_count == 0 || d->index_count == 0 || d->index_count % 3u != 0 || d->vertex_count > 0x7FFFFFFFu / 3u)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "buffers: %u vertices, %u indices",
+                         (unsigned)d->vertex_count, (unsigned)d->index_count);
+    if (d->index_type != GIM_INDEX_DEFAULT && d->index_type != GIM_INDEX_U32 && d->index_type != GIM_INDEX_U16)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown index_type %d", (int)d->index_type);
+    if (ps < 12u || ps % 4u || ns < 12u || ns % 4u || b->position_offset % 4u || b->normal_offset % 4u ||
+        b->index_offset % isize)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "buffers: strides >= 12 and offsets must be "
+                         "multiples of 4 (index_offset of the index size)");
+    names[0] = b->positions; names[1] = b->normals; names[2] = b->indices;
+    need[0] = b->position_offset + (uint64_t)(d->vertex_count - 1u) * ps + 12u;
+    need[1] = b->normal_offset + (uint64_t)(d->vertex_count - 1u) * ns + 12u;
+    need[2] = b->index_offset + (uint64_t)d->index_count * isize;
+    gim__gl_enter(ctx, where);
+    for (k = 0; k < 3 && r == GIM_OK; ++k) {
+        gim__GLint64 size = 0;
+        static const char *const what[3] = {"positions", "normals", "indices"};
+        if (!gl->IsBuffer(names[k])) {
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "buffers.%s (%u) is not a GL buffer", what[k],
+                          (unsigned)names[k]);
+            break;
+        }
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, names[k]);
+        gl->GetBufferParameteri64v(GIM__GL_COPY_READ_BUFFER, GIM__GL_BUFFER_SIZE, &size);
+        if ((uint64_t)size < need[k])
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "buffers.%s holds %lld bytes, the layout needs %llu",
+                          what[k], (long long)size, (unsigned long long)need[k]);
+    }
+    if (r == GIM_OK) {
+        *positions = (float *)gim__alloc_array(&ctx->env, (size_t)d->vertex_count * 3u, sizeof(float));
+        *indices = gim__alloc_array(&ctx->env, (size_t)d->index_count, isize);
+        raw = (unsigned char *)gim__alloc_array(&ctx->env, (size_t)(need[0] - b->position_offset), 1u);
+        if (!*positions || !*indices || !raw)
+            r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a copy of %u vertices", (unsigned)d->vertex_count);
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, b->positions);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)b->position_offset,
+                             (gim__GLsizeiptr)(need[0] - b->position_offset), raw);
+        for (i = 0; i < d->vertex_count; ++i) memcpy(*positions + (size_t)i * 3u, raw + (size_t)i * ps, 12u);
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, b->indices);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)b->index_offset,
+                             (gim__GLsizeiptr)d->index_count * isize, *indices);
+        r = gim__gl_check(ctx, where);
+    }
+    gim__free(&ctx->env, raw);
+    if (r != GIM_OK) {
+        gim__free(&ctx->env, *positions);
+        gim__free(&ctx->env, *indices);
+        *positions = NULL;
+        *indices = NULL;
+    }
+    return gim__gl_leave(ctx, r);
+}
+
+static gim_result gim__add_mesh(gim_context *ctx, const gim_mesh_desc *desc, const gim_mesh_data *d, int host, gim_mesh *out);
+
+GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out) {
+    gim_mesh_data host_data;
+    float *host_pos = NULL;
+    void *host_idx = NULL;
+    gim_result r;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!desc || !out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, "gim_add_mesh", "desc or out is NULL");
+    if (!desc->buffers.positions && !desc->buffers.normals && !desc->buffers.indices)
+        return gim__add_mesh(ctx, desc, &desc->data, 0, out);
+    /* the host's buffers: what they hold, read once, stands in for the arrays */
+    r = gim__host_mesh_read(ctx, desc, &host_pos, &host_idx);
+    if (r != GIM_OK) return r;
+    host_data = desc->data;
+    host_data.positions = host_pos;
+    host_data.position_stride = 0;
+    host_data.normals = NULL;   /* drawn from the host's; the computed ones are not used */
+    host_data.normal_stride = 0;
+    host_data.indices = host_idx;
+    r = gim__add_mesh(ctx, desc, &host_data, 1, out);
+    gim__free(&ctx->env, host_pos);
+    gim__free(&ctx->env, host_idx);
+    return r;
+}
+
+static gim_result gim__add_mesh(gim_context *ctx, const gim_mesh_desc *desc, const gim_mesh_data *d, int host, gim_mesh *out) {
+    static const char where[] = "gim_add_mesh";
+    const gim__gl *gl = &ctx->gl;
     uint32_t pstride, nstride, i, slot, tri_count, max_material = 0;
     float *pos = NULL, *nrm = NULL;
     uint32_t *tri_material = NULL;
@@ -8318,10 +8439,6 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     gim__mesh m;
     gim_result r = GIM_OK;
     size_t index_bytes;
-    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
-    if (!desc || !out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
-    d = &desc->data;
-    gl = &ctx->gl;
     pstride = d->position_stride ? d->position_stride : 12u;
     nstride = d->normal_stride ? d->normal_stride : 12u;
     if (!d->positions || d->vertex_count == 0 || !d->indices || d->index_count == 0)
@@ -8458,18 +8575,34 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     m.index_type = d->index_type == GIM_INDEX_U16 ? GIM__GL_UNSIGNED_SHORT : GIM__GL_UNSIGNED_INT;
     index_bytes = (size_t)d->index_count * (d->index_type == GIM_INDEX_U16 ? 2u : 4u);
     gim__gl_enter(ctx, where);
-    m.positions = gim__gl_buffer_with(ctx, pos, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
-    m.normals = gim__gl_buffer_with(ctx, nrm, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
-    m.indices = gim__gl_buffer_with(ctx, d->indices, index_bytes, GIM__GL_STATIC_DRAW);
+    if (host) {
+        const gim_mesh_buffers *b = &desc->buffers;
+        m.host_buffers = 1;
+        m.positions = b->positions;
+        m.normals = b->normals;
+        m.indices = b->indices;
+        m.position_offset = b->position_offset;
+        m.position_stride = b->position_stride ? b->position_stride : 12u;
+        m.index_offset = b->index_offset;
+    } else {
+        m.positions = gim__gl_buffer_with(ctx, pos, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
+        m.normals = gim__gl_buffer_with(ctx, nrm, (size_t)d->vertex_count * 12u, GIM__GL_STATIC_DRAW);
+        m.indices = gim__gl_buffer_with(ctx, d->indices, index_bytes, GIM__GL_STATIC_DRAW);
+        m.position_stride = 12u;
+    }
     m.triangle_material = gim__gl_buffer_with(ctx, tri_material, (size_t)tri_count * 4u, GIM__GL_STATIC_DRAW);
     gl->GenVertexArrays(1, &m.vao);
     if (m.vao && m.positions && m.normals && m.indices) {
+        const gim_mesh_buffers *b = &desc->buffers;
         gl->BindVertexArray(m.vao);
         gl->BindBuffer(GIM__GL_ARRAY_BUFFER, m.positions);
-        gl->VertexAttribPointer(0, 3, GIM__GL_FLOAT, GIM__GL_FALSE, 12, NULL);
+        gl->VertexAttribPointer(0, 3, GIM__GL_FLOAT, GIM__GL_FALSE, (gim__GLsizei)m.position_stride,
+                                (const void *)(size_t)m.position_offset);
         gl->EnableVertexAttribArray(0);
         gl->BindBuffer(GIM__GL_ARRAY_BUFFER, m.normals);
-        gl->VertexAttribPointer(1, 3, GIM__GL_FLOAT, GIM__GL_FALSE, 12, NULL);
+        gl->VertexAttribPointer(1, 3, GIM__GL_FLOAT, GIM__GL_FALSE,
+                                (gim__GLsizei)(host ? (b->normal_stride ? b->normal_stride : 12u) : 12u),
+                                (const void *)(size_t)(host ? b->normal_offset : 0u));
         gl->EnableVertexAttribArray(1);
         gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, m.indices); /* VAO state */
     }
@@ -8481,7 +8614,7 @@ GIMANY_DEF gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, 
     cache_material = NULL;
     m.cache_count = caches ? desc->caches->count : 0u;
     m.theta_eps = caches ? desc->caches->theta_eps : 0.0f;
-    m.bytes = (uint64_t)d->vertex_count * 24u + index_bytes + (uint64_t)tri_count * 4u;
+    m.bytes = (host ? 0u : (uint64_t)d->vertex_count * 24u + index_bytes) + (uint64_t)tri_count * 4u;
     if (r != GIM_OK) {
         gl->BindVertexArray(0); /* not the host's: leave restores it */
         gim__mesh_release(ctx, &m); /* frees caches too */
@@ -8796,7 +8929,7 @@ static void gim__gl_draw_instances(gim_context *ctx, gim_mat4 view_proj) {
         gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
         gl->BindVertexArray(m->vao);
-        gl->DrawElements(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, NULL);
+        gl->DrawElements(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, (const void *)(size_t)m->index_offset);
     }
 }
 
@@ -9282,6 +9415,7 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
         void *idx;
         gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->positions);
         gl->GetBufferParameteri64v(GIM__GL_COPY_READ_BUFFER, GIM__GL_BUFFER_SIZE, &vbytes);
+        vbytes -= (gim__GLint64)m->position_offset;   /* a host's buffer: the mesh from its offset on */
         v = (float *)gim__alloc_array(&ctx->env, (size_t)vbytes / 4u + 1u, sizeof(float));
         idx = gim__alloc_array(&ctx->env, ibytes + 4u, 1u);
         if (!v || !idx) {
@@ -9289,12 +9423,13 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
             gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a mesh's copy");
         }
-        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)vbytes, v);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)m->position_offset, (gim__GLsizeiptr)vbytes, v);
         gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->indices);
-        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)ibytes, idx);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)m->index_offset, (gim__GLsizeiptr)ibytes, idx);
         for (k = 0; k < (size_t)m->triangle_count * 3u; ++k) {
             uint32_t vi = m->index_type == GIM__GL_UNSIGNED_SHORT ? ((const uint16_t *)idx)[k] : ((const uint32_t *)idx)[k];
-            gim_vec3 w = gim_mat4_point(ctx->instances[i].model, gim_v3(v[vi * 3u], v[vi * 3u + 1u], v[vi * 3u + 2u]));
+            const float *vp = v + (size_t)vi * (m->position_stride / 4u);
+            gim_vec3 w = gim_mat4_point(ctx->instances[i].model, gim_v3(vp[0], vp[1], vp[2]));
             pos[(size_t)t * 9u + k * 3u] = w.x; pos[(size_t)t * 9u + k * 3u + 1u] = w.y; pos[(size_t)t * 9u + k * 3u + 2u] = w.z;
         }
         t += m->triangle_count;
@@ -9949,7 +10084,7 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
         gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
         gl->BindVertexArray(m->vao);
-        gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, NULL,
+        gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, (const void *)(size_t)m->index_offset,
                                   (gim__GLsizei)count);
     }
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
