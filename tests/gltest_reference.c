@@ -61,7 +61,8 @@ static double mtime(const char *path) {
 static const char *const ref_files[4] = {"reference.pfm", "stderr.pfm", "position.pfm", "normal.pfm"};
 
 /* The cached reference of s (name, its camera's size, spp, bounces, seed) when it is newer than
-   this binary; else rendered (Embree) and cached. */
+   this binary (/proc/self/exe; the binary links the scene layer and the renderer, so a change
+   to either renders it again); else rendered (Embree) and cached. */
 static void reference(const scene *s, const char *name, uint32_t spp, int bounces, uint32_t seed, refimg *out) {
     char dir[256], path[320], err[256];
     float **arr[4];
