@@ -17,7 +17,8 @@
 
    The references are cached in build/refcheck/ (one folder per scene, size, paths, bounces and
    seed) and rendered again when this binary is newer than the cache: a clean build renders
-   them (about 40 s on two cores), later runs read them. Each reference's own noise is printed
+   them (45 s of the test's 1m53 on two busy cores; 1m01 with them cached), later runs read
+   them. Each reference's own noise is printed
    as a rel. MAE against the true image (sqrt(2/pi) sigma / mean, as bench_frame's
    ref_noise_mae; two seeds' images differ by sqrt(2) times it, measured when the tolerances
    below were set) and must stay below a fifth of the tightest tolerance. */
