@@ -376,6 +376,57 @@ void build_street(builder &b) {
     b.has_camera = true;
 }
 
+/* ---- built-in: the courtyard ------------------------------------------------------------- */
+/* A sunlit courtyard floor (8 x 5 m, sandstone) in front of a wall (8 x 3 m, pale) with a
+   free-standing pillar (0.8 x 0.8 x 1.2 m, grey) between them, 0.8 m from the wall: the wall
+   gets no sun (the sun shines along it, from +x, 63 degrees up), only the floor's light, and
+   the pillar blocks that light from the low wall behind it: an indirect shadow that only
+   visibility between the senders and the wall reproduces (Ritschel et al. 2008's motivating
+   case), with nothing else in the way. Metres; the wall at z = 0 facing +z, the floor at
+   y = 0. The camera looks steeply down at the wall over the pillar, so the wall behind the
+   pillar (|x| < 0.4, y < 0.8) is in view. */
+void courtyard_quad(mesh_b &m, vec3 c, vec3 u, vec3 v, uint32_t mat) {
+    vec3 n = normalize(cross(u, v));
+    uint32_t base = (uint32_t)(m.pos.size() / 3);
+    const vec3 p[4] = {c, add(c, u), add(add(c, u), v), add(c, v)};
+    for (int i = 0; i < 4; ++i) {
+        m.pos.push_back((float)p[i].x); m.pos.push_back((float)p[i].y); m.pos.push_back((float)p[i].z);
+        m.nrm.push_back((float)n.x); m.nrm.push_back((float)n.y); m.nrm.push_back((float)n.z);
+    }
+    const uint32_t tri[6] = {0, 1, 2, 0, 2, 3};
+    for (int i = 0; i < 6; ++i) m.idx.push_back(base + tri[i]);
+    m.mat.push_back(mat); m.mat.push_back(mat);
+}
+
+void build_courtyard(builder &b) {
+    b.name = "courtyard";
+    b.materials.push_back(make_material(0.75f, 0.62f, 0.45f)); /* floor */
+    b.materials.push_back(make_material(0.80f, 0.80f, 0.78f)); /* wall */
+    b.materials.push_back(make_material(0.50f, 0.50f, 0.50f)); /* pillar */
+    mesh_b m;
+    courtyard_quad(m, {-4, 0, 5}, {8, 0, 0}, {0, 0, -5}, 0);  /* floor, normal +y */
+    courtyard_quad(m, {-4, 0, 0}, {8, 0, 0}, {0, 3, 0}, 1);   /* wall, normal +z */
+    const double x0 = -0.4, x1 = 0.4, z0 = 0.8, z1 = 1.6, h = 1.2;
+    courtyard_quad(m, {x0, 0, z1}, {x1 - x0, 0, 0}, {0, h, 0}, 2);  /* pillar: +z */
+    courtyard_quad(m, {x1, 0, z0}, {0, h, 0}, {0, 0, z1 - z0}, 2);  /* +x */
+    courtyard_quad(m, {x0, 0, z0}, {0, h, 0}, {x1 - x0, 0, 0}, 2);  /* -z */
+    courtyard_quad(m, {x0, 0, z0}, {0, 0, z1 - z0}, {0, h, 0}, 2);  /* -x */
+    courtyard_quad(m, {x0, h, z1}, {x1 - x0, 0, 0}, {0, 0, z0 - z1}, 2); /* top, +y */
+    b.meshes.push_back(m);
+    scene_light l;
+    std::memset(&l, 0, sizeof l);
+    l.type = SCENE_LIGHT_DIRECTIONAL;
+    set3(l.color, 1, 1, 1);
+    vec3 sun = normalize(vec3{0.5, 1, 0}); /* along the wall: none on its face */
+    set3(l.direction, sun.x, sun.y, sun.z);
+    l.irradiance = 1.0f;
+    b.lights.push_back(l);
+    set3(b.camera.eye, 0.5, 4.0, 2.5);
+    set3(b.camera.target, 0.0, 0.4, 0.0);
+    b.camera.fovy = (float)(60.0 * PI / 180.0);
+    b.has_camera = true;
+}
+
 /* ---- glTF ---------------------------------------------------------------------------------- */
 
 namespace gl = tinygltf;
@@ -1227,7 +1278,8 @@ void run_builtin(void *p, builder &b) {
     const char *name = static_cast<const char *>(p);
     if (std::strcmp(name, "cornell") == 0) build_cornell(b);
     else if (std::strcmp(name, "street") == 0) build_street(b);
-    else fail("unknown built-in scene '%s' (cornell, street, or a .gltf/.glb path)", name);
+    else if (std::strcmp(name, "courtyard") == 0) build_courtyard(b);
+    else fail("unknown built-in scene '%s' (cornell, street, courtyard, or a .gltf/.glb path)", name);
 }
 
 /* ---- argument parsing ----------------------------------------------------------------------- */
@@ -1287,7 +1339,7 @@ void scene_options_defaults(scene_options *o, const char *default_out_dir) {
 const char *scene_usage(unsigned flags) {
     return (flags & SCENE_ARGS_REFERENCE)
                ? "options:\n"
-                 "  --scene NAME|PATH     street (default), cornell, or a .gltf/.glb file\n"
+                 "  --scene NAME|PATH     street (default), cornell, courtyard, or a .gltf/.glb file\n"
                  "  --sun-dir X,Y,Z       direction towards the sun\n"
                  "  --sun-irradiance E    irradiance of the sun on a surface facing it (default 1)\n"
                  "  --spot PX,PY,PZ,DX,DY,DZ,HALF_ANGLE_DEG,INTENSITY   a spot light instead\n"
@@ -1298,7 +1350,7 @@ const char *scene_usage(unsigned flags) {
                  "  --spp N               paths per pixel (default 256)\n"
                  "  --seed N              random seed (default 1)\n"
                : "options:\n"
-                 "  --scene NAME|PATH     street (default), cornell, or a .gltf/.glb file\n"
+                 "  --scene NAME|PATH     street (default), cornell, courtyard, or a .gltf/.glb file\n"
                  "  --sun-dir X,Y,Z       direction towards the sun\n"
                  "  --sun-irradiance E    irradiance of the sun on a surface facing it (default 1)\n"
                  "  --spot PX,PY,PZ,DX,DY,DZ,HALF_ANGLE_DEG,INTENSITY   a spot light instead\n"

@@ -95,7 +95,7 @@ typedef struct scene {
 
 /* The options of both programs; scene_options_defaults fills the defaults. */
 typedef struct scene_options {
-    const char *scene;            /* "street" (default), "cornell", or a .gltf/.glb path */
+    const char *scene;            /* "street" (default), "cornell", "courtyard", or a .gltf/.glb path */
     int has_sun_dir;              /* --sun-dir X,Y,Z (towards the sun; normalised here) */
     float sun_dir[3];
     int has_sun_irradiance;       /* --sun-irradiance E (default 1) */
@@ -142,7 +142,10 @@ int scene_load(const scene_options *opt, scene *out, char *err, size_t err_cap);
      "cornell"  the measured Cornell box in metres, a spot 1 cm under the ceiling light pointing
                 down (60 deg half-angle, I = 0.3), the measured camera
      "street"   tests/street.h's street (about 100k triangles, metres), its sun (E = 1), a
-                camera at the start of the road looking down it */
+                camera at the start of the road looking down it
+     "courtyard" a sunlit floor, a wall the sun shines along and a free-standing pillar
+                between them (14 triangles, metres), its sun (E = 1), a camera looking down
+                at the wall over the pillar: the pillar's indirect shadow on the wall */
 int scene_builtin(const char *name, scene *out, char *err, size_t err_cap);
 /* What the glTF loaders accept (a file beyond is refused with one line, before the expensive
    step): JSON nested at most SCENE_MAX_JSON_DEPTH levels (the parser recurses per level);
