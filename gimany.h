@@ -929,6 +929,25 @@ typedef struct gim_gbuffer_texel {
 } gim_gbuffer_texel;
 
 /* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
+/* How a host's G-buffer texture holds its normals (gim_frame.gbuffer_normal_encoding). */
+typedef enum gim_normal_encoding {
+    GIM_NORMAL_XYZ = 0,          /* signed xyz (float or snorm formats): gimany's own layout */
+    GIM_NORMAL_XYZ_UNORM,        /* xyz * 0.5 + 0.5 (GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
+    GIM_NORMAL_OCTAHEDRAL,       /* the octahedral map (Cigolle et al. 2014) in [-1, 1] in .xy
+                                    (GL_RG16_SNORM, GL_RG16F, GL_RG32F, GL_RG8_SNORM) */
+    GIM_NORMAL_OCTAHEDRAL_UNORM  /* the octahedral map * 0.5 + 0.5 in .xy (GL_RG16, GL_RG8, or the
+                                    first two channels of GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
+} gim_normal_encoding;
+
+/* Twin of the G-buffer decode pass at one pixel: the host's stored normal (its texel's rgba as
+   the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth (window depth, or with
+   depth_view_z the positive view-space distance along -z) to a unit world normal (out_normal,
+   w = 1 where drawn; 0 elsewhere) and window depth (1 where nothing is drawn). view_space: the
+   normal is in view's space and turned back by its inverse rotation. */
+GIMANY_API gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
+                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+                                              float out_normal[4], float *out_depth);
+
 GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
                                              uint32_t width, uint32_t height, uint32_t x, uint32_t y,
                                              gim_gbuffer_texel *out);
@@ -1361,6 +1380,11 @@ typedef struct gim_frame {
                                    the same view (window depth in [0, 1], 1 = nothing) ... */
     uint32_t gbuffer_normal;    /* ... and a 2D float texture with the world normal in .xyz;
                                    both >= width x height, or both 0 (gimany draws one) */
+    gim_normal_encoding gbuffer_normal_encoding; /* how gbuffer_normal holds it; not XYZ (or the
+                                   two below set): one decode pass (gim_gbuffer_decode_twin) */
+    int gbuffer_view_space;     /* 1: the host's normals are in view space */
+    int gbuffer_depth_view_z;   /* 1: gbuffer_depth is a float texture (GL_R32F, GL_R16F) holding the
+                                   positive view-space distance along -z (0: nothing drawn) */
     uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
                                    importance-map invocation loops over them all; llvmpipe stops
                                    a loop after 65535 iterations) */
@@ -5437,6 +5461,45 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     return GIM_OK;
 }
 
+GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
+                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+                                              float out_normal[4], float *out_depth) {
+    float n[3], d = host_depth, l;
+    int k, drawn;
+    if (!host_normal || !out_normal || !out_depth)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "NULL argument");
+    if ((unsigned)encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
+        return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "unknown encoding %d", (int)encoding);
+    for (k = 0; k < 3; ++k) n[k] = encoding == GIM_NORMAL_XYZ_UNORM ? host_normal[k] * 2.0f - 1.0f : host_normal[k];
+    if (encoding == GIM_NORMAL_OCTAHEDRAL || encoding == GIM_NORMAL_OCTAHEDRAL_UNORM) {
+        /* Cigolle et al. 2014: the upper half folded out, the lower folded back over the diagonals */
+        float fx = encoding == GIM_NORMAL_OCTAHEDRAL_UNORM ? host_normal[0] * 2.0f - 1.0f : host_normal[0];
+        float fy = encoding == GIM_NORMAL_OCTAHEDRAL_UNORM ? host_normal[1] * 2.0f - 1.0f : host_normal[1];
+        n[0] = fx; n[1] = fy; n[2] = 1.0f - fabsf(fx) - fabsf(fy);
+        if (n[2] < 0.0f) {
+            n[0] = (1.0f - fabsf(fy)) * (fx >= 0.0f ? 1.0f : -1.0f);
+            n[1] = (1.0f - fabsf(fx)) * (fy >= 0.0f ? 1.0f : -1.0f);
+        }
+    }
+    if (depth_view_z) {   /* a point at view z = -d: ndc z = (P22 z + P32) / (P23 z + P33) */
+        float z = -d, w = proj.m[11] * z + proj.m[15], ndc = (proj.m[10] * z + proj.m[14]) / w;
+        d = d > 0.0f && w > 0.0f && ndc <= 1.0f ? ndc * 0.5f + 0.5f : 1.0f;
+        if (d != d) d = 1.0f;
+    }
+    if (view_space) {   /* normals go back by the transpose of view's 3x3 (its inverse transpose, inverted) */
+        float w[3];
+        for (k = 0; k < 3; ++k) w[k] = view.m[k * 4] * n[0] + view.m[k * 4 + 1] * n[1] + view.m[k * 4 + 2] * n[2];
+        memcpy(n, w, sizeof n);
+    }
+    l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+    drawn = d < 1.0f && gim__all_finite(n, 3) && l > 0.0f;
+    l = drawn ? sqrtf(l) : 1.0f;
+    for (k = 0; k < 3; ++k) out_normal[k] = drawn ? n[k] / l : 0.0f;
+    out_normal[3] = drawn ? 1.0f : 0.0f;
+    *out_depth = drawn ? d : 1.0f;
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
                                              uint32_t width, uint32_t height, uint32_t x, uint32_t y,
                                              gim_gbuffer_texel *out) {
@@ -6986,6 +7049,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_VPL_SHADE,          /* VPL shading per pixel: soft visibility, clamping, interleaving (Dong sec. 6) */
     GIM__PROGRAM_GEOMETRY_BLUR,      /* geometry-aware blur (Dong sec. 6, Laine et al.) */
     GIM__PROGRAM_ISM,                /* imperfect shadow maps of the caches (Ritschel et al. 2008) */
+    GIM__PROGRAM_GBUFFER_DECODE,     /* the host's packed normals / view-space depth to gimany's layout */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -7012,7 +7076,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"second_bounce.comp", NULL},
     {"vpl_shade.comp", NULL},
     {"geometry_blur.comp", NULL},
-    {"ism.comp", NULL}};
+    {"ism.comp", NULL},
+    {"gbuffer_decode.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -7111,6 +7176,8 @@ struct gim_context {
     /* the frame's resources, sized to what the last frame used */
     gim__light_gpu light_gpu[GIM_MAX_LIGHTS];
     uint32_t gbuffer_width, gbuffer_height;
+    gim__GLuint decoded_normal, decoded_depth;   /* the host's G-buffer decoded (RGBA16F, R32F) */
+    uint32_t decoded_width, decoded_height;
     gim__GLuint gbuffer_depth, gbuffer_normal, gbuffer_albedo, gbuffer_material, gbuffer_fbo;
     gim__GLuint nearest_sampler;  /* texelFetch of a depth texture needs compare mode NONE */
     gim__GLuint view_sample_pixels, view_samples;
@@ -7410,25 +7477,42 @@ static gim_result gim__gl_check_texture(gim_context *ctx, const char *where, con
 
 /* The host's G-buffer formats: depth a depth format (a colour texture reads as garbage depth),
    the normal a float or signed-normalised RGB(A) (RGBA8 clamps every negative component to 0). */
-static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where, gim__GLuint depth, gim__GLuint normal) {
-    static const gim__GLint depth_formats[] = {0x81A5, 0x81A6, 0x81A7, 0x8CAC, 0x88F0, 0x8CAD};
-    static const gim__GLint normal_formats[] = {0x881A, 0x8814, 0x881B, 0x8815, 0x8F9B, 0x8F97, 0x8F9A, 0x8F96};
+static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where, const gim_frame *fr, gim__GLuint depth,
+                                             gim__GLuint normal) {
+    static const gim__GLint depth_formats[] = {0x81A5, 0x81A6, 0x81A7, 0x8CAC, 0x88F0, 0x8CAD, 0};
+    static const gim__GLint view_z_formats[] = {0x822E, 0x822D, 0};   /* R32F, R16F */
+    /* per gim_normal_encoding: signed xyz; unorm xyz; signed octahedral (RG or the first two of
+       RGB(A)); unorm octahedral */
+    static const gim__GLint xyz[] = {0x881A, 0x8814, 0x881B, 0x8815, 0x8F9B, 0x8F97, 0x8F9A, 0x8F96, 0};
+    static const gim__GLint xyz_unorm[] = {0x8059, 0x8058, 0x805B, 0x8051, 0x8054, 0};
+    static const gim__GLint oct[] = {0x8F99, 0x8F95, 0x822F, 0x8230, 0x881A, 0x8814, 0x8F9B, 0x8F97, 0};
+    static const gim__GLint oct_unorm[] = {0x822C, 0x822B, 0x8059, 0x8058, 0x805B, 0};
+    static const gim__GLint *const normal_formats[4] = {xyz, xyz_unorm, oct, oct_unorm};
+    static const char *const normal_names[4] = {
+        "GIM_NORMAL_XYZ needs signed values (GL_RGB(A)16F/32F, GL_RGB(A)8_SNORM, GL_RGB(A)16_SNORM)",
+        "GIM_NORMAL_XYZ_UNORM needs GL_RGB10_A2, GL_RGB(A)8 or GL_RGB(A)16",
+        "GIM_NORMAL_OCTAHEDRAL needs GL_RG16_SNORM, GL_RG8_SNORM, GL_RG16F, GL_RG32F (or RGBA16F/32F/SNORM)",
+        "GIM_NORMAL_OCTAHEDRAL_UNORM needs GL_RG16, GL_RG8, GL_RGB10_A2, GL_RGBA8 or GL_RGBA16"};
+    const gim__GLint *list = fr->gbuffer_depth_view_z ? view_z_formats : depth_formats;
     gim__GLint f = 0;
     unsigned i, ok = 0;
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
     ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
-    for (i = 0; i < sizeof depth_formats / sizeof depth_formats[0]; ++i) ok |= f == depth_formats[i];
+    for (i = 0; list[i]; ++i) ok |= f == list[i];
     if (!ok)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
-                         "gbuffer_depth has internal format 0x%04x: it must be a depth format (GL_DEPTH_COMPONENT16/24/32/32F, "
-                         "GL_DEPTH24_STENCIL8, GL_DEPTH32F_STENCIL8)", (unsigned)f);
+                         fr->gbuffer_depth_view_z ? "gbuffer_depth has internal format 0x%04x: view-space depth needs GL_R32F "
+                                                    "or GL_R16F"
+                                                  : "gbuffer_depth has internal format 0x%04x: it must be a depth format "
+                                                    "(GL_DEPTH_COMPONENT16/24/32/32F, GL_DEPTH24_STENCIL8, GL_DEPTH32F_STENCIL8; "
+                                                    "or set gbuffer_depth_view_z)", (unsigned)f);
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, normal);
     ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
-    for (i = 0, ok = 0; i < sizeof normal_formats / sizeof normal_formats[0]; ++i) ok |= f == normal_formats[i];
+    list = normal_formats[fr->gbuffer_normal_encoding];
+    for (i = 0, ok = 0; list[i]; ++i) ok |= f == list[i];
     if (!ok)
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
-                         "gbuffer_normal has internal format 0x%04x: normals need signed values (GL_RGB(A)16F/32F, "
-                         "GL_RGB(A)8_SNORM, GL_RGB(A)16_SNORM)", (unsigned)f);
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_normal has internal format 0x%04x: %s",
+                         (unsigned)f, normal_names[fr->gbuffer_normal_encoding]);
     /* texture state texelFetch obeys and no sampler overrides: the host's to keep, so refused */
     for (i = 0; i < 2; ++i) {
         gim__GLint v = 0, k;
@@ -8828,6 +8912,8 @@ static void gim__scene_destroy(gim_context *ctx) {
     t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
     t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
     gl->DeleteTextures(5, t);
+    t[0] = ctx->decoded_normal; t[1] = ctx->decoded_depth;
+    gl->DeleteTextures(2, t);
     gim__lightskin_drop(ctx);
     gim__free(&ctx->env, ctx->material_exponent);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
@@ -9092,6 +9178,55 @@ static void gim__gl_nearest_sampler(gim_context *ctx) {
 
 /* View samples (paper 000 sec. 4): the G-buffer at count Halton pixels (gim_view_sample_pixels,
    computed here and uploaded: the same pixels as the twin, bit for bit), unprojected. */
+/* 1 when the frame's host G-buffer needs the decode pass (not gimany's own layout). */
+static int gim__gbuffer_needs_decode(const gim_frame *f) {
+    return f->gbuffer_depth && (f->gbuffer_normal_encoding != GIM_NORMAL_XYZ || f->gbuffer_view_space || f->gbuffer_depth_view_z);
+}
+
+/* The host's packed G-buffer into decoded_normal / decoded_depth (shaders/gbuffer_decode.comp;
+   twin gim_gbuffer_decode_twin); *depth and *normal name them after. */
+static gim_result gim__gl_gbuffer_decode(gim_context *ctx, const gim_frame *f, gim__GLuint *depth, gim__GLuint *normal) {
+    static const char where[] = "G-buffer decode (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim_mat4 r3 = gim_mat4_identity();
+    int k;
+    gim_result r = gim__gl_program(ctx, GIM__PROGRAM_GBUFFER_DECODE, &program);
+    if (r != GIM_OK) return r;
+    if (ctx->decoded_width != f->width || ctx->decoded_height != f->height || !ctx->decoded_normal) {
+        gim__gl_texture(ctx, &ctx->decoded_normal, GIM__GL_RGBA16F, f->width, f->height);
+        gim__gl_texture(ctx, &ctx->decoded_depth, GIM__GL_R32F, f->width, f->height);
+        ctx->decoded_width = f->width;
+        ctx->decoded_height = f->height;
+    }
+    for (k = 0; k < 3; ++k) {   /* view_to_world's 3x3, column k: row k of view's */
+        r3.m[k * 4] = f->view.m[k];
+        r3.m[k * 4 + 1] = f->view.m[4 + k];
+        r3.m[k * 4 + 2] = f->view.m[8 + k];
+    }
+    gim__gl_nearest_sampler(ctx);
+    gl->ActiveTexture(GIM__GL_TEXTURE0);
+    gl->BindTexture(GIM__GL_TEXTURE_2D, *depth);
+    gl->BindSampler(0, ctx->nearest_sampler);
+    gl->ActiveTexture(GIM__GL_TEXTURE0 + 1);
+    gl->BindTexture(GIM__GL_TEXTURE_2D, *normal);
+    gl->BindSampler(1, ctx->nearest_sampler);
+    gl->BindImageTexture(0, ctx->decoded_normal, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, GIM__GL_RGBA16F);
+    gl->BindImageTexture(1, ctx->decoded_depth, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, GIM__GL_R32F);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, f->width, f->height);
+    gl->Uniform1i(1, (gim__GLint)f->gbuffer_normal_encoding);
+    gl->Uniform1i(2, f->gbuffer_view_space ? 1 : 0);
+    gl->UniformMatrix4fv(3, 1, GIM__GL_FALSE, r3.m);
+    gl->Uniform1i(7, f->gbuffer_depth_view_z ? 1 : 0);
+    gl->Uniform4f(8, f->proj.m[10], f->proj.m[14], f->proj.m[11], f->proj.m[15]);
+    gl->DispatchCompute((f->width + 7u) / 8u, (f->height + 7u) / 8u, 1u);
+    gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    *depth = ctx->decoded_depth;
+    *normal = ctx->decoded_normal;
+    return gim__gl_check(ctx, where);
+}
+
 static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
                                        uint32_t count) {
     static const char where[] = "view samples (GL)";
@@ -10441,6 +10576,12 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
                          (int)ctx->max_viewport[1]);
     if ((f->gbuffer_depth == 0) != (f->gbuffer_normal == 0))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_depth and gbuffer_normal: both or neither");
+    if ((unsigned)f->gbuffer_normal_encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown gbuffer_normal_encoding %d",
+                         (int)f->gbuffer_normal_encoding);
+    if (!f->gbuffer_depth && (f->gbuffer_normal_encoding != GIM_NORMAL_XYZ || f->gbuffer_view_space || f->gbuffer_depth_view_z))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_normal_encoding, gbuffer_view_space and "
+                         "gbuffer_depth_view_z describe the host's G-buffer: none is given");
     if (f->view_sample_count > GIM__MAX_VIEW_SAMPLES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "view_sample_count %u above %u",
                          (unsigned)f->view_sample_count, GIM__MAX_VIEW_SAMPLES);
@@ -10612,8 +10753,12 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         ctx->own_objects = 0;   /* the host's */
         r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
-        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, depth, normal);
+        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, frame, depth, normal);
         ctx->own_objects = 1;
+        if (r == GIM_OK && gim__gbuffer_needs_decode(frame)) {
+            r = gim__gl_gbuffer_decode(ctx, frame, &depth, &normal);
+            gim__stamp(ctx, frame->timing, GIM_PASS_GBUFFER);
+        }
     } else if (r == GIM_OK) {
         r = gim__gl_gbuffer(ctx, frame);
         depth = ctx->gbuffer_depth;
@@ -10744,7 +10889,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes;
     }
-    b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u;
+    b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u + (uint64_t)ctx->decoded_width * ctx->decoded_height * 12u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
@@ -10774,6 +10919,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     /* what gim_update's passes build for this method and these settings */
     ids[n++] = GIM__PROGRAM_RSM;
     if (!frame->gbuffer_depth) ids[n++] = GIM__PROGRAM_GBUFFER;
+    if (gim__gbuffer_needs_decode(frame)) ids[n++] = GIM__PROGRAM_GBUFFER_DECODE;
     if (frame->method == GIM_METHOD_RSM_GATHER) {
         ids[n++] = GIM__PROGRAM_RSM_GATHER;
     } else if (frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP) {

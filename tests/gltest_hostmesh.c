@@ -20,33 +20,6 @@ typedef struct host_fx {
     gim_frame fr;
 } host_fx;
 
-/* An open box of five quads (floor, three walls, a roof with a gap) under a sun. */
-static void make_room(room *r) {
-    float c[3], u[3], v[3];
-#define Q(cx, cy, cz, ux, uy, uz, vx, vy, vz, m) do { c[0] = cx; c[1] = cy; c[2] = cz; u[0] = ux; u[1] = uy; u[2] = uz; \
-        v[0] = vx; v[1] = vy; v[2] = vz; add_quad(r, c, u, v, m); } while (0)
-    memset(r, 0, sizeof *r);
-    Q(-2, 0, 2, 4, 0, 0, 0, 0, -4, 0);      /* floor, +y */
-    Q(-2, 0, -2, 0, 2, 0, 0, 0, 4, 1);      /* left wall, +x */
-    Q(2, 0, 2, 0, 2, 0, 0, 0, -4, 2);       /* right wall, -x */
-    Q(-2, 0, -2, 4, 0, 0, 0, 2, 0, 3);      /* back wall, +z */
-    Q(-2, 2, -2, 0, 0, 2.5f, 4, 0, 0, 0);   /* roof over the back half, -y */
-#undef Q
-}
-
-static gim_mesh_data room_arrays(const room *r) {
-    gim_mesh_data m;
-    memset(&m, 0, sizeof m);
-    m.positions = r->pos;
-    m.vertex_count = r->quads * 4;
-    m.normals = r->nrm;
-    m.indices = r->idx;
-    m.index_count = r->quads * 6;
-    m.index_type = GIM_INDEX_U32;
-    m.triangle_material = r->mat;
-    return m;
-}
-
 /* The room as an engine keeps it: one interleaved buffer, one 16-bit index buffer, both with
    other data in front. */
 static void host_buffers(host_fx *h) {
@@ -101,7 +74,7 @@ static void setup(host_fx *h, int host) {
     gim_light sun;
     memset(h, 0, sizeof *h);
     gltest_fixture_begin(&h->f);
-    make_room(&h->r);
+    room_open_box(&h->r);
     memset(&cd, 0, sizeof cd);
     cd.mesh = room_arrays(&h->r);
     cd.d_eps = 0.5f;

@@ -35,16 +35,6 @@ static void closed_room(room *r) {
     box(r, ilo, ihi, 1, 1);
 }
 
-static gim_mesh_data room_data(const room *r) {
-    gim_mesh_data m;
-    memset(&m, 0, sizeof m);
-    m.positions = r->pos; m.vertex_count = r->quads * 4;
-    m.normals = r->nrm;
-    m.indices = r->idx; m.index_count = r->quads * 6; m.index_type = GIM_INDEX_U32;
-    m.triangle_material = r->mat;
-    return m;
-}
-
 typedef struct scene_fx {
     gltest_fixture f;
     room r;
@@ -61,11 +51,11 @@ static void setup(scene_fx *s) {
     gltest_fixture_begin(&s->f);
     closed_room(&s->r);
     memset(&cd, 0, sizeof cd);
-    cd.mesh = room_data(&s->r);
+    cd.mesh = room_arrays(&s->r);
     cd.d_eps = 1.5f;
     assert_int_equal(gim_cache_generate(&cd, &s->set), GIM_OK);
     memset(&md, 0, sizeof md);
-    md.data = room_data(&s->r);
+    md.data = room_arrays(&s->r);
     md.caches = &s->set;
     assert_int_equal(gim_add_mesh(s->f.ctx, &md, &s->mesh), GIM_OK);
     assert_int_equal(gim_set_materials(s->f.ctx, room_materials, 4), GIM_OK);

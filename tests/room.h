@@ -7,6 +7,11 @@
 #include <string.h>
 
 #define MAX_Q 16
+#if defined(__GNUC__) || defined(__clang__)
+#define ROOM_UNUSED __attribute__((unused))
+#else
+#define ROOM_UNUSED
+#endif
 typedef struct room {
     float pos[MAX_Q * 12], nrm[MAX_Q * 12];
     uint32_t idx[MAX_Q * 6], mat[MAX_Q * 2];
@@ -28,6 +33,34 @@ static void add_quad(room *r, const float c[3], const float u[3], const float v[
     r->idx[q * 6 + 0] = q * 4; r->idx[q * 6 + 1] = q * 4 + 1; r->idx[q * 6 + 2] = q * 4 + 2;
     r->idx[q * 6 + 3] = q * 4; r->idx[q * 6 + 4] = q * 4 + 2; r->idx[q * 6 + 5] = q * 4 + 3;
     r->mat[q * 2] = r->mat[q * 2 + 1] = material;
+}
+
+/* An open box of five quads under the sky: floor, three walls, a roof over the back half. */
+static ROOM_UNUSED void room_open_box(room *r) {
+    float c[3], u[3], v[3];
+#define Q(cx, cy, cz, ux, uy, uz, vx, vy, vz, m) do { c[0] = cx; c[1] = cy; c[2] = cz; u[0] = ux; u[1] = uy; u[2] = uz; \
+        v[0] = vx; v[1] = vy; v[2] = vz; add_quad(r, c, u, v, m); } while (0)
+    memset(r, 0, sizeof *r);
+    Q(-2, 0, 2, 4, 0, 0, 0, 0, -4, 0);      /* floor, +y */
+    Q(-2, 0, -2, 0, 2, 0, 0, 0, 4, 1);      /* left wall, +x */
+    Q(2, 0, 2, 0, 2, 0, 0, 0, -4, 2);       /* right wall, -x */
+    Q(-2, 0, -2, 4, 0, 0, 0, 2, 0, 3);      /* back wall, +z */
+    Q(-2, 2, -2, 0, 0, 2.5f, 4, 0, 0, 0);   /* roof over the back half, -y */
+#undef Q
+}
+
+/* The room as gim_mesh_data (32-bit indices, its materials). */
+static ROOM_UNUSED gim_mesh_data room_arrays(const room *r) {
+    gim_mesh_data m;
+    memset(&m, 0, sizeof m);
+    m.positions = r->pos;
+    m.vertex_count = r->quads * 4;
+    m.normals = r->nrm;
+    m.indices = r->idx;
+    m.index_count = r->quads * 6;
+    m.index_type = GIM_INDEX_U32;
+    m.triangle_material = r->mat;
+    return m;
 }
 
 /* The rooms' materials: floor white, left wall red, right wall green, back wall glossy. */
