@@ -161,7 +161,7 @@ static void host_gbuffer_formats(void **state) {
     fr = ff.fr;
     fr.gbuffer_depth = depth;
     fr.gbuffer_normal = rgba8;
-    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "normals need signed values");
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "GIM_NORMAL_XYZ needs signed values");
     assert_int_equal(glGetError(), GL_NO_ERROR);
     fr.gbuffer_depth = colour;
     fr.gbuffer_normal = normal;
