@@ -1061,6 +1061,12 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
+#define GIM_ISM_VPL_BIAS 0.01f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
+                                         wall of thickness t once the VPL is t / b away (0.15: 2 m of ground
+                                         lit through the 0.3 walls of tests/gltest_visibility.c; 0.01 there
+                                         leaves 0.4 % inside, and removes 0.3 % of an open corner's light,
+                                         tests/gltest_physics.c) */
+#define GIM_ISM_VPL_SLOPE 0.05f
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
 #define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
 
@@ -1128,6 +1134,15 @@ typedef struct gim_second_bounce_desc {
     const float *normal;            /* map_count * size^2 * 4: unit normal towards the origin */
     const float *albedo;            /* map_count * size^2 * 4: diffuse rgb */
     uint32_t vpl_count;             /* S: map m takes S / map_count VPLs, one more for m < S mod map_count */
+    const float *ism;               /* map_count * ism_size^2: each cluster's imperfect shadow map
+                                       (gim_ism_render with map m's origin and normal as a cache), or NULL.
+                                       A hit the map's own lookup does not see (gim_ism_visibility's, the
+                                       hit as the VAL) is an unlit VPL: the paraboloid map skips
+                                       everything within near_distance of its origin, so next to a wall
+                                       it finds the far side of the wall; the ISM has no such skip */
+    uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
+    float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
+    float scene_scale;              /* > 0 with ism (the maps' lift) */
     gim_env env;
 } gim_second_bounce_desc;
 
@@ -5563,11 +5578,17 @@ static void gim__second_bounce_texel(uint32_t j, uint32_t s_m, uint32_t size, ui
     *y = fy < 0.0 ? 0u : fy >= (double)size ? size - 1u : (uint32_t)fy;
 }
 
+static void gim__ism_frame(const float *c, const float *normal, float lift, float o[3], gim_vec3 *t, gim_vec3 *b,
+                           gim_vec3 *n);
+static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
+                              const float *x, const float *nl, float bias, float texel);
+
 GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out) {
     static const char where[] = "gim_second_bounce_vpls";
     const gim_env *env = desc ? &desc->env : NULL;
-    uint32_t m, j;
+    uint32_t m, j, isz = 0;
     size_t texels;
+    float ibias = 0.0f, itexel = 0.0f;
     if (!desc || !out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
     if (!desc->maps || !desc->position || !desc->normal || !desc->albedo)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "maps, position, normal or albedo is NULL");
@@ -5576,6 +5597,17 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
     if (desc->size > 65535u)
         return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "size %u above 65535", (unsigned)desc->size);
     texels = (size_t)desc->size * desc->size;
+    if (desc->ism) {
+        isz = desc->ism_size ? desc->ism_size : GIM_ISM_DEFAULT_SIZE;
+        if (isz < GIM_ISM_MIN_SIZE || isz > GIM_ISM_MAX_SIZE || (isz & (isz - 1u)) || !gim__isfinitef(desc->ism_bias) ||
+            desc->ism_bias < 0.0f || desc->ism_bias > 1.0f || !gim__isfinitef(desc->ism_slope) || desc->ism_slope < 0.0f ||
+            desc->ism_slope > 64.0f || !gim__isfinitef(desc->scene_scale) || !(desc->scene_scale > 0.0f))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "ism: ism_size a power of two in %u..%u, ism_bias in [0, 1], ism_slope in [0, 64], "
+                             "scene_scale > 0", GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+        ibias = desc->ism_bias > 0.0f ? desc->ism_bias : GIM_ISM_BIAS;
+        itexel = (desc->ism_slope > 0.0f ? desc->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)isz;
+    }
     for (m = 0; m < desc->map_count; ++m) {
         const gim_paraboloid *p = &desc->maps[m];
         gim_vec3 t, b, n;
@@ -5610,6 +5642,13 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
                 v->position[i] = hp[i];
                 v->normal[i] = hn[i];
                 v->flux[i] = gim__clamp_flt((double)ha[i] * p->flux[i] * scale);
+            }
+            if (desc->ism) {   /* the hit as the cluster's own ISM sees it */
+                float o[3];
+                gim_vec3 it, ib, in;
+                gim__ism_frame(p->origin, p->normal, GIM_ISM_LIFT * desc->scene_scale, o, &it, &ib, &in);
+                if (gim__ism_visible(desc->ism + (size_t)m * isz * isz, isz, o, it, ib, in, hp, hn, ibias, itexel) == 0.0f)
+                    memset(v, 0, sizeof *v);
             }
         }
     }
@@ -7087,8 +7126,10 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
-    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' maps and the scene's points */
+    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' (or VPLs') maps and the scene's points */
     uint64_t ism_maps_bytes, ism_points_bytes, ism_version;
+    gim__GLuint ism_cluster_maps;      /* SSVP's second bounce with ISM: one map per cluster */
+    uint64_t ism_cluster_maps_bytes;
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
     uint64_t scene_version;       /* bumped when meshes or instances change */
@@ -9234,11 +9275,11 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
 
 /* The ISM buffers: visibility off costs no memory. */
 static void gim__ism_release(gim_context *ctx) {
-    gim__GLuint b[2];
-    b[0] = ctx->ism_maps; b[1] = ctx->ism_points;
-    if (b[0] || b[1]) ctx->gl.DeleteBuffers(2, b);
-    ctx->ism_maps = ctx->ism_points = 0;
-    ctx->ism_maps_bytes = ctx->ism_points_bytes = 0;
+    gim__GLuint b[3];
+    b[0] = ctx->ism_maps; b[1] = ctx->ism_points; b[2] = ctx->ism_cluster_maps;
+    if (b[0] || b[1] || b[2]) ctx->gl.DeleteBuffers(3, b);
+    ctx->ism_maps = ctx->ism_points = ctx->ism_cluster_maps = 0;
+    ctx->ism_maps_bytes = ctx->ism_points_bytes = ctx->ism_cluster_maps_bytes = 0;
     ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
     ctx->ism_version = 0;
 }
@@ -9555,6 +9596,7 @@ typedef struct gim__vpl_shade_args {
     gim__GLuint ism;               /* SSBO: vpl_count ism_size^2 floats, VPL i's ISM (gim_vpl_shade_desc.ism), or 0;
                                       not with cluster */
     uint32_t ism_size;
+    float ism_bias, ism_slope;     /* as gim_vpl_shade_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     uint32_t interleave;           /* k (gim_vpl_shade_desc); 0 or 1: every VPL */
     float clamp_distance;          /* d_c, >= 0 */
     float scene_scale;             /* > 0 */
@@ -9583,6 +9625,9 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     if (ism && (vis || a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u, or with "
                          "cluster visibility", (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (ism && (!(a->ism_bias >= 0.0f && a->ism_bias <= 1.0f) || !(a->ism_slope >= 0.0f && a->ism_slope <= 64.0f)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM bias %g or slope %g out of range",
+                         (double)a->ism_bias, (double)a->ism_slope);
     if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 4u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
                          (unsigned)a->vpl_count, (unsigned)a->ism_size);
@@ -9611,8 +9656,8 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, members > chunk ? ctx->vpl_partial : a->vpls);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, ism ? a->ism : a->vpls);
     gl->Uniform1ui(14, ism ? a->ism_size : 0u);
-    gl->Uniform1f(15, GIM_ISM_BIAS);
-    gl->Uniform1f(16, ism ? GIM_ISM_SLOPE * 2.0f / (float)a->ism_size : 0.0f);
+    gl->Uniform1f(15, a->ism_bias > 0.0f ? a->ism_bias : GIM_ISM_BIAS);
+    gl->Uniform1f(16, ism ? (a->ism_slope > 0.0f ? a->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)a->ism_size : 0.0f);
     gl->Uniform1f(17, GIM_ISM_LIFT * a->scene_scale);
     gl->Uniform1ui(4, a->vpl_count);
     gl->Uniform1ui(5, k);
@@ -9966,10 +10011,23 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
    The texels are the twin's own (gim__second_bounce_texel), computed on the CPU and kept in
    ctx->para_samples while map_count, size and vpl_count stay the same. maps_ssbo: as for the
    maps (flux read). */
+static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count, uint32_t size,
+                                            uint32_t vpl_count, gim__GLuint vpls_out, uint32_t first, const gim__gl_ism *ism,
+                                            float scene_scale);
 static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count,
                                                     uint32_t size, uint32_t vpl_count, gim__GLuint vpls_out,
                                                     uint32_t first) {
+    return gim__gl_second_bounce_ism(ctx, maps_ssbo, map_count, size, vpl_count, vpls_out, first, NULL, 1.0f);
+}
+
+/* ... with each hit checked in its cluster's imperfect shadow map (ism->maps: map_count of
+   ism->size^2 floats, made from maps_ssbo's origins and normals; gim_second_bounce_desc.ism),
+   scene_scale > 0 their lift; ism NULL or ism->maps 0: none. */
+static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count, uint32_t size,
+                                            uint32_t vpl_count, gim__GLuint vpls_out, uint32_t first, const gim__gl_ism *ism,
+                                            float scene_scale) {
     static const char where[] = "second-bounce VPLs (GL)";
+    int with_ism = ism && ism->maps;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3];
     gim_result r = GIM_OK;
@@ -9986,8 +10044,15 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
         (uint64_t)vpl_count * 16u > (uint64_t)ctx->max_ssbo_bytes || vpl_count > 65535u * 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs from %u exceed the SSBO or dispatch limits",
                          (unsigned)vpl_count, (unsigned)first);
+    if (with_ism && (ism->size < GIM_ISM_MIN_SIZE || ism->size > GIM_ISM_MAX_SIZE || (ism->size & (ism->size - 1u)) ||
+                     !(ism->bias >= 0.0f && ism->bias <= 1.0f) || !(ism->slope >= 0.0f && ism->slope <= 64.0f) ||
+                     !(scene_scale > 0.0f) || !gim__isfinitef(scene_scale)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u, bias %g, slope %g or scene_scale %g out of range",
+                         (unsigned)ism->size, (double)ism->bias, (double)ism->slope, (double)scene_scale);
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)map_count * 48u);
+    if (r == GIM_OK && with_ism)
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)map_count * ism->size * ism->size * 4u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, ((uint64_t)first + vpl_count) * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE, &program);
     if (r == GIM_OK && (!ctx->para_samples || ctx->para_key[0] != map_count || ctx->para_key[1] != size ||
@@ -10025,10 +10090,15 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->para_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls_out);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, with_ism ? ism->maps : maps_ssbo);   /* never read without */
     gl->UseProgram(program);
     gl->Uniform1ui(0, vpl_count);
     gl->Uniform1ui(1, first);
     gl->Uniform1ui(2, size);
+    gl->Uniform1ui(3, with_ism ? ism->size : 0u);
+    gl->Uniform1f(4, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
+    gl->Uniform1f(5, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
+    gl->Uniform1f(6, GIM_ISM_LIFT * scene_scale);
     gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -10168,6 +10238,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim__vpl_settings s;
     uint32_t i, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
     gim_result r = GIM_OK;
+    uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
+    uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
     int warm, ism = f->visibility == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
@@ -10222,32 +10294,50 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else {
         gim__paraboloid_release(ctx, 1);
     }
+    if (r == GIM_OK && ism) {
+        /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
+           only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
+           this one makes its caches' again: ism_size 0 says they are not theirs) */
+        if (!ctx->ism_points || ctx->ism_version != ctx->scene_version || ctx->ism_point_count != ism_pool) {
+            ctx->ism_version = ctx->scene_version - 1u;
+            r = gim__gl_ism_scene_points(ctx, ism_pool, where);
+            if (r == GIM_OK) { ctx->ism_version = ctx->scene_version; ctx->ism_point_count = ism_pool; }
+        }
+        ctx->ism_size = 0;
+    }
     if (r == GIM_OK && s.second) {
-        r = gim__gl_second_bounce(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first);
+        gim__gl_ism gi;
+        memset(&gi, 0, sizeof gi);
+        if (ism) {   /* each cluster's ISM: the hits its paraboloid map found past its near skip, checked */
+            r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
+                               (uint64_t)s.clusters * ism_size * ism_size * 4u, where);
+            if (r == GIM_OK)
+                r = gim__gl_ism_render_of(ctx, v->maps, 3u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
+                                          scale, ctx->ism_cluster_maps);
+            gi.maps = ctx->ism_cluster_maps;
+            gi.size = ism_size;
+            gi.bias = GIM_ISM_VPL_BIAS;
+            gi.slope = GIM_ISM_VPL_SLOPE;
+        }
+        if (r == GIM_OK) r = gim__gl_second_bounce_ism(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first, &gi, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
     }
     if (r == GIM_OK && ism) {
-        /* one imperfect shadow map per VPL, both bounces (Ritschel et al. 2008, Keller's instant
-           radiosity), every frame: the VPLs move with the light. The scene's points are made
-           again only when the scene changed. The maps take ctx->ism_maps (a LightSkin frame
-           after this one makes its caches' again: ism_size 0 says they are not theirs); their
-           time is GIM_PASS_PARABOLOID's. */
-        uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
-        uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
-        uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
-        if (!ctx->ism_points || ctx->ism_version != ctx->scene_version || ctx->ism_point_count != pool) {
-            ctx->ism_version = ctx->scene_version - 1u;
-            r = gim__gl_ism_scene_points(ctx, pool, where);
-            if (r == GIM_OK) { ctx->ism_version = ctx->scene_version; ctx->ism_point_count = pool; }
-        }
-        ctx->ism_size = 0;
+        /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
+           Ritschel et al.'s maps), every frame: the VPLs move with the light. Their time is
+           GIM_PASS_PARABOLOID's. */
+        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 4u, where);
         if (r == GIM_OK)
-            r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 4u, where);
-        if (r == GIM_OK)
-            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
+            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, ism_pool, ism_size, ism_per, scale,
+                                      ctx->ism_maps);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
-    } else if (ctx->ism_maps || ctx->ism_points) {
+    } else if (!ism && (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps)) {
         gim__ism_release(ctx);
+    }
+    if (r == GIM_OK && ism && !s.second && ctx->ism_cluster_maps) {
+        ctx->gl.DeleteBuffers(1, &ctx->ism_cluster_maps);
+        ctx->ism_cluster_maps = 0;
+        ctx->ism_cluster_maps_bytes = 0;
     }
     if (r != GIM_OK) return r;
     /* shading (Dong 6; SSVP eq. 6 with each bounce's own normalisation), then the blur */
@@ -10276,6 +10366,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.distance = s.visibility && !ism ? ctx->para_distance : 0u;
         a.ism = ism ? ctx->ism_maps : 0u;
         a.ism_size = ism_size;
+        a.ism_bias = GIM_ISM_VPL_BIAS;
+        a.ism_slope = GIM_ISM_VPL_SLOPE;
         a.map_size = s.size;
         a.interleave = s.interleave;
         a.clamp_distance = s.clamp_distance * scale;
