@@ -305,7 +305,24 @@ static void bad_settings(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(s.f.log.errors, 6);
     s.f.log.errors = 0;
+    s.f.ctx->max_ssbo_bytes = 128 << 20;   /* GL 4.3's guaranteed block size, llvmpipe's */
+    /* the VPL methods: one map per VPL; 16384 VPLs of 64^2 are 256 MiB; 8192 fit */
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    s.fr.vpl_count = 16384;
+    s.fr.ism_size = 64;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    s.fr.method = GIM_METHOD_SSVP;   /* and the second bounce's VPLs count too */
+    s.fr.vpl_count = 8192;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    s.fr.ism_size = 48;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_size = 16;
+    s.fr.no_visibility = 1;   /* no visibility, or ISMs: not both */
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(s.f.log.errors, 4);
+    s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ism_maps, 0);
+    assert_int_equal(s.f.ctx->ism_cluster_maps, 0);
     gltest_state_unchanged(&s.f);
     teardown(&s);
     GLTEST_END();
