@@ -1057,6 +1057,9 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_MAX_POINTS 65536u
 #define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
 #define GIM_ISM_DEFAULT_POINTS 16384u
+#define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
+                                             (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
+                                             for the same error as 2048 at 3.7 s (README) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
@@ -1249,7 +1252,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
    f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
    GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
-   cache; off by default, and off costs nothing). */
+   cache; off by default, and off costs nothing); for CLUSTERED and SSVP it replaces their
+   per-cluster paraboloid maps with one imperfect shadow map per VPL. */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -1406,8 +1410,8 @@ typedef struct gim_frame {
                                    their paraboloid maps, ISM is one map per VPL (not with no_visibility;
                                    their VPLs x ism_size^2 floats within one shader storage block) */
     uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
-    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384); at most
-                                   GIM_ISM_MAX_POINTS */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
+                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1431,6 +1435,10 @@ typedef struct gim_frame {
    position, normal and albedo at two bounces) -> second-bounce VPLs (gim_second_bounce_vpls)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade) -> the geometry-aware blur (gim_geometry_blur) into the indirect texture.
+   With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
+   per VPL of both bounces (gim_ism_render with the VPLs as caches; SSVP's second-bounce hits
+   first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
+   its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
    "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
@@ -10238,7 +10246,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim__vpl_settings s;
     uint32_t i, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
     gim_result r = GIM_OK;
-    uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
+    uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
     int warm, ism = f->visibility == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
