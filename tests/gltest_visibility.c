@@ -281,6 +281,73 @@ static void maps_are_the_twins(void **state) {
     GLTEST_END();
 }
 
+/* The VPL frame's maps are gim_ism_render's on the frame's VPLs (taken as caches, map i of VPL
+   i of o.vpls) and the points of the world triangles, pool 4 P; SSVP keeps one map per VPL of
+   both bounces. */
+static void vpl_maps_are_the_twins(void **state) {
+    scene_fx s;
+    gim_frame_outputs o;
+    gim_vpl *v;
+    gim_cache *c;
+    gim_twin_scene ts;
+    gim_ism_desc d;
+    float pos[MAX_Q * 2 * 9], alb[MAX_Q * 2 * 3], *pts, *cpu, *gpu;
+    uint32_t t, k, i, n, pool = 4 * 512, off = 0, lit = 0, lit2 = 0, texels = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.method = GIM_METHOD_SSVP;
+    s.fr.vpl_count = 256;
+    s.fr.second_bounce_vpls = 64;
+    s.fr.paraboloid_size = 32;
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.ism_size = 8;
+    s.fr.ism_points = 512;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    o = gim_outputs(s.f.ctx);
+    n = o.vpl_count;
+    assert_int_equal(n, 256 + 64);
+    assert_true(o.ism_maps != 0 && o.ism_size == 8);
+    v = (gim_vpl *)malloc(n * sizeof *v);
+    c = (gim_cache *)calloc(n, sizeof *c);
+    gltest_read_buffer(o.vpls, n * sizeof *v, v);
+    for (i = 0; i < n; ++i) {   /* an unlit VPL (zero normal) gets a stand-in; its map is not compared */
+        memcpy(c[i].position, v[i].position, 12);
+        memcpy(c[i].normal, v[i].normal, 12);
+        if (!(v[i].lit > 0.0f)) { c[i].normal[0] = c[i].normal[2] = 0.0f; c[i].normal[1] = 1.0f; }
+        c[i].area = 1.0f;
+        c[i].reflectance = 0.5f;
+    }
+    for (t = 0; t < s.r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) {
+            memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
+            alb[t * 3 + k] = 0.8f;
+        }
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s.r.quads * 2;
+    pts = (float *)malloc(pool * 32u);
+    assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
+    memset(&d, 0, sizeof d);
+    d.caches = c; d.cache_count = n; d.points = pts; d.point_count = pool;
+    d.size = 8; d.points_per_map = 512; d.scene_scale = o.scene_scale; d.env = s.f.env;
+    cpu = (float *)malloc((size_t)n * 64 * 4);
+    gpu = (float *)malloc((size_t)n * 64 * 4);
+    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    gltest_read_buffer(o.ism_maps, (size_t)n * 64 * 4, gpu);
+    for (i = 0; i < n; ++i) {
+        if (!(v[i].lit > 0.0f)) continue;
+        ++lit;
+        lit2 += i >= o.first_bounce_count;
+        for (k = 0; k < 64; ++k, ++texels) off += !(fabsf(gpu[i * 64 + k] - cpu[i * 64 + k]) <= 1e-4f * cpu[i * 64 + k]);
+    }
+    print_message("%u lit VPLs' maps (%u of the second bounce): %u of %u texels differ from the twin\n", lit, lit2, off,
+                  texels);
+    assert_true(lit > 50 && lit2 > 0);
+    assert_true(off <= texels / 200);
+    free(v); free(c); free(pts); free(cpu); free(gpu);
+    teardown(&s);
+    GLTEST_END();
+}
+
 /* Bad settings: refused with a message before any GL work. */
 static void bad_settings(void **state) {
     scene_fx s;
@@ -333,6 +400,7 @@ int main(void) {
         cmocka_unit_test(no_light_through_walls),
         cmocka_unit_test(vpl_methods_no_light_through_walls),
         cmocka_unit_test(maps_are_the_twins),
+        cmocka_unit_test(vpl_maps_are_the_twins),
         cmocka_unit_test(bad_settings),
     };
     int r;
