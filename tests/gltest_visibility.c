@@ -343,6 +343,17 @@ static void vpl_maps_are_the_twins(void **state) {
                   texels);
     assert_true(lit > 50 && lit2 > 0);
     assert_true(off <= texels / 200);
+    /* the buffer is shared: a LightSkin frame after it makes the caches' maps again, and a VPL
+       frame after that marks them as not the caches' */
+    assert_int_equal(s.f.ctx->ism_size, 0);
+    s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_size, 8);
+    assert_int_equal(gim_outputs(s.f.ctx).ism_size, 8);
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_size, 0);
+    assert_int_equal(s.f.ctx->ism_cluster_maps, 0);   /* one bounce: no clusters' maps */
     free(v); free(c); free(pts); free(cpu); free(gpu);
     teardown(&s);
     GLTEST_END();
