@@ -1088,10 +1088,19 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_MAX_POINTS 65536u
 #define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
 #define GIM_ISM_DEFAULT_POINTS 16384u
+#define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
+                                             (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
+                                             for the same error as 2048 at 3.7 s (README) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
+#define GIM_ISM_VPL_BIAS 0.01f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
+                                         wall of thickness t once the VPL is t / b away (0.15: 2 m of ground
+                                         lit through the 0.3 walls of tests/gltest_visibility.c; 0.01 there
+                                         leaves 0.4 % inside, and removes 0.3 % of an open corner's light,
+                                         tests/gltest_physics.c) */
+#define GIM_ISM_VPL_SLOPE 0.05f
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
 #define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
 
@@ -1159,6 +1168,15 @@ typedef struct gim_second_bounce_desc {
     const float *normal;            /* map_count * size^2 * 4: unit normal towards the origin */
     const float *albedo;            /* map_count * size^2 * 4: diffuse rgb */
     uint32_t vpl_count;             /* S: map m takes S / map_count VPLs, one more for m < S mod map_count */
+    const float *ism;               /* map_count * ism_size^2: each cluster's imperfect shadow map
+                                       (gim_ism_render with map m's origin and normal as a cache), or NULL.
+                                       A hit the map's own lookup does not see (gim_ism_visibility's, the
+                                       hit as the VAL) is an unlit VPL: the paraboloid map skips
+                                       everything within near_distance of its origin, so next to a wall
+                                       it finds the far side of the wall; the ISM has no such skip */
+    uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
+    float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
+    float scene_scale;              /* > 0 with ism (the maps' lift) */
     gim_env env;
 } gim_second_bounce_desc;
 
@@ -1191,6 +1209,13 @@ typedef struct gim_vpl_shade_desc {
                                        N / n_s (n_s: how many there are); 0 or 1: every VPL */
     float clamp_distance;           /* d_c (lengths), >= 0; 0: no clamping */
     float scene_scale;              /* > 0 */
+    const float *ism;               /* vpl_count * ism_size^2: one imperfect shadow map per VPL (Keller's instant
+                                       radiosity with Ritschel et al. 2008's maps): map i is gim_ism_render's for
+                                       VPL i taken as a cache (its position and normal), and V_i its hard
+                                       visibility by gim_ism_visibility's lookup with the receiver as the VAL;
+                                       NULL: none. Not with cluster (one visibility per VPL) */
+    uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
+    float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     gim_env env;
 } gim_vpl_shade_desc;
 
@@ -1258,7 +1283,8 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
    f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
    GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
-   cache; off by default, and off costs nothing). */
+   cache; off by default, and off costs nothing); for CLUSTERED and SSVP it replaces their
+   per-cluster paraboloid maps with one imperfect shadow map per VPL. */
 #ifndef GIMANY_NO_GL
 #ifdef __cplusplus
 extern "C" {
@@ -1363,13 +1389,19 @@ typedef enum gim_method {
                                        second-bounce VPLs; both bounces shade (bounces = 2 by default) */
 } gim_method;
 
-/* Visibility of the indirect light (DESIGN.md sec. 6c). */
+/* Visibility of the indirect light (DESIGN.md sec. 6c). The VPL methods (CLUSTERED, SSVP) have
+   their own exact visibility: DEFAULT and OFF keep it (one paraboloid depth map per cluster,
+   rendered from the triangles, soft PCSS lookups; gim_frame.no_visibility turns it off); ISM
+   replaces it with one imperfect shadow map per VPL. */
 typedef enum gim_visibility {
     GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
     GIM_VISIBILITY_OFF,             /* no pass, no memory */
     GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
                                        looked up per VAL in the proxy-light sum; made once per scene
-                                       change (mesh or instance), not per frame */
+                                       change (mesh or instance), not per frame. CLUSTERED, SSVP: one
+                                       per VPL, both bounces (Keller's instant radiosity with Ritschel's
+                                       maps), made every frame, hard visibility per VPL in the shading
+                                       instead of the clusters' paraboloid maps */
 } gim_visibility;
 
 /* Input of gim_update; zero means default. */
@@ -1431,10 +1463,12 @@ typedef struct gim_frame {
                                    flush (llvmpipe, even between timestamps) still charges it to
                                    its pass; it serialises the frame, for profiling only;
                                    other values: GIM_ERROR_OUT_OF_RANGE */
-    gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM */
+    gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
+                                   their paraboloid maps, ISM is one map per VPL (not with no_visibility;
+                                   their VPLs x ism_size^2 floats within one shader storage block) */
     uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
-    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384); at most
-                                   GIM_ISM_MAX_POINTS */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
+                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
@@ -1458,6 +1492,10 @@ typedef struct gim_frame {
    position, normal and albedo at two bounces) -> second-bounce VPLs (gim_second_bounce_vpls)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade) -> the geometry-aware blur (gim_geometry_blur) into the indirect texture.
+   With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
+   per VPL of both bounces (gim_ism_render with the VPLs as caches; SSVP's second-bounce hits
+   first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
+   its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
    mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
    "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
@@ -1535,7 +1573,8 @@ typedef struct gim_frame_outputs {
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
     /* visibility ISM (0 otherwise) */
-    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render) */
+    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render);
+                                   the VPL methods: vpl_count maps, map i of VPL i of vpls */
     uint32_t ism_size;
 } gim_frame_outputs;
 
@@ -5683,11 +5722,17 @@ static void gim__second_bounce_texel(uint32_t j, uint32_t s_m, uint32_t size, ui
     *y = fy < 0.0 ? 0u : fy >= (double)size ? size - 1u : (uint32_t)fy;
 }
 
+static void gim__ism_frame(const float *c, const float *normal, float lift, float o[3], gim_vec3 *t, gim_vec3 *b,
+                           gim_vec3 *n);
+static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
+                              const float *x, const float *nl, float bias, float texel);
+
 GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out) {
     static const char where[] = "gim_second_bounce_vpls";
     const gim_env *env = desc ? &desc->env : NULL;
-    uint32_t m, j;
+    uint32_t m, j, isz = 0;
     size_t texels;
+    float ibias = 0.0f, itexel = 0.0f;
     if (!desc || !out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
     if (!desc->maps || !desc->position || !desc->normal || !desc->albedo)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "maps, position, normal or albedo is NULL");
@@ -5696,6 +5741,17 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
     if (desc->size > 65535u)
         return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "size %u above 65535", (unsigned)desc->size);
     texels = (size_t)desc->size * desc->size;
+    if (desc->ism) {
+        isz = desc->ism_size ? desc->ism_size : GIM_ISM_DEFAULT_SIZE;
+        if (isz < GIM_ISM_MIN_SIZE || isz > GIM_ISM_MAX_SIZE || (isz & (isz - 1u)) || !gim__isfinitef(desc->ism_bias) ||
+            desc->ism_bias < 0.0f || desc->ism_bias > 1.0f || !gim__isfinitef(desc->ism_slope) || desc->ism_slope < 0.0f ||
+            desc->ism_slope > 64.0f || !gim__isfinitef(desc->scene_scale) || !(desc->scene_scale > 0.0f))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where,
+                             "ism: ism_size a power of two in %u..%u, ism_bias in [0, 1], ism_slope in [0, 64], "
+                             "scene_scale > 0", GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+        ibias = desc->ism_bias > 0.0f ? desc->ism_bias : GIM_ISM_BIAS;
+        itexel = (desc->ism_slope > 0.0f ? desc->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)isz;
+    }
     for (m = 0; m < desc->map_count; ++m) {
         const gim_paraboloid *p = &desc->maps[m];
         gim_vec3 t, b, n;
@@ -5730,6 +5786,13 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
                 v->position[i] = hp[i];
                 v->normal[i] = hn[i];
                 v->flux[i] = gim__clamp_flt((double)ha[i] * p->flux[i] * scale);
+            }
+            if (desc->ism) {   /* the hit as the cluster's own ISM sees it */
+                float o[3];
+                gim_vec3 it, ib, in;
+                gim__ism_frame(p->origin, p->normal, GIM_ISM_LIFT * desc->scene_scale, o, &it, &ib, &in);
+                if (gim__ism_visible(desc->ism + (size_t)m * isz * isz, isz, o, it, ib, in, hp, hn, ibias, itexel) == 0.0f)
+                    memset(v, 0, sizeof *v);
             }
         }
     }
@@ -5979,12 +6042,14 @@ static gim_result gim__ism_check(const gim_ism_desc *d, const char *fn, int poin
     return GIM_OK;
 }
 
-/* Map m's frame: origin (c + lift n), t, b, n, in float as ism.comp. */
-static void gim__ism_frame(const gim_cache *c, float lift, float o[3], gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
+/* A map's frame from its cache's (or VPL's) position c and normal: origin (c + lift n), t, b,
+   n, in float as ism.comp. */
+static void gim__ism_frame(const float *c, const float *normal, float lift, float o[3], gim_vec3 *t, gim_vec3 *b,
+                           gim_vec3 *n) {
     int a;
-    *n = gim_v3(c->normal[0], c->normal[1], c->normal[2]);
+    *n = gim_v3(normal[0], normal[1], normal[2]);
     gim_basis(*n, t, b);
-    for (a = 0; a < 3; ++a) o[a] = c->position[a] + lift * c->normal[a];
+    for (a = 0; a < 3; ++a) o[a] = c[a] + lift * normal[a];
 }
 
 /* The texel of direction d (unnormalised, length dist > 0) on a size^2 map of frame (t, b, n);
@@ -6107,7 +6172,7 @@ GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_o
         uint32_t off = gim__ism_offset(m, stride);
         size_t q;
         for (q = 0; q < (size_t)size * size; ++q) map[q] = GIM_PARABOLOID_EMPTY;
-        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
+        gim__ism_frame(desc->caches[m].position, desc->caches[m].normal, lift, o, &t, &b, &n);
         for (k = 0; k < n_take; ++k) {
             const float *p = desc->points + (size_t)(off + k * stride) * 8;
             gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
@@ -6116,6 +6181,33 @@ GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_o
     }
     gim__free(&desc->env, scratch);
     return GIM_OK;
+}
+
+/* The lookup of gim_ism_visibility: 1 or 0, receiver x with normal nl through one map of frame
+   (o, t, b, n); texel = slope 2 / size. Also each VPL's own map in gim_vpl_shade. */
+static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
+                              const float *x, const float *nl, float bias, float texel) {
+    float d[3], dist, z, cl, tn;
+    int32_t tx;
+    d[0] = x[0] - o[0]; d[1] = x[1] - o[1]; d[2] = x[2] - o[2];
+    dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    tx = dist > 0.0f ? gim__ism_texel(d, dist, t, b, n, size) : -1;
+    if (tx >= 0) {
+        float dref = dist, dir[3], den;
+        z = map[tx];
+        gim__ism_texel_ray(tx, size, t, b, n, dir);
+        den = dir[0] * nl[0] + dir[1] * nl[1] + dir[2] * nl[2];
+        if (den >= 1e-3f || den <= -1e-3f) {    /* the receiver's plane along the texel's ray */
+            float s_ = (d[0] * nl[0] + d[1] * nl[1] + d[2] * nl[2]) / den;
+            if (s_ > 0.0f && s_ < 2.0f * dist) dref = s_;
+        }
+        cl = -(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) / dist;   /* cos theta_l */
+        cl = cl < 0.0f ? -cl : cl;
+        tn = cl * GIM_ISM_MAX_TAN > sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) ? sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) / cl
+                                                                            : GIM_ISM_MAX_TAN;
+        if (z < GIM_PARABOLOID_EMPTY && dref > z + dist * (bias + texel * tn)) return 0.0f;
+    }
+    return 1.0f;
 }
 
 GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
@@ -6134,31 +6226,10 @@ GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *
         const float *map = distance + (size_t)m * size * size;
         float o[3];
         gim_vec3 t, b, n;
-        gim__ism_frame(desc->caches + m, lift, o, &t, &b, &n);
-        for (j = 0; j < val_count; ++j) {
-            const float *x = vals[j].position, *nl = vals[j].normal;
-            float d[3], dist, z, v = 1.0f, cl, tn;
-            int32_t tx;
-            d[0] = x[0] - o[0]; d[1] = x[1] - o[1]; d[2] = x[2] - o[2];
-            dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-            tx = dist > 0.0f ? gim__ism_texel(d, dist, t, b, n, size) : -1;
-            if (tx >= 0) {
-                float dref = dist, dir[3], den;
-                z = map[tx];
-                gim__ism_texel_ray(tx, size, t, b, n, dir);
-                den = dir[0] * nl[0] + dir[1] * nl[1] + dir[2] * nl[2];
-                if (den >= 1e-3f || den <= -1e-3f) {    /* the VAL's plane along the texel's ray */
-                    float s_ = (d[0] * nl[0] + d[1] * nl[1] + d[2] * nl[2]) / den;
-                    if (s_ > 0.0f && s_ < 2.0f * dist) dref = s_;
-                }
-                cl = -(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) / dist;   /* cos theta_l */
-                cl = cl < 0.0f ? -cl : cl;
-                tn = cl * GIM_ISM_MAX_TAN > sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) ? sqrtf(1.0f - (cl < 1.0f ? cl * cl : 1.0f)) / cl
-                                                                                    : GIM_ISM_MAX_TAN;
-                if (z < GIM_PARABOLOID_EMPTY && dref > z + dist * (bias + texel * tn)) v = 0.0f;
-            }
-            out[(size_t)m * val_count + j] = v;
-        }
+        gim__ism_frame(desc->caches[m].position, desc->caches[m].normal, lift, o, &t, &b, &n);
+        for (j = 0; j < val_count; ++j)
+            out[(size_t)m * val_count + j] = gim__ism_visible(map, size, o, t, b, n, vals[j].position, vals[j].normal, bias,
+                                                              texel);
     }
     return GIM_OK;
 }
@@ -6196,6 +6267,16 @@ static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "clamp_distance must be finite and >= 0");
     if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if (d->ism) {
+        uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
+        if (d->cluster) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism and cluster: one visibility per VPL");
+        if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism_size %u: a power of two in %u..%u", size,
+                             GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+        if (!gim__isfinitef(d->ism_bias) || d->ism_bias < 0.0f || d->ism_bias > 1.0f || !gim__isfinitef(d->ism_slope) ||
+            d->ism_slope < 0.0f || d->ism_slope > 64.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism_bias in [0, 1] and ism_slope in [0, 64]");
+    }
     if (d->cluster) {
         if (!d->maps || !d->distance || d->map_count == 0 || d->map_size == 0 || d->map_size > 65536u)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cluster needs maps, distance, map_count > 0 and map_size 1..65536");
@@ -6273,7 +6354,14 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
         cl = v->normal[0] * ox + v->normal[1] * oy + v->normal[2] * oz;
         cx = -(rc->normal[0] * ox + rc->normal[1] * oy + rc->normal[2] * oz);
         if (!(cl > 0.0f) || !(cx > 0.0f)) continue;
-        if (d->cluster && d->cluster[i] != UINT32_MAX) {
+        if (d->ism) {   /* VPL i's own map, hard visibility (gim_ism_visibility's lookup) */
+            uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
+            float o[3], bias = d->ism_bias > 0.0f ? d->ism_bias : GIM_ISM_BIAS;
+            float texel = (d->ism_slope > 0.0f ? d->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)size;
+            gim_vec3 t, b, n;
+            gim__ism_frame(v->position, v->normal, GIM_ISM_LIFT * d->scene_scale, o, &t, &b, &n);
+            vv = gim__ism_visible(d->ism + (size_t)i * size * size, size, o, t, b, n, rc->position, rc->normal, bias, texel);
+        } else if (d->cluster && d->cluster[i] != UINT32_MAX) {
             uint32_t m = d->cluster[i];
             if (vis[m] < 0.0f)
                 vis[m] = gim__paraboloid_vis(d->distance + (size_t)m * d->map_size * d->map_size, d->map_size, d->maps + m,
@@ -7188,8 +7276,10 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
-    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' maps and the scene's points */
+    gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' (or VPLs') maps and the scene's points */
     uint64_t ism_maps_bytes, ism_points_bytes, ism_version;
+    gim__GLuint ism_cluster_maps;      /* SSVP's second bounce with ISM: one map per cluster */
+    uint64_t ism_cluster_maps_bytes;
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
     uint64_t scene_version;       /* bumped when meshes or instances change */
@@ -7852,9 +7942,22 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
+                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
+                                        float scene_scale, gim__GLuint maps_out);
 static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                  gim__GLuint points, uint32_t point_count, uint32_t size,
                                                  uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
+    return gim__gl_ism_render_of(ctx, caches, 2u, cache_count, points, point_count, size, points_per_map, scene_scale,
+                                 maps_out);
+}
+
+/* ... with the maps' origins in any buffer of source_vec4s vec4 per map, the position in the
+   first, the normal in the second: 2 for gim_cache, 3 for gim_vpl (one map per VPL, Keller's
+   instant radiosity with Ritschel et al.'s maps; gim_ism_render on the VPLs taken as caches). */
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
+                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
+                                        float scene_scale, gim__GLuint maps_out) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -7880,7 +7983,7 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * source_vec4s * 16u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 4u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
@@ -7897,6 +8000,7 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
     gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
     gl->Uniform1f(5, GIM_ISM_SPLAT);
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
+    gl->Uniform1ui(7, source_vec4s);
     for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
         uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
         gl->Uniform1ui(0, first);
@@ -9513,11 +9617,11 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
 
 /* The ISM buffers: visibility off costs no memory. */
 static void gim__ism_release(gim_context *ctx) {
-    gim__GLuint b[2];
-    b[0] = ctx->ism_maps; b[1] = ctx->ism_points;
-    if (b[0] || b[1]) ctx->gl.DeleteBuffers(2, b);
-    ctx->ism_maps = ctx->ism_points = 0;
-    ctx->ism_maps_bytes = ctx->ism_points_bytes = 0;
+    gim__GLuint b[3];
+    b[0] = ctx->ism_maps; b[1] = ctx->ism_points; b[2] = ctx->ism_cluster_maps;
+    if (b[0] || b[1] || b[2]) ctx->gl.DeleteBuffers(3, b);
+    ctx->ism_maps = ctx->ism_points = ctx->ism_cluster_maps = 0;
+    ctx->ism_maps_bytes = ctx->ism_points_bytes = ctx->ism_cluster_maps_bytes = 0;
     ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
     ctx->ism_version = 0;
 }
@@ -9833,6 +9937,10 @@ typedef struct gim__vpl_shade_args {
     uint32_t map_count;
     gim__GLuint distance;          /* R32F 2D array texture, map_size^2 x map_count (layer m: map m), or 0: no visibility */
     uint32_t map_size;
+    gim__GLuint ism;               /* SSBO: vpl_count ism_size^2 floats, VPL i's ISM (gim_vpl_shade_desc.ism), or 0;
+                                      not with cluster */
+    uint32_t ism_size;
+    float ism_bias, ism_slope;     /* as gim_vpl_shade_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     uint32_t interleave;           /* k (gim_vpl_shade_desc); 0 or 1: every VPL */
     float clamp_distance;          /* d_c, >= 0 */
     float scene_scale;             /* > 0 */
@@ -9847,7 +9955,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     static const char where[] = "VPL shading (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
-    int host = a->albedo == 0, vis = a->cluster != 0 && a->distance != 0;
+    int host = a->albedo == 0, vis = a->cluster != 0 && a->distance != 0, ism = a->ism != 0;
     uint32_t k = a->interleave > 1u ? a->interleave : 1u, members, chunk, first;
     gim_result r;
     if (a->width == 0 || a->height == 0 || !a->depth || !a->normal || !a->output)
@@ -9858,6 +9966,15 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     if (a->vpl_count > 0 && !a->vpls) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no VPL buffer");
     if (vis && (!a->maps || a->map_count == 0 || a->map_size == 0))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "visibility needs maps, map_count and map_size");
+    if (ism && (vis || a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u, or with "
+                         "cluster visibility", (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (ism && (!(a->ism_bias >= 0.0f && a->ism_bias <= 1.0f) || !(a->ism_slope >= 0.0f && a->ism_slope <= 64.0f)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM bias %g or slope %g out of range",
+                         (double)a->ism_bias, (double)a->ism_slope);
+    if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
+                         (unsigned)a->vpl_count, (unsigned)a->ism_size);
     if (!gim__isfinitef(a->clamp_distance) || !(a->clamp_distance >= 0.0f) || !gim__isfinitef(a->scene_scale) ||
         !(a->scene_scale > 0.0f))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance >= 0 and scene_scale > 0 must be finite");
@@ -9881,6 +9998,11 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vis ? a->maps : a->vpls);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, host ? a->vpls : ctx->materials);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, members > chunk ? ctx->vpl_partial : a->vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, ism ? a->ism : a->vpls);
+    gl->Uniform1ui(14, ism ? a->ism_size : 0u);
+    gl->Uniform1f(15, a->ism_bias > 0.0f ? a->ism_bias : GIM_ISM_BIAS);
+    gl->Uniform1f(16, ism ? (a->ism_slope > 0.0f ? a->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)a->ism_size : 0.0f);
+    gl->Uniform1f(17, GIM_ISM_LIFT * a->scene_scale);
     gl->Uniform1ui(4, a->vpl_count);
     gl->Uniform1ui(5, k);
     gl->Uniform1ui(8, a->map_size);
@@ -9892,7 +10014,8 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     first = 0;
     do {
         uint32_t n = members - first < chunk ? members - first : chunk;
-        uint32_t flags = (vis ? 1u : 0u) | (host ? 2u : 0u) | (first == 0u ? 4u : 0u) | (first + n >= members ? 8u : 0u);
+        uint32_t flags = (vis ? 1u : 0u) | (host ? 2u : 0u) | (first == 0u ? 4u : 0u) | (first + n >= members ? 8u : 0u) |
+                         (ism ? 16u : 0u);
         gl->Uniform2ui(6, first, first + n);
         gl->Uniform1ui(7, flags);
         gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
@@ -10232,10 +10355,23 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
    The texels are the twin's own (gim__second_bounce_texel), computed on the CPU and kept in
    ctx->para_samples while map_count, size and vpl_count stay the same. maps_ssbo: as for the
    maps (flux read). */
+static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count, uint32_t size,
+                                            uint32_t vpl_count, gim__GLuint vpls_out, uint32_t first, const gim__gl_ism *ism,
+                                            float scene_scale);
 static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count,
                                                     uint32_t size, uint32_t vpl_count, gim__GLuint vpls_out,
                                                     uint32_t first) {
+    return gim__gl_second_bounce_ism(ctx, maps_ssbo, map_count, size, vpl_count, vpls_out, first, NULL, 1.0f);
+}
+
+/* ... with each hit checked in its cluster's imperfect shadow map (ism->maps: map_count of
+   ism->size^2 floats, made from maps_ssbo's origins and normals; gim_second_bounce_desc.ism),
+   scene_scale > 0 their lift; ism NULL or ism->maps 0: none. */
+static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t map_count, uint32_t size,
+                                            uint32_t vpl_count, gim__GLuint vpls_out, uint32_t first, const gim__gl_ism *ism,
+                                            float scene_scale) {
     static const char where[] = "second-bounce VPLs (GL)";
+    int with_ism = ism && ism->maps;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3];
     gim_result r = GIM_OK;
@@ -10252,8 +10388,15 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
         (uint64_t)vpl_count * 16u > (uint64_t)ctx->max_ssbo_bytes || vpl_count > 65535u * 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs from %u exceed the SSBO or dispatch limits",
                          (unsigned)vpl_count, (unsigned)first);
+    if (with_ism && (ism->size < GIM_ISM_MIN_SIZE || ism->size > GIM_ISM_MAX_SIZE || (ism->size & (ism->size - 1u)) ||
+                     !(ism->bias >= 0.0f && ism->bias <= 1.0f) || !(ism->slope >= 0.0f && ism->slope <= 64.0f) ||
+                     !(scene_scale > 0.0f) || !gim__isfinitef(scene_scale)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u, bias %g, slope %g or scene_scale %g out of range",
+                         (unsigned)ism->size, (double)ism->bias, (double)ism->slope, (double)scene_scale);
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)map_count * 48u);
+    if (r == GIM_OK && with_ism)
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)map_count * ism->size * ism->size * 4u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, ((uint64_t)first + vpl_count) * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE, &program);
     if (r == GIM_OK && (!ctx->para_samples || ctx->para_key[0] != map_count || ctx->para_key[1] != size ||
@@ -10291,10 +10434,15 @@ static GIM__UNUSED gim_result gim__gl_second_bounce(gim_context *ctx, gim__GLuin
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->para_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls_out);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, with_ism ? ism->maps : maps_ssbo);   /* never read without */
     gl->UseProgram(program);
     gl->Uniform1ui(0, vpl_count);
     gl->Uniform1ui(1, first);
     gl->Uniform1ui(2, size);
+    gl->Uniform1ui(3, with_ism ? ism->size : 0u);
+    gl->Uniform1f(4, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
+    gl->Uniform1f(5, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
+    gl->Uniform1f(6, GIM_ISM_LIFT * scene_scale);
     gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -10432,9 +10580,11 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
-    uint32_t i, first, total, it, iterations;
+    uint32_t i, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
     gim_result r = GIM_OK;
-    int warm;
+    uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
+    uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
+    int warm, ism = f->visibility == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = s.vpls * ctx->light_count;
@@ -10480,16 +10630,58 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     v->warm_metric = r == GIM_OK ? 1u + (uint32_t)s.ssvp : 0u;
     gim__stamp(ctx, f->timing, GIM_PASS_KMEANS);
     if (r != GIM_OK) return r;
-    /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility, attributes for the second bounce */
-    if (s.visibility || s.second) {
+    /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility (not with ISMs), attributes
+       for the second bounce */
+    if ((s.visibility && !ism) || s.second) {
         r = gim__gl_paraboloids(ctx, v->maps, s.clusters, s.size, s.second > 0u, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else {
         gim__paraboloid_release(ctx, 1);
     }
+    if (r == GIM_OK && ism) {
+        /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
+           only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
+           this one makes its caches' again: ism_size 0 says they are not theirs) */
+        if (!ctx->ism_points || ctx->ism_version != ctx->scene_version || ctx->ism_point_count != ism_pool) {
+            ctx->ism_version = ctx->scene_version - 1u;
+            r = gim__gl_ism_scene_points(ctx, ism_pool, where);
+            if (r == GIM_OK) { ctx->ism_version = ctx->scene_version; ctx->ism_point_count = ism_pool; }
+        }
+        ctx->ism_size = 0;
+    }
     if (r == GIM_OK && s.second) {
-        r = gim__gl_second_bounce(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first);
+        gim__gl_ism gi;
+        memset(&gi, 0, sizeof gi);
+        if (ism) {   /* each cluster's ISM: the hits its paraboloid map found past its near skip, checked */
+            r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
+                               (uint64_t)s.clusters * ism_size * ism_size * 4u, where);
+            if (r == GIM_OK)
+                r = gim__gl_ism_render_of(ctx, v->maps, 3u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
+                                          scale, ctx->ism_cluster_maps);
+            gi.maps = ctx->ism_cluster_maps;
+            gi.size = ism_size;
+            gi.bias = GIM_ISM_VPL_BIAS;
+            gi.slope = GIM_ISM_VPL_SLOPE;
+        }
+        if (r == GIM_OK) r = gim__gl_second_bounce_ism(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first, &gi, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
+    }
+    if (r == GIM_OK && ism) {
+        /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
+           Ritschel et al.'s maps), every frame: the VPLs move with the light. Their time is
+           GIM_PASS_PARABOLOID's. */
+        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 4u, where);
+        if (r == GIM_OK)
+            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, ism_pool, ism_size, ism_per, scale,
+                                      ctx->ism_maps);
+        gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
+    } else if (!ism && (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps)) {
+        gim__ism_release(ctx);
+    }
+    if (r == GIM_OK && ism && !s.second && ctx->ism_cluster_maps) {
+        ctx->gl.DeleteBuffers(1, &ctx->ism_cluster_maps);
+        ctx->ism_cluster_maps = 0;
+        ctx->ism_cluster_maps_bytes = 0;
     }
     if (r != GIM_OK) return r;
     /* shading (Dong 6; SSVP eq. 6 with each bounce's own normalisation), then the blur */
@@ -10512,10 +10704,14 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.proj = f->proj;
         a.vpls = v->vpls;
         a.vpl_count = total;
-        a.cluster = s.visibility ? v->cluster_of : 0u;
+        a.cluster = s.visibility && !ism ? v->cluster_of : 0u;
         a.maps = v->maps;
         a.map_count = s.clusters;
-        a.distance = s.visibility ? ctx->para_distance : 0u;
+        a.distance = s.visibility && !ism ? ctx->para_distance : 0u;
+        a.ism = ism ? ctx->ism_maps : 0u;
+        a.ism_size = ism_size;
+        a.ism_bias = GIM_ISM_VPL_BIAS;
+        a.ism_slope = GIM_ISM_VPL_SLOPE;
         a.map_size = s.size;
         a.interleave = s.interleave;
         a.clamp_distance = s.clamp_distance * scale;
@@ -10558,6 +10754,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     o->paraboloid_position = ctx->para_position;
     o->paraboloid_normal = ctx->para_normal;
     o->paraboloid_albedo = ctx->para_albedo;
+    o->ism_maps = ism ? ctx->ism_maps : 0u;
+    o->ism_size = ism ? ism_size : 0u;
     return GIM_OK;
 }
 
@@ -10651,6 +10849,18 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
     if (f->ism_points > GIM_ISM_MAX_POINTS)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
                          GIM_ISM_MAX_POINTS);
+    if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
+        gim__vpl_settings s;
+        gim__vpl_settings_of(f, &s);
+        if (f->no_visibility)
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
+        caches = (uint64_t)s.vpls * (ctx->light_count ? ctx->light_count : 1u) + s.second;
+        if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                             "%llu VPLs' ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): fewer VPLs or "
+                             "a smaller ism_size", (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+        return GIM_OK;
+    }
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,

@@ -1,5 +1,5 @@
 /* Imperfect shadow maps (Ritschel et al. 2008), the GPU twin of gim_ism_render: one work group
-   per cache's map, the map and its pull-push pyramid in shared memory. Each invocation splats
+   per map (a cache's, or a VPL's), the map and its pull-push pyramid in shared memory. Each invocation splats
    the points k = local, local + GROUP, ... of the map's subset (offset + k stride) as surfels
    (atomicMin on the distance's bits: a positive float orders as its bits), then the pyramid
    is pulled (farthest non-empty child) and pushed (holes take the parent), level by level.
@@ -9,9 +9,10 @@
 #define PYRAMID 1365                  /* 32^2 + 16^2 + ... + 1 */
 layout(local_size_x = GROUP) in;
 
-struct Cache { vec4 position_area; vec4 normal_reflectance; };   /* gim_cache */
 struct Point { vec4 position_area; vec4 normal; };                /* gim_ism_points */
-layout(std430, binding = 0) readonly buffer Caches { Cache cache[]; };
+/* the maps' origins: gim_cache (2 vec4: position, normal) or gim_vpl (3 vec4: position,
+   normal, flux), source_vec4s apart */
+layout(std430, binding = 0) readonly buffer Sources { vec4 source[]; };
 layout(std430, binding = 1) readonly buffer Points { Point point[]; };
 layout(std430, binding = 2) writeonly buffer Maps { float map_out[]; };
 
@@ -22,6 +23,7 @@ layout(location = 3) uniform uint count;       /* P: points per map */
 layout(location = 4) uniform float lift;       /* GIM_ISM_LIFT scene_scale */
 layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
 layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
+layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 
 const float EMPTY = 3.0e38;
 const float PI = 3.14159265358979323846;
@@ -106,9 +108,9 @@ void main() {
     uint texels = size * size;
     for (uint q = local; q < texels; q += uint(GROUP)) level0[q] = floatBitsToUint(EMPTY);
     barrier();
-    vec3 n = cache[m].normal_reflectance.xyz, t, b;
+    vec3 n = source[m * source_vec4s + 1u].xyz, t, b;
     basis(n, t, b);
-    vec3 c = cache[m].position_area.xyz;
+    vec3 c = source[m * source_vec4s].xyz;
     vec3 o = vec3(c.x + lift * n.x, c.y + lift * n.y, c.z + lift * n.z);
     /* the map's offset frac(m phi) stride, as gim__ism_offset */
     uint hi, lo;

@@ -35,13 +35,23 @@ layout(location = 3) uniform vec4 eye;          /* perspective: (position, 1); o
 layout(location = 4) uniform uint vpl_count;    /* N */
 layout(location = 5) uniform uint k;            /* interleave, >= 1 */
 layout(location = 6) uniform uvec2 range;       /* members [first, last) of the pixel's subset this dispatch */
-layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last */
+layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last; 16: ISM */
 layout(location = 8) uniform uint map_size;
 layout(location = 9) uniform float near_;       /* 1e-6 scene_scale */
 layout(location = 10) uniform float dc2;        /* clamp distance squared */
 layout(location = 11) uniform uint material_count;
 layout(location = 12) uniform float max_value;  /* largest value of the output format */
 layout(location = 13) uniform uint map_count;   /* a cluster index beyond it is unshadowed */
+
+/* flags & 16: each VPL's own imperfect shadow map (Ritschel et al. 2008) instead of its
+   cluster's, map i of VPL i, hard visibility: gim_ism_visibility's lookup with the receiver as
+   the VAL, its float steps in its order (the twin: gim_vpl_shade's ism) */
+layout(std430, binding = 5) readonly buffer IsmMaps { float ism[]; };
+layout(location = 14) uniform uint ism_size;
+layout(location = 15) uniform float ism_bias;
+layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
+layout(location = 17) uniform float ism_lift;   /* GIM_ISM_LIFT scene_scale */
+const float ISM_MAX_TAN = 8.0;
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -135,6 +145,49 @@ float visibility(uint m, vec3 x, vec3 nx) {
     return float(open) / float(TAPS);
 }
 
+/* VPL i's ISM, seen from x (normal nx): 1 or 0 (gim__ism_visible) */
+float ism_visibility(uint i, vec3 c, vec3 nv, vec3 x, vec3 nl) {
+    precise vec3 n = nv;
+    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;          /* gim_basis (Duff et al. 2017) */
+    precise float a = -1.0 / (sg + n.z);
+    precise float k_ = n.x * n.y * a;
+    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * k_, -sg * n.x);
+    precise vec3 b = vec3(k_, sg + n.y * n.y * a, -n.y);
+    precise vec3 o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z);
+    precise vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
+    precise float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    if (!(dist > 0.0)) return 1.0;
+    precise float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
+    if (!(wz > 0.0)) return 1.0;
+    precise float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
+    precise float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
+    precise float fs = float(ism_size);
+    precise float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
+    precise float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
+    int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
+    int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
+    int tx = iy * int(ism_size) + ix;
+    float z = ism[i * ism_size * ism_size + uint(tx)];
+    precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray, gim__ism_texel_ray */
+    precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
+    precise float r2 = u * u + v * v;
+    precise float q = 1.0 / (1.0 + r2);
+    precise vec3 w = vec3(2.0 * u * q, 2.0 * v * q, (1.0 - r2) * q);
+    precise vec3 dir = vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y,
+                            w.x * t.z + w.y * b.z + w.z * n.z);
+    precise float dref = dist;
+    precise float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
+    if (den >= 1e-3 || den <= -1e-3) {                    /* the receiver's plane along the texel's ray */
+        precise float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
+        if (s > 0.0 && s < 2.0 * dist) dref = s;
+    }
+    precise float cl = -(nl.x * d.x + nl.y * d.y + nl.z * d.z) / dist;
+    cl = cl < 0.0 ? -cl : cl;
+    precise float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
+    precise float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
+    return z < EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
+}
+
 /* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n));
    half_ (the Feistel halves' bits, scramble_bits(n)) is computed once per invocation */
 uint scramble_bits(uint n) {
@@ -209,7 +262,8 @@ void main() {
         precise float cx = -(nx.x * ox + nx.y * oy + nx.z * oz);
         if (!(cl > 0.0) || !(cx > 0.0)) continue;
         precise float vv = 1.0;
-        if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
+        if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
+        else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;

@@ -105,6 +105,54 @@ static void maps_match(void **state) {
     GLTEST_END();
 }
 
+/* One map per VPL (the VPL methods' visibility): ism.comp reads its origins from a gim_vpl
+   buffer (3 vec4 apart) as from the caches; the maps are gim_ism_render's on the VPLs taken
+   as caches. */
+static void maps_of_vpls_match(void **state) {
+    gltest_fixture f;
+    ism_scene s;
+    gim_ism_desc d;
+    gim_vpl vpls[NC];
+    uint32_t n = 16, per = 1024, q, off = 0, i;
+    size_t texels = (size_t)NC * n * n;
+    float *cpu = (float *)malloc(texels * 4), *gpu = (float *)malloc(texels * 4);
+    GLuint bv, bp, bm;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_scene(&s);
+    memset(vpls, 0, sizeof vpls);
+    for (i = 0; i < NC; ++i) {
+        memcpy(vpls[i].position, s.caches[i].position, 12);
+        memcpy(vpls[i].normal, s.caches[i].normal, 12);
+        vpls[i].lit = 1.0f;
+        vpls[i].flux[0] = vpls[i].flux[1] = vpls[i].flux[2] = 0.25f;
+    }
+    bv = gltest_ssbo(sizeof vpls, vpls);
+    bp = gltest_ssbo(NP * 32u, s.points);
+    bm = gltest_ssbo(texels * 4, NULL);
+    memset(&d, 0, sizeof d);
+    d.caches = s.caches; d.cache_count = NC; d.points = s.points; d.point_count = NP;
+    d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
+    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    gim__gl_enter(f.ctx, "test");
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
+    /* a buffer too small for NC VPLs of 48 bytes is refused */
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bp, 3u, NP * 2u / 3u + 1u, bp, NP, n, per, 6.0f, bm),
+                     GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
+    f.log.errors = 0;
+    gltest_read_buffer(bm, texels * 4, gpu);
+    for (q = 0; q < texels; ++q) off += !(fabsf(gpu[q] - cpu[q]) <= 1e-4f * cpu[q]);
+    print_message("%u VPLs' maps of %u^2: %u of %zu texels differ from the twin\n", NC, n, off, texels);
+    assert_true(off <= texels / 200u);
+    gltest_state_unchanged(&f);
+    glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bp); glDeleteBuffers(1, &bm);
+    free(cpu); free(gpu); free(s.points);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* Proxy lights with the maps' visibility: the GPU pass against gim_proxy_lights with the twin's
    lookups of the same (GPU) maps; flux within 2e-4 of the largest, positions within 1e-4 of the
    scene, for all but 1 cache of 40 (a lookup on a texel border); and the plate must shadow:
@@ -195,6 +243,7 @@ static void bad_settings(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(maps_match),
+        cmocka_unit_test(maps_of_vpls_match),
         cmocka_unit_test(proxy_with_ism),
         cmocka_unit_test(bad_settings),
     };

@@ -462,6 +462,74 @@ static void second_bounce_matches_twin(void **state) {
     GLTEST_END();
 }
 
+/* Second-bounce VPLs checked in their cluster's imperfect shadow map (SSVP with visibility
+   ISM): the map above the block skips 1.0 around its origin, so its paraboloid map finds the
+   floor beside and under the block's top; the cluster's ISM (no skip) sees the top and drops
+   those hits. The GPU against the twin on the same maps: the same VPLs lit, bit for bit. */
+static void second_bounce_ism_matches_twin(void **state) {
+    enum { IS = 16, NPT = 8192, N = 400 };
+    scene s;
+    GLuint ssbo, out, bism;
+    gim_vpl *gpu = (gim_vpl *)malloc(N * sizeof(gim_vpl)), *cpu = (gim_vpl *)malloc(N * sizeof(gim_vpl));
+    gim_vpl *plain = (gim_vpl *)malloc(N * sizeof(gim_vpl));
+    gim_cache caches[NMAPS];
+    gim_ism_desc id;
+    gim_second_bounce_desc d;
+    gim__gl_ism gi;
+    float *pts = (float *)malloc(NPT * 32), *ism = (float *)malloc((size_t)NMAPS * IS * IS * 4), *pos, *nrm, *alb;
+    uint32_t i, lit = 0, lit_plain = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    s.maps[3].near_distance = 1.0f;
+    ssbo = gltest_ssbo(sizeof s.maps, s.maps);
+    assert_int_equal(gim__gl_paraboloids(s.f.ctx, ssbo, NMAPS, SIZE, 1, 2.0f), GIM_OK);
+    pos = read_array(s.f.ctx->para_position, GL_RGBA, 4); nrm = read_array(s.f.ctx->para_normal, GL_RGBA, 4);
+    alb = read_array(s.f.ctx->para_albedo, GL_RGBA, 4);
+    assert_int_equal(gim_ism_points(&s.twin, NPT, pts), GIM_OK);
+    memset(caches, 0, sizeof caches);
+    for (i = 0; i < NMAPS; ++i) {
+        memcpy(caches[i].position, s.maps[i].origin, 12);
+        memcpy(caches[i].normal, s.maps[i].normal, 12);
+        caches[i].area = 1.0f;
+        caches[i].reflectance = 0.5f;
+    }
+    memset(&id, 0, sizeof id);
+    id.caches = caches; id.cache_count = NMAPS; id.points = pts; id.point_count = NPT; id.size = IS;
+    id.points_per_map = NPT / 4; id.scene_scale = 2.0f; id.env = s.f.env;
+    assert_int_equal(gim_ism_render(&id, ism), GIM_OK);
+    bism = gltest_ssbo((size_t)NMAPS * IS * IS * 4, ism);
+    out = gltest_ssbo(N * sizeof(gim_vpl), NULL);
+    memset(&gi, 0, sizeof gi);
+    gi.maps = bism; gi.size = IS; gi.bias = GIM_ISM_VPL_BIAS; gi.slope = GIM_ISM_VPL_SLOPE;
+    gim__gl_enter(s.f.ctx, "test");
+    assert_int_equal(gim__gl_second_bounce_ism(s.f.ctx, ssbo, NMAPS, SIZE, N, out, 0, &gi, 2.0f), GIM_OK);
+    assert_int_equal(gim__gl_leave(s.f.ctx, GIM_OK), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    gltest_read_buffer(out, N * sizeof(gim_vpl), gpu);
+    memset(&d, 0, sizeof d);
+    d.maps = s.maps; d.map_count = NMAPS; d.size = SIZE; d.position = pos; d.normal = nrm; d.albedo = alb;
+    d.vpl_count = N; d.env = s.f.env;
+    assert_int_equal(gim_second_bounce_vpls(&d, plain), GIM_OK);
+    d.ism = ism; d.ism_size = IS; d.ism_bias = GIM_ISM_VPL_BIAS; d.ism_slope = GIM_ISM_VPL_SLOPE; d.scene_scale = 2.0f;
+    assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_OK);
+    for (i = 0; i < N; ++i) {
+        if (memcmp(&gpu[i], &cpu[i], 8 * sizeof(float)) != 0 || gpu[i].lit != cpu[i].lit)
+            fail_msg("VPL %u differs: lit %g/%g", i, (double)gpu[i].lit, (double)cpu[i].lit);
+        lit += cpu[i].lit == 1.0f;
+        lit_plain += plain[i].lit == 1.0f;
+    }
+    print_message("second bounce with the clusters' ISMs: %u lit VPLs of %u, %u without\n", lit, N, lit_plain);
+    assert_true(lit < lit_plain && lit > lit_plain / 2);
+    d.scene_scale = 0.0f;   /* refused: the maps' lift needs it */
+    assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_ERROR_INVALID_ARGUMENT);
+    s.f.log.errors = 0;
+    glDeleteBuffers(1, &ssbo); glDeleteBuffers(1, &out); glDeleteBuffers(1, &bism);
+    free(gpu); free(cpu); free(plain); free(pts); free(ism); free(pos); free(nrm); free(alb);
+    scene_end(&s);
+    GLTEST_END();
+}
+
 /* Bad arguments fail with a message and leave GL as it was; the second bounce needs maps with
    attributes of its size. */
 static void argument_errors(void **state) {
@@ -566,6 +634,7 @@ int main(void) {
         cmocka_unit_test(maps_far_and_small_units),
         cmocka_unit_test(small_triangles_match_twin),
         cmocka_unit_test(second_bounce_matches_twin),
+        cmocka_unit_test(second_bounce_ism_matches_twin),
         cmocka_unit_test(argument_errors),
         cmocka_unit_test(empty_scene_and_no_materials),
     };

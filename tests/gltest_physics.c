@@ -188,6 +188,54 @@ static void check_scene(phys_which which, double scale, const double *offset) {
 
 static const double origin[3] = {0.0, 0.0, 0.0};
 
+/* The VPL methods' imperfect shadow maps (one per VPL) on the open corners: nothing occludes,
+   so the maps must remove almost no light, on the floor and the wall up to their contact edge,
+   where a map's texels straddle both planes (false self-shadowing): the image's sum within 2%
+   of the same frame with no visibility at all, and no pixel darker by over 20%. */
+static void corner_ism_removes_nothing(void **state) {
+    static const phys_which which[2] = {PHYS_CORNER_SUN, PHYS_CORNER_SPOT};
+    int w, m;
+    (void)state;
+    GLTEST_BEGIN();
+    for (w = 0; w < 2; ++w) {
+        phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
+        frame_begin(p, which[w], 1.0, origin);
+        p->fr.vpl_count = 1024;
+        p->fr.interleave = 4;
+        p->fr.bounces = 1;
+        p->fr.ism_size = 16;
+        p->fr.ism_points = 1024;
+        for (m = 0; m < 2; ++m) {
+            float *none = (float *)malloc(W * H * 16), *ism = (float *)malloc(W * H * 16);
+            double sn = 0.0, si = 0.0;
+            uint32_t i, dark = 0, counted = 0;
+            p->fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+            p->fr.visibility = GIM_VISIBILITY_OFF;
+            p->fr.no_visibility = 1;
+            assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
+            gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, none);
+            p->fr.visibility = GIM_VISIBILITY_ISM;
+            p->fr.no_visibility = 0;
+            assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
+            gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, ism);
+            for (i = 0; i < W * H; ++i) {
+                double a = none[i * 4] + none[i * 4 + 1] + none[i * 4 + 2], b = ism[i * 4] + ism[i * 4 + 1] + ism[i * 4 + 2];
+                if (!(p->exact[i] > 0.01 * p->top)) continue;
+                sn += a; si += b; ++counted;
+                dark += b < 0.8 * a;
+            }
+            print_message("%-13s %-9s ISM per VPL: %.2f %% of the light removed, %u of %u pixels darker by over 20 %%\n",
+                          p->s.name, m ? "SSVP" : "clustered", 100.0 * (1.0 - si / sn), dark, counted);
+            assert_true(si >= 0.98 * sn && si <= 1.0001 * sn);
+            assert_true(dark == 0u);
+            free(none); free(ism);
+        }
+        frame_end(p);
+        free(p);
+    }
+    GLTEST_END();
+}
+
 /* Each cache carries its own surface's glossy lobe: the corner's floor k = 1 and wall k = 50,
    and every floor cache (normal +y) reads 1, every wall cache (+x) 50. */
 static void caches_take_their_material(void **state) {
@@ -276,6 +324,7 @@ int main(void) {
         cmocka_unit_test(corner_point),
         cmocka_unit_test(corner_scales),
         cmocka_unit_test(plates_and_patch),
+        cmocka_unit_test(corner_ism_removes_nothing),
         cmocka_unit_test(caches_take_their_material),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);

@@ -5,7 +5,9 @@
    must stay under 1% of the ground's radiance (the target) while it is over 5% without. Also: the maps
    gim_update made are gim_ism_render's on the same caches and points; they are made once and
    again only when an instance moves; bad settings are refused before any GL work; off keeps
-   no ISM buffer. */
+   no ISM buffer. The VPL methods with one ISM per VPL (clustered, SSVP with its second bounce)
+   meet the same target where their own per-cluster paraboloid maps leak 2-7%, and their maps
+   are gim_ism_render's on the frame's VPLs. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "room.h"
@@ -142,6 +144,76 @@ static void no_light_through_walls(void **state) {
     GLTEST_END();
 }
 
+/* The share of the drawn pixels whose indirect luminance is above frac of the ground's radiance. */
+static double above(scene_fx *s, double frac) {
+    gim_frame_outputs o = gim_outputs(s->f.ctx);
+    float *ind = (float *)malloc(W * H * 16), *nrm = (float *)malloc(W * H * 16);
+    double ground = 0.8 * 1.0 * (1.0 / sqrt(0.16 + 1.0 + 0.09)) / 3.14159265358979;
+    uint32_t i, n = 0, hi = 0;
+    gltest_read_texture(o.indirect, GL_RGBA, ind);
+    gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
+    for (i = 0; i < W * H; ++i)
+        if (nrm[i * 4 + 3] > 0.0f) {
+            ++n;
+            hi += 0.2126 * ind[i * 4] + 0.7152 * ind[i * 4 + 1] + 0.0722 * ind[i * 4 + 2] > frac * ground;
+        }
+    free(ind); free(nrm);
+    return (double)hi / n;
+}
+
+/* The VPL methods with one ISM per VPL (both bounces for SSVP): under 1% of the ground's
+   radiance inside on the mean, 99% of the pixels under 5%. Their own per-cluster paraboloid
+   maps (the default) leak more: a cluster's VAL spreads over the ground on both sides of a
+   wall, and one map from its centre cannot shadow the VPLs far from it. */
+static void vpl_methods_no_light_through_walls(void **state) {
+    scene_fx s;
+    int m;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.vpl_count = 4096;   /* the default; at 1024 clustered's own maps leak 0.3-0.5 % here */
+    s.fr.second_bounce_vpls = 128;
+    s.fr.paraboloid_size = 64;
+    for (m = 0; m < 2; ++m) {
+        double def, ism, ism_hi;
+        gim_stats st[2];
+        s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+        s.fr.visibility = GIM_VISIBILITY_OFF;
+        s.fr.timing = 2;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_int_equal(gim_frame_stats(s.f.ctx, &st[0]), GIM_OK);
+        def = inside(&s);
+        assert_int_equal(s.f.ctx->ism_maps, 0);
+        s.fr.visibility = GIM_VISIBILITY_ISM;
+        s.fr.ism_size = 16;
+        s.fr.ism_points = 1024;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_int_equal(gim_frame_stats(s.f.ctx, &st[1]), GIM_OK);
+        ism = inside(&s);
+        ism_hi = above(&s, 0.05);
+        print_message("%s: mean indirect inside / sunlit ground %.4f with the paraboloid maps, %.4f with one ISM per VPL "
+                      "(%.2f %% of the pixels above 5 %%); frames %.1f / %.1f ms, maps %.1f / %.1f ms\n",
+                      m ? "SSVP" : "clustered", def, ism, 100.0 * ism_hi, st[0].frame_ms, st[1].frame_ms,
+                      st[0].pass_ms[GIM_PASS_PARABOLOID], st[1].pass_ms[GIM_PASS_PARABOLOID]);
+        assert_true(ism < 0.01);
+        assert_true(ism_hi < 0.01);
+        assert_true(def > 0.01);   /* what the maps are for */
+        {
+            gim_frame_outputs o = gim_outputs(s.f.ctx);
+            assert_true(o.ism_maps != 0 && o.ism_size == 16);
+            assert_int_equal(o.paraboloid_distance != 0, m);   /* SSVP's second bounce still needs its maps */
+        }
+        s.fr.timing = 0;
+    }
+    gltest_state_unchanged(&s.f);
+    s.fr.visibility = GIM_VISIBILITY_OFF;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_maps, 0);   /* turned off: released */
+    assert_int_equal(s.f.ctx->ism_points, 0);
+    teardown(&s);
+    GLTEST_END();
+}
+
 /* The frame's maps are gim_ism_render's on the frame's caches (o.caches, grid order) and the
    points of the world triangles; made once while nothing moves, again when an instance moves. */
 static void maps_are_the_twins(void **state) {
@@ -201,6 +273,84 @@ static void maps_are_the_twins(void **state) {
     GLTEST_END();
 }
 
+/* The VPL frame's maps are gim_ism_render's on the frame's VPLs (taken as caches, map i of VPL
+   i of o.vpls) and the points of the world triangles, pool 4 P; SSVP keeps one map per VPL of
+   both bounces. */
+static void vpl_maps_are_the_twins(void **state) {
+    scene_fx s;
+    gim_frame_outputs o;
+    gim_vpl *v;
+    gim_cache *c;
+    gim_twin_scene ts;
+    gim_ism_desc d;
+    float pos[MAX_Q * 2 * 9], alb[MAX_Q * 2 * 3], *pts, *cpu, *gpu;
+    uint32_t t, k, i, n, pool = 4 * 512, off = 0, lit = 0, lit2 = 0, texels = 0;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.method = GIM_METHOD_SSVP;
+    s.fr.vpl_count = 256;
+    s.fr.second_bounce_vpls = 64;
+    s.fr.paraboloid_size = 32;
+    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.ism_size = 8;
+    s.fr.ism_points = 512;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    o = gim_outputs(s.f.ctx);
+    n = o.vpl_count;
+    assert_int_equal(n, 256 + 64);
+    assert_true(o.ism_maps != 0 && o.ism_size == 8);
+    v = (gim_vpl *)malloc(n * sizeof *v);
+    c = (gim_cache *)calloc(n, sizeof *c);
+    gltest_read_buffer(o.vpls, n * sizeof *v, v);
+    for (i = 0; i < n; ++i) {   /* an unlit VPL (zero normal) gets a stand-in; its map is not compared */
+        memcpy(c[i].position, v[i].position, 12);
+        memcpy(c[i].normal, v[i].normal, 12);
+        if (!(v[i].lit > 0.0f)) { c[i].normal[0] = c[i].normal[2] = 0.0f; c[i].normal[1] = 1.0f; }
+        c[i].area = 1.0f;
+        c[i].reflectance = 0.5f;
+    }
+    for (t = 0; t < s.r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) {
+            memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
+            alb[t * 3 + k] = 0.8f;
+        }
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s.r.quads * 2;
+    pts = (float *)malloc(pool * 32u);
+    assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
+    memset(&d, 0, sizeof d);
+    d.caches = c; d.cache_count = n; d.points = pts; d.point_count = pool;
+    d.size = 8; d.points_per_map = 512; d.scene_scale = o.scene_scale; d.env = s.f.env;
+    cpu = (float *)malloc((size_t)n * 64 * 4);
+    gpu = (float *)malloc((size_t)n * 64 * 4);
+    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    gltest_read_buffer(o.ism_maps, (size_t)n * 64 * 4, gpu);
+    for (i = 0; i < n; ++i) {
+        if (!(v[i].lit > 0.0f)) continue;
+        ++lit;
+        lit2 += i >= o.first_bounce_count;
+        for (k = 0; k < 64; ++k, ++texels) off += !(fabsf(gpu[i * 64 + k] - cpu[i * 64 + k]) <= 1e-4f * cpu[i * 64 + k]);
+    }
+    print_message("%u lit VPLs' maps (%u of the second bounce): %u of %u texels differ from the twin\n", lit, lit2, off,
+                  texels);
+    assert_true(lit > 50 && lit2 > 0);
+    assert_true(off <= texels / 200);
+    /* the buffer is shared: a LightSkin frame after it makes the caches' maps again, and a VPL
+       frame after that marks them as not the caches' */
+    assert_int_equal(s.f.ctx->ism_size, 0);
+    s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_size, 8);
+    assert_int_equal(gim_outputs(s.f.ctx).ism_size, 8);
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ism_size, 0);
+    assert_int_equal(s.f.ctx->ism_cluster_maps, 0);   /* one bounce: no clusters' maps */
+    free(v); free(c); free(pts); free(cpu); free(gpu);
+    teardown(&s);
+    GLTEST_END();
+}
+
 /* Bad settings: refused with a message before any GL work. */
 static void bad_settings(void **state) {
     scene_fx s;
@@ -225,7 +375,24 @@ static void bad_settings(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(s.f.log.errors, 6);
     s.f.log.errors = 0;
+    s.f.ctx->max_ssbo_bytes = 128 << 20;   /* GL 4.3's guaranteed block size, llvmpipe's */
+    /* the VPL methods: one map per VPL; 16384 VPLs of 64^2 are 256 MiB; 8192 fit */
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    s.fr.vpl_count = 16384;
+    s.fr.ism_size = 64;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    s.fr.method = GIM_METHOD_SSVP;   /* and the second bounce's VPLs count too */
+    s.fr.vpl_count = 8192;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    s.fr.ism_size = 48;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.ism_size = 16;
+    s.fr.no_visibility = 1;   /* no visibility, or ISMs: not both */
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(s.f.log.errors, 4);
+    s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ism_maps, 0);
+    assert_int_equal(s.f.ctx->ism_cluster_maps, 0);
     gltest_state_unchanged(&s.f);
     teardown(&s);
     GLTEST_END();
@@ -234,7 +401,9 @@ static void bad_settings(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(no_light_through_walls),
+        cmocka_unit_test(vpl_methods_no_light_through_walls),
         cmocka_unit_test(maps_are_the_twins),
+        cmocka_unit_test(vpl_maps_are_the_twins),
         cmocka_unit_test(bad_settings),
     };
     int r;

@@ -29,7 +29,7 @@ static void make_room(room *r, float L, const float o[3]) {
 
 /* --- the case ------------------------------------------------------------------------------- */
 
-enum { W = 80, H = 60, NV = 240, M = 3, S = 64 };
+enum { W = 80, H = 60, NV = 240, M = 3, S = 64, IS = 16, NP = 4096 };
 
 typedef struct shade_case {
     float L;                 /* room side */
@@ -37,7 +37,7 @@ typedef struct shade_case {
     uint32_t interleave;
     float clamp;             /* in L */
     uint32_t chunk;          /* ctx->vpl_chunk; 0: default */
-    int visibility;
+    int visibility;          /* 1: the clusters' paraboloid maps; 2: one ISM per VPL */
     int host;                /* the host's G-buffer: albedo 1, no glossy */
     gim__GLenum format;
     int probe;               /* also measure the visibility per map */
@@ -87,7 +87,8 @@ static void run_case(const shade_case *sc) {
     gim_view_sample *vs;
     gim_receiver *rec;
     int *surface;
-    GLuint b_vpls, b_cluster, b_maps, t_dist, t_out, t_blur;
+    GLuint b_vpls, b_cluster, b_maps, t_dist, t_out, t_blur, b_ism = 0;
+    float *ism = NULL;
     gim__vpl_shade_args a;
     gim__blur_args ba;
     gim_vec3 eye = gim_v3(o[0] + 0.5f * L, o[1] + 0.55f * L, o[2] + 1.9f * L);
@@ -142,6 +143,34 @@ static void run_case(const shade_case *sc) {
             cluster[i] = i % 4u < 3u ? mm : UINT32_MAX;
         }
     }
+    if (sc->visibility == 2) {   /* one ISM per VPL (gim_ism_render on the VPLs as caches) of the room's points */
+        gim_twin_scene ts;
+        gim_cache vc[NV];
+        gim_ism_desc idd;
+        float *pos = (float *)malloc((size_t)r.quads * 2 * 9 * 4), *alb3 = (float *)malloc((size_t)r.quads * 2 * 3 * 4);
+        float *pts = (float *)malloc((size_t)NP * 32);
+        uint32_t t, k;
+        for (t = 0; t < r.quads * 2; ++t)
+            for (k = 0; k < 3; ++k) {
+                memcpy(pos + t * 9 + k * 3, r.pos + r.idx[t * 3 + k] * 3, 12);
+                alb3[t * 3 + k] = 0.8f;
+            }
+        ts.positions = pos; ts.normals = NULL; ts.albedo = alb3; ts.triangle_count = r.quads * 2;
+        assert_int_equal(gim_ism_points(&ts, NP, pts), GIM_OK);
+        for (i = 0; i < NV; ++i) {
+            memcpy(vc[i].position, vpls[i].position, 12);
+            memcpy(vc[i].normal, vpls[i].normal, 12);
+            vc[i].area = 1.0f;
+            vc[i].reflectance = 0.5f;
+        }
+        memset(&idd, 0, sizeof idd);
+        idd.caches = vc; idd.cache_count = NV; idd.points = pts; idd.point_count = NP;
+        idd.size = IS; idd.points_per_map = NP / 4; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
+        ism = (float *)malloc((size_t)NV * IS * IS * 4);
+        assert_int_equal(gim_ism_render(&idd, ism), GIM_OK);
+        b_ism = gltest_ssbo((size_t)NV * IS * IS * 4, ism);
+        free(pos); free(alb3); free(pts);
+    }
     b_vpls = gltest_ssbo(sizeof vpls, vpls);
     b_cluster = gltest_ssbo(sizeof cluster, cluster);
     b_maps = gltest_ssbo(sizeof maps, maps);
@@ -162,8 +191,9 @@ static void run_case(const shade_case *sc) {
     a.albedo = sc->host ? 0u : out.gbuffer_albedo; a.material = sc->host ? 0u : out.gbuffer_material;
     a.width = W; a.height = H; a.view = fr.view; a.proj = fr.proj;
     a.vpls = b_vpls; a.vpl_count = NV;
-    a.cluster = sc->visibility ? b_cluster : 0u; a.maps = b_maps; a.map_count = M;
-    a.distance = sc->visibility ? t_dist : 0u; a.map_size = S;
+    a.cluster = sc->visibility == 1 ? b_cluster : 0u; a.maps = b_maps; a.map_count = M;
+    a.distance = sc->visibility == 1 ? t_dist : 0u; a.map_size = S;
+    a.ism = b_ism; a.ism_size = IS;
     a.interleave = sc->interleave; a.clamp_distance = sc->clamp * L; a.scene_scale = 1.7320508f * L;
     a.format = sc->format;
     memset(&ba, 0, sizeof ba);
@@ -201,7 +231,8 @@ static void run_case(const shade_case *sc) {
     }
     memset(&sd, 0, sizeof sd);
     sd.vpls = vpls; sd.vpl_count = NV;
-    sd.cluster = sc->visibility ? cluster : NULL; sd.maps = maps; sd.map_count = M; sd.distance = dist; sd.map_size = S;
+    sd.cluster = sc->visibility == 1 ? cluster : NULL; sd.maps = maps;
+    sd.ism = ism; sd.ism_size = IS; sd.map_count = M; sd.distance = dist; sd.map_size = S;
     sd.receivers = rec; sd.width = W; sd.height = H; sd.interleave = sc->interleave;
     sd.clamp_distance = a.clamp_distance; sd.scene_scale = a.scene_scale; sd.env = f.env;
     assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
@@ -224,6 +255,7 @@ static void run_case(const shade_case *sc) {
     }
     /* the test can fail: the twin without visibility (or with the other interleave) is far */
     sd.cluster = sc->visibility ? NULL : cluster;
+    sd.ism = NULL;
     assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
     cfail = compare(gpu, cpu, surface, pix_count, 1e-3);
     print_message("L %g k %u clamp %g chunk %u vis %d host %d fmt %s: %u pixels; shade max rel %.2e mean %.2e, %u (%.2f %%) "
@@ -290,6 +322,8 @@ static void run_case(const shade_case *sc) {
 
     glDeleteBuffers(1, &b_vpls); glDeleteBuffers(1, &b_cluster); glDeleteBuffers(1, &b_maps);
     glDeleteTextures(1, &t_dist); glDeleteTextures(1, &t_blur);
+    if (b_ism) glDeleteBuffers(1, &b_ism);
+    free(ism);
     free(dist); free(depth); free(nrm); free(alb); free(mat); free(gpu); free(gpu_blur); free(cpu); free(cpu_blur);
     free(cpu3); free(pixels); free(vs); free(rec); free(surface);
     gltest_fixture_end(&f);
@@ -315,6 +349,20 @@ static void vpl_shade_matches_twin(void **state) {
     run_case(&sc);
     sc.probe = 0;
     sc.L = 40.0f; sc.origin[0] = 3e3f; sc.origin[1] = -1e3f; sc.origin[2] = 2e3f;
+    run_case(&sc);
+    GLTEST_END();
+}
+
+/* One imperfect shadow map per VPL (Ritschel et al. 2008): hard visibility through the VPL's
+   own map, the GPU against gim_vpl_shade's ism on the room's points. */
+static void vpl_shade_ism_matches_twin(void **state) {
+    shade_case sc;
+    (void)state;
+    GLTEST_BEGIN();
+    memset(&sc, 0, sizeof sc);
+    sc.L = 4.0f; sc.interleave = 2; sc.clamp = 0.05f; sc.visibility = 2; sc.format = GL_RGBA32F;
+    run_case(&sc);
+    sc.L = 0.004f; sc.origin[0] = 0.3f; sc.origin[1] = -0.1f; sc.origin[2] = 0.2f; sc.interleave = 4; sc.chunk = 4;
     run_case(&sc);
     GLTEST_END();
 }
@@ -351,6 +399,7 @@ static void bad_arguments(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(vpl_shade_matches_twin),
+        cmocka_unit_test(vpl_shade_ism_matches_twin),
         cmocka_unit_test(bad_arguments),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);

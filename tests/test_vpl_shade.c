@@ -365,6 +365,65 @@ static void shade_uses_cluster_visibility(void **state) {
     assert_int_equal(st.live, 0);
 }
 
+/* One imperfect shadow map per VPL (gim_vpl_shade_desc.ism): a plate z = 1 over [-1, 1]^2
+   under a ceiling z = 2 hides the ceiling straight above a VPL at the origin and leaves it lit
+   beside the plate, exactly as much as without visibility; the VPL's map of the points of both
+   by gim_ism_render. (Without the ceiling the map's pull-push fills the sky with the plate's
+   depth: a receiver must lie on the scene the points sample.) */
+static void shade_uses_vpl_ism(void **state) {
+    enum { NPT = 4096, IS = 32 };
+    static float pts[NPT * 8], ism[IS * IS];
+    float pos[36] = {-1, -1, 1, 1, 1, 1, 1, -1, 1, -1, -1, 1, -1, 1, 1, 1, 1, 1,
+                     -4, -4, 2, 4, 4, 2, 4, -4, 2, -4, -4, 2, -4, 4, 2, 4, 4, 2}, alb[12];
+    test_alloc_stats st;
+    test_log lg;
+    gim_env env = test_env(&st, &lg);
+    gim_twin_scene ts;
+    gim_cache c;
+    gim_ism_desc id;
+    gim_vpl v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
+    gim_receiver r[2];
+    float out[6], ref[6];
+    int i;
+    (void)state;
+    for (i = 0; i < 12; ++i) alb[i] = 0.5f;
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = 4;
+    assert_int_equal(gim_ism_points(&ts, NPT, pts), GIM_OK);
+    memset(&c, 0, sizeof c);
+    c.normal[2] = 1.0f; c.area = 1.0f; c.reflectance = 0.5f;
+    memset(&id, 0, sizeof id);
+    id.caches = &c; id.cache_count = 1; id.points = pts; id.point_count = NPT; id.size = IS; id.scene_scale = 4.0f;
+    id.env = env;
+    assert_int_equal(gim_ism_render(&id, ism), GIM_OK);
+    r[0] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
+    r[1] = rec(gim_v3(3, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
+    {
+        gim_vpl_shade_desc d = shade_desc(&v, 1, r, 2, 1, env);
+        d.scene_scale = 4.0f;
+        assert_int_equal(gim_vpl_shade(&d, ref), GIM_OK);
+        d.ism = ism; d.ism_size = IS; d.ism_bias = GIM_ISM_VPL_BIAS; d.ism_slope = GIM_ISM_VPL_SLOPE;
+        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        for (i = 0; i < 3; ++i) {
+            assert_true(ref[i] > 0.0f && out[i] == 0.0f);   /* above the plate: shadowed */
+            assert_true(ref[3 + i] > 0.0f && out[3 + i] == ref[3 + i]);
+        }
+        d.ism_size = 24;   /* refused: not a power of two */
+        assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        d.ism_size = IS; d.ism_bias = 2.0f;
+        assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        d.ism_bias = 0.0f;
+        {   /* one visibility per VPL: the cluster's or its own map's, not both */
+            uint32_t cl = 0;
+            gim_paraboloid m = test_map(0.2f);
+            float dist[4] = {1, 1, 1, 1};
+            d.cluster = &cl; d.maps = &m; d.map_count = 1; d.distance = dist; d.map_size = 2;
+            assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        }
+    }
+    assert_int_equal(lg.errors, 3);
+    assert_int_equal(st.live, 0);
+}
+
 /* Blur: a constant image stays constant; a normal edge and a depth edge are not crossed;
    pixels without a surface are 0 and do not count. */
 static void blur_keeps_edges(void **state) {
@@ -594,6 +653,7 @@ int main(void) {
         cmocka_unit_test(visibility_near_exact),
         cmocka_unit_test(visibility_unit_free),
         cmocka_unit_test(shade_uses_cluster_visibility),
+        cmocka_unit_test(shade_uses_vpl_ism),
         cmocka_unit_test(blur_keeps_edges),
         cmocka_unit_test(blur_light_not_albedo),
         cmocka_unit_test(blur_undoes_interleaving),
