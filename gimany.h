@@ -11139,7 +11139,8 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_CLUSTERS;
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
-        if (s.visibility || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
+        if ((s.visibility && frame->visibility != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
+        if (frame->visibility == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;

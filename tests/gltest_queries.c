@@ -149,6 +149,8 @@ static void prepare_every_method(void **state) {
     prepared(GIM_METHOD_CLUSTERED, 0);
     prepared(GIM_METHOD_CLUSTERED, 2);
     prepared(GIM_METHOD_SSVP, 3);
+    prepared(GIM_METHOD_CLUSTERED, 1);
+    prepared(GIM_METHOD_SSVP, 1);
 }
 
 static void lightskin_brsm(void **state) { (void)state; frame_overheads(GIM_METHOD_LIGHTSKIN_BRSM); }
