@@ -533,9 +533,9 @@ GIMANY_API gim_result gim_importance_select(const double *column, const double *
 
 /* @section twins ========================================================================== */
 /* LightSkin cache lighting, CPU twins of its GPU passes (paper 000 sec. 3 "Cache Lighting",
-   "Proxy Lights Generation", "Interpolation using the Proxy Lights", "Occlusion"; sec. 4
-   eq. 13-15). Each function has the structure of its pass: one independent invocation per
-   cache (gim_proxy_lights, gim_proxy_occlusion) or per receiver pixel (gim_lightskin_shade),
+   "Proxy Lights Generation", "Interpolation using the Proxy Lights"; sec. 4 eq. 13-15).
+   Each function has the structure of its pass: one independent invocation per cache
+   (gim_proxy_lights) or per receiver pixel (gim_lightskin_shade),
    each a loop in a fixed order, so the results are deterministic.
 
    Units (DESIGN.md sec. 4): a VAL is an RSM texel, a Lambertian disk of area A_l with
@@ -570,9 +570,10 @@ typedef struct gim_val {
 /* One proxy light of a cache: three vec4. */
 typedef struct gim_proxy_light {
     float position[3];  /* x_p (eq. 5 / 13) */
-    float radius;       /* bounding sphere for occlusion: 2 max(sigma) (the AABB of extent 2 sigma) */
+    float radius;       /* extent of the light: 2 max(sigma) (the AABB of extent 2 sigma) */
     float flux[3];      /* Phi_p, rgb (eq. 7 with the guard below) */
-    float visibility;   /* 1 - occlusion, in [0,1]: written 1 by gim_proxy_lights, then by gim_proxy_occlusion */
+    float visibility;   /* in [0,1], scales the light where it is shaded; gim_proxy_lights writes 1 (visibility
+                           per VAL comes in through gim_proxy_desc.visibility) */
     float sigma[3];     /* weighted standard deviation of the VAL positions per world axis */
     float unused;       /* padding, 0 */
 } gim_proxy_light;
@@ -636,31 +637,12 @@ typedef struct gim_proxy_desc {
      D_p / floor (a glossy lobe narrower than the spread of the light around the mirror
      direction), never overestimated.
    With visibility, e_j (and its E_n term) is multiplied by V(c, x_j): a VAL the cache cannot
-   see neither lights nor places the proxy. visibility = 1 (the proxy light's field, for
-   gim_proxy_occlusion). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
+   see neither lights nor places the proxy. visibility = 1 (the proxy light's field). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
    weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
    (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
    or breaks the ranges above (the first offender is logged), k out of range. */
 GIMANY_API gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
                                        gim_proxy_light *glossy_out);
-
-/* Occlusion of the proxy lights (paper 000 "Occlusion"; Lensing and Broll 2013), one invocation
-   per target cache i looping over the other caches; writes lights[i].visibility in [0,1].
-   Projections onto the unit disk of cache i's tangent plane (the Nusselt analogue: a shape's
-   projected area there is pi times its form factor from c_i), each then made an axis-aligned
-   square of the same area centred on the projection of its centre (t, b of gim_basis(n_i)):
-     proxy light: sphere of centre x_p, radius r = lights[i].radius at distance D:
-                  F = (min(r / D, 1))^2 (n_i . omega_p)+
-     cache j:     disk of area a_j = caches[j].area, normal n_j, at distance d:
-                  F = a_j (n_i . omega_j)+ |n_j . omega_j| / (a_j + pi d^2) (two-sided, as eq. 3)
-   A cache blocks only where it lies strictly between: 1e-6 scene_scale < d < D - r (caches
-   inside the light's sphere or beyond are what emits it). occlusion = the sum over blockers of
-   the overlap of their square with the light's square, divided by the light's square's area,
-   clamped to 1 (overlapping blockers are counted twice: the paper's estimate). A point light
-   (r = 0) is occluded 1 when its centre falls inside a blocker's square. A light with zero
-   flux, below c_i's horizon or around c_i (D <= r) keeps visibility 1. O(C^2) per call. */
-GIMANY_API gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
-                                          gim_proxy_light *lights, float scene_scale, gim_env env);
 
 /* A receiver: a visible surface point (a G-buffer pixel) and its material. */
 typedef struct gim_receiver {
@@ -722,7 +704,6 @@ typedef struct gim_lightskin_desc {
     int glossy;                       /* 1: glossy proxy lights and the glossy term; 0: diffuse only */
     float glossy_exponent;
     const float *cache_glossy_exponent;
-    int occlusion;                    /* 1: gim_proxy_occlusion on both proxy light sets; 0: off */
     const gim_receiver *receivers;
     uint32_t receiver_count;
     const uint32_t *neighbour_index;
@@ -735,7 +716,7 @@ typedef struct gim_lightskin_desc {
 } gim_lightskin_desc;
 
 /* The whole CPU LightSkin frame, the twin of the GPU frame after the RSM (and selection):
-   gim_proxy_lights -> gim_proxy_occlusion (when on) -> gim_lightskin_shade. Allocates the
+   gim_proxy_lights -> gim_lightskin_shade. Allocates the
    proxy lights (cache_count, twice with glossy) through env and frees them before returning.
    radiance_out[receiver_count * 3]. */
 GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
@@ -1225,7 +1206,7 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
-   f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
+   and f.neighbour_count trade speed for accuracy at run time. f.visibility =
    GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
    cache; off by default, and off costs nothing). */
 #ifndef GIMANY_NO_GL
@@ -1338,7 +1319,6 @@ typedef struct gim_frame {
                                    bounds of the instances; else within 1e-3..1e3 of it */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
-    int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
     float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
@@ -1388,8 +1368,7 @@ typedef struct gim_frame {
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
    world triangles, read back from the meshes, pool 4 P; gim_ism_render) -> diffuse proxy lights
    per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility), glossy ones too when a material has a glossy colour (one lobe
-   exponent for all caches: the smallest of those materials, the widest lobe) -> occlusion
-   (when on) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
+   exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
@@ -1449,7 +1428,7 @@ typedef struct gim_frame_outputs {
     uint32_t cache_count;
     uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
     uint32_t val_count;
-    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light (visibility from occlusion) */
+    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light */
     uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
     float glossy_exponent;      /* the widest lobe of the glossy materials */
     uint32_t cache_exponents;   /* SSBO: float per cache, its material's k (the glossy proxy lights' lobes); 0 when
@@ -1487,7 +1466,6 @@ typedef enum gim_pass {
     GIM_PASS_CACHES,            /* caches to world space and the hash grid (CPU work + upload) */
     GIM_PASS_VALS,
     GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
-    GIM_PASS_OCCLUSION,
     GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading; the VPL methods' shading */
     GIM_PASS_VPLS,              /* VPLs from the RSMs */
     GIM_PASS_KMEANS,            /* k-means steps and the clusters' VALs */
@@ -4458,75 +4436,6 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
     return GIM_OK;
 }
 
-/* Overlap of two axis-aligned squares (centre, side) divided by the first's area; a first of
-   side 0 is a point: 1 inside the second, else 0. */
-static double gim__square_overlap(double ax, double ay, double as, double bx, double by, double bs) {
-    double ox, oy;
-    if (!(as > 0.0)) return (fabs(ax - bx) <= 0.5 * bs && fabs(ay - by) <= 0.5 * bs) ? 1.0 : 0.0;
-    ox = (ax + 0.5 * as < bx + 0.5 * bs ? ax + 0.5 * as : bx + 0.5 * bs) - (ax - 0.5 * as > bx - 0.5 * bs ? ax - 0.5 * as : bx - 0.5 * bs);
-    oy = (ay + 0.5 * as < by + 0.5 * bs ? ay + 0.5 * as : by + 0.5 * bs) - (ay - 0.5 * as > by - 0.5 * bs ? ay - 0.5 * as : by - 0.5 * bs);
-    if (!(ox > 0.0) || !(oy > 0.0)) return 0.0;
-    return ox * oy / (as * as);
-}
-
-GIMANY_DEF gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
-                                          gim_proxy_light *lights, float scene_scale, gim_env env) {
-    static const char fn[] = "gim_proxy_occlusion";
-    gim_result r;
-    uint32_t i, j;
-    double near_;
-    if (!caches || cache_count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
-    if (!lights) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "lights is NULL");
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
-    if ((r = gim__check_caches(&env, fn, caches, cache_count)) != GIM_OK) return r;
-    for (i = 0; i < cache_count; ++i)
-        if (!gim__all_finite(lights[i].position, 3) || !gim__all_finite(lights[i].flux, 3) ||
-            !gim__isfinitef(lights[i].radius) || !(lights[i].radius >= 0.0f))
-            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "light %u: not finite or negative radius", i);
-    near_ = (double)GIM__TWINS_COINCIDENT * scene_scale;
-    for (i = 0; i < cache_count; ++i) {
-        const gim_cache *c = caches + i;
-        gim_proxy_light *p = lights + i;
-        gim_vec3 n = gim_v3(c->normal[0], c->normal[1], c->normal[2]), t, b;
-        double o[3], dist, rr, cos_p, fs, px, py, ps, occ = 0.0;
-        int a;
-        p->visibility = 1.0f;
-        if (!(p->flux[0] > 0.0f || p->flux[1] > 0.0f || p->flux[2] > 0.0f)) continue;
-        for (a = 0; a < 3; ++a) o[a] = (double)p->position[a] - c->position[a];
-        dist = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
-        rr = p->radius;
-        if (!(dist > near_) || !(dist > rr)) continue;             /* the light surrounds the cache */
-        for (a = 0; a < 3; ++a) o[a] /= dist;
-        cos_p = n.x * o[0] + n.y * o[1] + n.z * o[2];
-        if (!(cos_p > 0.0)) continue;
-        gim_basis(n, &t, &b);
-        fs = (rr / dist) * (rr / dist) * cos_p;                     /* sphere form factor */
-        px = t.x * o[0] + t.y * o[1] + t.z * o[2];                  /* projection on the unit disk */
-        py = b.x * o[0] + b.y * o[1] + b.z * o[2];
-        ps = sqrt(GIM__PI * fs);                                    /* equal-area square */
-        for (j = 0; j < cache_count && occ < 1.0; ++j) {
-            const gim_cache *q = caches + j;
-            double u[3], d, ci, cj, fq, qs;
-            if (j == i) continue;
-            for (a = 0; a < 3; ++a) u[a] = (double)q->position[a] - c->position[a];
-            d = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-            if (!(d > near_) || !(d < dist - rr)) continue;         /* strictly between */
-            for (a = 0; a < 3; ++a) u[a] /= d;
-            ci = n.x * u[0] + n.y * u[1] + n.z * u[2];
-            if (!(ci > 0.0)) continue;
-            cj = fabs(q->normal[0] * u[0] + q->normal[1] * u[1] + q->normal[2] * u[2]);
-            fq = (double)q->area * ci * cj / ((double)q->area + GIM__PI * d * d);   /* disk form factor */
-            if (!(fq > 0.0)) continue;
-            qs = sqrt(GIM__PI * fq);
-            occ += gim__square_overlap(px, py, ps, t.x * u[0] + t.y * u[1] + t.z * u[2],
-                                       b.x * u[0] + b.y * u[1] + b.z * u[2], qs);
-        }
-        p->visibility = (float)(occ < 1.0 ? 1.0 - occ : 0.0);
-    }
-    return GIM_OK;
-}
-
 /* One proxy light set interpolated at x (eq. 8-9): the irradiance each neighbour's proxy
    light delivers at x, moved along with the surface point (at x + x_p,j - c_j), averaged with
    eq. 8's weights w'. For the glossy set the receiver's lobe is evaluated per neighbour, in
@@ -4705,11 +4614,6 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     sd.diffuse = lights;
     sd.glossy = desc->glossy ? lights + desc->cache_count : NULL;
     r = gim_proxy_lights(&pd, lights, desc->glossy ? lights + desc->cache_count : NULL);
-    if (r == GIM_OK && desc->occlusion) {
-        r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights, scale, desc->env);
-        if (r == GIM_OK && desc->glossy)
-            r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights + desc->cache_count, scale, desc->env);
-    }
     if (r == GIM_OK) r = gim_lightskin_shade(&sd, radiance_out);
     gim__free(env, lights);
     return r;
@@ -6901,7 +6805,6 @@ typedef enum gim__program_id {
     GIM__PROGRAM_VIEW_SAMPLES,       /* G-buffer at the Halton pixels -> view samples */
     GIM__PROGRAM_PROXY_LIGHTS,       /* LightSkin proxy lights per cache (eq. 3-7, 13-15) */
     GIM__PROGRAM_LIGHTSKIN_SHADE,    /* neighbours, interpolation (eq. 8-9) and shading per pixel */
-    GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
     GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
     GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
@@ -6928,7 +6831,6 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"view_samples.comp", NULL},
     {"proxy_lights.comp", NULL},
     {"lightskin_shade.comp", NULL},
-    {"proxy_occlusion.comp", NULL},
     {"rsm_gather.comp", NULL},
     {"vals_gather.comp", NULL},
     {"rsm_vpls.comp", NULL},
@@ -7017,7 +6919,7 @@ struct gim_context {
     size_t scan_blocks_bytes;
     gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache */
     uint64_t proxy_state_bytes;
-    uint32_t proxy_chunk;         /* VALs per proxy-light dispatch, caches per occlusion dispatch */
+    uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
     /* the scene (see "the scene" below) */
@@ -7550,7 +7452,7 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
 /* --- LightSkin passes (paper 000 sec. 3) --------------------------------------------------- */
 
 #define GIM__PROXY_GROUP 64u   /* TILE of proxy_lights.comp */
-/* VALs (caches for occlusion) per dispatch: under 65535 loop iterations per invocation, the
+/* VALs per dispatch: under 65535 loop iterations per invocation, the
    bound of Mesa's llvmpipe over all loops of one invocation (it stops them silently there),
    and short enough for a desktop GPU's watchdog */
 #define GIM__PROXY_CHUNK 32768u
@@ -7746,68 +7648,6 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
-
-/* Occlusion of the proxy lights on the GPU (paper 000 "Occlusion"), the twin of
-   gim_proxy_occlusion (same projections, squares, special cases and clamp; see there).
-   caches: SSBO of cache_count gim_cache (32 bytes; world space, unit normals), the blockers
-   and the targets. lights: SSBO of cache_count gim_proxy_light (48 bytes), light i the proxy
-   of cache i (gim__gl_proxy_lights' output); only .visibility is written, in [0,1].
-   scene_scale > 0 sets the 1e-6 scene_scale nearness of "strictly between". Cost O(C^2):
-   every cache against every cache (a cache whose light is occluded 1 stops early). In float,
-   not double: the overlap is taken centred on the light's square, so the float error is that
-   of the unit directions (~1e-7 on the unit disk) against the squares' sides; visibilities
-   agree with the twin to ~2e-6 (tests/gltest_occlusion.c, rooms of up to 2000 caches), except
-   where a blocker sits within float rounding of a threshold (d = D - r, d = 1e-6 scene_scale,
-   a point light on a square's edge): that blocker may count on one side and not the other.
-   A cache or light the twin rejects (not finite, negative area or radius) adds nothing as a
-   blocker and keeps visibility 1 as a target. Run it once per proxy light set (diffuse,
-   glossy). */
-static GIM__UNUSED gim_result gim__gl_proxy_occlusion(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
-                                                      gim__GLuint lights, float scene_scale) {
-    static const char where[] = "proxy occlusion (GL)";
-    const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0;
-    gim_result r;
-    if (!caches || !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
-    if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
-    if (caches == lights)
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is also the caches buffer");
-    if (cache_count > 65535u * GIM__PROXY_GROUP)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cache_count %u above %u", (unsigned)cache_count,
-                         65535u * GIM__PROXY_GROUP);
-    if ((uint64_t)cache_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
-                         "%u caches exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)cache_count,
-                         (long long)ctx->max_ssbo_bytes);
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
-                         (double)scene_scale);
-    gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lights", lights, (uint64_t)cache_count * 48u);
-    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PROXY_OCCLUSION, &program);
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, lights);
-    gl->UseProgram(program);
-    gl->Uniform1ui(0, cache_count);
-    gl->Uniform1f(1, GIM__TWINS_COINCIDENT * scene_scale);
-    {   /* the blockers in chunks of ctx->proxy_chunk, one dispatch each (see GIM__PROXY_CHUNK);
-           each goes on from the visibility the last one left */
-        uint32_t first = 0;
-        do {
-            uint32_t n = cache_count - first < ctx->proxy_chunk ? cache_count - first : ctx->proxy_chunk;
-            gl->Uniform1ui(2, first);
-            gl->Uniform1ui(3, n);
-            gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
-            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
-            first += n;
-        } while (first < cache_count);
-    }
-    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
-    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
-}
-
 
 /* The three RSM textures a pass reads (position, normal, flux as gim__gl_rsm writes them):
    each size x size and RGBA32F, for the passes that read them bit for bit as rgba32ui images.
@@ -8952,7 +8792,7 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
 
 /* --- the LightSkin frame (paper 000 sec. 3-4) ----------------------------------------------
    After the shared passes: caches to world space (CPU, gim_caches_to_world) sorted into a hash
-   grid -> the lights' VALs -> proxy lights -> occlusion (when on) -> per pixel neighbours,
+   grid -> the lights' VALs -> proxy lights -> per pixel neighbours,
    interpolation and shading into the indirect texture. */
 
 /* The indirect texture at width x height of format, made anew when either changes. */
@@ -9429,12 +9269,6 @@ vals:
                                  glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
-    if (f->occlusion) {
-        r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->diffuse, scale);
-        if (r == GIM_OK && glossy) r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->glossy, scale);
-        if (r != GIM_OK) return r;
-        gim__stamp(ctx, f->timing, GIM_PASS_OCCLUSION);
-    }
     /* the indirect texture, (re)made when its size or format changes */
     gim__gl_indirect_texture(ctx, f->width, f->height, format);
     memset(&sa, 0, sizeof sa);

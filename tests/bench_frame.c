@@ -147,7 +147,7 @@ static const bench_sweep *sw;
 static int W, H;
 
 static const char *const pass_names[GIM_PASS_COUNT] = {"rsm",  "gbuffer", "view_samples", "importance", "cumsum", "select",
-                                                       "caches", "vals", "proxy", "occlusion", "shade", "vpls",
+                                                       "caches", "vals", "proxy", "shade", "vpls",
                                                        "kmeans", "paraboloid", "second_bounce", "blur"};
 
 typedef struct measure {
