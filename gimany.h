@@ -1084,8 +1084,18 @@ typedef struct gim_ism_desc {
    coarser texel is the farthest of its non-empty children (the paper's mean lets a near
    occluder's depth into the holes around it: false shadow); push: an empty texel takes its
    parent's value, from the coarsest level down. A map no point reached stays empty (sees
-   nothing: visibility 1). Float arithmetic in the order of ism.comp. */
+   nothing: visibility 1). Float arithmetic in the order of ism.comp. Stored in 16 bits a
+   texel (the GPU packs two to a uint, so 64^2 maps of 16,000 caches fit a 128 MiB storage
+   block): the upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7
+   mantissa bits, relative error at most 2^-8, far below the bias); distance_out holds those
+   values as floats, bit for bit what the GPU's maps decode to. An empty texel stays
+   >= GIM_PARABOLOID_EMPTY. */
 GIMANY_API gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out);
+
+/* The 16-bit depth of an ISM texel: (bits of d + 0x8000) >> 16 for d >= 0 (ism.comp's
+   rounding); gim_ism_dequantize gives it back as a float (the bits shifted up). */
+GIMANY_API uint16_t gim_ism_quantize(float d);
+GIMANY_API float gim_ism_dequantize(uint16_t q);
 
 /* Visibility V(c, x_j) of every VAL from every cache through the maps (desc's caches, size,
    bias, slope, scene_scale; points unused): out[cache * val_count + j] in {0, 1}. 1 where x_j
@@ -1448,7 +1458,8 @@ typedef struct gim_frame_outputs {
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
     /* visibility ISM (0 otherwise) */
-    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render) */
+    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render), ism_size^2 16-bit depths,
+                                   two to a uint (texel 2k in the low half; gim_ism_dequantize) */
     uint32_t ism_size;
 } gim_frame_outputs;
 
@@ -1472,6 +1483,8 @@ typedef enum gim_pass {
     GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
     GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
     GIM_PASS_BLUR,              /* geometry-aware blur */
+    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps, in the frames that make them (a scene
+                                   change or a setting); their lookups are GIM_PASS_PROXY_LIGHTS' */
     GIM_PASS_COUNT
 } gim_pass;
 
@@ -5856,6 +5869,19 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     if (!own && dist < map[tx]) map[tx] = dist;         /* its own texel, where the ray misses */
 }
 
+GIMANY_DEF uint16_t gim_ism_quantize(float d) {
+    uint32_t u;
+    memcpy(&u, &d, 4);
+    return (uint16_t)((u + 0x8000u) >> 16);
+}
+
+GIMANY_DEF float gim_ism_dequantize(uint16_t q) {
+    uint32_t u = (uint32_t)q << 16;
+    float d;
+    memcpy(&d, &u, 4);
+    return d;
+}
+
 GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out) {
     static const char fn[] = "gim_ism_render";
     uint32_t size, per, m, k, stride, n_take;
@@ -5881,6 +5907,7 @@ GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_o
             gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
         }
         gim__ism_pull_push(map, size, scratch);
+        for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(map[q]));
     }
     gim__free(&desc->env, scratch);
     return GIM_OK;
@@ -7534,7 +7561,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
     if (r == GIM_OK && with_ism)
-        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 4u);
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 2u);
     if (r == GIM_OK && val_count > 0) r = gim__gl_check_buffer(ctx, where, "vals", vals, (uint64_t)val_count * 48u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
     if (r == GIM_OK && glossy_out)
@@ -7591,7 +7618,8 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
 /* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
    pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
-   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 floats,
+   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 16-bit
+   depths, two to a uint (texel 2k in the low half; gim_ism_quantize), size^2 / 2 uints a map,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
@@ -7615,7 +7643,7 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
     if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
                          (double)scene_scale);
-    if ((uint64_t)cache_count * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes ||
+    if ((uint64_t)cache_count * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes ||
         (uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%u maps of %u^2 or %u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
@@ -7625,7 +7653,7 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 4u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
@@ -9254,14 +9282,15 @@ vals:
             ctx->ism_version = ctx->scene_version - 1u;
             r = gim__gl_ism_scene_points(ctx, pool, where);
             if (r == GIM_OK)
-                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 4u, where);
+                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 2u, where);
             if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
             if (r != GIM_OK) return r;
             ctx->ism_version = ctx->scene_version;
             ctx->ism_size = size; ctx->ism_per_map = per; ctx->ism_scale = scale; ctx->ism_point_count = pool;
+            gim__stamp(ctx, f->timing, GIM_PASS_ISM);
         }
         ism.maps = ctx->ism_maps;
-        ism.size = size;   /* its time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
+        ism.size = size;   /* the lookups' time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
     } else if (ctx->ism_maps || ctx->ism_points) {
         gim__ism_release(ctx);
     }

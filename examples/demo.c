@@ -87,7 +87,7 @@ static void json_string(FILE *f, const char *s) {
 
 static const char *pass_names[GIM_PASS_COUNT] = {"rsm", "gbuffer", "view_samples", "importance_map", "cumsum", "select",
                                                  "caches", "vals", "proxy_lights", "shade", "vpls",
-                                                 "kmeans", "paraboloid", "second_bounce", "blur"};
+                                                 "kmeans", "paraboloid", "second_bounce", "blur", "ism"};
 
 typedef struct demo_run {
     scene s;

@@ -159,7 +159,7 @@ static void fly(viewer *v, GLFWwindow *w, double dt) {
 }
 
 static const char *short_pass[GIM_PASS_COUNT] = {"rsm", "gbuf", "vs", "imp", "scan", "sel", "cache", "vals", "proxy", "shade",
-                                                   "vpls", "kmean", "parab", "2nd", "blur"};
+                                                   "vpls", "kmean", "parab", "2nd", "blur", "ism"};
 
 static void set_title(viewer *v, GLFWwindow *w, const gim_stats *st, double direct_ms, double compose_ms) {
     char t[1024];

@@ -148,7 +148,7 @@ static int W, H;
 
 static const char *const pass_names[GIM_PASS_COUNT] = {"rsm",  "gbuffer", "view_samples", "importance", "cumsum", "select",
                                                        "caches", "vals", "proxy", "shade", "vpls",
-                                                       "kmeans", "paraboloid", "second_bounce", "blur"};
+                                                       "kmeans", "paraboloid", "second_bounce", "blur", "ism"};
 
 typedef struct measure {
     double frame_ms;              /* median of untimed frames */
