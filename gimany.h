@@ -10173,7 +10173,7 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
                          GIM_ISM_MAX_POINTS);
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
-    if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+    if (caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
                          (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);

@@ -256,6 +256,7 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     f.view_sample_count = r->d.view_samples;
     f.visibility = r->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
     f.ism_size = r->d.ism_size;
+    f.ism_points = r->d.ism_points;
     f.indirect_float32 = 1;
     f.rotate_view_samples = 1;
     f.timing = r->d.timing;

@@ -27,6 +27,7 @@ typedef struct demo_options {
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int ism;                 /* brsm, full: 1 turns on gim_frame.visibility = ISM */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
+    uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
     float exposure;          /* 0: automatic */
@@ -50,7 +51,8 @@ static const char demo_usage_text[] =
     "                        the second bounce to either\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --ism                 brsm, full: imperfect shadow maps per cache, no light through walls (default: off);\n"
-    "                        --ism-size N their side, a power of two in 4..64 (default 32)\n"
+    "                        --ism-size N their side, a power of two in 4..64 (default 32); --ism-points N\n"
+    "                        the points splatted into each, 1..65536 (default 16384)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
     "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
@@ -87,7 +89,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
                       size_t cap) {
     static const struct { const char *name; uint32_t lo, hi; } nums[] = {
         {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
-        {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64}};
+        {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64},
+        {"--ism-points", 1, 65536}};
     int i, n = 0;
     rest[n++] = argv[0];
     for (i = 1; i < argc; ++i) {
@@ -123,9 +126,9 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (i + 1 < argc) v = argv[++i];
         else { snprintf(err, cap, "option %.*s needs a value (see --help)", (int)len, a); return -1; }
         if (num >= 0) {
-            uint32_t x, *dst[7];
+            uint32_t x, *dst[8];
             dst[0] = &d->rsm; dst[1] = &d->vals; dst[2] = &d->view_samples;
-            dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size;
+            dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size; dst[7] = &d->ism_points;
             if (!demo_parse_u32(v, nums[num].lo, nums[num].hi, &x)) {
                 snprintf(err, cap, "%s wants an integer in %u..%u, got '%.200s'", nums[num].name, (unsigned)nums[num].lo,
                          (unsigned)nums[num].hi, v);

@@ -231,6 +231,7 @@ static int run(viewer *v, GLFWwindow *w) {
         f.view_sample_count = v->d.view_samples;
         f.visibility = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
         f.ism_size = v->d.ism_size;
+        f.ism_points = v->d.ism_points;
         f.rotate_view_samples = 1;
         f.frame_index = frame;
         f.timing = 1;
