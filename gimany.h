@@ -1036,7 +1036,7 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_MIN_SIZE 4u
 #define GIM_ISM_MAX_SIZE 64u
 #define GIM_ISM_MAX_POINTS 65536u
-#define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
+#define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (README) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
@@ -1365,7 +1365,9 @@ typedef struct gim_frame {
                                    its pass; it serialises the frame, for profiling only;
                                    other values: GIM_ERROR_OUT_OF_RANGE */
     gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM */
-    uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
+    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64), halved
+                                   until every cache's map fits one shader storage block (at 128 MiB: 64^2 up
+                                   to 16,384 caches, 32^2 up to 65,536) */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384); at most
                                    GIM_ISM_MAX_POINTS */
 } gim_frame;
@@ -8484,6 +8486,7 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 
 static void gim__lightskin_drop(gim_context *ctx);
 static void gim__ism_release(gim_context *ctx);
+static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches);
 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
@@ -9274,7 +9277,7 @@ vals:
     memset(&ism, 0, sizeof ism);
     if (f->visibility == GIM_VISIBILITY_ISM) {
         /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
-        uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+        uint32_t size = gim__ism_frame_size(ctx, f, total);
         uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
         uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
         if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
@@ -10158,21 +10161,31 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     return GIM_OK;
 }
 
+/* The map side of a frame: f->ism_size, or the default halved until caches maps of 16 bits a
+   texel fit one shader storage block (never below GIM_ISM_MIN_SIZE). */
+static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches) {
+    uint32_t size = GIM_ISM_DEFAULT_SIZE;
+    if (f->ism_size) return f->ism_size;
+    while (size > GIM_ISM_MIN_SIZE && caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes) size /= 2u;
+    return size;
+}
+
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
    in range, a point count in range, and every cache's map within one shader storage block. */
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
-    uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE, i;
+    uint32_t size, i;
     uint64_t caches = 0;
     if (f->visibility != GIM_VISIBILITY_DEFAULT && f->visibility != GIM_VISIBILITY_OFF && f->visibility != GIM_VISIBILITY_ISM)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility);
     if (f->visibility != GIM_VISIBILITY_ISM) return GIM_OK;
+    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    size = gim__ism_frame_size(ctx, f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
                          (unsigned)f->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
     if (f->ism_points > GIM_ISM_MAX_POINTS)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
                          GIM_ISM_MAX_POINTS);
-    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     if (caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",

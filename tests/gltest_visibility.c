@@ -242,6 +242,20 @@ static void bad_settings(void **state) {
     assert_int_equal(s.f.log.errors, 6);
     s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ism_maps, 0);
+    {   /* the default side halves until the maps fit: 64^2 of these caches do not fit 3 MiB, 32^2 do */
+        gim__GLint64 keep = s.f.ctx->max_ssbo_bytes;
+        uint64_t n = 0;
+        uint32_t i;
+        for (i = 0; i < s.f.ctx->instance_count; ++i) n += gim__mesh_get(s.f.ctx, s.f.ctx->instances[i].mesh)->cache_count;
+        s.f.ctx->max_ssbo_bytes = (gim__GLint64)(n * 32 * 32 * 2);
+        s.fr.ism_points = 256;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_int_equal(gim_outputs(s.f.ctx).ism_size, 32);
+        s.f.ctx->max_ssbo_bytes = keep;
+        s.fr.ism_points = 0;
+        s.fr.visibility = GIM_VISIBILITY_OFF;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    }
     gltest_state_unchanged(&s.f);
     teardown(&s);
     GLTEST_END();
