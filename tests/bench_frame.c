@@ -25,7 +25,8 @@
    standard error alone gives against the true image); flicker; for a row with visibility
    (brsm-ism: imperfect shadow maps per cache) its frame over the same method's frame without
    (visibility_over_off: the maps' lookups; the maps are reused while the scene stands still)
-   and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2).
+   and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2; on the
+   row of the first VAL count of each RSM size, the others reuse the maps).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
    prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery). */
@@ -518,15 +519,18 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
                     if (fm.visibility == GIM_VISIBILITY_ISM) {
-                        /* the maps' own pass: a frame without them frees them, the next makes them */
-                        gim_frame off = fm, build = fm;
-                        gim_stats st;
-                        off.visibility = GIM_VISIBILITY_OFF;
-                        update(ctx, &off);
-                        build.timing = 2;
-                        update(ctx, &build);
-                        gim_frame_stats(ctx, &st);
-                        ism_build = st.pass_ms[GIM_PASS_ISM];
+                        /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
+                           a frame without them frees them, the next makes them */
+                        if (vi == 0 && si == 0) {
+                            gim_frame off = fm, build = fm;
+                            gim_stats st;
+                            off.visibility = GIM_VISIBILITY_OFF;
+                            update(ctx, &off);
+                            build.timing = 2;
+                            update(ctx, &build);
+                            gim_frame_stats(ctx, &st);
+                            ism_build = st.pass_ms[GIM_PASS_ISM];
+                        }
                         if (mi > 0 && methods[mi - 1].method == bm->method && !methods[mi - 1].setup) t_off = off_ms[vi][si];
                     }
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
