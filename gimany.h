@@ -533,9 +533,9 @@ GIMANY_API gim_result gim_importance_select(const double *column, const double *
 
 /* @section twins ========================================================================== */
 /* LightSkin cache lighting, CPU twins of its GPU passes (paper 000 sec. 3 "Cache Lighting",
-   "Proxy Lights Generation", "Interpolation using the Proxy Lights", "Occlusion"; sec. 4
-   eq. 13-15). Each function has the structure of its pass: one independent invocation per
-   cache (gim_proxy_lights, gim_proxy_occlusion) or per receiver pixel (gim_lightskin_shade),
+   "Proxy Lights Generation", "Interpolation using the Proxy Lights"; sec. 4 eq. 13-15).
+   Each function has the structure of its pass: one independent invocation per cache
+   (gim_proxy_lights) or per receiver pixel (gim_lightskin_shade),
    each a loop in a fixed order, so the results are deterministic.
 
    Units (DESIGN.md sec. 4): a VAL is an RSM texel, a Lambertian disk of area A_l with
@@ -570,9 +570,10 @@ typedef struct gim_val {
 /* One proxy light of a cache: three vec4. */
 typedef struct gim_proxy_light {
     float position[3];  /* x_p (eq. 5 / 13) */
-    float radius;       /* bounding sphere for occlusion: 2 max(sigma) (the AABB of extent 2 sigma) */
+    float radius;       /* extent of the light: 2 max(sigma) (the AABB of extent 2 sigma) */
     float flux[3];      /* Phi_p, rgb (eq. 7 with the guard below) */
-    float visibility;   /* 1 - occlusion, in [0,1]: written 1 by gim_proxy_lights, then by gim_proxy_occlusion */
+    float visibility;   /* in [0,1], scales the light where it is shaded; gim_proxy_lights writes 1 (visibility
+                           per VAL comes in through gim_proxy_desc.visibility) */
     float sigma[3];     /* weighted standard deviation of the VAL positions per world axis */
     float unused;       /* padding, 0 */
 } gim_proxy_light;
@@ -636,31 +637,12 @@ typedef struct gim_proxy_desc {
      D_p / floor (a glossy lobe narrower than the spread of the light around the mirror
      direction), never overestimated.
    With visibility, e_j (and its E_n term) is multiplied by V(c, x_j): a VAL the cache cannot
-   see neither lights nor places the proxy. visibility = 1 (the proxy light's field, for
-   gim_proxy_occlusion). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
+   see neither lights nor places the proxy. visibility = 1 (the proxy light's field). A VAL nearer than 1e-6 scene_scale to the cache (no direction) and one with
    weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
    (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
    or breaks the ranges above (the first offender is logged), k out of range. */
 GIMANY_API gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
                                        gim_proxy_light *glossy_out);
-
-/* Occlusion of the proxy lights (paper 000 "Occlusion"; Lensing and Broll 2013), one invocation
-   per target cache i looping over the other caches; writes lights[i].visibility in [0,1].
-   Projections onto the unit disk of cache i's tangent plane (the Nusselt analogue: a shape's
-   projected area there is pi times its form factor from c_i), each then made an axis-aligned
-   square of the same area centred on the projection of its centre (t, b of gim_basis(n_i)):
-     proxy light: sphere of centre x_p, radius r = lights[i].radius at distance D:
-                  F = (min(r / D, 1))^2 (n_i . omega_p)+
-     cache j:     disk of area a_j = caches[j].area, normal n_j, at distance d:
-                  F = a_j (n_i . omega_j)+ |n_j . omega_j| / (a_j + pi d^2) (two-sided, as eq. 3)
-   A cache blocks only where it lies strictly between: 1e-6 scene_scale < d < D - r (caches
-   inside the light's sphere or beyond are what emits it). occlusion = the sum over blockers of
-   the overlap of their square with the light's square, divided by the light's square's area,
-   clamped to 1 (overlapping blockers are counted twice: the paper's estimate). A point light
-   (r = 0) is occluded 1 when its centre falls inside a blocker's square. A light with zero
-   flux, below c_i's horizon or around c_i (D <= r) keeps visibility 1. O(C^2) per call. */
-GIMANY_API gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
-                                          gim_proxy_light *lights, float scene_scale, gim_env env);
 
 /* A receiver: a visible surface point (a G-buffer pixel) and its material. */
 typedef struct gim_receiver {
@@ -722,7 +704,6 @@ typedef struct gim_lightskin_desc {
     int glossy;                       /* 1: glossy proxy lights and the glossy term; 0: diffuse only */
     float glossy_exponent;
     const float *cache_glossy_exponent;
-    int occlusion;                    /* 1: gim_proxy_occlusion on both proxy light sets; 0: off */
     const gim_receiver *receivers;
     uint32_t receiver_count;
     const uint32_t *neighbour_index;
@@ -735,7 +716,7 @@ typedef struct gim_lightskin_desc {
 } gim_lightskin_desc;
 
 /* The whole CPU LightSkin frame, the twin of the GPU frame after the RSM (and selection):
-   gim_proxy_lights -> gim_proxy_occlusion (when on) -> gim_lightskin_shade. Allocates the
+   gim_proxy_lights -> gim_lightskin_shade. Allocates the
    proxy lights (cache_count, twice with glossy) through env and frees them before returning.
    radiance_out[receiver_count * 3]. */
 GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
@@ -1086,8 +1067,9 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_MIN_SIZE 4u
 #define GIM_ISM_MAX_SIZE 64u
 #define GIM_ISM_MAX_POINTS 65536u
-#define GIM_ISM_DEFAULT_SIZE 32u      /* the paper's 32^2 */
+#define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (README) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
+#define GIM_ISM_DEFAULT_VPL_SIZE 32u    /* the VPL methods' maps, made every frame */
 #define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
                                              (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
                                              for the same error as 2048 at 3.7 s (README) */
@@ -1143,8 +1125,18 @@ typedef struct gim_ism_desc {
    coarser texel is the farthest of its non-empty children (the paper's mean lets a near
    occluder's depth into the holes around it: false shadow); push: an empty texel takes its
    parent's value, from the coarsest level down. A map no point reached stays empty (sees
-   nothing: visibility 1). Float arithmetic in the order of ism.comp. */
+   nothing: visibility 1). Float arithmetic in the order of ism.comp. Stored in 16 bits a
+   texel (the GPU packs two to a uint, so 64^2 maps of 16,000 caches fit a 128 MiB storage
+   block): the upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7
+   mantissa bits, relative error at most 2^-8, far below the bias); distance_out holds those
+   values as floats, bit for bit what the GPU's maps decode to. An empty texel stays
+   >= GIM_PARABOLOID_EMPTY. */
 GIMANY_API gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out);
+
+/* The 16-bit depth of an ISM texel: (bits of d + 0x8000) >> 16 for d >= 0 (ism.comp's
+   rounding); gim_ism_dequantize gives it back as a float (the bits shifted up). */
+GIMANY_API uint16_t gim_ism_quantize(float d);
+GIMANY_API float gim_ism_dequantize(uint16_t q);
 
 /* Visibility V(c, x_j) of every VAL from every cache through the maps (desc's caches, size,
    bias, slope, scene_scale; points unused): out[cache * val_count + j] in {0, 1}. 1 where x_j
@@ -1281,7 +1273,7 @@ GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
    gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
    picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
    SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
-   f.occlusion and f.neighbour_count trade speed for accuracy at run time. f.visibility =
+   and f.neighbour_count trade speed for accuracy at run time. f.visibility =
    GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
    cache; off by default, and off costs nothing); for CLUSTERED and SSVP it replaces their
    per-cluster paraboloid maps with one imperfect shadow map per VPL. */
@@ -1427,7 +1419,6 @@ typedef struct gim_frame {
                                    bounds of the instances; else within 1e-3..1e3 of it */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
-    int occlusion;              /* 1: attenuate the proxy lights by the caches between (paper 000 "Occlusion") */
     int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
     float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
@@ -1465,8 +1456,11 @@ typedef struct gim_frame {
                                    other values: GIM_ERROR_OUT_OF_RANGE */
     gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
                                    their paraboloid maps, ISM is one map per VPL (not with no_visibility;
-                                   their VPLs x ism_size^2 floats within one shader storage block) */
-    uint32_t ism_size;          /* map side; 0: GIM_ISM_DEFAULT_SIZE (32); a power of two in 4..64 */
+                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
+    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64), halved
+                                   until every cache's map fits one shader storage block (at 128 MiB: 64^2 up
+                                   to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP: GIM_ISM_DEFAULT_VPL_SIZE
+                                   (32: their maps are made every frame) */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame;
@@ -1479,8 +1473,7 @@ typedef struct gim_frame {
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
    world triangles, read back from the meshes, pool 4 P; gim_ism_render) -> diffuse proxy lights
    per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility), glossy ones too when a material has a glossy colour (one lobe
-   exponent for all caches: the smallest of those materials, the widest lobe) -> occlusion
-   (when on) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
+   exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
@@ -1553,7 +1546,7 @@ typedef struct gim_frame_outputs {
     uint32_t cache_count;
     uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
     uint32_t val_count;
-    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light (visibility from occlusion) */
+    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light */
     uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
     float glossy_exponent;      /* the widest lobe of the glossy materials */
     uint32_t cache_exponents;   /* SSBO: float per cache, its material's k (the glossy proxy lights' lobes); 0 when
@@ -1573,8 +1566,9 @@ typedef struct gim_frame_outputs {
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
     /* visibility ISM (0 otherwise) */
-    uint32_t ism_maps;          /* SSBO: cache_count ism_size^2 floats, map i of cache i of caches (gim_ism_render);
-                                   the VPL methods: vpl_count maps, map i of VPL i of vpls */
+    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render), ism_size^2 16-bit depths,
+                                   two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
+                                   methods: map i of VPL i of vpls */
     uint32_t ism_size;
 } gim_frame_outputs;
 
@@ -1592,13 +1586,14 @@ typedef enum gim_pass {
     GIM_PASS_CACHES,            /* caches to world space and the hash grid (CPU work + upload) */
     GIM_PASS_VALS,
     GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
-    GIM_PASS_OCCLUSION,
     GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading; the VPL methods' shading */
     GIM_PASS_VPLS,              /* VPLs from the RSMs */
     GIM_PASS_KMEANS,            /* k-means steps and the clusters' VALs */
     GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
     GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
     GIM_PASS_BLUR,              /* geometry-aware blur */
+    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps, in the frames that make them (a scene
+                                   change or a setting); their lookups are GIM_PASS_PROXY_LIGHTS' */
     GIM_PASS_COUNT
 } gim_pass;
 
@@ -4563,75 +4558,6 @@ GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_lig
     return GIM_OK;
 }
 
-/* Overlap of two axis-aligned squares (centre, side) divided by the first's area; a first of
-   side 0 is a point: 1 inside the second, else 0. */
-static double gim__square_overlap(double ax, double ay, double as, double bx, double by, double bs) {
-    double ox, oy;
-    if (!(as > 0.0)) return (fabs(ax - bx) <= 0.5 * bs && fabs(ay - by) <= 0.5 * bs) ? 1.0 : 0.0;
-    ox = (ax + 0.5 * as < bx + 0.5 * bs ? ax + 0.5 * as : bx + 0.5 * bs) - (ax - 0.5 * as > bx - 0.5 * bs ? ax - 0.5 * as : bx - 0.5 * bs);
-    oy = (ay + 0.5 * as < by + 0.5 * bs ? ay + 0.5 * as : by + 0.5 * bs) - (ay - 0.5 * as > by - 0.5 * bs ? ay - 0.5 * as : by - 0.5 * bs);
-    if (!(ox > 0.0) || !(oy > 0.0)) return 0.0;
-    return ox * oy / (as * as);
-}
-
-GIMANY_DEF gim_result gim_proxy_occlusion(const gim_cache *caches, uint32_t cache_count,
-                                          gim_proxy_light *lights, float scene_scale, gim_env env) {
-    static const char fn[] = "gim_proxy_occlusion";
-    gim_result r;
-    uint32_t i, j;
-    double near_;
-    if (!caches || cache_count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
-    if (!lights) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "lights is NULL");
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
-    if ((r = gim__check_caches(&env, fn, caches, cache_count)) != GIM_OK) return r;
-    for (i = 0; i < cache_count; ++i)
-        if (!gim__all_finite(lights[i].position, 3) || !gim__all_finite(lights[i].flux, 3) ||
-            !gim__isfinitef(lights[i].radius) || !(lights[i].radius >= 0.0f))
-            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "light %u: not finite or negative radius", i);
-    near_ = (double)GIM__TWINS_COINCIDENT * scene_scale;
-    for (i = 0; i < cache_count; ++i) {
-        const gim_cache *c = caches + i;
-        gim_proxy_light *p = lights + i;
-        gim_vec3 n = gim_v3(c->normal[0], c->normal[1], c->normal[2]), t, b;
-        double o[3], dist, rr, cos_p, fs, px, py, ps, occ = 0.0;
-        int a;
-        p->visibility = 1.0f;
-        if (!(p->flux[0] > 0.0f || p->flux[1] > 0.0f || p->flux[2] > 0.0f)) continue;
-        for (a = 0; a < 3; ++a) o[a] = (double)p->position[a] - c->position[a];
-        dist = sqrt(o[0] * o[0] + o[1] * o[1] + o[2] * o[2]);
-        rr = p->radius;
-        if (!(dist > near_) || !(dist > rr)) continue;             /* the light surrounds the cache */
-        for (a = 0; a < 3; ++a) o[a] /= dist;
-        cos_p = n.x * o[0] + n.y * o[1] + n.z * o[2];
-        if (!(cos_p > 0.0)) continue;
-        gim_basis(n, &t, &b);
-        fs = (rr / dist) * (rr / dist) * cos_p;                     /* sphere form factor */
-        px = t.x * o[0] + t.y * o[1] + t.z * o[2];                  /* projection on the unit disk */
-        py = b.x * o[0] + b.y * o[1] + b.z * o[2];
-        ps = sqrt(GIM__PI * fs);                                    /* equal-area square */
-        for (j = 0; j < cache_count && occ < 1.0; ++j) {
-            const gim_cache *q = caches + j;
-            double u[3], d, ci, cj, fq, qs;
-            if (j == i) continue;
-            for (a = 0; a < 3; ++a) u[a] = (double)q->position[a] - c->position[a];
-            d = sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-            if (!(d > near_) || !(d < dist - rr)) continue;         /* strictly between */
-            for (a = 0; a < 3; ++a) u[a] /= d;
-            ci = n.x * u[0] + n.y * u[1] + n.z * u[2];
-            if (!(ci > 0.0)) continue;
-            cj = fabs(q->normal[0] * u[0] + q->normal[1] * u[1] + q->normal[2] * u[2]);
-            fq = (double)q->area * ci * cj / ((double)q->area + GIM__PI * d * d);   /* disk form factor */
-            if (!(fq > 0.0)) continue;
-            qs = sqrt(GIM__PI * fq);
-            occ += gim__square_overlap(px, py, ps, t.x * u[0] + t.y * u[1] + t.z * u[2],
-                                       b.x * u[0] + b.y * u[1] + b.z * u[2], qs);
-        }
-        p->visibility = (float)(occ < 1.0 ? 1.0 - occ : 0.0);
-    }
-    return GIM_OK;
-}
-
 /* One proxy light set interpolated at x (eq. 8-9): the irradiance each neighbour's proxy
    light delivers at x, moved along with the surface point (at x + x_p,j - c_j), averaged with
    eq. 8's weights w'. For the glossy set the receiver's lobe is evaluated per neighbour, in
@@ -4810,11 +4736,6 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     sd.diffuse = lights;
     sd.glossy = desc->glossy ? lights + desc->cache_count : NULL;
     r = gim_proxy_lights(&pd, lights, desc->glossy ? lights + desc->cache_count : NULL);
-    if (r == GIM_OK && desc->occlusion) {
-        r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights, scale, desc->env);
-        if (r == GIM_OK && desc->glossy)
-            r = gim_proxy_occlusion(desc->caches, desc->cache_count, lights + desc->cache_count, scale, desc->env);
-    }
     if (r == GIM_OK) r = gim_lightskin_shade(&sd, radiance_out);
     gim__free(env, lights);
     return r;
@@ -6153,6 +6074,19 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     if (!own && dist < map[tx]) map[tx] = dist;         /* its own texel, where the ray misses */
 }
 
+GIMANY_DEF uint16_t gim_ism_quantize(float d) {
+    uint32_t u;
+    memcpy(&u, &d, 4);
+    return (uint16_t)((u + 0x8000u) >> 16);
+}
+
+GIMANY_DEF float gim_ism_dequantize(uint16_t q) {
+    uint32_t u = (uint32_t)q << 16;
+    float d;
+    memcpy(&d, &u, 4);
+    return d;
+}
+
 GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out) {
     static const char fn[] = "gim_ism_render";
     uint32_t size, per, m, k, stride, n_take;
@@ -6178,6 +6112,7 @@ GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_o
             gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
         }
         gim__ism_pull_push(map, size, scratch);
+        for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(map[q]));
     }
     gim__free(&desc->env, scratch);
     return GIM_OK;
@@ -7125,7 +7060,6 @@ typedef enum gim__program_id {
     GIM__PROGRAM_VIEW_SAMPLES,       /* G-buffer at the Halton pixels -> view samples */
     GIM__PROGRAM_PROXY_LIGHTS,       /* LightSkin proxy lights per cache (eq. 3-7, 13-15) */
     GIM__PROGRAM_LIGHTSKIN_SHADE,    /* neighbours, interpolation (eq. 8-9) and shading per pixel */
-    GIM__PROGRAM_PROXY_OCCLUSION,    /* LightSkin occlusion of the proxy lights (sec. 3 "Occlusion") */
     GIM__PROGRAM_RSM_GATHER,         /* RSM gather per pixel (Dachsbacher 2005) */
     GIM__PROGRAM_VALS_GATHER,        /* RSM texels (all, or the selected ones) -> VAL list */
     GIM__PROGRAM_RSM_VPLS,           /* VPLs at the RSM's Halton texels, flux to the RSM's total (Dong sec. 4) */
@@ -7153,7 +7087,6 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"view_samples.comp", NULL},
     {"proxy_lights.comp", NULL},
     {"lightskin_shade.comp", NULL},
-    {"proxy_occlusion.comp", NULL},
     {"rsm_gather.comp", NULL},
     {"vals_gather.comp", NULL},
     {"rsm_vpls.comp", NULL},
@@ -7245,7 +7178,7 @@ struct gim_context {
     size_t scan_blocks_bytes;
     gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache */
     uint64_t proxy_state_bytes;
-    uint32_t proxy_chunk;         /* VALs per proxy-light dispatch, caches per occlusion dispatch */
+    uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
     /* the scene (see "the scene" below) */
@@ -7799,7 +7732,7 @@ static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__G
 /* --- LightSkin passes (paper 000 sec. 3) --------------------------------------------------- */
 
 #define GIM__PROXY_GROUP 64u   /* TILE of proxy_lights.comp */
-/* VALs (caches for occlusion) per dispatch: under 65535 loop iterations per invocation, the
+/* VALs per dispatch: under 65535 loop iterations per invocation, the
    bound of Mesa's llvmpipe over all loops of one invocation (it stops them silently there),
    and short enough for a desktop GPU's watchdog */
 #define GIM__PROXY_CHUNK 32768u
@@ -7881,7 +7814,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
     if (r == GIM_OK && with_ism)
-        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 4u);
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)cache_count * ism->size * ism->size * 2u);
     if (r == GIM_OK && val_count > 0) r = gim__gl_check_buffer(ctx, where, "vals", vals, (uint64_t)val_count * 48u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "diffuse_out", diffuse_out, (uint64_t)cache_count * 48u);
     if (r == GIM_OK && glossy_out)
@@ -7938,7 +7871,8 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
 /* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
    pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
-   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 floats,
+   point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 16-bit
+   depths, two to a uint (texel 2k in the low half; gim_ism_quantize), size^2 / 2 uints a map,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
@@ -7975,7 +7909,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
                          (double)scene_scale);
-    if ((uint64_t)cache_count * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes ||
+    if ((uint64_t)cache_count * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes ||
         (uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%u maps of %u^2 or %u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
@@ -7985,7 +7919,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * source_vec4s * 16u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 4u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
@@ -8009,68 +7943,6 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
-
-/* Occlusion of the proxy lights on the GPU (paper 000 "Occlusion"), the twin of
-   gim_proxy_occlusion (same projections, squares, special cases and clamp; see there).
-   caches: SSBO of cache_count gim_cache (32 bytes; world space, unit normals), the blockers
-   and the targets. lights: SSBO of cache_count gim_proxy_light (48 bytes), light i the proxy
-   of cache i (gim__gl_proxy_lights' output); only .visibility is written, in [0,1].
-   scene_scale > 0 sets the 1e-6 scene_scale nearness of "strictly between". Cost O(C^2):
-   every cache against every cache (a cache whose light is occluded 1 stops early). In float,
-   not double: the overlap is taken centred on the light's square, so the float error is that
-   of the unit directions (~1e-7 on the unit disk) against the squares' sides; visibilities
-   agree with the twin to ~2e-6 (tests/gltest_occlusion.c, rooms of up to 2000 caches), except
-   where a blocker sits within float rounding of a threshold (d = D - r, d = 1e-6 scene_scale,
-   a point light on a square's edge): that blocker may count on one side and not the other.
-   A cache or light the twin rejects (not finite, negative area or radius) adds nothing as a
-   blocker and keeps visibility 1 as a target. Run it once per proxy light set (diffuse,
-   glossy). */
-static GIM__UNUSED gim_result gim__gl_proxy_occlusion(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
-                                                      gim__GLuint lights, float scene_scale) {
-    static const char where[] = "proxy occlusion (GL)";
-    const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0;
-    gim_result r;
-    if (!caches || !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
-    if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
-    if (caches == lights)
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is also the caches buffer");
-    if (cache_count > 65535u * GIM__PROXY_GROUP)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cache_count %u above %u", (unsigned)cache_count,
-                         65535u * GIM__PROXY_GROUP);
-    if ((uint64_t)cache_count * 48u > (uint64_t)ctx->max_ssbo_bytes)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
-                         "%u caches exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)cache_count,
-                         (long long)ctx->max_ssbo_bytes);
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
-                         (double)scene_scale);
-    gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lights", lights, (uint64_t)cache_count * 48u);
-    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PROXY_OCCLUSION, &program);
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, lights);
-    gl->UseProgram(program);
-    gl->Uniform1ui(0, cache_count);
-    gl->Uniform1f(1, GIM__TWINS_COINCIDENT * scene_scale);
-    {   /* the blockers in chunks of ctx->proxy_chunk, one dispatch each (see GIM__PROXY_CHUNK);
-           each goes on from the visibility the last one left */
-        uint32_t first = 0;
-        do {
-            uint32_t n = cache_count - first < ctx->proxy_chunk ? cache_count - first : ctx->proxy_chunk;
-            gl->Uniform1ui(2, first);
-            gl->Uniform1ui(3, n);
-            gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
-            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
-            first += n;
-        } while (first < cache_count);
-    }
-    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
-    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
-}
-
 
 /* The three RSM textures a pass reads (position, normal, flux as gim__gl_rsm writes them):
    each size x size and RGBA32F, for the passes that read them bit for bit as rgba32ui images.
@@ -9003,6 +8875,7 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
 
 static void gim__lightskin_drop(gim_context *ctx);
 static void gim__ism_release(gim_context *ctx);
+static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches);
 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
@@ -9390,7 +9263,7 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
 
 /* --- the LightSkin frame (paper 000 sec. 3-4) ----------------------------------------------
    After the shared passes: caches to world space (CPU, gim_caches_to_world) sorted into a hash
-   grid -> the lights' VALs -> proxy lights -> occlusion (when on) -> per pixel neighbours,
+   grid -> the lights' VALs -> proxy lights -> per pixel neighbours,
    interpolation and shading into the indirect texture. */
 
 /* The indirect texture at width x height of format, made anew when either changes. */
@@ -9846,7 +9719,7 @@ vals:
     memset(&ism, 0, sizeof ism);
     if (f->visibility == GIM_VISIBILITY_ISM) {
         /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
-        uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+        uint32_t size = gim__ism_frame_size(ctx, f, total);
         uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
         uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
         if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
@@ -9854,14 +9727,15 @@ vals:
             ctx->ism_version = ctx->scene_version - 1u;
             r = gim__gl_ism_scene_points(ctx, pool, where);
             if (r == GIM_OK)
-                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 4u, where);
+                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 2u, where);
             if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
             if (r != GIM_OK) return r;
             ctx->ism_version = ctx->scene_version;
             ctx->ism_size = size; ctx->ism_per_map = per; ctx->ism_scale = scale; ctx->ism_point_count = pool;
+            gim__stamp(ctx, f->timing, GIM_PASS_ISM);
         }
         ism.maps = ctx->ism_maps;
-        ism.size = size;   /* its time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
+        ism.size = size;   /* the lookups' time is the proxy lights' (GIM_PASS_PROXY_LIGHTS) */
     } else if (ctx->ism_maps || ctx->ism_points) {
         gim__ism_release(ctx);
     }
@@ -9869,12 +9743,6 @@ vals:
                                  glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_PROXY_LIGHTS);
-    if (f->occlusion) {
-        r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->diffuse, scale);
-        if (r == GIM_OK && glossy) r = gim__gl_proxy_occlusion(ctx, ls->caches, total, ls->glossy, scale);
-        if (r != GIM_OK) return r;
-        gim__stamp(ctx, f->timing, GIM_PASS_OCCLUSION);
-    }
     /* the indirect texture, (re)made when its size or format changes */
     gim__gl_indirect_texture(ctx, f->width, f->height, format);
     memset(&sa, 0, sizeof sa);
@@ -9972,7 +9840,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     if (ism && (!(a->ism_bias >= 0.0f && a->ism_bias <= 1.0f) || !(a->ism_slope >= 0.0f && a->ism_slope <= 64.0f)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM bias %g or slope %g out of range",
                          (double)a->ism_bias, (double)a->ism_slope);
-    if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+    if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 2u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
                          (unsigned)a->vpl_count, (unsigned)a->ism_size);
     if (!gim__isfinitef(a->clamp_distance) || !(a->clamp_distance >= 0.0f) || !gim__isfinitef(a->scene_scale) ||
@@ -10396,7 +10264,7 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)map_count * 48u);
     if (r == GIM_OK && with_ism)
-        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)map_count * ism->size * ism->size * 4u);
+        r = gim__gl_check_buffer(ctx, where, "ISM maps", ism->maps, (uint64_t)map_count * ism->size * ism->size * 2u);   /* 16 bits a texel */
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "vpls_out", vpls_out, ((uint64_t)first + vpl_count) * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE, &program);
     if (r == GIM_OK && (!ctx->para_samples || ctx->para_key[0] != map_count || ctx->para_key[1] != size ||
@@ -10654,7 +10522,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         memset(&gi, 0, sizeof gi);
         if (ism) {   /* each cluster's ISM: the hits its paraboloid map found past its near skip, checked */
             r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
-                               (uint64_t)s.clusters * ism_size * ism_size * 4u, where);
+                               (uint64_t)s.clusters * ism_size * ism_size * 2u, where);   /* 16 bits a texel */
             if (r == GIM_OK)
                 r = gim__gl_ism_render_of(ctx, v->maps, 3u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
                                           scale, ctx->ism_cluster_maps);
@@ -10670,7 +10538,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
            Ritschel et al.'s maps), every frame: the VPLs move with the light. Their time is
            GIM_PASS_PARABOLOID's. */
-        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 4u, where);
+        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 2u, where);
         if (r == GIM_OK)
             r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, ism_pool, ism_size, ism_per, scale,
                                       ctx->ism_maps);
@@ -10835,14 +10703,25 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     return GIM_OK;
 }
 
+/* The map side of a frame: f->ism_size, or the default halved until caches maps of 16 bits a
+   texel fit one shader storage block (never below GIM_ISM_MIN_SIZE). */
+static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches) {
+    uint32_t size = GIM_ISM_DEFAULT_SIZE;
+    if (f->ism_size) return f->ism_size;
+    while (size > GIM_ISM_MIN_SIZE && caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes) size /= 2u;
+    return size;
+}
+
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
    in range, a point count in range, and every cache's map within one shader storage block. */
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
-    uint32_t size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE, i;
+    uint32_t size, i;
     uint64_t caches = 0;
     if (f->visibility != GIM_VISIBILITY_DEFAULT && f->visibility != GIM_VISIBILITY_OFF && f->visibility != GIM_VISIBILITY_ISM)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility);
     if (f->visibility != GIM_VISIBILITY_ISM) return GIM_OK;
+    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    size = gim__ism_frame_size(ctx, f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
                          (unsigned)f->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
@@ -10851,18 +10730,19 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
                          GIM_ISM_MAX_POINTS);
     if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
         gim__vpl_settings s;
+        uint64_t maps;
+        uint32_t vsize = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_VPL_SIZE;
         gim__vpl_settings_of(f, &s);
         if (f->no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
-        caches = (uint64_t)s.vpls * (ctx->light_count ? ctx->light_count : 1u) + s.second;
-        if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+        maps = (uint64_t)s.vpls * (ctx->light_count ? ctx->light_count : 1u) + s.second;
+        if (maps * vsize * vsize * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                              "%llu VPLs' ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): fewer VPLs or "
-                             "a smaller ism_size", (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+                             "a smaller ism_size", (unsigned long long)maps, (unsigned)vsize, (long long)ctx->max_ssbo_bytes);
         return GIM_OK;
     }
-    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
-    if (caches * size * size * 4u > (uint64_t)ctx->max_ssbo_bytes)
+    if (caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
                          (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
@@ -11155,7 +11035,6 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         }
         ids[n++] = GIM__PROGRAM_VALS_GATHER;
         ids[n++] = GIM__PROGRAM_PROXY_LIGHTS;
-        if (frame->occlusion) ids[n++] = GIM__PROGRAM_PROXY_OCCLUSION;
         if (frame->visibility == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         ids[n++] = GIM__PROGRAM_LIGHTSKIN_SHADE;
     }

@@ -86,8 +86,8 @@ static void json_string(FILE *f, const char *s) {
 }
 
 static const char *pass_names[GIM_PASS_COUNT] = {"rsm", "gbuffer", "view_samples", "importance_map", "cumsum", "select",
-                                                 "caches", "vals", "proxy_lights", "occlusion", "shade", "vpls",
-                                                 "kmeans", "paraboloid", "second_bounce", "blur"};
+                                                 "caches", "vals", "proxy_lights", "shade", "vpls",
+                                                 "kmeans", "paraboloid", "second_bounce", "blur", "ism"};
 
 typedef struct demo_run {
     scene s;
@@ -115,10 +115,10 @@ static int write_stats(const demo_run *r, const char *path, char *err, size_t ca
     json_string(f, r->d.timing == 2 ? "cpu: glFinish after each pass, CPU clock" : r->d.timing == 1 ? "gl: timestamps" : "off");
     fprintf(f,
             ",\n  \"parameters\": {\"width\": %u, \"height\": %u, \"rsm\": %u, \"vals\": %u, \"view_samples\": %u, "
-            "\"vpls\": %u, \"clusters\": %u, \"bounces\": %d, \"occlusion\": %s, \"glossy\": %s, \"frames\": %u, "
+            "\"vpls\": %u, \"clusters\": %u, \"bounces\": %d, \"ism\": %s, \"glossy\": %s, \"frames\": %u, "
             "\"exposure\": %.6g},\n",
             (unsigned)r->o.width, (unsigned)r->o.height, (unsigned)r->d.rsm, (unsigned)r->d.vals, (unsigned)r->d.view_samples,
-            (unsigned)r->d.vpls, (unsigned)r->d.clusters, r->o.bounces, r->d.occlusion ? "true" : "false",
+            (unsigned)r->d.vpls, (unsigned)r->d.clusters, r->o.bounces, r->d.ism ? "true" : "false",
             r->d.glossy ? "true" : "false", (unsigned)r->d.frames, (double)r->exposure);
     fprintf(f, "  \"pass_ms\": {");
     for (p = 0; p < GIM_PASS_COUNT; ++p) fprintf(f, "\"%s\": %.4f, ", pass_names[p], r->pass_ms[p]);
@@ -254,9 +254,9 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     f.no_visibility = r->d.no_visibility;
     f.val_count = r->d.vals;
     f.view_sample_count = r->d.view_samples;
-    f.occlusion = r->d.occlusion;
     f.visibility = r->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
     f.ism_size = r->d.ism_size;
+    f.ism_points = r->d.ism_points;
     f.indirect_float32 = 1;
     f.rotate_view_samples = 1;
     f.timing = r->d.timing;

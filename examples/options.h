@@ -24,10 +24,10 @@ typedef struct demo_options {
     uint32_t vals;           /* VALs per light (BRSM) */
     uint32_t view_samples;
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
-    int occlusion;
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int ism;                 /* brsm, full: 1 turns on gim_frame.visibility = ISM */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
+    uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;
     uint32_t frames;         /* demo: frames rendered, timings are medians; viewer: 0 = until closed */
     float exposure;          /* 0: automatic */
@@ -49,10 +49,11 @@ static const char demo_usage_text[] =
     "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 4096, 30 clustered;\n"
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
-    "  --no-occlusion        no occlusion of the proxy lights (default: on)\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --ism                 brsm, full: imperfect shadow maps per cache, no light through walls (default: off);\n"
-    "                        --ism-size N their side, a power of two in 4..64 (default 32)\n"
+    "                        --ism-size N their side, a power of two in 4..64 (default 64, smaller where\n"
+    "                        that exceeds a storage block); --ism-points N\n"
+    "                        the points splatted into each, 1..65536 (default 16384)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
     "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
@@ -66,7 +67,6 @@ DEMO_OPTIONS_FN void demo_defaults(demo_options *d, unsigned flags) {
     d->rsm = 256;
     d->vals = 2048;
     d->view_samples = 128;
-    d->occlusion = 1;
     d->glossy = 1;
     d->frames = (flags & DEMO_PARSE_VIEWER) ? 0 : 3;
     d->timing = 2;
@@ -90,7 +90,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
                       size_t cap) {
     static const struct { const char *name; uint32_t lo, hi; } nums[] = {
         {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
-        {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64}};
+        {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64},
+        {"--ism-points", 1, 65536}};
     int i, n = 0;
     rest[n++] = argv[0];
     for (i = 1; i < argc; ++i) {
@@ -98,15 +99,13 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         size_t len = eq ? (size_t)(eq - a) : strlen(a), k;
         int flag = -1, num = -1, is_method, is_exposure, is_shot, is_timing;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
-        if (len == 14 && !strncmp(a, "--no-occlusion", 14)) flag = 0;
-        else if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
+        if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
         else if (len == 15 && !strncmp(a, "--no-visibility", 15)) flag = 2;
         else if (len == 12 && !strncmp(a, "--allow-slow", 12)) flag = 3;
         else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 4;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
-            if (flag == 0) d->occlusion = 0;
-            else if (flag == 1) d->glossy = 0;
+            if (flag == 1) d->glossy = 0;
             else if (flag == 2) d->no_visibility = 1;
             else if (flag == 3) d->allow_slow = 1;
             else d->ism = 1;
@@ -128,9 +127,9 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (i + 1 < argc) v = argv[++i];
         else { snprintf(err, cap, "option %.*s needs a value (see --help)", (int)len, a); return -1; }
         if (num >= 0) {
-            uint32_t x, *dst[7];
+            uint32_t x, *dst[8];
             dst[0] = &d->rsm; dst[1] = &d->vals; dst[2] = &d->view_samples;
-            dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size;
+            dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size; dst[7] = &d->ism_points;
             if (!demo_parse_u32(v, nums[num].lo, nums[num].hi, &x)) {
                 snprintf(err, cap, "%s wants an integer in %u..%u, got '%.200s'", nums[num].name, (unsigned)nums[num].lo,
                          (unsigned)nums[num].hi, v);
@@ -182,7 +181,7 @@ DEMO_OPTIONS_FN gim_method demo_method(const demo_options *d) {
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
      clustered, ssvp   pixels x VPLs / 64 (8x8 interleaving), second bounce included
-     LightSkin occlusion caches^2; interpolation pixels x 16 neighbours
+     LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384
    memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
    Measured on llvmpipe (2 cores): 3.9e7 terms/s (full, the Cornell box's 8960 caches x 256^2
    in 15 s), so DEMO_MAX_TERMS is about a minute a frame; a GPU is 100x faster: --allow-slow. */
@@ -199,7 +198,7 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
         double v = d->vpls ? d->vpls : 4096.0;   /* the library's default */
         t = px * (L * v + (bounces == 2 || (!strcmp(d->method, "ssvp") && bounces != 1) ? 256.0 : 0.0)) / 64.0;
     }
-    if (ls) t += px * 16.0 + (d->occlusion ? (double)caches * caches : 0.0);
+    if (ls) t += px * 16.0 + (d->ism ? (double)caches * 16384.0 : 0.0);   /* the library's default points per map */
     *terms = t;
     *bytes = L * texels * (52.0 + (!strcmp(d->method, "brsm") ? 12.0 : 0.0)) + px * 140.0;
 }

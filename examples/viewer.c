@@ -7,7 +7,7 @@
    Keys:  W A S D  move, Q E  down / up, Shift  faster; drag with the left button to look around
           1 2 3    method brsm / full / none          [ ]  halve / double the VAL count
           4 5      method clustered / ssvp
-          - =      halve / double the RSM size         O  occlusion on / off
+          - =      halve / double the RSM size         I  imperfect shadow maps on / off
           Space    animate the sun (turns about +Y)   X  re-meter the exposure
           P        screenshot (gimany-viewer-N.png)    Esc  quit
    The title shows the method, its parameters and the per-pass GPU times (GL timestamps). */
@@ -97,7 +97,7 @@ static void on_key(GLFWwindow *w, int key, int scancode, int action, int mods) {
         v->lights_dirty = 1;
         break;
     }
-    case GLFW_KEY_O: v->d.occlusion = !v->d.occlusion; break;
+    case GLFW_KEY_I: v->d.ism = !v->d.ism; break;
     case GLFW_KEY_SPACE: v->animate = !v->animate; break;
     case GLFW_KEY_X: v->meter = 1; break;
     case GLFW_KEY_P: {
@@ -158,15 +158,15 @@ static void fly(viewer *v, GLFWwindow *w, double dt) {
     }
 }
 
-static const char *short_pass[GIM_PASS_COUNT] = {"rsm", "gbuf", "vs", "imp", "scan", "sel", "cache", "vals", "proxy", "occl", "shade",
-                                                   "vpls", "kmean", "parab", "2nd", "blur"};
+static const char *short_pass[GIM_PASS_COUNT] = {"rsm", "gbuf", "vs", "imp", "scan", "sel", "cache", "vals", "proxy", "shade",
+                                                   "vpls", "kmean", "parab", "2nd", "blur", "ism"};
 
 static void set_title(viewer *v, GLFWwindow *w, const gim_stats *st, double direct_ms, double compose_ms) {
     char t[1024];
     int n, p;
-    n = snprintf(t, sizeof t, PROG " | %s | VALs %u | RSM %u | occl %s | %.1f ms |", v->d.method,
+    n = snprintf(t, sizeof t, PROG " | %s | VALs %u | RSM %u | ISM %s | %.1f ms |", v->d.method,
                  (unsigned)(strcmp(v->d.method, "brsm") ? st->val_count : v->d.vals), (unsigned)v->d.rsm,
-                 v->d.occlusion ? "on" : "off", st->frame_ms + direct_ms + compose_ms);
+                 v->d.ism ? "on" : "off", st->frame_ms + direct_ms + compose_ms);
     for (p = 0; p < GIM_PASS_COUNT && n > 0 && n < (int)sizeof t; ++p)
         if (st->pass_ms[p] > 0.005) n += snprintf(t + n, sizeof t - (size_t)n, " %s %.1f", short_pass[p], st->pass_ms[p]);
     if (n > 0 && n < (int)sizeof t) snprintf(t + n, sizeof t - (size_t)n, " direct %.1f", direct_ms);
@@ -229,9 +229,9 @@ static int run(viewer *v, GLFWwindow *w) {
         f.no_visibility = v->d.no_visibility;
         f.val_count = v->d.vals;
         f.view_sample_count = v->d.view_samples;
-        f.occlusion = v->d.occlusion;
         f.visibility = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
         f.ism_size = v->d.ism_size;
+        f.ism_points = v->d.ism_points;
         f.rotate_view_samples = 1;
         f.frame_index = frame;
         f.timing = 1;

@@ -3,7 +3,9 @@
    the points k = local, local + GROUP, ... of the map's subset (offset + k stride) as surfels
    (atomicMin on the distance's bits: a positive float orders as its bits), then the pyramid
    is pulled (farthest non-empty child) and pushed (holes take the parent), level by level.
-   The float arithmetic is the twin's, in its order (see gim_ism_render in gimany.h). */
+   The float arithmetic is the twin's, in its order (see gim_ism_render in gimany.h). Each
+   texel is stored in 16 bits, the upper half of its float's bits rounded to nearest
+   (gim_ism_quantize), two to a uint: texel 2k in the low half, 2k + 1 in the high. */
 #define GROUP 256
 #define MAX_SIZE 64
 #define PYRAMID 1365                  /* 32^2 + 16^2 + ... + 1 */
@@ -14,7 +16,7 @@ struct Point { vec4 position_area; vec4 normal; };                /* gim_ism_poi
    normal, flux), source_vec4s apart */
 layout(std430, binding = 0) readonly buffer Sources { vec4 source[]; };
 layout(std430, binding = 1) readonly buffer Points { Point point[]; };
-layout(std430, binding = 2) writeonly buffer Maps { float map_out[]; };
+layout(std430, binding = 2) writeonly buffer Maps { uint map_out[]; };   /* size^2 / 2 per map */
 
 layout(location = 0) uniform uint first_map;   /* this dispatch's maps: first_map + work group */
 layout(location = 1) uniform uint size;        /* power of two, 4..64 */
@@ -157,5 +159,7 @@ void main() {
         }
         barrier();
     }
-    for (uint q = local; q < texels; q += uint(GROUP)) map_out[m * texels + q] = uintBitsToFloat(level0[q]);
+    uint half_texels = texels / 2u;
+    for (uint q = local; q < half_texels; q += uint(GROUP))
+        map_out[m * half_texels + q] = ((level0[2u * q] + 0x8000u) >> 16) | (((level0[2u * q + 1u] + 0x8000u) >> 16) << 16);
 }

@@ -36,8 +36,9 @@ layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 star
 layout(std430, binding = 4) buffer State { vec4 state[]; };
 
 /* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility's lookup,
-   its float arithmetic in its order); ism_size 0: every VAL seen. */
-layout(std430, binding = 7) readonly buffer IsmMaps { float ism[]; };
+   its float arithmetic in its order); ism_size 0: every VAL seen. Texels in 16 bits, two to a
+   uint (ism.comp): texel 2k in the low half; a texel's float is its bits shifted up. */
+layout(std430, binding = 7) readonly buffer IsmMaps { uint ism[]; };
 layout(location = 12) uniform uint ism_size;
 layout(location = 13) uniform float ism_bias;
 layout(location = 14) uniform float ism_texel;   /* slope 2 / size */
@@ -69,7 +70,9 @@ float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
     int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
     int tx = iy * int(ism_size) + ix;
-    float z = ism[i * ism_size * ism_size + uint(tx)];
+    uint zi = i * ism_size * ism_size + uint(tx);
+    uint zw = ism[zi >> 1u];
+    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
     float dref = dist;
     vec3 dir = ism_ray(tx, t, b, n);
     float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;

@@ -24,7 +24,7 @@ layout(location = 2) uniform uint size;
    2008; gim_ism_visibility's lookup, the hit as the VAL, in its float steps) and dropped where
    the map does not see it: the paraboloid map skips what lies within near_distance of its
    origin (gim_second_bounce_desc.ism) */
-layout(std430, binding = 3) readonly buffer IsmMaps { float ism[]; };
+layout(std430, binding = 3) readonly buffer IsmMaps { uint ism[]; };   /* 16-bit depths, two to a uint (gim_ism_dequantize) */
 layout(location = 3) uniform uint ism_size;
 layout(location = 4) uniform float ism_bias;
 layout(location = 5) uniform float ism_texel;   /* slope 2 / size */
@@ -52,7 +52,9 @@ float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     precise float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
     int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
-    float z = ism[m * ism_size * ism_size + uint(iy * int(ism_size) + ix)];
+    uint zi = m * ism_size * ism_size + uint(iy * int(ism_size) + ix);
+    uint zw = ism[zi >> 1u];
+    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
     precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray */
     precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
     precise float r2 = u * u + v * v;

@@ -46,7 +46,7 @@ layout(location = 13) uniform uint map_count;   /* a cluster index beyond it is 
 /* flags & 16: each VPL's own imperfect shadow map (Ritschel et al. 2008) instead of its
    cluster's, map i of VPL i, hard visibility: gim_ism_visibility's lookup with the receiver as
    the VAL, its float steps in its order (the twin: gim_vpl_shade's ism) */
-layout(std430, binding = 5) readonly buffer IsmMaps { float ism[]; };
+layout(std430, binding = 5) readonly buffer IsmMaps { uint ism[]; };   /* 16-bit depths, two to a uint (gim_ism_dequantize) */
 layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;
 layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
@@ -167,7 +167,9 @@ float ism_visibility(uint i, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
     int tx = iy * int(ism_size) + ix;
-    float z = ism[i * ism_size * ism_size + uint(tx)];
+    uint zi = i * ism_size * ism_size + uint(tx);
+    uint zw = ism[zi >> 1u];
+    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
     precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray, gim__ism_texel_ray */
     precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
     precise float r2 = u * u + v * v;

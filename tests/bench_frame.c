@@ -22,7 +22,11 @@
    GL timestamps charge queued work to later passes); memory; the ratio FULL : this; the mean
    relative difference to FULL's image (the paper's Fig. 3/5 comparison); the relative MAE
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
-   standard error alone gives against the true image); flicker.
+   standard error alone gives against the true image); flicker; for a row with visibility
+   (brsm-ism: imperfect shadow maps per cache) its frame over the same method's frame without
+   (visibility_over_off: the maps' lookups; the maps are reused while the scene stands still)
+   and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2; on the
+   row of the first VAL count of each RSM size, the others reuse the maps).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
    prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery);
@@ -79,10 +83,19 @@ static void setup_vpl(gim_frame *f, const bench_method *m) {
     f->bounces = m->bounces;
 }
 
+/* LightSkin with imperfect shadow maps per cache (Ritschel et al. 2008) at the library's
+   defaults; the row right after the same method without them, whose frame its
+   visibility_over_off column divides by */
+static void setup_ism(gim_frame *f, const bench_method *m) {
+    (void)m;
+    f->visibility = GIM_VISIBILITY_ISM;
+}
+
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
 static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
     {"brsm", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, NULL, 1, 0},
+    {"brsm-ism", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_ism, 1, 0},
     /* Dong et al.: clusters 4 / 8 / 16 / 32 (30 is the library's default) */
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl, 1, 1},
@@ -158,8 +171,8 @@ static const bench_sweep *sw;
 static int W, H;
 
 static const char *const pass_names[GIM_PASS_COUNT] = {"rsm",  "gbuffer", "view_samples", "importance", "cumsum", "select",
-                                                       "caches", "vals", "proxy", "occlusion", "shade", "vpls",
-                                                       "kmeans", "paraboloid", "second_bounce", "blur"};
+                                                       "caches", "vals", "proxy", "shade", "vpls",
+                                                       "kmeans", "paraboloid", "second_bounce", "blur", "ism"};
 
 typedef struct measure {
     double frame_ms;              /* median of untimed frames */
@@ -319,17 +332,22 @@ static void csv_header(void) {
     fprintf(csv, "sweep,scene,width,height,method,rsm,vals,view_samples,clusters,second_bounce_vpls,bounces,frame_ms,"
                  "full_over_this,rel_diff_full,rel_mae_reference,ref_spp,ref_noise_mae");
     for (k = 0; k < GIM_PASS_COUNT; ++k) fprintf(csv, ",%s_ms", pass_names[k]);
-    fprintf(csv, ",pass_clock,gpu_mib,image_change,flicker,renderer\n");
+    fprintf(csv, ",pass_clock,gpu_mib,image_change,flicker,visibility_over_off,ism_build_ms,renderer\n");
 }
 
 /* One row: printed and written to the CSV. t_full 0: no FULL at this size (its columns empty);
-   change, flicker < -1: not measured. */
+   change, flicker < -1: not measured. t_off: the frame of the same method without visibility
+   (visibility_over_off = this frame / that), ism_build: the ISM pass of the frame that made the
+   maps (timing 2); either <= 0: none (empty columns). */
 static void row(const char *scene_name, const bench_method *bm, uint32_t rsm, uint32_t vs, const measure *m, double t_full,
-                double diff_full, double err_ref, double ref_noise, double change, double flicker) {
+                double diff_full, double err_ref, double ref_noise, double change, double flicker, double t_off,
+                double ism_build) {
     int k;
-    printf("| %-7s | %5u^2 | %-6s | %7u | %4u | %9.1f | %6.1f | %.4f | %6.3f |", scene_name, rsm, bm->name, m->vals, vs, m->frame_ms,
-           t_full > 0.0 ? t_full / m->frame_ms : -1.0, t_full > 0.0 ? diff_full : -1.0, err_ref);
+    printf("| %-7s | %5u^2 | %-8s | %7u | %4u | %9.1f | %6.1f | %.4f | %6.3f | %5.2f |", scene_name, rsm, bm->name, m->vals, vs,
+           m->frame_ms, t_full > 0.0 ? t_full / m->frame_ms : -1.0, t_full > 0.0 ? diff_full : -1.0, err_ref,
+           t_off > 0.0 ? m->frame_ms / t_off : 1.0);
     for (k = 0; k < GIM_PASS_COUNT; ++k) if (m->pass_ms[k] > 0.0) printf(" %s %.1f", pass_names[k], m->pass_ms[k]);
+    if (ism_build > 0.0) printf(" (ISM build %.1f)", ism_build);
     printf(" |\n");
     fflush(stdout);
     if (!csv) return;
@@ -342,6 +360,10 @@ static void row(const char *scene_name, const bench_method *bm, uint32_t rsm, ui
     for (k = 0; k < GIM_PASS_COUNT; ++k) fprintf(csv, ",%.3f", m->pass_ms[k]);
     fprintf(csv, ",%d,%.2f,", m->pass_clock, m->gpu_mib);
     if (change >= -1.0) fprintf(csv, "%.5f,%.5f", change, flicker);
+    else fprintf(csv, ",");
+    if (t_off > 0.0) fprintf(csv, ",%.3f", m->frame_ms / t_off);
+    else fprintf(csv, ",");
+    if (ism_build > 0.0) fprintf(csv, ",%.2f", ism_build);
     else fprintf(csv, ",");
     fprintf(csv, ",%s\n", renderer_name());
     fflush(csv);
@@ -469,11 +491,11 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     else
         printf("reference: none (make reference builds it)\n");
     printf("| scene | RSM | method | VALs | view samples | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs ref. | "
-           "pass ms (timing 2 medians) |\n|---|---|---|---|---|---|---|---|---|---|\n");
+           "frame / no visibility | pass ms (timing 2 medians) |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
     for (ri = 0; ri < sw->rsm_n && sw->rsm[ri] <= max_rsm; ++ri) {
         uint32_t rsm = sw->rsm[ri];
         int flick = strcmp(bs->name, "street") == 0 && rsm == sw->flicker_rsm, have_full;
-        double c_full = -2.0;
+        double c_full = -2.0, off_ms[3][2] = {{0.0}};
         measure m, mf;
         if (rsm < min_rsm) continue;
         g.lights[0].rsm_size = rsm;
@@ -488,7 +510,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         if (have_full) {
             read_image(ctx, full);
             if (flick) c_full = image_change(ctx, &g, f);
-            row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0);
+            row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0, 0.0, 0.0);
         } else {
             printf("| %-7s | %5u^2 | full   | does not run here (see the error above): no FULL columns at this size |\n", bs->name, rsm);
             mf.frame_ms = 0.0;
@@ -502,19 +524,35 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
             for (vi = 0; vi < nv; ++vi)
                 for (si = 0; si < ns; ++si) {
                     gim_frame fm = f;
-                    double c = -2.0;
+                    double c = -2.0, t_off = 0.0, ism_build = 0.0;
                     fm.method = bm->method;
                     fm.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
+                    if (fm.visibility == GIM_VISIBILITY_ISM) {
+                        /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
+                           a frame without them frees them, the next makes them */
+                        if (vi == 0 && si == 0) {
+                            gim_frame off = fm, build = fm;
+                            gim_stats st;
+                            off.visibility = GIM_VISIBILITY_OFF;
+                            update(ctx, &off);
+                            build.timing = 2;
+                            update(ctx, &build);
+                            gim_frame_stats(ctx, &st);
+                            ism_build = st.pass_ms[GIM_PASS_ISM];
+                        }
+                        if (mi > 0 && methods[mi - 1].method == bm->method && !methods[mi - 1].setup) t_off = off_ms[vi][si];
+                    }
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
+                    if (bm->per_val && !bm->setup) off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
                     if (flick && si == 0) c = image_change(ctx, &g, fm);
                     if (bm->vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
                     row(bs->name, bm, rsm, fm.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
                         error_vs(img, bm->bounces == 2 ? ref2 : ref), bm->bounces == 2 ? ref2_noise : ref_noise, c,
-                        c > -1.0 ? c - c_full : 0.0);
+                        c > -1.0 ? c - c_full : 0.0, t_off, ism_build);
                 }
         }
     }

@@ -245,44 +245,6 @@ int main(void) {
         free(caches);
         free(vals);
     }
-    /* LightSkin occlusion (paper 000 "Occlusion"): every cache against every cache, O(C^2);
-       caches on a 10 x 10 floor and floating blockers, each light 5 above its cache */
-    for (k = 0; k < 2; ++k) {
-        uint32_t C = k ? 5000u : 2000u;
-        gim_cache *caches = (gim_cache *)calloc(C, sizeof *caches);
-        gim_proxy_light *lights = (gim_proxy_light *)calloc(C, sizeof *lights);
-        GLuint bc, bl;
-        double t[RUNS], med;
-        int r;
-        for (i = 0; i < C; ++i) {
-            caches[i].position[0] = (float)(test_rand01() * 10.0);
-            caches[i].position[1] = i % 4 == 3 ? (float)(1.0 + test_rand01() * 3.0) : 0.0f;
-            caches[i].position[2] = (float)(test_rand01() * 10.0);
-            caches[i].normal[1] = i % 4 == 3 ? -1.0f : 1.0f;
-            caches[i].area = i % 4 == 3 ? 0.1f : 0.02f;
-            memcpy(lights[i].position, caches[i].position, sizeof lights[i].position);
-            lights[i].position[1] += 5.0f;
-            lights[i].radius = 0.5f;
-            lights[i].flux[0] = lights[i].flux[1] = lights[i].flux[2] = 1.0f;
-        }
-        bc = gltest_ssbo((size_t)C * sizeof *caches, caches);
-        bl = gltest_ssbo((size_t)C * sizeof *lights, lights);
-        gim__gl_proxy_occlusion(ctx, bc, C, bl, 15.0f);
-        glFinish();
-        for (r = 0; r < RUNS; ++r) {
-            double t0 = now_ms();
-            gim__gl_proxy_occlusion(ctx, bc, C, bl, 15.0f);
-            glFinish();
-            t[r] = now_ms() - t0;
-        }
-        med = median(t, RUNS);
-        printf("proxy occlusion %u caches: %.2f ms (median of %d), %.3f G pairs/s\n", (unsigned)C, med, RUNS,
-               (double)C * C / (med * 1e6));
-        glDeleteBuffers(1, &bc);
-        glDeleteBuffers(1, &bl);
-        free(caches);
-        free(lights);
-    }
 
     free(map);
     gim_destroy(ctx);

@@ -53,7 +53,7 @@ static uint32_t rsm_size = 2048, val_count = 8192;
 static const char *pass_name(int k) {
     static const char *const names[GIM_PASS_COUNT] = {
         "rsm", "gbuffer", "view samples", "importance", "cumsum", "select", "caches", "vals",
-        "proxy", "occlusion", "shade", "vpls", "kmeans", "paraboloid", "second bounce", "blur"};
+        "proxy", "shade", "vpls", "kmeans", "paraboloid", "second bounce", "blur", "ism"};
     return names[k];
 }
 

@@ -261,7 +261,7 @@ static void frame_free(frame *f) {
     free(f->vals); free(f->rc); free(f->nidx); free(f->ncnt); free(f->dcmax);
 }
 
-static int shade(const frame *f, const float *vis, int occlusion, float *out) {
+static int shade(const frame *f, const float *vis, float *out) {
     gim_lightskin_desc d;
     memset(&d, 0, sizeof d);
     d.caches = f->caches.caches; d.cache_count = f->caches.count;
@@ -272,7 +272,6 @@ static int shade(const frame *f, const float *vis, int occlusion, float *out) {
     d.d_cmax = f->dcmax;
     d.scene_scale = f->scale;
     d.visibility = vis;
-    d.occlusion = occlusion;
     return gim_lightskin_cpu(&d, out) != GIM_OK;
 }
 
@@ -295,7 +294,7 @@ static int run(const char *name, const scene *s, uint32_t size, uint32_t per_map
     frame f;
     gim_twin_scene ts;
     gim_ism_desc id;
-    float *pts, *maps, *vis_i, *vis_e, *img[5];
+    float *pts, *maps, *vis_i, *vis_e, *img[3];
     size_t cv, q;
     uint32_t c, j;
     double t0, t_pts, t_maps, t_look, t_exact, wrong = 0.0, total = 0.0, leak = 0.0;
@@ -307,7 +306,7 @@ static int run(const char *name, const scene *s, uint32_t size, uint32_t per_map
     maps = (float *)malloc((size_t)f.caches.count * size * size * sizeof(float));
     vis_i = (float *)malloc(cv * sizeof(float));
     vis_e = (float *)malloc(cv * sizeof(float));
-    for (j = 0; j < 5; ++j) img[j] = (float *)malloc((size_t)f.rc_count * 3 * sizeof(float));
+    for (j = 0; j < 3; ++j) img[j] = (float *)malloc((size_t)f.rc_count * 3 * sizeof(float));
     t0 = now_s();
     if (gim_ism_points(&ts, POOL, pts) != GIM_OK) return 1;
     t_pts = now_s() - t0;
@@ -349,9 +348,7 @@ static int run(const char *name, const scene *s, uint32_t size, uint32_t per_map
         }
     }
     t_exact = now_s() - t0;
-    if (shade(&f, NULL, 0, img[0]) || shade(&f, vis_i, 0, img[1]) || shade(&f, vis_e, 0, img[2]) ||
-        shade(&f, NULL, 1, img[3]) || shade(&f, vis_i, 1, img[4]))
-        return 1;
+    if (shade(&f, NULL, img[0]) || shade(&f, vis_i, img[1]) || shade(&f, vis_e, img[2])) return 1;
     printf("%-8s %3u caches %5u VALs %4u receivers  ISM %2u^2 x %5u points: points %.3f s, maps %.3f s, lookups %.3f s "
            "(exact casts %.1f s)\n",
            name, f.caches.count, f.val_count, f.rc_count, size, per_map, t_pts, t_maps, t_look, t_exact);
@@ -360,18 +357,14 @@ static int run(const char *name, const scene *s, uint32_t size, uint32_t per_map
     if (closed) {
         const scene_light *l = s->lights;
         double ground = 0.8 * l->irradiance * l->direction[1] / 3.14159265358979;  /* rho E cos / pi */
-        printf("         mean indirect inside / sunlit ground: none %.4f  ISM %.4f  exact %.4f  "
-               "double projection %.4f  ISM + double projection %.4f\n",
+        printf("         mean indirect inside / sunlit ground: none %.4f  ISM %.4f  exact %.4f\n",
                mean_lum(img[0], f.rc_count) / ground, mean_lum(img[1], f.rc_count) / ground,
-               mean_lum(img[2], f.rc_count) / ground, mean_lum(img[3], f.rc_count) / ground,
-               mean_lum(img[4], f.rc_count) / ground);
+               mean_lum(img[2], f.rc_count) / ground);
     } else {
-        printf("         LightSkin image against exact visibility (rel MAE): none %.4f  ISM %.4f  double projection %.4f  "
-               "ISM + double projection %.4f\n",
-               rel_mae(img[0], img[2], (size_t)f.rc_count * 3), rel_mae(img[1], img[2], (size_t)f.rc_count * 3),
-               rel_mae(img[3], img[2], (size_t)f.rc_count * 3), rel_mae(img[4], img[2], (size_t)f.rc_count * 3));
+        printf("         LightSkin image against exact visibility (rel MAE): none %.4f  ISM %.4f\n",
+               rel_mae(img[0], img[2], (size_t)f.rc_count * 3), rel_mae(img[1], img[2], (size_t)f.rc_count * 3));
     }
-    for (j = 0; j < 5; ++j) free(img[j]);
+    for (j = 0; j < 3; ++j) free(img[j]);
     free(pts); free(maps); free(vis_i); free(vis_e);
     frame_free(&f);
     soup_free(&sp);

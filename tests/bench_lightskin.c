@@ -1,7 +1,7 @@
 /* LightSkin twins benchmarks (medians, CPU, one thread): the proxy-light pass for 5000 caches
    with FULL LightSkin (every texel of a 128^2 RSM is a VAL) against BRSM (2048 selected VALs),
-   diffuse only and diffuse + glossy; then the shading pass (interpolation, 16 neighbours) and
-   the O(C^2) occlusion pass for scale. The BRSM VALs come from the library's own importance
+   diffuse only and diffuse + glossy; then the shading pass (interpolation, 16 neighbours).
+   The BRSM VALs come from the library's own importance
    map, cumulative sums, selection and gather, in the order the selection makes them. The FULL / BRSM ratio is the cost model's
    texels / selected VALs (DESIGN.md sec. 7): 16384 / 2048 = 8. */
 #define _POSIX_C_SOURCE 199309L
@@ -78,7 +78,7 @@ int main(void) {
     float *dcm = (float *)malloc(NR * sizeof *dcm), *L = (float *)malloc((size_t)NR * 3 * sizeof *L);
     gim_proxy_desc d;
     gim_shade_desc sd;
-    double ms[4], ts, to, t[15], chk;
+    double ms[4], ts, t[15], chk;
     int i, r, a;
     if (!c || !full || !sel || !pd || !pg || !rc || !idx || !dcm || !L) return 1;
     /* caches on a 100 x 100 ground facing up and on a 20 high wall x = 50 facing -x */
@@ -159,14 +159,7 @@ int main(void) {
         t[r] = cpu_s() - t0;
     }
     ts = median(t, 7) * 1e3;
-    for (r = 0; r < 3; ++r) {
-        double t0 = cpu_s();
-        if (gim_proxy_occlusion(c, NC, pd, 150, sd.env) != GIM_OK) return 1;
-        t[r] = cpu_s() - t0;
-    }
-    to = median(t, 3) * 1e3;
     printf("shading, %d receivers x %d neighbours, diffuse + glossy: %.1f CPU ms\n", NR, NB, ts);
-    printf("occlusion, %d caches (O(C^2)), one proxy set: %.1f CPU ms\n", NC, to);
     printf("(check %g %g)\n", chk, L[3]);
     free(c); free(full); free(sel); free(pd); free(pg); free(rc); free(idx); free(dcm); free(L);
     return 0;

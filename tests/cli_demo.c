@@ -245,20 +245,20 @@ static void direct_glossy(void **state) {
     }
 }
 
-/* FULL and none run; none has no indirect light; --no-occlusion and --no-glossy are taken. */
+/* FULL and none run; none has no indirect light; --no-glossy is taken. */
 static void methods(void **state) {
     char *out = NULL, *js;
     float *ind;
     uint32_t i;
     double sum = 0.0;
     (void)state;
-    assert_int_equal(demo("--scene cornell --size 64x48 --frames 2 --method full --rsm 16 --no-occlusion", OUT "/d", &out), 0);
+    assert_int_equal(demo("--scene cornell --size 64x48 --frames 2 --method full --rsm 16", OUT "/d", &out), 0);
     free(out);
     js = cli_read_file(OUT "/d/stats.json");
     assert_non_null(js);
     assert_non_null(strstr(js, "\"method\": \"full\""));
     assert_non_null(strstr(js, "\"vals\": 256"));       /* FULL: every texel of the 16^2 RSM */
-    assert_non_null(strstr(js, "\"occlusion\": false"));
+    assert_non_null(strstr(js, "\"ism\": false"));
     free(js);
     ind = read_image(OUT "/d", "indirect.pfm", 64, 48);
     for (i = 0; i < 64 * 48 * 3; ++i) sum += ind[i];

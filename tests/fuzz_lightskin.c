@@ -1,4 +1,4 @@
-/* libFuzzer: hostile and extreme scenes through the LightSkin twins (proxy lights, occlusion,
+/* libFuzzer: hostile and extreme scenes through the LightSkin twins (proxy lights,
    shading, the whole frame). Inputs are read as floats; unless the mode says raw, they are
    made valid (finite, unit normals, non-negative areas, weights and colours), so the fuzzer
    reaches the maths with extreme magnitudes instead of stopping at the checks. Whatever the
@@ -91,7 +91,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     memset(&d, 0, sizeof d);
     d.caches = c; d.cache_count = nc; d.vals = nv ? v : NULL; d.val_count = nv;
     d.eye = gim_v3(take_f(&r, raw), take_f(&r, raw), take_f(&r, raw));
-    d.glossy = (mode & 4u) != 0; d.occlusion = (mode & 8u) != 0;
+    d.glossy = (mode & 4u) != 0;
     d.glossy_exponent = take_pos(&r, raw);
     if (!raw && d.glossy_exponent > 1e6f) d.glossy_exponent = 1e6f;
     d.receivers = rc; d.receiver_count = nr; d.neighbour_index = idx; d.neighbour_stride = stride; d.d_cmax = dcm;
@@ -107,9 +107,6 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     pdsc.caches = c; pdsc.cache_count = nc; pdsc.vals = nv ? v : NULL; pdsc.val_count = nv;
     pdsc.eye = d.eye; pdsc.glossy_exponent = d.glossy_exponent; pdsc.scene_scale = d.scene_scale; pdsc.env = env;
     res = gim_proxy_lights(&pdsc, pd, pg);
-    if (res == GIM_OK) {
-        check_lights(pd, nc); check_lights(pg, nc);
-        if (gim_proxy_occlusion(c, nc, pd, scale > 0.0f && scale - scale == 0.0f ? scale : 1.0f, env) == GIM_OK) check_lights(pd, nc);
-    }
+    if (res == GIM_OK) { check_lights(pd, nc); check_lights(pg, nc); }
     return 0;
 }

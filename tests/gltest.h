@@ -167,6 +167,17 @@ static GIM__UNUSED GLuint gltest_ssbo(size_t bytes, const void *data) {
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
     return b;
 }
+/* Imperfect shadow maps (float depths, texels of them) as the GPU stores them: 16 bits a
+   texel (gim_ism_quantize), two to a uint, texel 2k in the low half. */
+static GIM__UNUSED GLuint gltest_ism_ssbo(const float *maps, size_t texels) {
+    uint32_t *w = (uint32_t *)calloc(texels / 2 + 1, 4);
+    size_t q;
+    GLuint b;
+    for (q = 0; q < texels; ++q) w[q / 2] |= (uint32_t)gim_ism_quantize(maps[q]) << (q & 1u ? 16 : 0);
+    b = gltest_ssbo((texels / 2 + 1) * 4, w);
+    free(w);
+    return b;
+}
 /* Read the first bytes of buffer b back. */
 static GIM__UNUSED void gltest_read_buffer(GLuint b, size_t bytes, void *out) {
     glBindBuffer(GL_COPY_READ_BUFFER, b);

@@ -1,6 +1,6 @@
 /* The whole LightSkin frame of gim_update on the Cornell box (paper 000 end to end): the GPU
    frame against the CPU frame (gim_lightskin_cpu on the frame's own VALs, caches and pixels),
-   colour bleeding, BRSM converging to FULL as N_sVAL grows, occlusion, glossy only when a
+   colour bleeding, BRSM converging to FULL as N_sVAL grows, glossy only when a
    material is glossy, what FULL frees, stats, no NaN, zero GL errors. Runs on the measured
    Cornell box of ../shared/scenes when present and always on the built-in one. */
 #define GIMANY_IMPLEMENTATION
@@ -16,7 +16,7 @@
    of its G-buffer; neighbours by gim_cache_neighbours truncated at the pass's radius. Returns
    the largest relative difference (floored at 1e-3 of the image's largest value) over the
    pixels, and how many exceed tol. */
-static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int occlusion, double tol, double *max_rel) {
+static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
     uint32_t n = o.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt;
     gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
@@ -64,7 +64,6 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, int 
         gltest_read_buffer(o.cache_exponents, o.cache_count * sizeof(float), kc);
         ld.cache_glossy_exponent = kc;
     }
-    ld.occlusion = occlusion;
     ld.receivers = rec; ld.receiver_count = nrec;
     ld.neighbour_index = nb_idx; ld.neighbour_count = nb_cnt; ld.neighbour_stride = n; ld.d_cmax = dcmax;
     ld.scene_scale = o.scene_scale;
@@ -118,7 +117,7 @@ static void cornell_frame(const char *gltf) {
     assert_int_equal(o.proxy_glossy, 0);             /* no glossy material in the box */
     read_indirect(&o, full);
     gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
-    bad = compare_with_cpu_frame(&ff, full, 0, 5e-4, &max_rel);
+    bad = compare_with_cpu_frame(&ff, full, 5e-4, &max_rel);
     print_message("%s FULL: %u caches, GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n",
                   gltf ? "glTF" : "builtin", o.cache_count, max_rel, bad);
     assert_true(bad <= W * H / 200);
@@ -155,29 +154,10 @@ static void cornell_frame(const char *gltf) {
     assert_true(err[2] < err[0]);
     assert_true(err[2] < 0.5 * err[0]);
     assert_true(err[2] < 0.1);
-    bad = compare_with_cpu_frame(&ff, brsm, 0, 5e-4, &max_rel);
+    bad = compare_with_cpu_frame(&ff, brsm, 5e-4, &max_rel);
     print_message("BRSM 2048: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
     assert_true(bad <= W * H / 200);
 
-    /* occlusion darkens (the blocks shadow the indirect light) and still matches the CPU frame */
-    ff.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
-    ff.fr.occlusion = 1;
-    ff.fr.timing = 2;   /* glFinish between passes */
-    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    read_indirect(&o, brsm);
-    {
-        double sum_on = 0.0, sum_off = 0.0;
-        int i;
-        for (i = 0; i < W * H * 4; ++i) if (i % 4 != 3) { sum_on += brsm[i]; sum_off += full[i]; }
-        print_message("occlusion: image sum %.4g of %.4g without\n", sum_on, sum_off);
-        assert_true(sum_on < sum_off && sum_on > 0.3 * sum_off);
-    }
-    bad = compare_with_cpu_frame(&ff, brsm, 1, 5e-4, &max_rel);
-    print_message("FULL + occlusion: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
-    assert_true(bad <= W * H / 100);
-    assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
-    assert_true(st.pass_ms[GIM_PASS_OCCLUSION] > 0.0);
     gltest_state_unchanged(&ff.f);
     frame_end(&ff);
     free(full); free(brsm); free(nrm);
@@ -295,7 +275,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     assert_true(o.proxy_glossy != 0);
     assert_true(o.glossy_exponent == 30.0f);
     read_indirect(&o, img);
-    bad = compare_with_cpu_frame(&ff, img, 0, 5e-4, &max_rel);
+    bad = compare_with_cpu_frame(&ff, img, 5e-4, &max_rel);
     print_message("glossy BRSM: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
     assert_true(bad <= W * H / 200);
     /* the default RGBA16F output: the same frame within half precision (2^-11 relative) */
@@ -303,7 +283,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     read_indirect(&o, img);
-    bad = compare_with_cpu_frame(&ff, img, 0, 1.1e-3, &max_rel);
+    bad = compare_with_cpu_frame(&ff, img, 1.1e-3, &max_rel);
     print_message("glossy BRSM, RGBA16F: GPU vs CPU frame max rel %.2e, %u pixels above 1.1e-3\n", max_rel, bad);
     assert_true(bad <= W * H / 200);
     /* the world caches and their grid are made again only when an instance or mesh changes */
@@ -324,7 +304,7 @@ static void glossy_sizes_and_no_caches(void **state) {
         gltest_read_buffer(o.caches, ff.g.cache_count * sizeof *cs, cs);
         for (k = 0; k < ff.g.cache_count; ++k) y_moved += cs[k].position[1];
         read_indirect(&o, img);
-        bad = compare_with_cpu_frame(&ff, img, 0, 5e-4, &max_rel);   /* its caches: the moved ones */
+        bad = compare_with_cpu_frame(&ff, img, 5e-4, &max_rel);   /* its caches: the moved ones */
         print_message("moved instances: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
         assert_true(bad <= W * H / 200);
         for (i = 0; i < ff.g.mesh_count; ++i) ff.g.instances[i].model.m[13] -= 0.05f;

@@ -498,7 +498,7 @@ static void second_bounce_ism_matches_twin(void **state) {
     id.caches = caches; id.cache_count = NMAPS; id.points = pts; id.point_count = NPT; id.size = IS;
     id.points_per_map = NPT / 4; id.scene_scale = 2.0f; id.env = s.f.env;
     assert_int_equal(gim_ism_render(&id, ism), GIM_OK);
-    bism = gltest_ssbo((size_t)NMAPS * IS * IS * 4, ism);
+    bism = gltest_ism_ssbo(ism, (size_t)NMAPS * IS * IS);
     out = gltest_ssbo(N * sizeof(gim_vpl), NULL);
     memset(&gi, 0, sizeof gi);
     gi.maps = bism; gi.size = IS; gi.bias = GIM_ISM_VPL_BIAS; gi.slope = GIM_ISM_VPL_SLOPE;

@@ -804,7 +804,6 @@ static void scene_state_restored(void **state) {
     fr.height = 16;
     fr.view_sample_count = 32;
     fr.val_count = 16;
-    fr.occlusion = 1;
     fr.timing = 1;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     check_distinctive_state(&h);

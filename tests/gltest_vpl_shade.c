@@ -168,7 +168,7 @@ static void run_case(const shade_case *sc) {
         idd.size = IS; idd.points_per_map = NP / 4; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
         ism = (float *)malloc((size_t)NV * IS * IS * 4);
         assert_int_equal(gim_ism_render(&idd, ism), GIM_OK);
-        b_ism = gltest_ssbo((size_t)NV * IS * IS * 4, ism);
+        b_ism = gltest_ism_ssbo(ism, (size_t)NV * IS * IS);
         free(pos); free(alb3); free(pts);
     }
     b_vpls = gltest_ssbo(sizeof vpls, vpls);

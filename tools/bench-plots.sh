@@ -86,7 +86,7 @@ table="$tmp/table.md"
   echo "| scene | frame | RSM | method | VALs | view samples | clusters / 2nd-bounce VPLs / bounces | frame ms | FULL : this | rel. diff to FULL | rel. MAE vs reference (its noise floor; its paths per pixel) | flicker | GPU MiB | passes over 10%, ms (timing 2) |"
   echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"
   awk -F, "$col"' {
-    n = split("rsm gbuffer view_samples importance cumsum select caches vals proxy occlusion shade vpls kmeans paraboloid second_bounce blur", pn, " ")
+    n = split("rsm gbuffer view_samples importance cumsum select caches vals proxy shade vpls kmeans paraboloid second_bounce blur ism", pn, " ")
     sum = 0; for (k = 1; k <= n; ++k) sum += $c[pn[k] "_ms"]
     passes = ""; for (k = 1; k <= n; ++k) if ($c[pn[k] "_ms"] > 0.1 * sum) passes = passes (passes == "" ? "" : ", ") sprintf("%s %.0f", pn[k], $c[pn[k] "_ms"])
     printf "| %s | %sx%s | %s^2 | %s | %s | %s | %s / %s / %s | %.0f | %s | %s | %s | %s | %.1f | %s |\n",
