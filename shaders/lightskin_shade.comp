@@ -71,18 +71,28 @@ float best_d[MAX_N];
 uint best_i[MAX_N];
 uint found;
 
-/* Keep the n nearest (distance, index) pairs, sorted. */
+/* Keep the MAX_N nearest (distance, index) pairs, sorted (the first n are the n nearest): an
+   insertion unrolled into compares and selects at constant indices, so the arrays live in
+   registers (a loop that shifts at a varying index puts them in memory: local memory on GPUs,
+   a scatter per lane on llvmpipe). Empty slots hold (FLT_MAX, ~0). */
+bool before(float d, uint idx, float bd, uint bi) { return d < bd || (d == bd && idx < bi); }
 void offer(float d, uint idx) {
-    if (found == n && (d > best_d[n - 1u] || (d == best_d[n - 1u] && idx > best_i[n - 1u]))) return;
-    uint j = found < n ? found : n - 1u;
-    if (found < n) ++found;
-    while (j > 0u && (best_d[j - 1u] > d || (best_d[j - 1u] == d && best_i[j - 1u] > idx))) {
-        best_d[j] = best_d[j - 1u];
-        best_i[j] = best_i[j - 1u];
-        --j;
+    for (int j = MAX_N - 1; j > 0; --j) {
+        bool here = before(d, idx, best_d[j], best_i[j]), above = before(d, idx, best_d[j - 1], best_i[j - 1]);
+        best_d[j] = above ? best_d[j - 1] : (here ? d : best_d[j]);
+        best_i[j] = above ? best_i[j - 1] : (here ? idx : best_i[j]);
     }
-    best_d[j] = d;
-    best_i[j] = idx;
+    bool first = before(d, idx, best_d[0], best_i[0]);
+    best_d[0] = first ? d : best_d[0];
+    best_i[0] = first ? idx : best_i[0];
+    found = min(found + 1u, n);
+}
+
+/* best_d[i] for a varying i, by selects */
+float best_at(uint i) {
+    float v = FLT_MAX;
+    for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? best_d[j] : v;
+    return v;
 }
 
 void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
@@ -103,7 +113,8 @@ void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
 vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
     float sw[2] = float[2](0.0, 0.0);
     vec3 se[2] = vec3[2](vec3(0.0), vec3(0.0));
-    for (uint j = 0u; j < found; ++j) {
+    for (int j = 0; j < MAX_N; ++j) {   /* constant indices into best_i (see offer) */
+        if (uint(j) >= found) break;
         uint i = best_i[j];
         vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
         Proxy p = is_glossy ? glossy[i] : diffuse[i];
@@ -165,7 +176,7 @@ void search_pixel(vec3 x, vec3 nx, float radius) {
                     if (r > 0 && pc.x + r >= 0 && pc.x + r < dims.x) visit(ivec3(pc.x + r, cy, cz), x, nx, radius);
                 }
             }
-        if (found == n && best_d[n - 1u] <= float(r) * h) break;
+        if (found == n && best_at(n - 1u) <= float(r) * h) break;
     }
 }
 
@@ -271,6 +282,7 @@ void main() {
 
     /* 1. neighbours */
     found = 0u;
+    for (int j = 0; j < MAX_N; ++j) { best_d[j] = FLT_MAX; best_i[j] = 0xffffffffu; }
     if (mode == 1 && list_count <= list_limit) {
         for (uint j = 0u; j < list_count; ++j) {
             vec4 p = list_p[j];
@@ -281,10 +293,10 @@ void main() {
     } else {
         search_pixel(x, nx, radius);
     }
-    float dcmax = found > 0u ? best_d[found - 1u] : 0.0;
+    float dcmax = found > 0u ? best_at(found - 1u) : 0.0;
     if ((flags & 4u) != 0u) {
         uint sum = 0u;
-        for (uint j = 0u; j < found; ++j) sum += best_i[j];
+        for (int j = 0; j < MAX_N; ++j) sum += uint(j) < found ? best_i[j] : 0u;
         imageStore(indirect, px, vec4(dcmax, float(found), float(sum), 1.0));
         return;
     }
