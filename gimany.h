@@ -9108,7 +9108,10 @@ typedef struct gim__shade_args {
 /* Per pixel neighbours (the n nearest compatible caches within GIM__NEIGHBOUR_RINGS h),
    interpolation (eq. 8-9) and shading: the twin is gim_cache_neighbours (max_distance =
    rings h) then gim_lightskin_shade, on receivers unprojected from the G-buffer (see
-   lightskin_shade.comp). Cost: pixels x (cells of up to 4 shells + their caches + 2 n). */
+   lightskin_shade.comp). One work group per 8 x 8 tile gathers the caches its pixels could take
+   into shared memory once, then each pixel picks its n nearest from that list (the same choice
+   as a search per pixel, which a tile whose list overflows does instead). Cost: tiles x cells
+   of the tile's box grown by the radius, + pixels x (the tile's list + 2 n). */
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
