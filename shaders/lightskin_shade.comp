@@ -7,8 +7,9 @@
       radius of the box around the tile's receivers, its normal within the compatibility
       angle of the cone around their normals), each cell of the hash grid over that box read
       by one invocation; then every pixel picks its n nearest from that list, all pixels
-      reading the same entry at a time. The list holds every cache the pixel's own search
-      accepts, so the choice is the same. A tile whose list would not fit (a depth edge
+      reading the same entry at a time, the list sorted into rings of distance from the box
+      so that a pixel stops at the first ring beyond its n-th nearest. The list holds every
+      cache the pixel's own search accepts, so the choice is the same. A tile whose list would not fit (a depth edge
       spans the scene, a box over too many cells) searches per pixel instead: shells of cells
       around the pixel's cell, nearest first, until the n-th found is nearer than any
       unvisited cell;
@@ -21,6 +22,7 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #define TILE 64u          /* invocations per work group */
 #define LIST_CAP 768u     /* caches a tile's list holds (24 KiB of shared memory) */
 #define CELL_CAP 4096     /* cells a tile's box may cover */
+#define RINGS 8u          /* the list in rings of distance from the tile's box */
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
 layout(binding = 1) uniform sampler2D gbuffer_normal;    /* world normal in xyz, w = 1 where drawn */
@@ -150,8 +152,10 @@ vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcm
 }
 
 shared vec4 list_p[LIST_CAP];   /* a tile's caches: position, w = cache index (bits) */
-shared vec4 list_n[LIST_CAP];   /* normal */
+shared vec4 list_n[LIST_CAP];   /* normal, w = distance from the receivers' box */
 shared uint list_count;
+shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first */
+shared uint ring_start[RINGS + 1u], ring_fill[RINGS];
 shared vec4 tile_x[TILE];       /* each pixel's receiver: position, w = 1 where there is one */
 shared vec3 tile_n[TILE];
 shared vec4 box_lo, box_hi;     /* the receivers' box; lo.w: cos of the cone's bound, hi.w: the radius grown */
@@ -194,6 +198,7 @@ void plan_tile(float radius) {
         ++count;
     }
     list_count = 0u;
+    for (uint r = 0u; r < RINGS; ++r) ring_fill[r] = 0u;
     if (count == 0u) { mode = 0; return; }
     float grow = radius * 1.001 + 1e-5 * max(max(abs(lo.x), abs(lo.y)), max(max(abs(lo.z), abs(hi.x)), max(abs(hi.y), abs(hi.z))));
     /* the cone: its axis, and the widest angle between it and a receiver's normal; a cache
@@ -232,12 +237,13 @@ void gather_cell(ivec3 c) {
     for (uint k = bucket_start[b]; k < bucket_start[b + 1u]; ++k) {
         if (cache_cell[k].xyz != c) continue;
         vec3 p = cache[k].position_area.xyz, nc = cache[k].normal_reflectance.xyz;
-        if (length(max(max(p - hi, lo - p), vec3(0.0))) > grow) continue;
+        float db = length(max(max(p - hi, lo - p), vec3(0.0)));
+        if (db > grow) continue;
         if (dot(cone_axis, nc) < box_lo.w) continue;
         uint slot = atomicAdd(list_count, 1u);
         if (slot < list_limit) {
             list_p[slot] = vec4(p, uintBitsToFloat(k));
-            list_n[slot] = vec4(nc, 0.0);
+            list_n[slot] = vec4(nc, db);
         }
     }
 }
@@ -274,6 +280,26 @@ void main() {
         }
     }
     barrier();
+    /* the list sorted into rings of distance from the receivers' box (a counting sort): a
+       cache of ring r lies at least r grow / RINGS from every receiver of the tile, so a pixel
+       stops at the first ring beyond its n-th nearest */
+    bool listed = mode == 1 && list_count <= list_limit;
+    float step = box_hi.w / float(RINGS);
+    if (listed)
+        for (uint j = lid; j < list_count; j += TILE) atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u);
+    barrier();
+    if (listed && lid == 0u) {
+        ring_start[0] = 0u;
+        for (uint r = 0u; r < RINGS; ++r) {
+            ring_start[r + 1u] = ring_start[r] + ring_fill[r];
+            ring_fill[r] = ring_start[r];
+        }
+    }
+    barrier();
+    if (listed)
+        for (uint j = lid; j < list_count; j += TILE)
+            list_order[atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u)] = j;
+    barrier();
     if (!(px.x < int(size.x) && px.y < int(size.y))) return;
     if (!receiver) {
         imageStore(indirect, px, vec4(0.0));
@@ -283,12 +309,19 @@ void main() {
     /* 1. neighbours */
     found = 0u;
     for (int j = 0; j < MAX_N; ++j) { best_d[j] = FLT_MAX; best_i[j] = 0xffffffffu; }
-    if (mode == 1 && list_count <= list_limit) {
-        for (uint j = 0u; j < list_count; ++j) {
-            vec4 p = list_p[j];
-            if (dot(nx, list_n[j].xyz) < cos_theta) continue;
-            float d = length(x - p.xyz);
-            if (d <= radius) offer(d, floatBitsToUint(p.w));
+    if (listed) {
+        /* the slack of box_hi.w over the radius bounds the float rounding of both distances */
+        float slack = box_hi.w - radius + 1e-3 * step;
+        uint j = 0u;
+        for (uint r = 0u; r < RINGS; ++r) {
+            if (found == n && float(r) * step - slack > best_at(n - 1u)) break;
+            for (; j < ring_start[r + 1u]; ++j) {
+                uint e = list_order[j];
+                vec4 p = list_p[e];
+                if (dot(nx, list_n[e].xyz) < cos_theta) continue;
+                float d = length(x - p.xyz);
+                if (d <= radius) offer(d, floatBitsToUint(p.w));
+            }
         }
     } else {
         search_pixel(x, nx, radius);
