@@ -9308,6 +9308,7 @@ static gim_result gim__gl_pixel_pass(gim_context *ctx, gim__GLuint program, gim_
 }
 
 #define GIM__NEIGHBOUR_RINGS 3   /* grid shells a pixel searches: neighbours within 3 cells */
+#define GIM__SHADE_LIST_CAP 768u /* lightskin_shade.comp's LIST_CAP: caches in a tile's shared list */
 
 
 /* Bucket of a cell before the mask; the shader's cell_hash, in the same uint arithmetic. */
@@ -9408,6 +9409,9 @@ typedef struct gim__shade_args {
     uint32_t n;                  /* neighbours, 1..GIM_MAX_NEIGHBOUR_CACHES */
     float cos_theta;             /* normal compatibility */
     float scene_scale;
+    uint32_t list_limit;         /* caches a tile's shared list may hold; 0: GIM__SHADE_LIST_CAP (tests
+                                    set fewer to send tiles to the per pixel search) */
+    int neighbours_out;          /* tests: write each pixel's (d_cmax, count, sum of indices) instead */
     gim__GLuint indirect;        /* width x height texture of format */
     gim__GLenum format;          /* RGBA16F or RGBA32F */
 } gim__shade_args;
@@ -9415,7 +9419,10 @@ typedef struct gim__shade_args {
 /* Per pixel neighbours (the n nearest compatible caches within GIM__NEIGHBOUR_RINGS h),
    interpolation (eq. 8-9) and shading: the twin is gim_cache_neighbours (max_distance =
    rings h) then gim_lightskin_shade, on receivers unprojected from the G-buffer (see
-   lightskin_shade.comp). Cost: pixels x (cells of up to 4 shells + their caches + 2 n). */
+   lightskin_shade.comp). One work group per 8 x 8 tile gathers the caches its pixels could take
+   into shared memory once, then each pixel picks its n nearest from that list (the same choice
+   as a search per pixel, which a tile whose list overflows does instead). Cost: tiles x cells
+   of the tile's box grown by the radius, + pixels x (the tile's list + 2 n). */
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -9441,9 +9448,10 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1ui(8, a->grid.bucket_count - 1u);
     gl->Uniform1i(9, GIM__NEIGHBOUR_RINGS);
     gl->Uniform1f(10, GIM__TWINS_COINCIDENT * a->scene_scale);
-    gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u));
+    gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u) | (a->neighbours_out ? 4u : 0u));
     gl->Uniform1ui(12, host ? 1u : ctx->material_count);
     gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
+    gl->Uniform1ui(14, a->list_limit && a->list_limit < GIM__SHADE_LIST_CAP ? a->list_limit : GIM__SHADE_LIST_CAP);
     gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);

@@ -1,16 +1,28 @@
 /* LightSkin interpolation and shading per pixel (paper 000 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
-   gim_lightskin_shade: one invocation per G-buffer pixel
+   gim_lightskin_shade: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
    1. finds its n nearest caches whose normal is within the compatibility angle, within
-      `radius`, through a hash grid over the world-space caches: shells of cells around the
-      pixel's cell, nearest first, until the n-th found is nearer than any unvisited cell
-      (ties by cache index, as the twin);
+      `radius`, ties by cache index, as the twin. The tile searches together: the work group
+      gathers once into shared memory every cache that any of its pixels could take (within
+      radius of the box around the tile's receivers, its normal within the compatibility
+      angle of the cone around their normals), each cell of the hash grid over that box read
+      by one invocation; then every pixel picks its n nearest from that list, all pixels
+      reading the same entry at a time, the list sorted into rings of distance from the box
+      so that a pixel stops at the first ring beyond its n-th nearest. The list holds every
+      cache the pixel's own search accepts, so the choice is the same. A tile whose list would not fit (a depth edge
+      spans the scene, a box over too many cells) searches per pixel instead: shells of cells
+      around the pixel's cell, nearest first, until the n-th found is nearer than any
+      unvisited cell;
    2. interpolates the diffuse (and glossy) proxy lights of those caches and shades the pixel
       with them, with the formulas, weights and guards of gim_lightskin_shade (read there).
    Sums in float (double in the twin). Writes rgb radiance, a = 1 where a surface is. */
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define MAX_N 16
+#define TILE 64u          /* invocations per work group */
+#define LIST_CAP 768u     /* caches a tile's list holds (24 KiB of shared memory) */
+#define CELL_CAP 4096     /* cells a tile's box may cover */
+#define RINGS 8u          /* the list in rings of distance from the tile's box */
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
 layout(binding = 1) uniform sampler2D gbuffer_normal;    /* world normal in xyz, w = 1 where drawn */
@@ -39,9 +51,11 @@ layout(location = 7) uniform ivec3 dims;        /* cells per axis (the caches li
 layout(location = 8) uniform uint bucket_mask;  /* bucket_count - 1 (a power of two) */
 layout(location = 9) uniform int rings;         /* shells searched: radius = rings h */
 layout(location = 10) uniform float near_;      /* 1e-6 scene_scale */
-layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: host G-buffer */
+layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: host G-buffer; 4: tests: write
+                                                   the neighbours (d_cmax, count, sum of indices) */
 layout(location = 12) uniform uint material_count;
 layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
+layout(location = 14) uniform uint list_limit;  /* caches a tile's list may hold, <= LIST_CAP (0: every tile per pixel) */
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -59,18 +73,28 @@ float best_d[MAX_N];
 uint best_i[MAX_N];
 uint found;
 
-/* Keep the n nearest (distance, index) pairs, sorted. */
+/* Keep the MAX_N nearest (distance, index) pairs, sorted (the first n are the n nearest): an
+   insertion unrolled into compares and selects at constant indices, so the arrays live in
+   registers (a loop that shifts at a varying index puts them in memory: local memory on GPUs,
+   a scatter per lane on llvmpipe). Empty slots hold (FLT_MAX, ~0). */
+bool before(float d, uint idx, float bd, uint bi) { return d < bd || (d == bd && idx < bi); }
 void offer(float d, uint idx) {
-    if (found == n && (d > best_d[n - 1u] || (d == best_d[n - 1u] && idx > best_i[n - 1u]))) return;
-    uint j = found < n ? found : n - 1u;
-    if (found < n) ++found;
-    while (j > 0u && (best_d[j - 1u] > d || (best_d[j - 1u] == d && best_i[j - 1u] > idx))) {
-        best_d[j] = best_d[j - 1u];
-        best_i[j] = best_i[j - 1u];
-        --j;
+    for (int j = MAX_N - 1; j > 0; --j) {
+        bool here = before(d, idx, best_d[j], best_i[j]), above = before(d, idx, best_d[j - 1], best_i[j - 1]);
+        best_d[j] = above ? best_d[j - 1] : (here ? d : best_d[j]);
+        best_i[j] = above ? best_i[j - 1] : (here ? idx : best_i[j]);
     }
-    best_d[j] = d;
-    best_i[j] = idx;
+    bool first = before(d, idx, best_d[0], best_i[0]);
+    best_d[0] = first ? d : best_d[0];
+    best_i[0] = first ? idx : best_i[0];
+    found = min(found + 1u, n);
+}
+
+/* best_d[i] for a varying i, by selects */
+float best_at(uint i) {
+    float v = FLT_MAX;
+    for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? best_d[j] : v;
+    return v;
 }
 
 void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
@@ -91,7 +115,8 @@ void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
 vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
     float sw[2] = float[2](0.0, 0.0);
     vec3 se[2] = vec3[2](vec3(0.0), vec3(0.0));
-    for (uint j = 0u; j < found; ++j) {
+    for (int j = 0; j < MAX_N; ++j) {   /* constant indices into best_i (see offer) */
+        if (uint(j) >= found) break;
         uint i = best_i[j];
         vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
         Proxy p = is_glossy ? glossy[i] : diffuse[i];
@@ -126,27 +151,23 @@ vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcm
     return sw[use] > 0.0 ? se[use] / sw[use] : vec3(0.0);
 }
 
-void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    if (px.x >= int(size.x) || px.y >= int(size.y)) return;
-    float depth = texelFetch(gbuffer_depth, px, 0).r;
-    vec4 nw = texelFetch(gbuffer_normal, px, 0);
-    if (!(depth < 1.0) || !finite3(nw.xyz) || !(dot(nw.xyz, nw.xyz) > 0.0)) {
-        imageStore(indirect, px, vec4(0.0));
-        return;
-    }
-    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-    vec4 v = inv_proj * ndc;
-    v /= v.w;
-    vec3 x = (inv_view * vec4(v.xyz, 1.0)).xyz;
-    vec3 nx = normalize(nw.xyz);
-    vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+shared vec4 list_p[LIST_CAP];   /* a tile's caches: position, w = cache index (bits) */
+shared vec4 list_n[LIST_CAP];   /* normal, w = distance from the receivers' box */
+shared uint list_count;
+shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first */
+shared uint ring_start[RINGS + 1u], ring_fill[RINGS];
+shared vec4 tile_x[TILE];       /* each pixel's receiver: position, w = 1 where there is one */
+shared vec3 tile_n[TILE];
+shared vec4 box_lo, box_hi;     /* the receivers' box; lo.w: cos of the cone's bound, hi.w: the radius grown */
+shared vec3 cone_axis;
+shared ivec3 cell_lo, cell_n;   /* the cells over the box */
+shared int mode;                /* 0: no receiver in the tile; 1: the tile's list; 2: per pixel */
 
-    /* 1. neighbours: shell r holds the cells at Chebyshev distance r from the pixel's; every
-       cache outside shells 0..r is farther than r h */
-    float h = grid.w, radius = float(rings) * h;
+/* The per pixel search: shell r holds the cells at Chebyshev distance r from the pixel's;
+   every cache outside shells 0..r is farther than r h. */
+void search_pixel(vec3 x, vec3 nx, float radius) {
+    float h = grid.w;
     ivec3 pc = ivec3(floor((x - grid.xyz) / h));
-    found = 0u;
     for (int r = 0; r <= rings; ++r) {
         ivec3 lo = max(pc - r, ivec3(0)), hi = min(pc + r, dims - 1);
         for (int cz = lo.z; cz <= hi.z; ++cz)
@@ -159,9 +180,159 @@ void main() {
                     if (r > 0 && pc.x + r >= 0 && pc.x + r < dims.x) visit(ivec3(pc.x + r, cy, cz), x, nx, radius);
                 }
             }
-        if (found == n && best_d[n - 1u] <= float(r) * h) break;
+        if (found == n && best_at(n - 1u) <= float(r) * h) break;
     }
-    float dcmax = found > 0u ? best_d[found - 1u] : 0.0;
+}
+
+/* The tile's box, cone and cells (invocation 0), from the receivers in tile_x, tile_n. The box
+   and the cone are grown a little beyond float rounding: the list may hold a few caches no
+   pixel takes, never miss one a pixel's own search would. */
+void plan_tile(float radius) {
+    vec3 lo = vec3(FLT_MAX), hi = vec3(-FLT_MAX), axis = vec3(0.0);
+    uint count = 0u;
+    for (uint i = 0u; i < TILE; ++i) {
+        if (tile_x[i].w == 0.0) continue;
+        lo = min(lo, tile_x[i].xyz);
+        hi = max(hi, tile_x[i].xyz);
+        axis += tile_n[i];
+        ++count;
+    }
+    list_count = 0u;
+    for (uint r = 0u; r < RINGS; ++r) ring_fill[r] = 0u;
+    if (count == 0u) { mode = 0; return; }
+    float grow = radius * 1.001 + 1e-5 * max(max(abs(lo.x), abs(lo.y)), max(max(abs(lo.z), abs(hi.x)), max(abs(hi.y), abs(hi.z))));
+    /* the cone: its axis, and the widest angle between it and a receiver's normal; a cache
+       within theta of some normal lies within theta + that angle of the axis */
+    float cos_bound = -2.0, la = length(axis);
+    if (la > 1e-3 * float(count) && cos_theta > -1.0) {
+        axis /= la;
+        float spread = 1.0;
+        for (uint i = 0u; i < TILE; ++i)
+            if (tile_x[i].w != 0.0) spread = min(spread, dot(axis, tile_n[i]));
+        float angle = acos(clamp(cos_theta, -1.0, 1.0)) + acos(clamp(spread, -1.0, 1.0)) + 2e-3;
+        if (angle < PI) cos_bound = cos(angle);
+    }
+    /* clamped as floats first: a receiver far off the grid would overflow an int */
+    ivec3 clo = ivec3(clamp(floor((lo - grow - grid.xyz) / grid.w), vec3(0.0), vec3(dims)));
+    ivec3 chi = ivec3(clamp(floor((hi + grow - grid.xyz) / grid.w), vec3(-1.0), vec3(dims - 1)));
+    ivec3 cn = max(chi - clo + 1, ivec3(0));
+    box_lo = vec4(lo, cos_bound);
+    box_hi = vec4(hi, grow);
+    cone_axis = axis;
+    cell_lo = clo;
+    cell_n = cn;
+    /* the extent first: a box past CELL_CAP cells on one axis would overflow the product */
+    mode = list_limit > 0u && all(lessThanEqual(cn, ivec3(CELL_CAP))) && cn.x * cn.y * cn.z <= CELL_CAP ? 1 : 2;
+}
+
+/* Every cache of cell c that a receiver of the tile could take, into the list. */
+void gather_cell(ivec3 c) {
+    vec3 lo = box_lo.xyz, hi = box_hi.xyz;
+    float grow = box_hi.w;
+    /* a cell whose box (grown by a thousandth of a cell) lies farther than that from the
+       receivers' box holds none */
+    vec3 clo = grid.xyz + vec3(c) * grid.w - 1e-3 * grid.w, chi = clo + 1.002 * grid.w;
+    if (length(max(max(clo - hi, lo - chi), vec3(0.0))) > grow) return;
+    uint b = cell_hash(c) & bucket_mask;
+    for (uint k = bucket_start[b]; k < bucket_start[b + 1u]; ++k) {
+        if (cache_cell[k].xyz != c) continue;
+        vec3 p = cache[k].position_area.xyz, nc = cache[k].normal_reflectance.xyz;
+        float db = length(max(max(p - hi, lo - p), vec3(0.0)));
+        if (db > grow) continue;
+        if (dot(cone_axis, nc) < box_lo.w) continue;
+        uint slot = atomicAdd(list_count, 1u);
+        if (slot < list_limit) {
+            list_p[slot] = vec4(p, uintBitsToFloat(k));
+            list_n[slot] = vec4(nc, db);
+        }
+    }
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    uint lid = gl_LocalInvocationIndex;
+    bool receiver = false;
+    vec3 x = vec3(0.0), nx = vec3(0.0), view = vec3(0.0);
+    if (px.x < int(size.x) && px.y < int(size.y)) {
+        float depth = texelFetch(gbuffer_depth, px, 0).r;
+        vec4 nw = texelFetch(gbuffer_normal, px, 0);
+        receiver = depth < 1.0 && finite3(nw.xyz) && dot(nw.xyz, nw.xyz) > 0.0;
+        if (receiver) {
+            vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
+            vec4 v = inv_proj * ndc;
+            v /= v.w;
+            x = (inv_view * vec4(v.xyz, 1.0)).xyz;
+            nx = normalize(nw.xyz);
+            view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+        }
+    }
+    tile_x[lid] = vec4(x, receiver ? 1.0 : 0.0);
+    tile_n[lid] = nx;
+    float radius = float(rings) * grid.w;
+    barrier();
+    if (lid == 0u) plan_tile(radius);
+    barrier();
+    if (mode == 1) {   /* the tile's list: the box's cells, one invocation each */
+        uint cells = uint(cell_n.x * cell_n.y * cell_n.z);
+        for (uint t = lid; t < cells; t += TILE) {
+            uint cx = t % uint(cell_n.x), cyz = t / uint(cell_n.x);
+            gather_cell(cell_lo + ivec3(int(cx), int(cyz % uint(cell_n.y)), int(cyz / uint(cell_n.y))));
+        }
+    }
+    barrier();
+    /* the list sorted into rings of distance from the receivers' box (a counting sort): a
+       cache of ring r lies at least r grow / RINGS from every receiver of the tile, so a pixel
+       stops at the first ring beyond its n-th nearest */
+    bool listed = mode == 1 && list_count <= list_limit;
+    float step = box_hi.w / float(RINGS);
+    if (listed)
+        for (uint j = lid; j < list_count; j += TILE) atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u);
+    barrier();
+    if (listed && lid == 0u) {
+        ring_start[0] = 0u;
+        for (uint r = 0u; r < RINGS; ++r) {
+            ring_start[r + 1u] = ring_start[r] + ring_fill[r];
+            ring_fill[r] = ring_start[r];
+        }
+    }
+    barrier();
+    if (listed)
+        for (uint j = lid; j < list_count; j += TILE)
+            list_order[atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u)] = j;
+    barrier();
+    if (!(px.x < int(size.x) && px.y < int(size.y))) return;
+    if (!receiver) {
+        imageStore(indirect, px, vec4(0.0));
+        return;
+    }
+
+    /* 1. neighbours */
+    found = 0u;
+    for (int j = 0; j < MAX_N; ++j) { best_d[j] = FLT_MAX; best_i[j] = 0xffffffffu; }
+    if (listed) {
+        /* the slack of box_hi.w over the radius bounds the float rounding of both distances */
+        float slack = box_hi.w - radius + 1e-3 * step;
+        uint j = 0u;
+        for (uint r = 0u; r < RINGS; ++r) {
+            if (found == n && float(r) * step - slack > best_at(n - 1u)) break;
+            for (; j < ring_start[r + 1u]; ++j) {
+                uint e = list_order[j];
+                vec4 p = list_p[e];
+                if (dot(nx, list_n[e].xyz) < cos_theta) continue;
+                float d = length(x - p.xyz);
+                if (d <= radius) offer(d, floatBitsToUint(p.w));
+            }
+        }
+    } else {
+        search_pixel(x, nx, radius);
+    }
+    float dcmax = found > 0u ? best_at(found - 1u) : 0.0;
+    if ((flags & 4u) != 0u) {
+        uint sum = 0u;
+        for (int j = 0; j < MAX_N; ++j) sum += uint(j) < found ? best_i[j] : 0u;
+        imageStore(indirect, px, vec4(dcmax, float(found), float(sum), 1.0));
+        return;
+    }
 
     /* 2. interpolation (eq. 8-9) and shading */
     vec3 albedo = vec3(1.0), gcol = vec3(0.0);

@@ -173,6 +173,7 @@ typedef struct shade_case {
     uint32_t n;          /* neighbours */
     int glossy;
     int host;            /* the host's G-buffer: albedo 1, no glossy */
+    uint32_t list_limit; /* caches a tile's list may hold; 0: the pass's; 1: every tile per pixel */
 } shade_case;
 
 static void run_shade_case(const shade_case *sc, float L, const float origin[3]) {
@@ -267,6 +268,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     sa.caches = b_caches; sa.cells = b_cells; sa.buckets = b_buckets; sa.diffuse = b_pd; sa.glossy = b_pg;
     sa.cache_count = set.count; sa.grid = g; sa.n = sc->n; sa.cos_theta = (float)cos_t;
     sa.scene_scale = pdesc.scene_scale; sa.indirect = t_ind; sa.format = GL_RGBA32F;
+    sa.list_limit = sc->list_limit;
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
@@ -362,12 +364,36 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             if (e > 2e-3) bad++;
             else if (e > max_rel) max_rel = e;
         }
-        print_message("shade n=%u glossy=%d host=%d scale %g: %u receivers, %u lit, %u caches, max rel err %.2e, %u above 2e-3\n",
-                      sc->n, sc->glossy, sc->host, (double)L, nrec, lit, set.count, max_rel, bad);
+        print_message("shade n=%u glossy=%d host=%d list %u scale %g: %u receivers, %u lit, %u caches, max rel err %.2e, %u above 2e-3\n",
+                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (double)L, nrec, lit, set.count, max_rel, bad);
         assert_true(lit > nrec / 2);
         /* a float distance that ties or crosses the radius where the twin's double does not
            swaps a neighbour whose tent weight is ~0: a handful of pixels at most */
         assert_true(bad <= nrec / 200);
+        {   /* the neighbour choice itself: count, d_cmax and the sum of the indices per pixel */
+            float *nb = (float *)malloc(W * H * 16);
+            uint32_t differ = 0;
+            sa.neighbours_out = 1;
+            gim__gl_enter(f.ctx, "test");
+            assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
+            assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
+            gltest_read_texture(t_ind, GL_RGBA, nb);
+            for (i = 0; i < nrec; ++i) {
+                const float *q = nb + map[i] * 4;
+                uint32_t k;
+                double sum = 0.0;
+                for (k = 0; k < nb_cnt[i]; ++k) sum += nb_idx[i * sc->n + k];
+                if (q[1] != (float)nb_cnt[i] || q[2] != (float)sum || fabs((double)q[0] - dcmax[i]) > 2e-4 * (double)dcmax[i])
+                {
+                    if (differ < 3) print_message("  px %u: gpu %.9g %g %g twin %.9g %u %g\n", i, q[0], q[1], q[2], dcmax[i], nb_cnt[i], sum);
+                    differ++;
+                }
+            }
+            print_message("  neighbours: %u of %u pixels choose otherwise than the twin\n", differ, nrec);
+            /* a float distance that ties with the n-th or the radius where the double does not */
+            assert_true(differ <= nrec / 500);
+            free(nb);
+        }
         free(map);
     }
     free(depth); free(nrm); free(alb); free(mat); free(gpu); free(pix); free(vs); free(rec); free(pos_nrm);
@@ -388,9 +414,13 @@ static void shade_matches_twin(void **state) {
     shade_case sc;
     (void)state;
     GLTEST_BEGIN();
-    sc.n = 16; sc.glossy = 1; sc.host = 0;
+    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0;
     run_shade_case(&sc, 4.0f, o0);
-    sc.n = 4; sc.glossy = 0; sc.host = 0;
+    sc.list_limit = 1;                          /* every tile searches per pixel */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.list_limit = 60;                         /* some tiles by their list, some per pixel */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.n = 4; sc.glossy = 0; sc.host = 0; sc.list_limit = 0;
     run_shade_case(&sc, 4.0f, o0);
     sc.n = 16; sc.glossy = 1; sc.host = 1;     /* glossy proxies given, but no materials: diffuse, albedo 1 */
     run_shade_case(&sc, 4.0f, o0);
