@@ -4357,6 +4357,8 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    where the GPU and the twin round d^2 to either side. */
 #define GIM__VAL_NEAR 2.0f
 static float gim__val_near(float *d, const float *n, const float *nl, float area, float cos_l, float *cos_x) {
+    static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
+                                     {-1.0f, 0.0f}, {-0.70710678f, -0.70710678f}, {0.0f, -1.0f}, {0.70710678f, -0.70710678f}};
     float v[8][3], h[8], poly[9][3], r, phi[3] = {0.0f, 0.0f, 0.0f}, f = 0.0f, d2, dl, fv, w, u[3], ul;
     gim_vec3 t, b;
     int k, a, m = 0;
@@ -4366,8 +4368,6 @@ static float gim__val_near(float *d, const float *n, const float *nl, float area
     w = (GIM__VAL_NEAR * GIM__VAL_NEAR - d2 / area) / ((1.0f - 0.5625f) * GIM__VAL_NEAR * GIM__VAL_NEAR);
     w = w < 1.0f ? w : 1.0f;
     if (!(w > 0.0f)) return 1.0f;
-    static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
-                                     {-1.0f, 0.0f}, {-0.70710678f, -0.70710678f}, {0.0f, -1.0f}, {0.70710678f, -0.70710678f}};
     for (k = 0; k < 8; ++k) {   /* the vertices relative to c */
         float ct = dirs[k][0], st = dirs[k][1];
         v[k][0] = d[0] + r * (ct * t.x + st * b.x);
