@@ -211,13 +211,18 @@ static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, 
    1.66, flux 23 (relative); the mirror direction cos_x n - omega instead of 2 cos_x n - omega
    -> glossy k = 20 fails; no dark-cache form-factor loop -> cache 1's position off by 0.9;
    the lobe left out of D_p -> glossy flux fails; visibility 0 -> its assertion. Not covered:
-   the E_n guard of eq. 7 never bites on these rooms (removing it changes nothing here). */
+   the E_n guard of eq. 7 never bites on these rooms (removing it changes nothing here).
+   The near field (VALs within 2 sqrt(A) of a cache as octagons, Lambert's contour formula)
+   is where the GPU and the twin part most: the contour sum partly cancels for a cache near
+   a VAL's plane, and llvmpipe's atan is a polynomial (cache 183 of the first room, 8 VALs in
+   its near field: diffuse flux 1.4e-4, glossy k = 1 sigma 1.9e-4, where 3.4e-6 and 7.6e-7
+   were seen without it); hence 2.5e-4 for the glossy k <= 20 position and sigma. */
 static const double TOL_POS = 1e-4, TOL_FLUX_D = 2e-4;
 
 static void matches_twin(void **state) {
     static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {2.0e3f, -1.0e3f, 3.0e3f}};
     static const float ks[3] = {1.0f, 20.0f, 1000.0f};
-    static const double tol_g[3] = {1e-3, 1e-3, 3e-2}, tol_gp[3] = {1e-4, 1e-4, 2e-3};
+    static const double tol_g[3] = {1e-3, 1e-3, 3e-2}, tol_gp[3] = {2.5e-4, 2.5e-4, 2e-3};
     gltest_fixture f;
     int brsm, o, ki;
     (void)state;

@@ -324,6 +324,19 @@ static PHYS_UNUSED double phys_reflected_power(const phys_scene *s) {
     return phys_reflected_power_cells(s, s->uniform ? 1 : PHYS_CELLS);
 }
 
+/* Distance from p to the corner's contact edge (where floor and wall meet) in units of the
+   base geometry; -1 for the scenes without one. */
+static PHYS_UNUSED double phys_contact_distance(const phys_scene *s, const double *p) {
+    const phys_quad *w = &s->quad[1];
+    double v[3], r[3], c[3], lv;
+    int a;
+    if (strncmp(s->name, "corner", 6) != 0) return -1.0;
+    for (a = 0; a < 3; ++a) { v[a] = w->v[a]; r[a] = p[a] - w->o[a]; }
+    lv = sqrt(phys__dot(v, v));
+    phys__cross(r, v, c);
+    return sqrt(phys__dot(c, c)) / lv / (lv / 6.0);   /* the wall's edge is 6 long in the base */
+}
+
 /* Median of values[count] (sorted in place). */
 static int phys__cmp(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
