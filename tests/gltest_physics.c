@@ -316,7 +316,7 @@ static void corner_spot(void **state) {
 static void corner_point(void **state) {
     (void)state;
     GLTEST_BEGIN();
-    check_scene(PHYS_CORNER_POINT, 1.0, origin);
+    check_scene(PHYS_CORNER_POINT, 1.0, origin, 1);
     GLTEST_END();
 }
 
