@@ -4456,6 +4456,11 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    comes from. Faded to the far field between d = 0.75 and 1 GIM__VAL_NEAR sqrt(A): no step
    where the GPU and the twin round d^2 to either side. */
 #define GIM__VAL_NEAR 2.0f
+/* At most this many VALs per cache get the near field, the first in VAL order; later near ones
+   keep the disk formula. The GPU evaluates them after each chunk's loop, from a list: in the
+   loop a branch around the patch's form factor costs every VAL on SIMD CPUs (llvmpipe masks
+   both sides), 11x the proxy pass on the street */
+#define GIM__VAL_NEAR_CAP 16u
 static float gim__val_near(float *d, const float *n, const float *nl, float area, float cos_l, float *cos_x) {
     static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
                                      {-1.0f, 0.0f}, {-0.70710678f, -0.70710678f}, {0.0f, -1.0f}, {0.70710678f, -0.70710678f}};
@@ -4518,14 +4523,19 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
                              const float *v, float k, float coincident2, gim_proxy_light *diffuse,
                              gim_proxy_light *glossy) {
     gim__proxy_sums sd, sg;
-    uint32_t j;
+    uint32_t j, q, near = 0, near_list[GIM__VAL_NEAR_CAP];
     const float *n = c->normal;
     memset(&sd, 0, sizeof sd);
     memset(&sg, 0, sizeof sg);
-    for (j = 0; j < val_count; ++j) {
-        const gim_val *l = vals + j;
+    /* every VAL, then the near ones (at most GIM__VAL_NEAR_CAP, the first in VAL order) as the
+       patches they stand for: the GPU's order */
+    for (q = 0; q < val_count + near; ++q) {
+        const int late = q >= val_count;
+        const gim_val *l;
         float d[3], d2, inv, cos_x, cos_l, den;
         double en, e, lphi, wgt;
+        j = late ? near_list[q - val_count] : q;
+        l = vals + j;
         d[0] = l->position[0] - c->position[0];
         d[1] = l->position[1] - c->position[1];
         d[2] = l->position[2] - c->position[2];
@@ -4538,8 +4548,12 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
         den = l->area + (float)GIM__PI * d2;
         /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
         en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
-        if (d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * l->area && cos_l > 0.0f && cos_x > 0.0f)
+        if (late) {
             en *= gim__val_near(d, n, l->normal, l->area, cos_l, &cos_x);   /* the near field: the VAL's patch */
+        } else if (d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * l->area && cos_l > 0.0f && cos_x > 0.0f && near < GIM__VAL_NEAR_CAP) {
+            near_list[near++] = j;
+            continue;
+        }
         if (vis) en *= vis[j];                                     /* V(c, x_j) */
         e = en * cos_x;
         if (!(e > 0.0)) continue;          /* behind, grazing, coincident or weight 0: adds nothing */

@@ -102,6 +102,7 @@ const float PI = 3.14159265358979323846;
    constant trip count, which the compiler unrolls (llvmpipe counts every loop iteration of
    an invocation against its 65535). */
 const float VAL_NEAR = 2.0;
+const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: VALs per cache given the near field, the first in VAL order */
 float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float cos_l, inout float cos_x) {
     float d2 = dot(d, d);
     float w = min((VAL_NEAR * VAL_NEAR - d2 / area) / ((1.0 - 0.5625) * VAL_NEAR * VAL_NEAR), 1.0);
@@ -246,6 +247,28 @@ void load(uint j, uint slot) {
     tile_flux[slot] = f;
 }
 
+/* VAL (position p, normal nl, flux phi) at offset d from the cache, its eq. 3/14 term e_n and
+   cosine cos_x: visibility, then the diffuse and glossy sums */
+void accumulate(inout Sums sd, inout Sums sg, inout float en, inout float shift, vec3 d, float inv, float cos_x, float e_n,
+                vec3 p, vec3 nl, vec3 phi, uint ii, vec3 ism_o, vec3 ism_t, vec3 ism_b, vec3 n, bool glossy, vec3 v,
+                float k) {
+    if (ism_size != 0u && e_n * cos_x > 0.0) e_n *= ism_visibility(ii, ism_o, ism_t, ism_b, n, p, nl);
+    float e = e_n * cos_x;
+    if (!(e > 0.0)) return;   /* behind, grazing, coincident or weight 0 */
+    float lphi = dot(LUM, phi);
+    float wgt = lphi * e;       /* W_j: what the VAL adds */
+    add(sd, d, wgt, phi, e);
+    en += lphi * e_n;
+    if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
+        float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), k);   /* eq. 4/15 */
+        if (l != NO_LOBE) {
+            if (l > shift) rescale(sg, shift, l);
+            float g = exp2(l - shift);
+            add(sg, d, wgt * g, phi, e * g);
+        }
+    }
+}
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     uint local = gl_LocalInvocationIndex;
@@ -263,6 +286,9 @@ void main() {
     float en = 0.0;       /* lum(E_n) = sum lum(Phi) e / cos theta_x */
     float shift = -200.0; /* the glossy sums are scaled by 2^-shift */
     float dark = 0.0;
+    float near_seen = 0.0;   /* near-field VALs so far, over the chunks */
+    uint near_list[NEAR_CAP];
+    uint near_n = 0u;
     if (mode != 0u || first != 0u) {
         uint b = ii * 6u;
         vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
@@ -271,6 +297,7 @@ void main() {
         dark = a2.w;
         sg = Sums(g0.xyz, g0.w, g1.xyz, g2.xyz);
         shift = g1.w;
+        near_seen = g2.w;
     }
     uint end = first + chunk;
     vec3 ism_o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z), ism_t = vec3(0.0), ism_b = vec3(0.0);
@@ -293,26 +320,31 @@ void main() {
                     float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
                     float den = tile_pa[t].w + PI * d2;
                     float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
-                    if (d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0)
-                        e_n *= val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, cos_l, cos_x);   /* the near field: the VAL's patch */
-                    if (ism_size != 0u && e_n * cos_x > 0.0) e_n *= ism_visibility(ii, ism_o, ism_t, ism_b, n, tile_pa[t].xyz, tile_nw[t].xyz);
-                    float e = e_n * cos_x;
-                    if (!(e > 0.0)) continue;   /* behind, grazing, coincident or weight 0 */
-                    vec3 phi = tile_flux[t];
-                    float lphi = dot(LUM, phi);
-                    float wgt = lphi * e;       /* W_j: what the VAL adds */
-                    add(sd, d, wgt, phi, e);
-                    en += lphi * e_n;
-                    if (glossy && wgt > 0.0) {   /* a black VAL adds nothing, nor may it set the shift */
-                        float l = log2_lobe(dot(2.0 * cos_x * n - d * inv, v), k);   /* eq. 4/15 */
-                        if (l != NO_LOBE) {
-                            if (l > shift) rescale(sg, shift, l);
-                            float g = exp2(l - shift);
-                            add(sg, d, wgt * g, phi, e * g);
-                        }
+                    if (d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0 && near_seen < float(NEAR_CAP)) {
+                        near_list[near_n++] = base + t;   /* the near field after the loop */
+                        near_seen += 1.0;
+                        continue;
                     }
+                    accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii, ism_o,
+                               ism_t, ism_b, n, glossy, v, k);
                 }
             barrier();
+        }
+        /* the near field: the VAL as the patch it stands for (val_near), for the few VALs near
+           this cache, out of the loop so the others do not pay for it */
+        for (uint q = 0u; q < near_n; ++q) {
+            uint j = near_list[q];
+            vec4 pa = val[j].position_area, nw = val[j].normal_weight;
+            vec3 d = pa.xyz - c;
+            float d2 = dot(d, d);
+            float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+            float cos_x = max(dot(n, d) * inv, 0.0);
+            float cos_l = max(-dot(nw.xyz, d) * inv, 0.0);
+            float den = pa.w + PI * d2;
+            float e_n = den > 0.0 ? nw.w * cos_l / den : 0.0;
+            e_n *= val_near(d, n, nw.xyz, pa.w, cos_l, cos_x);
+            accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, pa.xyz, nw.xyz, val[j].flux.rgb, ii, ism_o, ism_t, ism_b, n,
+                       glossy, v, k);
         }
     } else if (mode == 1u) {
         /* a dark cache (no VAL lit it: decided at the first chunk): the form-factor weights of
@@ -352,7 +384,7 @@ void main() {
         state[b + 2u] = vec4(sd.m2, dark);
         state[b + 3u] = vec4(sg.s, sg.w);
         state[b + 4u] = vec4(sg.mean, shift);
-        state[b + 5u] = vec4(sg.m2, 0.0);
+        state[b + 5u] = vec4(sg.m2, near_seen);
         return;
     }
     diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0, k);

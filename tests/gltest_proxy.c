@@ -216,13 +216,16 @@ static void run_both(gltest_fixture *f, const config *c, gim_vec3 eye, float k, 
    is where the GPU and the twin part most: the contour sum partly cancels for a cache near
    a VAL's plane, and llvmpipe's atan is a polynomial (cache 183 of the first room, 8 VALs in
    its near field: diffuse flux 1.4e-4, glossy k = 1 sigma 1.9e-4, where 3.4e-6 and 7.6e-7
-   were seen without it); hence 2.5e-4 for the glossy k <= 20 position and sigma. */
+   were seen without it); hence 2.5e-4 for the glossy k = 1 position and sigma. The GPU adds
+   the near VALs after the others (a list, so that SIMD lanes far from every VAL do not pay
+   for the contour): with k = 20 a late near VAL can raise the glossy sums' scale and round
+   the float sums again, sigma 3.7e-4 on the BRSM room; hence 5e-4 for k = 20. */
 static const double TOL_POS = 1e-4, TOL_FLUX_D = 2e-4;
 
 static void matches_twin(void **state) {
     static const float origins[2][3] = {{0.0f, 0.0f, 0.0f}, {2.0e3f, -1.0e3f, 3.0e3f}};
     static const float ks[3] = {1.0f, 20.0f, 1000.0f};
-    static const double tol_g[3] = {1e-3, 1e-3, 3e-2}, tol_gp[3] = {2.5e-4, 2.5e-4, 2e-3};
+    static const double tol_g[3] = {1e-3, 1e-3, 3e-2}, tol_gp[3] = {2.5e-4, 5e-4, 2e-3};
     gltest_fixture f;
     int brsm, o, ki;
     (void)state;
