@@ -178,11 +178,20 @@ static GIM__UNUSED GLuint gltest_ism_ssbo(const float *maps, size_t texels) {
     free(w);
     return b;
 }
+/* The reverse: texels of packed maps read back from b as floats (gim_ism_dequantize). */
+static GIM__UNUSED void gltest_read_ism(GLuint b, size_t texels, float *out);
 /* Read the first bytes of buffer b back. */
 static GIM__UNUSED void gltest_read_buffer(GLuint b, size_t bytes, void *out) {
     glBindBuffer(GL_COPY_READ_BUFFER, b);
     glGetBufferSubData(GL_COPY_READ_BUFFER, 0, (GLsizeiptr)bytes, out);
     glBindBuffer(GL_COPY_READ_BUFFER, 0);
+}
+static GIM__UNUSED void gltest_read_ism(GLuint b, size_t texels, float *out) {
+    uint32_t *w = (uint32_t *)malloc(texels * 2 + 4);
+    size_t q;
+    gltest_read_buffer(b, (texels + 1) / 2 * 4, w);
+    for (q = 0; q < texels; ++q) out[q] = gim_ism_dequantize((uint16_t)(q & 1u ? w[q / 2] >> 16 : w[q / 2] & 0xffffu));
+    free(w);
 }
 
 /* Read a whole texture back as floats (format GL_RGBA, GL_RED or GL_DEPTH_COMPONENT). */

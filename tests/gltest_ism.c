@@ -65,13 +65,7 @@ static void make_scene(ism_scene *s) {
 /* The GPU maps, 16 bits a texel two to a uint, decoded: bit for bit the twin's, but for at most
    0.5% of the texels (a point on a texel border that float rounding puts on the other side);
    and the storage is half of 32-bit floats' */
-static void read_maps(GLuint b, size_t texels, float *out) {
-    uint32_t *w = (uint32_t *)malloc(texels * 2);
-    size_t q;
-    gltest_read_buffer(b, texels * 2, w);
-    for (q = 0; q < texels; ++q) out[q] = gim_ism_dequantize((uint16_t)(q & 1u ? w[q / 2] >> 16 : w[q / 2] & 0xffffu));
-    free(w);
-}
+static void read_maps(GLuint b, size_t texels, float *out) { gltest_read_ism(b, texels, out); }
 
 static void maps_match(void **state) {
     gltest_fixture f;
