@@ -4449,9 +4449,11 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    plane (gim_basis(n_l) axes), clipped to the receiver's hemisphere, and Lambert's contour
    formula gives its vector form factor Phi = 1/(2 pi) sum_k angle(r_k, r_k+1) unit(r_k x
    r_k+1): the form factor F = n . Phi and the irradiance direction unit(Phi). In: d = x_l - c,
-   n the receiver's normal, nl the VAL's, cos_l, cos_x > 0 at the centre. Out: the factor on
-   the far-field E_n term w cos_l / (A + pi d^2) that makes it w |Phi| / A (the irradiance
-   perpendicular to the light's direction), with *cos_x = F / |Phi| and d turned to unit(Phi)
+   n the receiver's normal, nl the VAL's, cos_x > 0 at the centre, the VAL's weight w and its
+   far-field E_n term en = w cos_l / (A + pi d^2). Out: the E_n term blended towards
+   w |Phi| / (2 pi A) (the irradiance perpendicular to the light's direction; computed as such,
+   not as a factor on en, whose cos_l can be near 0 where the patch's term is not), with
+   *cos_x = F / |Phi| and d turned to unit(Phi)
    (its length kept), so that e = E_n cos_x = w F / A and the proxy is placed where the light
    comes from. Faded to the far field between d = 0.75 and 1 GIM__VAL_NEAR sqrt(A): no step
    where the GPU and the twin round d^2 to either side. */
@@ -4461,10 +4463,13 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    loop a branch around the patch's form factor costs every VAL on SIMD CPUs (llvmpipe masks
    both sides), 11x the proxy pass on the street */
 #define GIM__VAL_NEAR_CAP 16u
-static float gim__val_near(float *d, const float *n, const float *nl, float area, float cos_l, float *cos_x) {
+static double gim__val_near(float *d, const float *n, const float *nl, float area, double weight, double en, float *cos_x) {
     static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
                                      {-1.0f, 0.0f}, {-0.70710678f, -0.70710678f}, {0.0f, -1.0f}, {0.70710678f, -0.70710678f}};
-    float v[8][3], h[8], poly[9][3], r, phi[3] = {0.0f, 0.0f, 0.0f}, f = 0.0f, d2, dl, fv, w, u[3], ul;
+    /* a convex octagon clipped by a plane has at most 9 corners, but rounding can make h change
+       sign more than twice around it (a plane through several corners): room for each corner and
+       each crossing */
+    float v[8][3], h[8], poly[16][3], r, phi[3] = {0.0f, 0.0f, 0.0f}, f = 0.0f, d2, dl, fv, w, u[3], ul;
     gim_vec3 t, b;
     int k, a, m = 0;
     gim_basis(gim_v3(nl[0], nl[1], nl[2]), &t, &b);
@@ -4472,7 +4477,7 @@ static float gim__val_near(float *d, const float *n, const float *nl, float area
     d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     w = (GIM__VAL_NEAR * GIM__VAL_NEAR - d2 / area) / ((1.0f - 0.5625f) * GIM__VAL_NEAR * GIM__VAL_NEAR);
     w = w < 1.0f ? w : 1.0f;
-    if (!(w > 0.0f)) return 1.0f;
+    if (!(w > 0.0f)) return en;
     for (k = 0; k < 8; ++k) {   /* the vertices relative to c */
         float ct = dirs[k][0], st = dirs[k][1];
         v[k][0] = d[0] + r * (ct * t.x + st * b.x);
@@ -4507,15 +4512,15 @@ static float gim__val_near(float *d, const float *n, const float *nl, float area
     f = n[0] * phi[0] + n[1] * phi[1] + n[2] * phi[2];
     if (f < 0.0f) { f = -f; for (a = 0; a < 3; ++a) phi[a] = -phi[a]; }   /* the winding faces n */
     fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
-    if (!(f > 0.0f) || !(fv > 0.0f)) return 1.0f;
+    if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv) || !(area > 0.0f)) return en;   /* no patch: the far field */
     dl = sqrtf(d2);
     for (a = 0; a < 3; ++a) u[a] = d[a] / dl + w * (phi[a] / fv - d[a] / dl);
     ul = sqrtf(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
-    if (ul > 0.0f)
+    if (ul > 0.0f && gim__isfinitef(ul))
         for (a = 0; a < 3; ++a) d[a] = u[a] * (dl / ul);
     *cos_x += w * (f / fv - *cos_x);
-    /* 1 / (2 pi) of the formula, and |Phi| / A against cos_l / (A + pi d^2) */
-    return 1.0f + w * (fv / (2.0f * (float)GIM__PI) * (area + (float)GIM__PI * d2) / (area * cos_l) - 1.0f);
+    /* 1 / (2 pi) of the formula: E_n = w |Phi| / A */
+    return en + w * (weight * ((double)fv / (2.0 * GIM__PI) / (double)area) - en);   /* in double, as en */
 }
 
 /* One invocation of the proxy pass: cache c against every VAL. */
@@ -4549,7 +4554,7 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
         /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
         en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
         if (late) {
-            en *= gim__val_near(d, n, l->normal, l->area, cos_l, &cos_x);   /* the near field: the VAL's patch */
+            en = gim__val_near(d, n, l->normal, l->area, l->weight, en, &cos_x);   /* the near field: the VAL's patch */
         } else if (d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * l->area && cos_l > 0.0f && cos_x > 0.0f && near < GIM__VAL_NEAR_CAP) {
             near_list[near++] = j;
             continue;

@@ -96,23 +96,24 @@ const float PI = 3.14159265358979323846;
 
 /* Near field of a VAL (gim__val_near, the same float steps): within d < 2 sqrt(A) the VAL is
    a regular octagon of area A in its plane (gim_basis(n_l) axes), clipped to the receiver's
-   hemisphere, with vector form factor Phi by Lambert's contour formula. Returns the factor
-   that makes the E_n term w |Phi| / A, sets cos_x = F / |Phi| and turns d to unit(Phi) (its
+   hemisphere, with vector form factor Phi by Lambert's contour formula. Returns the E_n term
+   e_n blended towards w |Phi| / A, sets cos_x = F / |Phi| and turns d to unit(Phi) (its
    length kept); faded to the far field between d = 1.5 and 2 sqrt(A). Every loop has a
    constant trip count, which the compiler unrolls (llvmpipe counts every loop iteration of
    an invocation against its 65535). */
 const float VAL_NEAR = 2.0;
 const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: VALs per cache given the near field, the first in VAL order */
-float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float cos_l, inout float cos_x) {
+float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_n, inout float cos_x) {
     float d2 = dot(d, d);
     float w = min((VAL_NEAR * VAL_NEAR - d2 / area) / ((1.0 - 0.5625) * VAL_NEAR * VAL_NEAR), 1.0);
-    if (!(w > 0.0)) return 1.0;
+    if (!(w > 0.0)) return e_n;
     float s = nl.z >= 0.0 ? 1.0 : -1.0, a = -1.0 / (s + nl.z), k = nl.x * nl.y * a;   /* gim_basis */
     vec3 t = vec3(1.0 + s * nl.x * nl.x * a, s * k, -s * nl.x), b = vec3(k, s + nl.y * nl.y * a, -nl.y);
     float r = sqrt(area / (2.0 * 1.41421356));   /* octagon of area 2 sqrt(2) r^2 = A */
     vec3 v[8];
     float h[8];
-    vec3 poly[9] = vec3[9](vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+    vec3 poly[16];   /* each corner and each crossing: rounding can cross the plane more than twice */
+    for (int q = 0; q < 16; ++q) poly[q] = vec3(0.0);
     int m = 0;
     const float S = 0.70710678;
     const vec2 dirs[8] = vec2[8](vec2(1.0, 0.0), vec2(S, S), vec2(0.0, 1.0), vec2(-S, S), vec2(-1.0, 0.0), vec2(-S, -S),
@@ -127,7 +128,7 @@ float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float cos_l, inout flo
         if ((h[q] >= 0.0) != (h[q1] >= 0.0)) poly[m++] = v[q] + h[q] / (h[q] - h[q1]) * (v[q1] - v[q]);
     }
     vec3 phi = vec3(0.0);
-    for (int q = 0; q < 9; ++q) {   /* Lambert's contour formula, as a vector */
+    for (int q = 0; q < 16; ++q) {   /* Lambert's contour formula, as a vector */
         vec3 p0 = poly[q], p1 = poly[q + 1 < m ? q + 1 : 0];
         float l0 = length(p0), l1 = length(p1);
         vec3 c = cross(p0, p1) / (l0 * l1);
@@ -137,13 +138,13 @@ float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float cos_l, inout flo
     float f = dot(n, phi);
     if (f < 0.0) { f = -f; phi = -phi; }   /* the winding faces n */
     float fv = length(phi);
-    if (!(f > 0.0) || !(fv > 0.0)) return 1.0;
+    if (!(f > 0.0) || !(fv > 0.0) || !(fv <= 3.402823466e+38) || !(area > 0.0)) return e_n;   /* no patch: the far field */
     float dl = sqrt(d2);
     vec3 u = d / dl + w * (phi / fv - d / dl);
     float ul = length(u);
-    if (ul > 0.0) d = u * (dl / ul);
+    if (ul > 0.0 && ul <= 3.402823466e+38) d = u * (dl / ul);
     cos_x += w * (f / fv - cos_x);
-    return 1.0 + w * (fv / (2.0 * PI) * (area + PI * d2) / (area * cos_l) - 1.0);
+    return e_n + w * (weight * (fv / (2.0 * PI) / area) - e_n);   /* E_n = w |Phi| / A */
 }
 
 const float FLT_MAX = 3.402823466e+38;
@@ -342,7 +343,7 @@ void main() {
             float cos_l = max(-dot(nw.xyz, d) * inv, 0.0);
             float den = pa.w + PI * d2;
             float e_n = den > 0.0 ? nw.w * cos_l / den : 0.0;
-            e_n *= val_near(d, n, nw.xyz, pa.w, cos_l, cos_x);
+            e_n = val_near(d, n, nw.xyz, pa.w, nw.w, e_n, cos_x);
             accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, pa.xyz, nw.xyz, val[j].flux.rgb, ii, ism_o, ism_t, ism_b, n,
                        glossy, v, k);
         }
