@@ -4458,10 +4458,10 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    comes from. Faded to the far field between d = 0.75 and 1 GIM__VAL_NEAR sqrt(A): no step
    where the GPU and the twin round d^2 to either side. */
 #define GIM__VAL_NEAR 2.0f
-/* At most this many VALs per cache get the near field, the first in VAL order; later near ones
-   keep the disk formula. The GPU evaluates them after each chunk's loop, from a list: in the
-   loop a branch around the patch's form factor costs every VAL on SIMD CPUs (llvmpipe masks
-   both sides), 11x the proxy pass on the street */
+/* The GPU evaluates the near VALs out of its VAL loop: the first GIM__VAL_NEAR_CAP of a cache
+   from a list after each chunk's loop, any more in a dispatch of their own that only the work
+   groups holding such a cache run. In the loop a branch around the patch's form factor costs
+   every VAL on SIMD CPUs (llvmpipe masks both sides), 11x the proxy pass on the street. */
 #define GIM__VAL_NEAR_CAP 16u
 static double gim__val_near(float *d, const float *n, const float *nl, float area, double weight, double en, float *cos_x) {
     static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
@@ -4528,18 +4528,19 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
                              const float *v, float k, float coincident2, gim_proxy_light *diffuse,
                              gim_proxy_light *glossy) {
     gim__proxy_sums sd, sg;
-    uint32_t j, q, near = 0, near_list[GIM__VAL_NEAR_CAP];
+    uint32_t j, q;
     const float *n = c->normal;
     memset(&sd, 0, sizeof sd);
     memset(&sg, 0, sizeof sg);
-    /* every VAL, then the near ones (at most GIM__VAL_NEAR_CAP, the first in VAL order) as the
-       patches they stand for: the GPU's order */
-    for (q = 0; q < val_count + near; ++q) {
+    /* every VAL far from the cache, then the near ones as the patches they stand for: the
+       GPU's order */
+    for (q = 0; q < 2u * val_count; ++q) {
         const int late = q >= val_count;
         const gim_val *l;
         float d[3], d2, inv, cos_x, cos_l, den;
         double en, e, lphi, wgt;
-        j = late ? near_list[q - val_count] : q;
+        int near;
+        j = late ? q - val_count : q;
         l = vals + j;
         d[0] = l->position[0] - c->position[0];
         d[1] = l->position[1] - c->position[1];
@@ -4553,12 +4554,9 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
         den = l->area + (float)GIM__PI * d2;
         /* eq. 3/14 per unit flux without cos_x; in double, so weights near FLT_MAX stay finite */
         en = den > 0.0f ? (double)l->weight * cos_l / den : 0.0;
-        if (late) {
-            en = gim__val_near(d, n, l->normal, l->area, l->weight, en, &cos_x);   /* the near field: the VAL's patch */
-        } else if (d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * l->area && cos_l > 0.0f && cos_x > 0.0f && near < GIM__VAL_NEAR_CAP) {
-            near_list[near++] = j;
-            continue;
-        }
+        near = d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * l->area && cos_l > 0.0f && cos_x > 0.0f;
+        if (near != late) continue;   /* each in its pass */
+        if (late) en = gim__val_near(d, n, l->normal, l->area, l->weight, en, &cos_x);   /* the near field: the VAL's patch */
         if (vis) en *= vis[j];                                     /* V(c, x_j) */
         e = en * cos_x;
         if (!(e > 0.0)) continue;          /* behind, grazing, coincident or weight 0: adds nothing */
@@ -7886,7 +7884,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
-    uint32_t mode;
+    uint32_t step;
     gim_result r;
     if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
@@ -7948,10 +7946,13 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->Uniform1f(13, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
     gl->Uniform1f(14, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
     gl->Uniform1f(15, GIM_ISM_LIFT * scene_scale);
-    /* sums over the VALs chunk by chunk (mode 0), the dark caches' positions (mode 1), the
-       proxy lights (mode 2); one dispatch each, the sums kept in proxy_state between them */
-    for (mode = 0; mode < 3u; ++mode) {
-        uint32_t first = 0;
+    /* sums over the VALs chunk by chunk (mode 0), the near VALs past a cache's first
+       GIM__VAL_NEAR_CAP (mode 3), the dark caches' positions (mode 1), the proxy lights (mode 2);
+       one dispatch each, the sums kept in proxy_state between them */
+    for (step = 0; step < 4u; ++step) {
+        static const uint32_t modes[4] = {0u, 3u, 1u, 2u};
+        uint32_t first = 0, mode = modes[step];
+        if (mode == 3u && val_count <= GIM__VAL_NEAR_CAP) continue;   /* no cache can have more */
         do {
             uint32_t n = mode == 2u ? 0u : (val_count - first < ctx->proxy_chunk ? val_count - first : ctx->proxy_chunk);
             gl->Uniform1ui(6, first);

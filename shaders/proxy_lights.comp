@@ -25,11 +25,12 @@ layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out 
 layout(location = 6) uniform uint first;         /* this dispatch's VALs: [first, first + chunk) */
 layout(location = 7) uniform uint chunk;
 layout(location = 9) uniform uint per_cache_k;  /* 1: each cache's k from cache_k (its material's lobe) */
-layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 1: the
+layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 3: the
+                                                    near VALs past the first NEAR_CAP; 1: the
                                                     form-factor positions of dark caches; 2: write
                                                     the proxy lights */
-/* The sums of every cache between dispatches, 6 vec4 each: (s, w), (mean, E_n), (m2, dark) of
-   the diffuse sums, (s, w), (mean, shift), (m2, 0) of the glossy ones. The VALs are taken in
+/* The sums of every cache between dispatches, 6 vec4 each: (s, w), (mean, E_n), (m2, aux) of
+   the diffuse sums, (s, w), (mean, shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in
    chunks, each its own dispatch: a driver may bound the loop iterations of one invocation
    (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
    length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
@@ -90,7 +91,7 @@ float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
 shared vec4 tile_pa[TILE];    /* position, area */
 shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
 shared vec3 tile_flux[TILE];
-shared uint any_dark;
+shared uint any_work;   /* an invocation of the group has work in mode 1 or 3 */
 
 const float PI = 3.14159265358979323846;
 
@@ -102,7 +103,7 @@ const float PI = 3.14159265358979323846;
    constant trip count, which the compiler unrolls (llvmpipe counts every loop iteration of
    an invocation against its 65535). */
 const float VAL_NEAR = 2.0;
-const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: VALs per cache given the near field, the first in VAL order */
+const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: near VALs per cache listed in mode 0; mode 3 takes the rest */
 float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_n, inout float cos_x) {
     float d2 = dot(d, d);
     float w = min((VAL_NEAR * VAL_NEAR - d2 / area) / ((1.0 - 0.5625) * VAL_NEAR * VAL_NEAR), 1.0);
@@ -286,8 +287,8 @@ void main() {
     Sums sg = sd;
     float en = 0.0;       /* lum(E_n) = sum lum(Phi) e / cos theta_x */
     float shift = -200.0; /* the glossy sums are scaled by 2^-shift */
-    float dark = 0.0;
-    float near_seen = 0.0;   /* near-field VALs so far, over the chunks */
+    float aux = 0.0;         /* mode 1-2: 1 for a dark cache; mode 3: near VALs counted so far */
+    float near_seen = 0.0;   /* near-field VALs, over mode 0's chunks */
     uint near_list[NEAR_CAP];
     uint near_n = 0u;
     if (mode != 0u || first != 0u) {
@@ -295,7 +296,7 @@ void main() {
         vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
         sd = Sums(a0.xyz, a0.w, a1.xyz, a2.xyz);
         en = a1.w;
-        dark = a2.w;
+        aux = mode == 0u ? 0.0 : a2.w;
         sg = Sums(g0.xyz, g0.w, g1.xyz, g2.xyz);
         shift = g1.w;
         near_seen = g2.w;
@@ -321,8 +322,8 @@ void main() {
                     float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
                     float den = tile_pa[t].w + PI * d2;
                     float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
-                    if (d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0 && near_seen < float(NEAR_CAP)) {
-                        near_list[near_n++] = base + t;   /* the near field after the loop */
+                    if (d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0) {
+                        if (near_seen < float(NEAR_CAP)) near_list[near_n++] = base + t;   /* the near field after the loop */
                         near_seen += 1.0;
                         continue;
                     }
@@ -347,21 +348,54 @@ void main() {
             accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, pa.xyz, nw.xyz, val[j].flux.rgb, ii, ism_o, ism_t, ism_b, n,
                        glossy, v, k);
         }
-    } else if (mode == 1u) {
-        /* a dark cache (no VAL lit it: decided at the first chunk): the form-factor weights of
-           eq. 6 place the proxy; the loop runs in the work groups that hold one (barrier()
-           needs the whole group) */
-        if (first == 0u) dark = inside && !(sd.w > 0.0) ? 1.0 : 0.0;
-        if (local == 0u) any_dark = 0u;
+    } else if (mode == 3u) {
+        /* the near VALs past the first NEAR_CAP of a cache (many VALs on one spot: BRSM's
+           repeated picks, a dense RSM under a small cache), inline; only the work groups that
+           hold such a cache loop */
+        bool over = inside && near_seen > float(NEAR_CAP);
+        if (local == 0u) any_work = 0u;
         barrier();
-        if (dark > 0.0) any_dark = 1u;
+        if (over) any_work = 1u;
         barrier();
-        if (any_dark != 0u) {
+        if (any_work != 0u) {
             for (uint base = first; base < end; base += uint(TILE)) {
                 load(base + local, local);
                 barrier();
                 uint count = min(uint(TILE), end - base);
-                if (dark > 0.0)
+                if (over)
+                    for (uint t = 0u; t < count; ++t) {
+                        vec3 d = tile_pa[t].xyz - c;
+                        float d2 = dot(d, d);
+                        float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+                        float cos_x = max(dot(n, d) * inv, 0.0);
+                        float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                        if (!(d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0)) continue;
+                        aux += 1.0;
+                        if (aux <= float(NEAR_CAP)) continue;   /* listed in mode 0 */
+                        float den = tile_pa[t].w + PI * d2;
+                        float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;
+                        e_n = val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, tile_nw[t].w, e_n, cos_x);
+                        accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii,
+                                   ism_o, ism_t, ism_b, n, glossy, v, k);
+                    }
+                barrier();
+            }
+        }
+    } else if (mode == 1u) {
+        /* a dark cache (no VAL lit it: decided at the first chunk): the form-factor weights of
+           eq. 6 place the proxy; the loop runs in the work groups that hold one (barrier()
+           needs the whole group) */
+        if (first == 0u) aux = inside && !(sd.w > 0.0) ? 1.0 : 0.0;
+        if (local == 0u) any_work = 0u;
+        barrier();
+        if (aux > 0.0) any_work = 1u;
+        barrier();
+        if (any_work != 0u) {
+            for (uint base = first; base < end; base += uint(TILE)) {
+                load(base + local, local);
+                barrier();
+                uint count = min(uint(TILE), end - base);
+                if (aux > 0.0)
                     for (uint t = 0u; t < count; ++t) {
                         vec3 d = tile_pa[t].xyz - c;
                         float d2 = dot(d, d);
@@ -382,7 +416,7 @@ void main() {
         uint b = i * 6u;
         state[b] = vec4(sd.s, sd.w);
         state[b + 1u] = vec4(sd.mean, en);
-        state[b + 2u] = vec4(sd.m2, dark);
+        state[b + 2u] = vec4(sd.m2, aux);
         state[b + 3u] = vec4(sg.s, sg.w);
         state[b + 4u] = vec4(sg.mean, shift);
         state[b + 5u] = vec4(sg.m2, near_seen);

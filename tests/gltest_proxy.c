@@ -307,6 +307,99 @@ static void chunked(void **state) {
     GLTEST_END();
 }
 
+/* Crowded near fields: caches 4 and 8 each under 120 VALs within the near-field radius
+   (2 sqrt(A)), 100 of cache 4's on one spot (BRSM's repeated picks of one texel, weight 1/100
+   each), in chunks of 64 VALs: the first 16 near VALs of a cache go through mode 0's list,
+   the rest through mode 3, whose count runs across the chunks. The twin's answer, and the 100
+   copies give what one VAL of weight 1 gives (in the twin and on the GPU). */
+static void crowded_near_field(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    gltest_fixture f;
+    config c;
+    errors ed, eg;
+    gim_proxy_desc d;
+    gim_proxy_light *one = (gim_proxy_light *)calloc(260, sizeof *one), *many = (gim_proxy_light *)calloc(260, sizeof *many);
+    uint32_t i, j, near4 = 0;
+    int pass;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_config(&c, 130, 600, 4.0f, zero, 0);
+    for (i = 0; i < 240; ++i) {   /* VALs 10..249: 120 over cache 4, 120 over cache 8 */
+        const gim_cache *k = c.caches + (i < 120 ? 4 : 8);
+        gim_val *v = c.vals + 10 + i;
+        float off[3];
+        int a;
+        test_random_unit(off);
+        for (a = 0; a < 3; ++a) {
+            float o = i < 100 ? 0.0f : 0.08f * off[a];   /* 100 on one spot */
+            v->position[a] = k->position[a] + 0.1f * k->normal[a] + o;
+            v->normal[a] = -k->normal[a];
+            v->flux[a] = 1.0f;
+        }
+        v->area = 0.04f;
+        v->weight = i < 100 ? 0.01f : 1.0f;
+    }
+    for (j = 0; j < c.val_count; ++j) {   /* cache 4's near VALs, by the pass's test */
+        const gim_val *v = c.vals + j;
+        float dd[3], d2 = 0.0f, dn = 0.0f, dl = 0.0f;
+        int a;
+        for (a = 0; a < 3; ++a) {
+            dd[a] = v->position[a] - c.caches[4].position[a];
+            d2 += dd[a] * dd[a];
+            dn += c.caches[4].normal[a] * dd[a];
+            dl -= v->normal[a] * dd[a];
+        }
+        near4 += d2 < 4.0f * v->area && dn > 0.0f && dl > 0.0f;
+    }
+    print_message("cache 4: %u VALs in its near field\n", near4);
+    assert_true(near4 >= 100);
+    f.ctx->proxy_chunk = 64;
+    run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
+    print_message("crowded, chunks of 64: diffuse position %.3g sigma %.3g flux %.3g; glossy position %.3g flux %.3g\n",
+                  ed.position, ed.sigma, ed.flux, eg.position, eg.flux);
+    assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+    assert_true(eg.position < 5e-4 && eg.sigma < 5e-4 && eg.flux < 1e-3);
+    f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    /* the 100 copies against one VAL of weight 1 on the spot (the other 99 weight 0) */
+    for (pass = 0; pass < 2; ++pass) {
+        gim_proxy_light *twin = pass ? one : many, *gpu = twin + 130;
+        GLuint bc, bv, bd;
+        for (i = 0; i < 100; ++i) c.vals[10 + i].weight = pass ? (i ? 0.0f : 1.0f) : 0.01f;
+        memset(&d, 0, sizeof d);
+        d.caches = c.caches;
+        d.cache_count = c.cache_count;
+        d.vals = c.vals;
+        d.val_count = c.val_count;
+        d.scene_scale = c.scale;
+        d.env = f.env;
+        assert_int_equal(gim_proxy_lights(&d, twin, NULL), GIM_OK);
+        bc = gltest_ssbo(c.cache_count * sizeof(gim_cache), c.caches);
+        bv = gltest_ssbo((size_t)c.val_count * sizeof(gim_val), c.vals);
+        bd = gltest_ssbo(c.cache_count * sizeof(gim_proxy_light), NULL);
+        assert_int_equal(gim__gl_proxy_lights(f.ctx, bc, c.cache_count, bv, c.val_count, gim_v3(0.0f, 0.0f, 0.0f), 0.0f, 0,
+                                              c.scale, bd, 0),
+                         GIM_OK);
+        gltest_read_buffer(bd, c.cache_count * sizeof(gim_proxy_light), gpu);
+        glDeleteBuffers(1, &bc);
+        glDeleteBuffers(1, &bv);
+        glDeleteBuffers(1, &bd);
+    }
+    {
+        double rt = fabs((double)many[4].flux[0] / one[4].flux[0] - 1.0);
+        double rg = fabs((double)many[130 + 4].flux[0] / one[130 + 4].flux[0] - 1.0);
+        print_message("cache 4, 100 copies of weight 1/100 vs one VAL: flux %g vs %g (twin, rel %.2e), %g vs %g (GPU, rel %.2e)\n",
+                      (double)many[4].flux[0], (double)one[4].flux[0], rt, (double)many[130 + 4].flux[0],
+                      (double)one[130 + 4].flux[0], rg);
+        assert_true(one[4].flux[0] > 0.0f && rt < 1e-5 && rg < 1e-5);
+    }
+    free(one);
+    free(many);
+    free_config(&c);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* More than one work group and one VAL tile with partial last ones (caches 130 = 2 groups of
    64 + 2, VALs 200 = 3 tiles of 64 + 8), k = 0 (the constant lobe), an eye at a cache, and no
    VALs at all (every cache dark: x_p = c, flux 0). */
@@ -455,6 +548,7 @@ int main(void) {
         cmocka_unit_test(unit_free),
         cmocka_unit_test(broken_vals_add_nothing),
         cmocka_unit_test(pass_arguments),
+        cmocka_unit_test(crowded_near_field),   /* last: its random draws would change the rooms above */
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
