@@ -55,7 +55,7 @@ $(B)/gl/%: tests/%.c $(HDRS)
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) $< -o $@ -lcmocka -lEGL -lGL -lm
 # The whole-frame test loads its scenes through the scene layer of the examples (C++ inside).
-$(B)/gl/gltest_frame $(B)/gl/gltest_vplframe $(B)/gl/gltest_hoststate $(B)/gl/gltest_refuse $(B)/gl/gltest_queries: $(B)/gl/%: tests/%.c $(B)/ref/asan/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+$(B)/gl/gltest_frame $(B)/gl/gltest_vplframe $(B)/gl/gltest_hoststate $(B)/gl/gltest_refuse $(B)/gl/gltest_queries $(B)/gl/gltest_temporal: $(B)/gl/%: tests/%.c $(B)/ref/asan/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O1 -g $(SAN) $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lEGL -lGL -lm -lstdc++
 # Every method against the Embree reference, rendered in-process: the scene layer and the

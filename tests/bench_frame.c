@@ -27,6 +27,8 @@
    (visibility_over_off: the maps' lookups; the maps are reused while the scene stands still)
    and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2; on the
    row of the first VAL count of each RSM size, the others reuse the maps).
+   brsm-temporal: BRSM at the default VAL count with gim_frame.temporal_steps 32 (its flicker
+   against brsm's at the same count).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
    prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery);
@@ -91,11 +93,17 @@ static void setup_ism(gim_frame *f, const bench_method *m) {
     f->visibility = GIM_VISIBILITY_ISM;
 }
 
+static void setup_temporal(gim_frame *f, const bench_method *m) {
+    (void)m;
+    f->temporal_steps = 32;   /* the offsets move 1/32 of their spacing a frame */
+}
+
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
 static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
     {"brsm", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, NULL, 1, 0},
     {"brsm-ism", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_ism, 1, 0},
+    {"brsm-temporal", GIM_METHOD_LIGHTSKIN_BRSM, 0, 0, 0, 1, setup_temporal, 1, 0},
     /* Dong et al.: clusters 4 / 8 / 16 / 32 (30 is the library's default) */
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl, 1, 1},

@@ -137,6 +137,32 @@ static void uniformity_chi_square(void **state) {
     }
 }
 
+/* gim_drift_offsets: frame 0 is the seed's 48-bit rotation; frame k moved by k step (g = 1,
+   0.618...) modulo 1, to 2^-48; always in [0, 1), through the wrap and at frame 2^32 - 1. */
+static void drift(void **state) {
+    float r[4], o[4];
+    uint32_t k;
+    static const uint32_t frames[5] = {0u, 1u, 7u, 1000003u, 0xffffffffu};
+    (void)state;
+    gim_rotation_offsets(r, 4, 123);
+    for (k = 0; k < 5; ++k) {
+        int d;
+        double step = 1.0 / (2048.0 * 8.0);
+        gim_drift_offsets(o, 2, 123, frames[k], step);
+        for (d = 0; d < 2; ++d) {
+            double g = d ? 0.61803398874989484820 : 1.0;
+            double want = (double)r[d] + (double)r[d + 2] / 16777216.0 + (double)frames[k] * step * g;
+            double got = (double)o[d] + (double)o[d + 2] / 16777216.0, e;
+            want -= floor(want);
+            e = fabs(got - want);
+            e = e < 1.0 - e ? e : 1.0 - e;   /* on the circle */
+            assert_true(o[d] >= 0.0f && o[d] < 1.0f && o[d + 2] >= 0.0f && o[d + 2] < 1.0f);
+            assert_true(e < 1e-11 * (1.0 + (double)frames[k] * step));
+            if (frames[k] == 0) assert_true(o[d] == r[d] && o[d + 2] == r[d + 2]);
+        }
+    }
+}
+
 static void rotation(void **state) {
     float off[4], off2[4], pts[64 * 2], rot[64 * 2];
     int i;
@@ -240,6 +266,7 @@ int main(void) {
         cmocka_unit_test(stratification),
         cmocka_unit_test(uniformity_chi_square),
         cmocka_unit_test(rotation),
+        cmocka_unit_test(drift),
         cmocka_unit_test(disk_and_hemisphere),
         cmocka_unit_test(math_basics),
     };
