@@ -812,9 +812,12 @@ GIMANY_API gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
 /* Caches moved with their triangles (twin of caches_follow.comp): for the deformed triangle
    (a', b', c') with unit normal n' = (b'-a') x (c'-a') / |.|, position (1-u-v) a' + u b' + v c'
    + h n'; normal the rest normal carried by the triangle's own linear map M (M^-T n:
-   frame[0] (c'-a') x n' + frame[1] n' x (b'-a') + frame[2] (b'-a') x (c'-a'), normalised, so
-   a cache tilted from its triangle keeps its tilt and an affine map A of the mesh gives A's
-   normal transform); area rest.area x |(b'-a') x (c'-a')| / area2, the triangle's area ratio,
+   frame[0] (c'-a') x n' + frame[1] n' x (b'-a') + frame[2] (b'-a') x (c'-a'), normalised, where
+   M maps the edges to the new edges and the unit face normal to the new one: a cache tilted
+   from its triangle keeps its place in the triangle's frame; a cache along its face normal
+   (a flat surface) under an affine map A of the mesh gets A's own A^-T n, while for a tilted
+   one A's action off the plane is not known from the triangle, M stands for it); area
+   rest.area x |(b'-a') x (c'-a')| / area2, the triangle's area ratio,
    so the caches' areas still sum to the stretched surface's area; reflectance kept. A triangle
    collapsed to zero area keeps the rest normal with area 0. positions: vertex_count float3
    (model space). out may not alias rest. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL arrays, a
