@@ -132,10 +132,75 @@ static void refusals(void **state) {
     assert_int_equal(st.live, 0);
 }
 
+/* gim_cache_bind's grid search binds each cache to the triangle testing every triangle in
+   order gives (nearest, ties to the lower index): caches scattered on and around a bumpy sheet
+   and a flat one (the grid one cell thick), on its vertices and edges (ties), and outside the
+   mesh's bounds. */
+static void grid_is_brute_force(void **state) {
+    enum { NQ = 20, NC = 1500 };
+    static float p[(NQ + 1) * (NQ + 1) * 3];
+    static uint32_t idx[NQ * NQ * 6];
+    static gim_cache cs[NC];
+    static gim_cache_binding b[NC];
+    gim_mesh_data d;
+    gim_env env;
+    uint32_t t, c, flat;
+    int i, j, bad = 0;
+    (void)state;
+    memset(&env, 0, sizeof env);
+    for (flat = 0; flat < 2; ++flat) {
+        t = 0;
+        for (j = 0; j <= NQ; ++j)
+            for (i = 0; i <= NQ; ++i) {
+                float *v = p + 3 * (j * (NQ + 1) + i);
+                v[0] = (float)i / NQ; v[2] = (float)j / NQ;
+                v[1] = flat ? 0.0f : 0.1f * sinf(6.0f * v[0]) * cosf(5.0f * v[2]);
+            }
+        for (j = 0; j < NQ; ++j)
+            for (i = 0; i < NQ; ++i) {
+                uint32_t a = (uint32_t)(j * (NQ + 1) + i);
+                idx[t++] = a; idx[t++] = a + NQ + 1; idx[t++] = a + NQ + 2; idx[t++] = a; idx[t++] = a + NQ + 2; idx[t++] = a + 1;
+            }
+        memset(&d, 0, sizeof d);
+        d.positions = p; d.vertex_count = (NQ + 1) * (NQ + 1); d.indices = idx; d.index_count = t; d.index_type = GIM_INDEX_U32;
+        srand(7);
+        memset(cs, 0, sizeof cs);
+        for (c = 0; c < NC; ++c) {
+            for (i = 0; i < 3; ++i) cs[c].position[i] = -0.3f + 1.6f * (float)rand() / (float)RAND_MAX;
+            if (c % 3 == 0) cs[c].position[1] = 0.0f;
+            if (c % 5 == 0) {
+                cs[c].position[0] = (float)(rand() % (NQ + 1)) / NQ;
+                cs[c].position[2] = (float)(rand() % (NQ + 1)) / NQ;
+            }
+            cs[c].normal[1] = 1.0f;
+        }
+        assert_int_equal(gim_cache_bind(&d, cs, NC, b, env), GIM_OK);
+        for (c = 0; c < NC; ++c) {
+            double pp[3], best = DBL_MAX, u, v;
+            uint32_t bt = 0, tt;
+            for (i = 0; i < 3; ++i) pp[i] = cs[c].position[i];
+            for (tt = 0; tt < t / 3; ++tt) {
+                double q[3][3], d2 = 0.0;
+                uint32_t vi[3];
+                gim__bind_triangle(&d, 12, tt, vi, q);
+                gim__closest_on_triangle(pp, q[0], q[1], q[2], &u, &v);
+                for (i = 0; i < 3; ++i) {
+                    double e = pp[i] - ((1 - u - v) * q[0][i] + u * q[1][i] + v * q[2][i]);
+                    d2 += e * e;
+                }
+                if (d2 < best) { best = d2; bt = tt; }
+            }
+            bad += b[c].vertex[0] != idx[bt * 3] || b[c].vertex[1] != idx[bt * 3 + 1] || b[c].vertex[2] != idx[bt * 3 + 2];
+        }
+    }
+    assert_int_equal(bad, 0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(rest_and_affine),
         cmocka_unit_test(refusals),
+        cmocka_unit_test(grid_is_brute_force),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
