@@ -1388,8 +1388,13 @@ typedef struct gim_mesh_desc {
                                    draws from the host's buffers, so they may change at any time, and
                                    every gim_update re-reads the positions on the GPU (bounds,
                                    caches); indices, vertex and index counts must stay. Without
-                                   buffers: gim_update_mesh_vertices uploads new positions. A
-                                   static mesh (0) pays nothing of this. */
+                                   buffers: gim_update_mesh_vertices uploads new positions. Cost of
+                                   a frame after a change: one dispatch per mesh, then the followed
+                                   caches (32 bytes each) are read back (a sync point) because the
+                                   caches' hash grid is built on the CPU; with GIM_VISIBILITY_ISM
+                                   the scene's ISM points are remade from a read-back of the
+                                   vertices and every cache's map is drawn again. A static mesh (0)
+                                   pays nothing of this. */
 } gim_mesh_desc;
 
 /* Upload a mesh (vertex, index and per-triangle material buffers; with desc->buffers only the

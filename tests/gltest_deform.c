@@ -264,6 +264,24 @@ static void twin(void **state) {
         cache_diff(h.plate_set.caches, cpu, h.plate_set.count, &dp, &dn, &da);
         assert_true(dp > 0.1 && dn > 0.1);
         gltest_state_unchanged(&h.f);
+        {   /* what following costs a frame (llvmpipe: a ratio, not a GPU figure): the arrays' mesh
+               unchanged since the last frame (nothing followed: a static scene's frame), the same
+               with new vertices every frame, the host's buffer (followed every frame) */
+            double t0, ms[2];
+            int k, v;
+            for (v = 0; v < (path == 1 ? 2 : 1); ++v) {
+                glFinish();
+                t0 = gim__clock_ms(h.f.ctx);
+                for (k = 0; k < 4; ++k) {
+                    if (v == 1) assert_int_equal(gim_update_mesh_vertices(h.f.ctx, h.plate, k & 1 ? h.rest : bent, NULL, NV), GIM_OK);
+                    assert_int_equal(gim_update(h.f.ctx, &h.fr), GIM_OK);
+                }
+                glFinish();
+                ms[v] = (gim__clock_ms(h.f.ctx) - t0) / 4.0;
+            }
+            if (path == 1) print_message("path 1: %.1f ms a frame unchanged, %.1f ms with new vertices every frame\n", ms[0], ms[1]);
+            else print_message("path 2: %.1f ms a frame (the host's buffer followed every frame)\n", ms[0]);
+        }
         free(gpu); free(cpu); free(bind);
         teardown(&h);
     }
