@@ -7662,6 +7662,7 @@ struct gim_context {
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
     uint64_t scene_version;       /* bumped when meshes, instances or a deforming mesh's vertices change */
+    gim__GLuint deform_box;       /* 28 bytes: a host-buffer deforming mesh's bounds (caches_follow.comp mode 0); 0: none such */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
     float ls_scale;               /* and the scene scale */
     gim__grid ls_grid;
@@ -9289,7 +9290,7 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
     const gim__gl *gl = &ctx->gl;
     int lightskin = f->method == GIM_METHOD_DEFAULT || f->method == GIM_METHOD_LIGHTSKIN_BRSM ||
                     f->method == GIM_METHOD_LIGHTSKIN_FULL;
-    gim__GLuint program = 0, box = 0;
+    gim__GLuint program = 0;
     uint32_t i, j;
     gim_result r = GIM_OK;
     for (i = 0; i < ctx->instance_count; ++i) {
@@ -9299,10 +9300,7 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
     if (i == ctx->instance_count) return GIM_OK;   /* no deforming mesh, or none changed */
     gim__gl_enter(ctx, where);
     r = gim__gl_program(ctx, GIM__PROGRAM_CACHES_FOLLOW, &program);
-    if (r == GIM_OK) {
-        gl->UseProgram(program);
-        gl->GenBuffers(1, &box);
-    }
+    if (r == GIM_OK) gl->UseProgram(program);
     for (i = 0; r == GIM_OK && i < ctx->instance_count; ++i) {
         gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
         uint32_t words[7];
@@ -9318,9 +9316,17 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
         if (m->host_buffers) {   /* the bounds of what the host's buffer holds now */
             for (j = 0; j < 3; ++j) { words[j] = 0xFFFFFFFFu; words[3 + j] = 0u; }
             words[6] = 0u;
-            gl->BindBuffer(GIM__GL_SHADER_STORAGE_BUFFER, box);
-            gl->BufferData(GIM__GL_SHADER_STORAGE_BUFFER, 28, words, GIM__GL_DYNAMIC_COPY);
-            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, box);
+            if (!ctx->deform_box) {
+                ctx->deform_box = gim__gl_buffer_with(ctx, words, 28u, GIM__GL_DYNAMIC_COPY);
+                if (!ctx->deform_box) {
+                    r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers returned 0");
+                    break;
+                }
+            } else {
+                gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->deform_box);
+                gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 28, words);
+            }
+            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->deform_box);
             gl->Uniform1ui(0, 0u);
             gl->Uniform1ui(1, m->vertex_count);
             gl->DispatchCompute((m->vertex_count + 63u) / 64u, 1u, 1u);
@@ -9335,7 +9341,7 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
         gl->MemoryBarrier(GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
         if (m->host_buffers) {
             float lo[3], hi[3];
-            gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, box);
+            gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->deform_box);
             gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, 28, words);
             for (j = 0; j < 3; ++j) {   /* back from the ordered encoding */
                 uint32_t a = words[j] & 0x80000000u ? words[j] & 0x7FFFFFFFu : ~words[j];
@@ -9367,7 +9373,6 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
             m->follow_dirty = 0;
         }
     }
-    if (box) gl->DeleteBuffers(1, &box);
     if (r == GIM_OK) r = gim__gl_check(ctx, where);
     return gim__gl_leave(ctx, r);
 }
@@ -11662,7 +11667,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->vpl.maps_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
          ctx->para_samples_bytes;
-    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes;
+    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes + (ctx->deform_box ? 28u : 0u);
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }
@@ -11827,6 +11832,7 @@ GIMANY_DEF void gim_destroy(gim_context *ctx) {
         if (ctx->programs[i]) ctx->gl.DeleteProgram(ctx->programs[i]);
     if (ctx->scan_blocks) ctx->gl.DeleteBuffers(1, &ctx->scan_blocks);
     if (ctx->proxy_state) ctx->gl.DeleteBuffers(1, &ctx->proxy_state);
+    if (ctx->deform_box) ctx->gl.DeleteBuffers(1, &ctx->deform_box);
     gim__paraboloid_release(ctx, 1);
     if (ctx->vpl_partial) ctx->gl.DeleteBuffers(1, &ctx->vpl_partial);
     if (ctx->vpl_raw) ctx->gl.DeleteTextures(1, &ctx->vpl_raw);
