@@ -5279,7 +5279,7 @@ GIMANY_DEF gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
     }
     for (i = 0; i < count; ++i) {
         const gim_cache *c = &caches[i];
-        double p[3], best = DBL_MAX, n[3];
+        double p[3], best = DBL_MAX, n[3], out2 = 0.0;
         uint32_t best_t = 0xFFFFFFFFu;
         int32_t pc[3], rr, rmax = 0;
         gim_cache_binding b;
@@ -5291,21 +5291,27 @@ GIMANY_DEF gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
             pc[k] = pc[k] < 0 ? 0 : pc[k] >= dims[k] ? dims[k] - 1 : pc[k];
             if (dims[k] > rmax) rmax = dims[k];
         }
+        for (k = 0; k < 3; ++k) {   /* p's squared distance from the grid's box */
+            double g = p[k] < lo[k] ? lo[k] - p[k] : p[k] > lo[k] + dims[k] * h ? p[k] - lo[k] - dims[k] * h : 0.0;
+            out2 += g * g;
+        }
         for (rr = 0; rr <= rmax; ++rr) {
-            int32_t x, y, z;
-            /* a triangle not yet met overlaps no cell within rr - 1 of pc, so it is at least (rr - 1) h
-               from p's nearest point in the grid (which lies in cell pc), and as far from p (the
-               grid is convex) */
+            int32_t x, y, z, z0, z1, y0, y1, x0, x1;
+            /* a triangle not yet met overlaps no cell within rr - 1 of pc, so it is at least
+               (rr - 1) h from p', p's nearest point in the grid (in cell pc), and |p - x|^2 >=
+               |p - p'|^2 + |p' - x|^2 for x in the (convex) grid */
             double reach = (rr - 1) * h;
-            if (best_t != 0xFFFFFFFFu && reach > 0.0 && best < reach * reach) break;
-            for (z = pc[2] - rr; z <= pc[2] + rr; ++z)
-                for (y = pc[1] - rr; y <= pc[1] + rr; ++y)
-                    for (x = pc[0] - rr; x <= pc[0] + rr; ++x) {
+            if (best_t != 0xFFFFFFFFu && reach > 0.0 && best < out2 + reach * reach) break;
+            z0 = pc[2] - rr < 0 ? 0 : pc[2] - rr; z1 = pc[2] + rr >= dims[2] ? dims[2] - 1 : pc[2] + rr;
+            y0 = pc[1] - rr < 0 ? 0 : pc[1] - rr; y1 = pc[1] + rr >= dims[1] ? dims[1] - 1 : pc[1] + rr;
+            x0 = pc[0] - rr < 0 ? 0 : pc[0] - rr; x1 = pc[0] + rr >= dims[0] ? dims[0] - 1 : pc[0] + rr;
+            for (z = z0; z <= z1; ++z)
+                for (y = y0; y <= y1; ++y) {
+                    /* the shell only: a row inside it holds two cells of it, at x = pc +- rr */
+                    int32_t step = (z == pc[2] - rr || z == pc[2] + rr || y == pc[1] - rr || y == pc[1] + rr) ? 1 : 2 * rr;
+                    for (x = step == 1 ? x0 : pc[0] - rr; x <= x1; x += step > 0 ? step : 1) {
                         uint32_t cell, e;
-                        if (x < 0 || y < 0 || z < 0 || x >= dims[0] || y >= dims[1] || z >= dims[2]) continue;
-                        if (x != pc[0] - rr && x != pc[0] + rr && y != pc[1] - rr && y != pc[1] + rr && z != pc[2] - rr &&
-                            z != pc[2] + rr)
-                            continue;   /* inside the shell: done at a smaller rr */
+                        if (x < x0) continue;
                         cell = ((uint32_t)z * (uint32_t)dims[1] + (uint32_t)y) * (uint32_t)dims[0] + (uint32_t)x;
                         for (e = start[cell]; e < start[cell + 1u]; ++e) {
                             double q[3][3], u, v, d2 = 0.0;
@@ -5322,6 +5328,7 @@ GIMANY_DEF gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
                             if (d2 < best || (d2 == best && t < best_t)) { best = d2; best_t = t; }
                         }
                     }
+                }
         }
         {   /* the binding to the nearest triangle */
             double q[3][3], e1[3], e2[3], f[3], len, u, v, foot = 0.0;
