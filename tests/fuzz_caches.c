@@ -1,7 +1,8 @@
 /* libFuzzer target: arbitrary meshes into gim_cache_generate. Raw float bits (NaN, Inf, huge,
    denormal) or small integer grids (duplicates, degenerates, thin walls), 16/32-bit indices,
    out-of-range indices and materials, strides, normals. On success the caches must be sane,
-   partition the surface, and come out the same twice; nothing may leak. */
+   partition the surface, come out the same twice, and bind to the mesh and follow it at rest
+   (gim_cache_bind, gim_caches_follow) to finite caches or a clear refusal; nothing may leak. */
 #define GIMANY_IMPLEMENTATION
 #ifndef GIMANY_NO_GL
 #define GIMANY_NO_GL
@@ -119,6 +120,32 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         }
         if (s.report.surface_area > 1e-30 && s.report.surface_area < 1e30)
             FZ_CHECK(fabs(sum - s.report.surface_area) <= 1e-4 * s.report.surface_area);
+        if (s.count) {   /* the caches bound to the mesh (gim_cache_bind) and followed at rest */
+            gim_cache_binding *bd = (gim_cache_binding *)malloc(s.count * sizeof(gim_cache_binding));
+            gim_cache *fl = (gim_cache *)malloc(s.count * sizeof(gim_cache));
+            float tight[64 * 3];
+            FZ_CHECK(bd && fl);
+            for (i = 0; i < nv; ++i)
+                for (k = 0; k < 3; ++k) tight[i * 3 + k] = pos[i * stride + k];
+            r = gim_cache_bind(&d.mesh, s.caches, s.count, bd, d.env);
+            FZ_CHECK(r == GIM_OK || r == GIM_ERROR_INVALID_ARGUMENT);   /* a non-finite vertex anywhere */
+            if (r == GIM_OK) {
+                for (i = 0; i < s.count; ++i) {
+                    FZ_CHECK(bd[i].vertex[0] < nv && bd[i].vertex[1] < nv && bd[i].vertex[2] < nv);
+                    FZ_CHECK(bd[i].u >= 0.0f && bd[i].v >= 0.0f && bd[i].u + bd[i].v <= 1.0f + 1e-6f);
+                    FZ_CHECK(gim__isfinitef(bd[i].h) && gim__all_finite(bd[i].frame, 3) && bd[i].area2 >= 0.0f);
+                }
+                r = gim_caches_follow(s.caches, bd, s.count, tight, nv, fl, d.env);
+                FZ_CHECK(r == GIM_OK || r == GIM_ERROR_INVALID_ARGUMENT);   /* float overflow of huge vertices */
+                for (i = 0; r == GIM_OK && i < s.count; ++i) {
+                    const gim_cache *c = &fl[i];
+                    FZ_CHECK(gim__all_finite(c->position, 3) && gim__all_finite(c->normal, 3) && c->area >= 0.0f);
+                    FZ_CHECK(c->reflectance == s.caches[i].reflectance);
+                }
+            }
+            free(bd);
+            free(fl);
+        }
         /* determinism */
         FZ_CHECK(gim_cache_generate(&d, &s2) == GIM_OK);
         FZ_CHECK(s2.count == s.count);
