@@ -65,6 +65,8 @@ static void clusters_match_twin(frame_fixture *ff) {
         }
         e = fmax(e, fabs((double)gpu[i].size - cpu[i].size) / o.scene_scale);
         e = fmax(e, fabs((double)gpu[i].near_distance - cpu[i].near_distance) / o.scene_scale);
+        e = fmax(e, fabs((double)gpu[i].attribute_near - cpu[i].attribute_near) / o.scene_scale);
+        assert_true(cpu[i].attribute_near > 0.0f && cpu[i].attribute_near <= cpu[i].near_distance);
         worst = fmax(worst, e);
         assert_true(cpu[i].size >= 0.0f && cpu[i].size < o.scene_scale);   /* 0: a one-VPL cluster, a point */
     }
