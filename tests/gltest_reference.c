@@ -277,7 +277,7 @@ static void cornell_methods(void **state) {
         render(&r, &f, vpl ? 3 : 1, img);
         mae = rel_mae(img, ref);
         ratio = mean_ratio(img, ref);
-        print_message("| %-20s | %.3f | %.3f | %.3f | %.1f | %.0f |\n", m->name, mae, m->max_mae, ratio, m->max_energy,
+        print_message("| %-20s | %.3f | %.3f | %.3f | %.2f | %.0f |\n", m->name, mae, m->max_mae, ratio, m->max_energy,
                       wall_ms() - t0);
         CHECK(failed, mae < m->max_mae);
         CHECK(failed, fabs(ratio - 1.0) < m->max_energy);

@@ -330,6 +330,7 @@ static void only_what_is_enabled(void **state) {
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     assert_true(o.paraboloid_position != 0 && o.paraboloid_normal != 0 && o.paraboloid_albedo != 0);
+    assert_true(o.paraboloid_distance == 0);   /* without visibility, the attribute pass alone */
     assert_int_equal(o.vpl_count, o.first_bounce_count + 256u);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     two = st.gpu_bytes;
