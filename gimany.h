@@ -1046,7 +1046,9 @@ typedef struct gim_paraboloid {
     float normal[3];        /* n, unit: the axis of the hemisphere */
     float size;             /* Delta >= 0: the VAL's side, sqrt of its area (penumbra width) */
     float flux[3];          /* the cluster's summed VPL flux, rgb (lights its second bounce) */
-    float unused;
+    float attribute_near;   /* >= 0: the attribute maps' (second bounce's) own skip: hits nearer than
+                               this are the surface under the origin; small (a second-bounce ray
+                               must land on the first surface it meets, not behind it) */
 } gim_paraboloid;
 
 /* Which low-discrepancy points pick the first-bounce VPLs' texels. */
@@ -1071,7 +1073,13 @@ GIMANY_API gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
    cluster has no flux): the area of the rectangle that a uniform distribution with the same
    second moments fills, invariant under in-plane rotation like Dong's bounding rectangle but
    not set by one outlying VPL; near_distance = max(Delta / 2, 1e-4 scene_scale): geometry
-   within the VAL's own extent is what emits it (Dong fig. 7). A cluster without VPLs gets
+   within the VAL's own extent is what emits it (Dong fig. 7), no blocker of its light;
+   attribute_near = min(1e-2 scene_scale, near_distance): the second bounce's rays land on
+   the first surface past the origin, however near (a wall beside the cluster, a box on its
+   floor), or their flux lands behind it (with Delta / 2, 0.175 of the second bounce's flux on
+   the Cornell box, tests/gltest_reference.c); the 1e-2 only passes the surface under the
+   origin where it curves away (on the Cornell box the same VPLs as the lift alone). A
+   cluster without VPLs gets
    zero flux and size, its centre and normal kept. Sums in double in VPL order.
    cluster[vpl_count] < cluster_count; centres, normals: cluster_count * 3 (normals unit). */
 GIMANY_API gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
@@ -1081,17 +1089,24 @@ GIMANY_API gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
 /* What the paraboloid pass writes at one texel. */
 #define GIM_PARABOLOID_EMPTY 3.0e38f   /* distance where the texel sees nothing */
 typedef struct gim_paraboloid_texel {
+    /* the visibility map: */
     float distance;         /* from the origin along the texel's direction to the nearest hit
                                beyond near_distance; GIM_PARABOLOID_EMPTY where none */
+    int hit;                /* 1 where a surface is beyond near_distance */
+    uint32_t triangle;      /* UINT32_MAX: none */
+    /* the attribute maps (the second bounce): the nearest hit beyond attribute_near */
+    float attribute_distance; /* GIM_PARABOLOID_EMPTY where none */
     float position[3];      /* the hit, world */
     float normal[3];        /* unit, towards the origin (two-sided) */
     float albedo[3];        /* diffuse rgb of the hit triangle */
-    int hit;                /* 1 where a surface is */
-    uint32_t triangle;      /* UINT32_MAX: none */
+    int attribute_hit;      /* 1 where a surface is beyond attribute_near */
+    uint32_t attribute_triangle; /* UINT32_MAX: none */
 } gim_paraboloid_texel;
 
 /* Twin of the paraboloid pass at texel (x, y) of the size^2 map of map (see the convention
-   above): the ray from the origin through the texel centre's direction against the scene. */
+   above): the ray from the origin through the texel centre's direction against the scene,
+   its nearest hit beyond near_distance (the visibility map) and beyond attribute_near (the
+   attribute maps). */
 GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, const gim_paraboloid *map, uint32_t size,
                                                 uint32_t x, uint32_t y, gim_paraboloid_texel *out);
 
@@ -1218,9 +1233,9 @@ typedef struct gim_second_bounce_desc {
     const float *ism;               /* map_count * ism_size^2: each cluster's imperfect shadow map
                                        (gim_ism_render with map m's origin and normal as a cache), or NULL.
                                        A hit the map's own lookup does not see (gim_ism_visibility's, the
-                                       hit as the VAL) is an unlit VPL: the paraboloid map skips
-                                       everything within near_distance of its origin, so next to a wall
-                                       it finds the far side of the wall; the ISM has no such skip */
+                                       hit as the VAL) is an unlit VPL: the maps' hits lie past
+                                       attribute_near, so one behind a nearer surface within that skip
+                                       (maps made with a larger one) is dropped; the ISM has no skip */
     uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
     float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     float scene_scale;              /* > 0 with ism (the maps' lift) */
@@ -1573,8 +1588,9 @@ typedef struct gim_frame {
    after the RSMs and the G-buffer: vpl_count VPLs per light (gim_rsm_vpls_sequence) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
-   (gim_cluster_paraboloids) -> one layered pass of paraboloid maps (distance for visibility;
-   position, normal and albedo at two bounces) -> second-bounce VPLs (gim_second_bounce_vpls)
+   (gim_cluster_paraboloids) -> layered passes of paraboloid maps (distance for visibility,
+   past near_distance; position, normal and albedo at two bounces, past attribute_near: with
+   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade) -> the geometry-aware blur (gim_geometry_blur) into the indirect texture.
    With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
@@ -5492,7 +5508,7 @@ GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
         double s2[2][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};   /* [weighted, plain] x (ss, tt, st) */
         double area = 0.0, det;
         int k, plain;
-        float lift = 1e-4f * scene_scale;
+        float lift = 1e-4f * scene_scale, near_skip = 1e-2f * scene_scale;
         gim_basis(n, &t, &b);
         for (k = 0; k < 3; ++k) c[k] = centres[3 * m + k];
         for (i = 0; i < vpl_count; ++i) {
@@ -5525,7 +5541,7 @@ GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
         p->size = (float)sqrt(area);
         p->near_distance = 0.5f * p->size > lift ? 0.5f * p->size : lift;
         for (k = 0; k < 3; ++k) p->flux[k] = f[k] < (double)FLT_MAX ? (float)f[k] : FLT_MAX;
-        p->unused = 0.0f;
+        p->attribute_near = near_skip < p->near_distance ? near_skip : p->near_distance;
     }
     return GIM_OK;
 }
@@ -6040,10 +6056,11 @@ GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *nor
 
 /* A map's frame: unit n (normalised in float, as the GPU does) and t, b = gim_basis(n).
    0 where the map is unusable (origin or normal not finite, |n|^2 not within 1e-3 of 1,
-   near_distance not finite and >= 0). */
+   near_distance or attribute_near not finite and >= 0). */
 static int gim__paraboloid_frame(const gim_paraboloid *m, gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
     if (!gim__all_finite(m->origin, 3) || !gim__all_finite(m->normal, 3) || !gim__isfinitef(m->near_distance) ||
-        !(m->near_distance >= 0.0f) || !gim__unit_or_zero(m->normal, 0))
+        !(m->near_distance >= 0.0f) || !gim__isfinitef(m->attribute_near) || !(m->attribute_near >= 0.0f) ||
+        !gim__unit_or_zero(m->normal, 0))
         return 0;
     *n = gim_v3_normalize(gim_v3(m->normal[0], m->normal[1], m->normal[2]));
     gim_basis(*n, t, b);
@@ -6069,49 +6086,60 @@ GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
                                                 uint32_t x, uint32_t y, gim_paraboloid_texel *out) {
     static const char where[] = "gim_paraboloid_texel_twin";
     gim_vec3 t, b, n;
-    double uv[2], w[3], d[3], o[3], best = -1.0, bu = 0.0, bv = 0.0, len;
-    uint32_t tri, best_t = UINT32_MAX;
-    int i;
+    double uv[2], w[3], d[3], o[3], best[2] = {-1.0, -1.0}, bu = 0.0, bv = 0.0, len, skip[2];
+    uint32_t tri, best_t[2] = {UINT32_MAX, UINT32_MAX};
+    int i, k;
     gim_result r;
     if (!out || !map) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out or map is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r != GIM_OK) return r;
     if (!gim__paraboloid_frame(map, &t, &b, &n))
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where,
-                         "the map's origin or normal is not finite, the normal not unit or near_distance not >= 0");
+                         "the map's origin or normal is not finite, the normal not unit or a near distance not >= 0");
     if (size == 0 || x >= size || y >= size)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "texel (%u, %u) outside the %u^2 map", (unsigned)x,
                          (unsigned)y, (unsigned)size);
     memset(out, 0, sizeof *out);
-    out->distance = GIM_PARABOLOID_EMPTY;
-    out->triangle = UINT32_MAX;
+    out->distance = out->attribute_distance = GIM_PARABOLOID_EMPTY;
+    out->triangle = out->attribute_triangle = UINT32_MAX;
     if (!gim__paraboloid_texel_dir(size, x, y, uv, w)) return GIM_OK;
     d[0] = w[0] * t.x + w[1] * b.x + w[2] * n.x;
     d[1] = w[0] * t.y + w[1] * b.y + w[2] * n.y;
     d[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
     len = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     for (i = 0; i < 3; ++i) { d[i] /= len; o[i] = map->origin[i]; }
+    /* [0] the visibility map: nearer than near_distance is the VAL's own surface (Dong fig. 7),
+       not a blocker; [1] the attribute maps: only the surface under the origin is skipped */
+    skip[0] = map->near_distance;
+    skip[1] = map->attribute_near;
     for (tri = 0; tri < scene->triangle_count; ++tri) { /* s the distance along unit d */
         double u, vv, s;
         if (!gim__ray_triangle(o, d, scene->positions + (size_t)tri * 9, &s, &u, &vv)) continue;
-        /* nearer than near_distance: the VAL's own surface (Dong fig. 7), not a blocker */
-        if (!(s > (double)map->near_distance) || (best_t != UINT32_MAX && s >= best)) continue;
-        best = s; best_t = tri; bu = u; bv = vv;
+        for (k = 0; k < 2; ++k) {
+            if (!(s > skip[k]) || (best_t[k] != UINT32_MAX && s >= best[k])) continue;
+            best[k] = s; best_t[k] = tri;
+            if (k == 1) { bu = u; bv = vv; }
+        }
     }
-    if (best_t == UINT32_MAX || !(best <= FLT_MAX)) return GIM_OK;
-    out->hit = 1;
-    out->triangle = best_t;
-    out->distance = (float)best;
+    if (best_t[0] != UINT32_MAX && best[0] <= FLT_MAX) {
+        out->hit = 1;
+        out->triangle = best_t[0];
+        out->distance = (float)best[0];
+    }
+    if (best_t[1] == UINT32_MAX || !(best[1] <= FLT_MAX)) return GIM_OK;
+    out->attribute_hit = 1;
+    out->attribute_triangle = best_t[1];
+    out->attribute_distance = (float)best[1];
     {
         double nn[3], side = 0.0;
-        gim__twin_normal(scene, best_t, bu, bv, nn);
+        gim__twin_normal(scene, best_t[1], bu, bv, nn);
         len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
         for (i = 0; i < 3; ++i) side -= nn[i] * d[i];
         for (i = 0; i < 3; ++i) {
-            out->position[i] = (float)(o[i] + best * d[i]);
+            out->position[i] = (float)(o[i] + best[1] * d[i]);
             /* two-sided: turned towards the origin (zero for a degenerate normal) */
             out->normal[i] = len > 0.0 ? (float)((side < 0.0 ? -nn[i] : nn[i]) / len) : 0.0f;
-            out->albedo[i] = scene->albedo[(size_t)best_t * 3 + i];
+            out->albedo[i] = scene->albedo[(size_t)best_t[1] * 3 + i];
         }
     }
     return GIM_OK;
@@ -6171,7 +6199,7 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
         if (!gim__paraboloid_frame(p, &t, &b, &n) || !gim__all_finite(p->flux, 3) || p->flux[0] < 0.0f ||
             p->flux[1] < 0.0f || p->flux[2] < 0.0f)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where,
-                             "map %u: origin, normal, near_distance or flux not finite, unit and >= 0", (unsigned)m);
+                             "map %u: origin, normal, near distances or flux not finite, unit and >= 0", (unsigned)m);
     }
     for (m = 0; m < desc->map_count; ++m) {
         const gim_paraboloid *p = &desc->maps[m];
@@ -7738,7 +7766,7 @@ struct gim_context {
     gim_frame_outputs outputs;
     /* paraboloid maps (issue 5) */
     uint32_t para_size, para_count;   /* of the textures below; 0: none */
-    int para_attributes;              /* 1: position, normal, albedo exist */
+    int para_attributes;              /* GIM__PARA_*: the maps that exist (distance, attributes, both) */
     gim__GLuint para_distance, para_depth, para_position, para_normal, para_albedo, para_fbo;
     gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
     uint64_t para_samples_bytes;
@@ -10832,6 +10860,11 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
 
 /* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C; issue 5) ------- */
 
+/* Which paraboloid maps a pass makes (gim__gl_paraboloids' what). */
+#define GIM__PARA_DISTANCE 0      /* the visibility maps only */
+#define GIM__PARA_BOTH 1          /* both, in two passes (each with its own near skip) */
+#define GIM__PARA_ATTRIBUTES 2    /* the attribute maps only (the second bounce without paraboloid visibility) */
+
 /* Delete the paraboloid textures (all, or only the attribute ones) and, with all, the second
    bounce's sample buffer. */
 static void gim__paraboloid_release(gim_context *ctx, int all) {
@@ -10841,7 +10874,7 @@ static void gim__paraboloid_release(gim_context *ctx, int all) {
     t[3] = ctx->para_distance; t[4] = ctx->para_depth;
     gl->DeleteTextures(all ? 5 : 3, t);
     ctx->para_position = ctx->para_normal = ctx->para_albedo = 0;
-    ctx->para_attributes = 0;
+    ctx->para_attributes = GIM__PARA_DISTANCE;
     if (!all) return;
     ctx->para_distance = ctx->para_depth = 0;
     if (ctx->para_fbo) gl->DeleteFramebuffers(1, &ctx->para_fbo);
@@ -10867,20 +10900,27 @@ static void gim__gl_texture_array(gim_context *ctx, gim__GLuint *tex, gim__GLenu
     gl->TexParameteri(GIM__GL_TEXTURE_2D_ARRAY, GIM__GL_TEXTURE_WRAP_T, GIM__GL_CLAMP_TO_EDGE);
 }
 
-/* The layered textures and framebuffer of count size^2 maps (kept while they fit exactly). */
-static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, uint32_t size, int attributes,
+/* The layered textures and framebuffer of count size^2 maps (kept while they fit exactly):
+   attachment 0 the distance (not with GIM__PARA_ATTRIBUTES), 1-3 the attributes (not with
+   GIM__PARA_DISTANCE), one depth texture the passes share. */
+static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, uint32_t size, int what,
                                              const char *where) {
     const gim__gl *gl = &ctx->gl;
     gim__GLuint color[4];
-    gim__GLenum bufs[4], status;
-    int n = attributes ? 4 : 1, i;
-    if (ctx->para_size == size && ctx->para_count == count && ctx->para_attributes == attributes && ctx->para_fbo)
+    gim__GLenum status;
+    int i;
+    if (ctx->para_size == size && ctx->para_count == count && ctx->para_attributes == what && ctx->para_fbo)
         return GIM_OK;
-    if (!attributes) gim__paraboloid_release(ctx, 0);  /* only what is enabled is allocated */
+    if (what == GIM__PARA_DISTANCE) gim__paraboloid_release(ctx, 0);  /* only what is enabled is allocated */
     ctx->para_size = ctx->para_count = 0;
-    gim__gl_texture_array(ctx, &ctx->para_distance, GIM__GL_R32F, size, count);
+    if (what != GIM__PARA_ATTRIBUTES) {
+        gim__gl_texture_array(ctx, &ctx->para_distance, GIM__GL_R32F, size, count);
+    } else if (ctx->para_distance) {
+        gl->DeleteTextures(1, &ctx->para_distance);
+        ctx->para_distance = 0;
+    }
     gim__gl_texture_array(ctx, &ctx->para_depth, GIM__GL_DEPTH_COMPONENT32F, size, count);
-    if (attributes) {
+    if (what != GIM__PARA_DISTANCE) {
         gim__gl_texture_array(ctx, &ctx->para_position, GIM__GL_RGBA32F, size, count);
         gim__gl_texture_array(ctx, &ctx->para_normal, GIM__GL_RGBA32F, size, count);
         gim__gl_texture_array(ctx, &ctx->para_albedo, GIM__GL_RGBA32F, size, count);
@@ -10890,51 +10930,66 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
     ctx->para_fbo = 0;
     gl->GenFramebuffers(1, &ctx->para_fbo);
     gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, ctx->para_fbo);
-    for (i = 0; i < n; ++i) { /* layered attachments: gl_Layer picks the map */
-        gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
-        bufs[i] = GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i;
-    }
+    for (i = 0; i < 4; ++i) /* layered attachments: gl_Layer picks the map */
+        if (color[i]) gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
     gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->para_depth, 0);
-    gl->DrawBuffers(n, bufs);
+    {   /* what the first pass draws (gim__gl_paraboloids sets each pass's) */
+        gim__GLenum bufs[4] = {GIM__GL_COLOR_ATTACHMENT0, GIM__GL_NONE, GIM__GL_NONE, GIM__GL_NONE};
+        if (what != GIM__PARA_DISTANCE)
+            for (i = 0; i < 4; ++i)
+                bufs[i] = i == 0 && what == GIM__PARA_ATTRIBUTES ? (gim__GLenum)GIM__GL_NONE
+                                                                 : (gim__GLenum)(GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i);
+        gl->DrawBuffers(4, bufs);
+    }
     status = gl->CheckFramebufferStatus(GIM__GL_FRAMEBUFFER);
     if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "layered framebuffer incomplete (0x%04x)", (unsigned)status);
     if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
     ctx->para_size = size;
     ctx->para_count = count;
-    ctx->para_attributes = attributes;
+    ctx->para_attributes = what;
     return GIM_OK;
 }
 
-/* The paraboloid maps of count clusters in one layered pass, the GPU twin of
+/* The paraboloid maps of count clusters in layered passes, the GPU twin of
    gim_paraboloid_texel_twin at every texel. maps_ssbo: count gim_paraboloid (48 bytes, std430
    3 vec4), read by the shaders only (the cluster pass writes it on the GPU). Every scene
    instance is drawn instanced count times; paraboloid.geom sends instance i's triangles to
    layer i as a conservative quad around their exact (curved) image, and paraboloid.frag
    intersects each covered texel's ray with the triangle, so the maps are exact for any
    triangle size (the papers project vertices and rasterise linearly, which bends nothing).
-   Writes, in ctx (size x size x count 2D arrays, layer = map, rows from y = 0):
-     para_distance  R32F: distance to the nearest hit beyond near_distance, GIM_PARABOLOID_EMPTY where none;
+   what (GIM__PARA_*) picks the maps; each kind is its own pass because each keeps its own
+   nearest hit: the visibility map's past near_distance (the VAL's own surface is no blocker),
+   the attribute maps' past attribute_near (a second-bounce ray lands on the first surface it
+   meets, however near). Writes, in ctx (size x size x count 2D arrays, layer = map, rows from
+   y = 0):
+     para_distance  R32F: distance to the nearest hit beyond near_distance, GIM_PARABOLOID_EMPTY
+                    where none (not with GIM__PARA_ATTRIBUTES: deleted);
      para_depth     DEPTH_COMPONENT32F: d / (d + scene_scale) (the depth test), 1 where none;
-   and with attributes != 0 (otherwise they are deleted):
+   and with attributes (otherwise they are deleted), of the nearest hit beyond attribute_near:
      para_position  RGBA32F: the hit, w = 1 (0 where none);
      para_normal    RGBA32F: unit normal towards the origin (two-sided), w = 0;
      para_albedo    RGBA32F: diffuse rgb of the triangle's material, w = 1.
-   scene_scale > 0 only shapes the depth encoding. Cost: per map, every triangle in front of
-   its plane, each covering its image's bounding box. */
+   scene_scale > 0 only shapes the depth encoding. Cost: per map and pass, every triangle in
+   front of its plane, each covering its image's bounding box. */
 static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint maps_ssbo, uint32_t count, uint32_t size,
-                                                  int attributes, float scene_scale) {
+                                                  int what, float scene_scale) {
     static const char where[] = "paraboloid maps (GL)";
     static const float empty[4] = {GIM_PARABOLOID_EMPTY, 0.0f, 0.0f, 0.0f}, zero[4] = {0.0f, 0.0f, 0.0f, 0.0f};
     static const float one = 1.0f;
+    static const gim__GLenum bufs[2][4] = {{GIM__GL_COLOR_ATTACHMENT0, GIM__GL_NONE, GIM__GL_NONE, GIM__GL_NONE},
+                                           {GIM__GL_NONE, GIM__GL_COLOR_ATTACHMENT0 + 1, GIM__GL_COLOR_ATTACHMENT0 + 2,
+                                            GIM__GL_COLOR_ATTACHMENT0 + 3}};
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     gim__GLint max_layers = 0, max_fb_layers = 0;
     gim_result r = GIM_OK;
     uint32_t i;
-    int k;
+    int k, pass;
     if (!maps_ssbo) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_ssbo is 0");
     if (count == 0 || size == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count or size is 0");
+    if (what != GIM__PARA_DISTANCE && what != GIM__PARA_BOTH && what != GIM__PARA_ATTRIBUTES)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown maps %d", what);
     if (!gim__isfinitef(scene_scale) || !(scene_scale > 0.0f))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
     if (size > (uint32_t)ctx->max_texture_size || size > (uint32_t)ctx->max_viewport[0] ||
@@ -10943,7 +10998,6 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
                          (unsigned)size);
     if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the SSBO limit", (unsigned)count);
-    attributes = attributes != 0;
     gim__gl_enter(ctx, where);
     gl->GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
     gl->GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &max_fb_layers);
@@ -10955,12 +11009,9 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
             r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)count * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PARABOLOID, &program);
-    if (r == GIM_OK) r = gim__gl_paraboloid_targets(ctx, count, size, attributes, where);
+    if (r == GIM_OK) r = gim__gl_paraboloid_targets(ctx, count, size, what, where);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gim__gl_raster_state(gl, ctx->para_fbo, size, size);
-    gl->ClearBufferfv(GIM__GL_COLOR, 0, empty);
-    for (k = 1; k < (attributes ? 4 : 1); ++k) gl->ClearBufferfv(GIM__GL_COLOR, k, zero);
-    gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
     gl->UseProgram(program);
     gl->Uniform1ui(3, ctx->materials ? ctx->material_count : 0u);
     gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);  /* rounding only: a quarter texel beyond the rigorous bound */
@@ -10969,16 +11020,24 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials ? ctx->materials : maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_ssbo);
-    for (i = 0; i < ctx->instance_count; ++i) {
-        const gim_instance *in = &ctx->instances[i];
-        const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
-        gim_mat4 nm = gim_mat4_normal(in->model);
-        gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
-        gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
-        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
-        gl->BindVertexArray(m->vao);
-        gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, (const void *)(size_t)m->index_offset,
-                                  (gim__GLsizei)count);
+    for (pass = 0; pass < 2; ++pass) {   /* 0: the visibility maps, 1: the attribute maps */
+        if ((pass == 0 && what == GIM__PARA_ATTRIBUTES) || (pass == 1 && what == GIM__PARA_DISTANCE)) continue;
+        gl->DrawBuffers(4, bufs[pass]);
+        if (pass == 0) gl->ClearBufferfv(GIM__GL_COLOR, 0, empty);
+        else for (k = 1; k < 4; ++k) gl->ClearBufferfv(GIM__GL_COLOR, k, zero);
+        gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
+        gl->Uniform1ui(7, (gim__GLuint)pass);
+        for (i = 0; i < ctx->instance_count; ++i) {
+            const gim_instance *in = &ctx->instances[i];
+            const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
+            gim_mat4 nm = gim_mat4_normal(in->model);
+            gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
+            gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
+            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
+            gl->BindVertexArray(m->vao);
+            gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type,
+                                      (const void *)(size_t)m->index_offset, (gim__GLsizei)count);
+        }
     }
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -11015,7 +11074,7 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_ssbo or vpls_out is 0");
     if (map_count == 0 || size == 0 || vpl_count == 0)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "map_count, size or vpl_count is 0");
-    if (!ctx->para_attributes || ctx->para_size != size || ctx->para_count < map_count)
+    if (ctx->para_attributes == GIM__PARA_DISTANCE || ctx->para_size != size || ctx->para_count < map_count)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
                          "no paraboloid maps with attributes of size %u and %u layers (run the paraboloid pass first)",
                          (unsigned)size, (unsigned)map_count);
@@ -11088,8 +11147,9 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
    Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
    RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (warm from the
    last frame's centres, or seeded every frame: gim_frame.kmeans_restart) -> the clusters' VALs and
-   paraboloid parameters (clusters.comp) -> one layered pass of paraboloid maps (depth for
-   visibility; position, normal, albedo for the second bounce) -> second-bounce VPLs -> per
+   paraboloid parameters (clusters.comp) -> a layered pass of paraboloid maps for each of
+   visibility (distance) and the second bounce (position, normal, albedo), each with its own
+   near skip -> second-bounce VPLs -> per
    pixel shading of every VPL (interleaved) with its cluster's soft visibility -> the
    geometry-aware blur. Only what the frame enables is made: no maps without visibility or a
    second bounce, no attribute maps at one bounce, no blur buffer without interleaving. */
@@ -11268,7 +11328,9 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility (not with ISMs), attributes
        for the second bounce */
     if ((s.visibility && !ism) || s.second) {
-        r = gim__gl_paraboloids(ctx, v->maps, s.clusters, s.size, s.second > 0u, scale);
+        r = gim__gl_paraboloids(ctx, v->maps, s.clusters, s.size,
+                                !s.second ? GIM__PARA_DISTANCE : s.visibility && !ism ? GIM__PARA_BOTH : GIM__PARA_ATTRIBUTES,
+                                scale);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else {
         gim__paraboloid_release(ctx, 1);
@@ -11758,7 +11820,8 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
          ctx->vpl.maps_bytes;
-    b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count * (8u + (ctx->para_attributes ? 48u : 0u)) +
+    b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *
+             (4u + (ctx->para_attributes != GIM__PARA_ATTRIBUTES ? 4u : 0u) + (ctx->para_attributes != GIM__PARA_DISTANCE ? 48u : 0u)) +
          ctx->para_samples_bytes;
     b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes + (ctx->deform_box ? 28u : 0u);
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);

@@ -2,8 +2,8 @@
    per cluster looping over the VPLs in index order (<= 32768: under llvmpipe's 65535
    iterations), sums in double. Per cluster: the summed flux, the flux-weighted (plain when the
    cluster has no flux) covariance C of its VPLs projected on the plane of its normal, the VAL
-   side Delta = sqrt(12 sqrt(det C)), the origin lifted 1e-4 scene scales along the normal and
-   near = max(Delta / 2, the lift).
+   side Delta = sqrt(12 sqrt(det C)), the origin lifted 1e-4 scene scales along the normal,
+   near = max(Delta / 2, the lift) and the attribute maps' near min(1e-2 scene scales, near).
      mode 0: the maps from the k-means centres (centre.w: VPLs; the normal renormalised);
      mode 1: seed the centres: centre[k] = VPL floor(k N / M) (Dong sec. 5.2, the same seeds
              every frame; gim_kmeans' FIXED init), or the first lit VPL after it (an unlit one
@@ -103,7 +103,9 @@ void main() {
         area = det > 0.0LF ? 12.0LF * sqrt(det) : 0.0LF;
     }
     float lift = 1e-4 * scene_scale, size = float(sqrt(area));
-    map[m].origin_near = vec4(centre[m].position.xyz + lift * n, max(0.5 * size, lift));
+    float near_distance = max(0.5 * size, lift);
+    map[m].origin_near = vec4(centre[m].position.xyz + lift * n, near_distance);
     map[m].normal_size = vec4(n, size);
-    map[m].flux = vec4(vec3(min(f, dvec3(3.4028234663852886e38LF))), 0.0);
+    /* w: attribute_near, the second bounce's own skip (gim_cluster_paraboloids) */
+    map[m].flux = vec4(vec3(min(f, dvec3(3.4028234663852886e38LF))), min(1e-2 * scene_scale, near_distance));
 }

@@ -1,10 +1,12 @@
 /* One texel of a paraboloid map (gimany.h @section twins, gim_paraboloid_texel_twin): the ray
    from the map's origin through the texel centre's direction against the triangle
    paraboloid.geom passed (Moller-Trumbore, vertices relative to the origin); a miss, a hit
-   nearer than near_distance (the VAL's own surface) or a texel outside the unit disk is
-   discarded. Depth d / (d + scene_scale), monotone in d, keeps the nearest hit. Outputs:
-   distance d; with attributes, position (w = 1), the normal turned towards the origin, and
-   the triangle's diffuse albedo. */
+   nearer than the pass's skip or a texel outside the unit disk is discarded. The skip: the
+   visibility pass's near_distance (the VAL's own surface, Dong fig. 7), the attribute pass's
+   attribute_near (only the surface under the origin: a second-bounce ray lands on the first
+   surface it meets). Depth d / (d + scene_scale), monotone in d, keeps the nearest hit.
+   Outputs: distance d (the visibility pass); position (w = 1), the normal turned towards the
+   origin, and the triangle's diffuse albedo (the attribute pass). */
 flat in vec3 tri_v0;
 flat in vec3 tri_v1;
 flat in vec3 tri_v2;
@@ -24,6 +26,7 @@ layout(std430, binding = 2) readonly buffer Maps { Paraboloid map[]; };
 
 layout(location = 5) uniform uint size;
 layout(location = 6) uniform float scene_scale;
+layout(location = 7) uniform uint attribute_pass;   /* 1: skip attribute_near (flux.w), 0: near_distance */
 
 void basis(vec3 n, out vec3 t, out vec3 b) {
     float s = n.z >= 0.0 ? 1.0 : -1.0;
@@ -51,7 +54,7 @@ void main() {
     float v = dot(d, qv) / det;
     if (v < 0.0 || u + v > 1.0) discard;
     float s = dot(e2, qv) / det;
-    if (!(s > map[tri_map].origin_near.w)) discard;
+    if (!(s > (attribute_pass != 0u ? map[tri_map].flux.w : map[tri_map].origin_near.w))) discard;
     gl_FragDepth = s / (s + scene_scale);
     out_distance = s;
     out_position = vec4(map[tri_map].origin_near.xyz + s * d, 1.0);

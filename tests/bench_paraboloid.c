@@ -1,8 +1,9 @@
 /* Paraboloid maps and second-bounce VPLs on the GPU (medians of wall time around glFinish, on
    whatever EGL gives: llvmpipe in CI, where only ratios within one run mean anything): the
    layered pass over a Cornell box of huge triangles and over the same box with a floor of
-   3200 small triangles, at several map counts and sizes, with and without the attribute
-   textures; the second-bounce pass at two VPL counts. */
+   3200 small triangles, at several map counts and sizes: the distance maps alone, both kinds
+   (two passes, each with its own near skip: SSVP with paraboloid visibility) and the attribute
+   maps alone; the second-bounce pass at two VPL counts. */
 #include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -103,13 +104,17 @@ int main(void) {
         if (gim_set_instances(ctx, inst, scene ? 2u : 1u) != GIM_OK) return 1;
         for (c = 0; c < 2; ++c)
             for (s = 0; s < 2; ++s)
-                for (a = 0; a < 2; ++a)
-                    printf("paraboloid maps, %s (%u triangles): %u maps of %u^2, attributes %d: %.2f ms (median of %d)\n",
+                for (a = 0; a < 3; ++a) {
+                    static const int whats[3] = {GIM__PARA_DISTANCE, GIM__PARA_BOTH, GIM__PARA_ATTRIBUTES};
+                    static const char *const names[3] = {"distance", "both (two passes)", "attributes"};
+                    printf("paraboloid maps, %s (%u triangles): %u maps of %u^2, %s: %.2f ms (median of %d)\n",
                            scene ? "box + tessellated floor" : "Cornell box", scene ? 10u + GRID * GRID * 2u : 10u,
-                           (unsigned)counts[c], (unsigned)sizes[s], a, time_maps(ctx, ssbo, counts[c], sizes[s], a), RUNS);
+                           (unsigned)counts[c], (unsigned)sizes[s], names[a],
+                           time_maps(ctx, ssbo, counts[c], sizes[s], whats[a]), RUNS);
+                }
     }
     vpls = gltest_ssbo(4096 * sizeof(gim_vpl), NULL);
-    if (gim__gl_paraboloids(ctx, ssbo, 64, 128, 1, 2.0f) != GIM_OK) return 1;
+    if (gim__gl_paraboloids(ctx, ssbo, 64, 128, GIM__PARA_ATTRIBUTES, 2.0f) != GIM_OK) return 1;
     for (c = 1024; c <= 4096; c *= 4) {
         double t[RUNS];
         int r;

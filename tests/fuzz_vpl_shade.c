@@ -55,7 +55,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         maps[i].size = take_pos(&r, raw);
         maps[i].near_distance = take_f(&r, 1);
         for (a = 0; a < 3; ++a) maps[i].flux[a] = take_f(&r, 1);
-        maps[i].unused = 0.0f;
+        maps[i].attribute_near = 0.0f;
     }
     for (i = 0; i < nm * ms * ms; ++i) dist[i] = take_f(&r, 1);
     for (i = 0; i < nv; ++i) {

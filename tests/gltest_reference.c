@@ -7,7 +7,8 @@
      cornell_methods  the measured Cornell box (../shared/scenes/cornell_box, its spot; skipped
                       when absent), 80x45, RSM 128^2 (bench_frame's ci size): RSM gather,
                       LightSkin BRSM and FULL, Dong et al.'s clustered VPLs, SSVP (two bounces,
-                      against a two-bounce reference) and LightSkin BRSM with imperfect shadow
+                      against a two-bounce reference; with its paraboloid maps' visibility and
+                      with imperfect shadow maps) and LightSkin BRSM with imperfect shadow
                       maps (Ritschel et al. 2008); each one's rel. MAE and its image mean
                       against the reference's (energy).
      courtyard_pillar the built-in courtyard (examples/scene.cpp): a pillar between a sunlit
@@ -204,21 +205,30 @@ typedef struct method_row {
      LightSkin BRSM    0.157 (0.161)          1.148
      LightSkin FULL    0.157 (0.160)          1.151
      clustered, 30     0.150 (0.107-0.140)    0.995   (8 x 8 interleaving is coarse at 80x45)
-     SSVP, 8, 2 bounces 0.148 (0.103-0.254)   1.008
+     SSVP, 8, 2 bounces 0.169 (0.103-0.254)   1.061
+     SSVP + ISM        0.157                  0.996
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
+   SSVP's second bounce lands on the first surface its ray meets since the attribute maps have
+   their own near skip (issue 14; before, they skipped the visibility's Delta / 2 and 0.175 of
+   the second bounce's flux landed behind a nearer surface): SSVP with ISM went from 0.163 and
+   0.890 of the energy (the ISM dropped the hits it saw behind a surface) to the figures above;
+   SSVP with its paraboloid maps from 0.148 and 1.008 to 0.169 and 1.061, as its second-bounce
+   VPLs shade unshadowed and now sit on the surfaces next to the clusters, whose light goes
+   through the blocks (without any visibility SSVP went from 0.185, 1.124 to 0.223, 1.181).
    The references' noise adds 0.014 (one bounce) and 0.016 (two) to these at most. MAE
    tolerances: 1.25 x the measured error, rounded up to 0.005; the frames are deterministic
    (the same figures run after run), the margin is for other drivers and the methods' tuning.
    Energy: without visibility LightSkin and the gather send light through the blocks (14-15%
    too much), so 0.2 for them; 0.1 for the VPL methods (their paraboloid maps' visibility) and
-   for ISM. The ISM row's tolerance is below BRSM's measured error, so ISM turned off fails it
+   for ISM; 0.05 for SSVP + ISM, which the second bounce's old skip fails (0.890). The ISM row's tolerance is below BRSM's measured error, so ISM turned off fails it
    (checked below), and every row fails its tolerances with its image scaled by 1.3 (checked). */
 static const method_row cornell_rows[] = {
     {"RSM gather", GIM_METHOD_RSM_GATHER, GIM_VISIBILITY_OFF, 1, 0.230, 0.2},
     {"LightSkin BRSM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 1, 0.200, 0.2},
     {"LightSkin FULL", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_OFF, 1, 0.200, 0.2},
     {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0.190, 0.1},
-    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.190, 0.1},
+    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.215, 0.1},
+    {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05},
     {"LightSkin BRSM + ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1},
 };
 #define ROW_COUNT (sizeof cornell_rows / sizeof cornell_rows[0])
@@ -267,12 +277,12 @@ static void cornell_methods(void **state) {
         render(&r, &f, vpl ? 3 : 1, img);
         mae = rel_mae(img, ref);
         ratio = mean_ratio(img, ref);
-        print_message("| %-20s | %.3f | %.3f | %.3f | %.1f | %.0f |\n", m->name, mae, m->max_mae, ratio, m->max_energy,
+        print_message("| %-20s | %.3f | %.3f | %.3f | %.2f | %.0f |\n", m->name, mae, m->max_mae, ratio, m->max_energy,
                       wall_ms() - t0);
         CHECK(failed, mae < m->max_mae);
         CHECK(failed, fabs(ratio - 1.0) < m->max_energy);
         if (m->method == GIM_METHOD_LIGHTSKIN_BRSM && m->visibility == GIM_VISIBILITY_OFF) brsm_mae = mae;
-        if (m->visibility == GIM_VISIBILITY_ISM) ism_max = m->max_mae;
+        if (m->method == GIM_METHOD_LIGHTSKIN_BRSM && m->visibility == GIM_VISIBILITY_ISM) ism_max = m->max_mae;
         /* the tolerances can fail: the same image with 30% more light is outside them */
         {
             size_t k;

@@ -65,6 +65,8 @@ static void clusters_match_twin(frame_fixture *ff) {
         }
         e = fmax(e, fabs((double)gpu[i].size - cpu[i].size) / o.scene_scale);
         e = fmax(e, fabs((double)gpu[i].near_distance - cpu[i].near_distance) / o.scene_scale);
+        e = fmax(e, fabs((double)gpu[i].attribute_near - cpu[i].attribute_near) / o.scene_scale);
+        assert_true(cpu[i].attribute_near > 0.0f && cpu[i].attribute_near <= cpu[i].near_distance);
         worst = fmax(worst, e);
         assert_true(cpu[i].size >= 0.0f && cpu[i].size < o.scene_scale);   /* 0: a one-VPL cluster, a point */
     }
@@ -328,6 +330,7 @@ static void only_what_is_enabled(void **state) {
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     assert_true(o.paraboloid_position != 0 && o.paraboloid_normal != 0 && o.paraboloid_albedo != 0);
+    assert_true(o.paraboloid_distance == 0);   /* without visibility, the attribute pass alone */
     assert_int_equal(o.vpl_count, o.first_bounce_count + 256u);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     two = st.gpu_bytes;

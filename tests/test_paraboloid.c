@@ -126,7 +126,8 @@ static void outside_disk(void **state) {
 }
 
 /* Two planes at 1 and 2: near_distance below 1 sees the first, between them the second,
-   beyond both nothing; a plane behind the origin's plane is never seen. */
+   beyond both nothing, and attribute_near the same for the attributes, each on its own; a
+   plane behind the origin's plane is never seen. */
 static void near_distance(void **state) {
     static const float a[3] = {1, 0, 0}, b[3] = {0, 1, 0};
     float pos[36], alb[12];
@@ -140,16 +141,27 @@ static void near_distance(void **state) {
     s.positions = pos; s.albedo = alb; s.triangle_count = 4;
     assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
     assert_true(o.hit && o.distance == 1.0f && o.albedo[0] == 1.0f && o.triangle < 2);
+    assert_true(o.attribute_hit && o.attribute_distance == 1.0f && o.attribute_triangle < 2);
     m.near_distance = 1.5f;
     assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
-    assert_true(o.hit && o.distance == 2.0f && o.albedo[1] == 1.0f && o.triangle >= 2);
-    assert_true(o.normal[2] == -1.0f);  /* wound the other way: still towards the origin */
-    m.near_distance = 1.0f;             /* strictly beyond: a hit at exactly near is skipped */
+    assert_true(o.hit && o.distance == 2.0f && o.triangle >= 2);
+    /* the attribute maps keep their own skip (0 here): the nearer plane */
+    assert_true(o.attribute_hit && o.attribute_distance == 1.0f && o.albedo[0] == 1.0f && o.attribute_triangle < 2);
+    m.attribute_near = 1.5f;
     assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
-    assert_true(o.hit && o.distance == 2.0f);
+    assert_true(o.attribute_hit && o.attribute_distance == 2.0f && o.albedo[1] == 1.0f && o.attribute_triangle >= 2);
+    assert_true(o.normal[2] == -1.0f);  /* wound the other way: still towards the origin */
+    m.near_distance = m.attribute_near = 1.0f;   /* strictly beyond: a hit at exactly near is skipped */
+    assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
+    assert_true(o.hit && o.distance == 2.0f && o.attribute_distance == 2.0f);
     m.near_distance = 2.5f;
     assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
-    assert_true(!o.hit && o.distance == GIM_PARABOLOID_EMPTY && o.triangle == UINT32_MAX);
+    assert_true(!o.hit && o.distance == GIM_PARABOLOID_EMPTY && o.triangle == UINT32_MAX && o.attribute_hit);
+    m.attribute_near = 2.5f;
+    assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);
+    assert_true(!o.attribute_hit && o.attribute_distance == GIM_PARABOLOID_EMPTY && o.attribute_triangle == UINT32_MAX);
+    m.attribute_near = -1.0f;           /* refused, as a negative near_distance */
+    assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_ERROR_INVALID_ARGUMENT);
     /* looking down at them from above: the nearer is 2 (z = 2 from z = 3), its normal +z */
     m = map_at(0, 0, 3, 0, 0, -1, 0);
     assert_int_equal(gim_paraboloid_texel_twin(&s, &m, 9, 4, 4, &o), GIM_OK);

@@ -314,6 +314,9 @@ static void cluster_paraboloids(void **state) {
         assert_true(fabs(out[0].size - expect) < 1e-4 * expect);
         assert_true(fabs(out[0].flux[0] - K * K) < 1e-3 && fabs(out[0].flux[1] - 2 * K * K) < 1e-3);
         assert_true(fabs(out[0].near_distance - 0.5 * out[0].size) < 1e-6);
+        /* min(1e-2 scene scales, near_distance): 0.1 for the big one, the lone VPL's lift */
+        assert_true(fabs(out[0].attribute_near - 0.1) < 1e-7 && out[0].near_distance > 0.1f);
+        assert_true(out[1].attribute_near == out[1].near_distance);
         assert_true(fabs(out[0].origin[0] - (2.0 + 1e-3 * n.x)) < 1e-5);
         assert_true(fabs(out[0].origin[2] - (5.0 + 1e-3 * n.z)) < 1e-5);
         assert_true(out[1].size == 0.0f && out[1].flux[0] == 3.0f && out[1].normal[1] == 1.0f);
