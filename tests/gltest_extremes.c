@@ -98,6 +98,9 @@ typedef struct ex {
 static void ex_begin(ex *e) {
     memset(e, 0, sizeof *e);
     gltest_fixture_begin(&e->f);
+    /* val_count per light: a light whose importance is 0 everywhere still gets its VALs (drawn
+       uniformly), the path these extremes check; the shared budget gives it none (light_unseen) */
+    e->fr.per_light_budget = 1;
 }
 
 /* Add g as a mesh; caches (d_eps = cache_d) when cache_d > 0; an identity instance of it. */
@@ -251,7 +254,8 @@ static void ex_read(ex *e, ex_out *out) {
                     fail_msg("light %u: row[%u] = %.17g after %.17g", (unsigned)l, (unsigned)i, d[i], prev);
                 prev = d[i];
             }
-            gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
+            if (lo->selected_count) gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
+            else assert_true(lo->selected == 0 && d[lo->rsm_size - 1u] == 0.0);   /* shared budget: none to a zero total */
             for (i = 0; i < lo->selected_count; ++i)
                 assert_true(s[i].x < lo->rsm_size && s[i].y < lo->rsm_size && isfinite(s[i].pdf) && s[i].pdf > 0.0f &&
                             s[i].pdf <= 1.0f);
@@ -1260,6 +1264,13 @@ static void light_unseen(void **state) {
                       (double)sel[0].pdf, 1.0 / 1024.0, o->val_flux, o->max);
         assert_true(s == 0.0 && o->val_flux > 0.0 && o->max == 0.0 && o->drawn > NPIX / 2);
         for (i = 0; i < 256; ++i) assert_true(sel[i].pdf == 1.0f / 1024.0f);
+    }
+    e.fr.per_light_budget = 0;   /* the shared budget: no VAL for it, one zero VAL makes the same zero image */
+    ex_frame(&e, o);
+    {
+        gim_frame_outputs fo = gim_outputs(e.f.ctx);
+        assert_true(fo.lights[0].rendered && fo.lights[0].selected_count == 0 && fo.lights[0].importance_total == 0.0);
+        assert_true(fo.indirect != 0 && fo.val_count == 1 && o->val_flux == 0.0 && o->max == 0.0 && o->drawn > NPIX / 2);
     }
     ex_end(&e);
     free(o);
