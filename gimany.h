@@ -1369,7 +1369,8 @@ GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
    RSM, a POINT light six (its cube faces, gim_point_light_faces), at most GIM_MAX_LIGHTS RSMs;
    gim_frame_outputs.lights counts RSMs. A frame renders only the RSMs whose light frustum
    meets the bounds of an instance (the others would be empty: no pass, no texture, no VAL or
-   VPL; gim_stats.rsm_count); val_count and vpl_count are shared by the rendered RSMs (see
+   VPL; gim_stats.rsm_count; when all would be, the last renders so the frame has its
+   outputs); val_count and vpl_count are shared by the rendered RSMs (see
    gim_frame.per_light_budget). rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS.
    Replaces a gim_set_lights_buffer. */
 GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
@@ -1404,7 +1405,7 @@ GIMANY_API gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
 /* Which method lights the frame (DESIGN.md sec. 5); each is one setting of the same runtime. */
 typedef enum gim_method {
     GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
-    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs per light drawn by importance (paper 000 sec. 4) */
+    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (paper 000 sec. 4) */
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
     GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
                                        gim_rsm_gather): the baseline, no caches, no visibility */
@@ -1504,16 +1505,20 @@ typedef struct gim_frame {
     int per_light_budget;       /* 0: val_count and vpl_count are totals for the frame. BRSM splits val_count
                                    over the rendered RSMs in proportion to their importance totals (the sum
                                    of each one's eq. 10-11 map: its power reaching the view samples), at
-                                   least one VAL to each whose total is > 0, none to one whose total is 0;
+                                   least one VAL to each whose total is > 0, none to one whose total is 0
+                                   (one read-back of the totals; a single rendered RSM gets all, unread);
                                    each light's VALs weigh 1 / (N_l P), so the image's expectation does not
                                    depend on the split. The VPL methods (no importance) split vpl_count
                                    evenly. 1: every rendered RSM gets val_count VALs, vpl_count VPLs (the
                                    budgets before issue 18) */
 } gim_frame;
 
-/* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
-   host's) -> view samples -> per light (BRSM only): importance map (eq. 10-11) -> cumulative
-   sums (eq. 12) -> selection of val_count VALs; then, when an instanced mesh has caches:
+/* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light whose frustum meets an
+   instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
+   rendered light (BRSM only): importance map (eq. 10-11) -> cumulative sums (eq. 12) -> its
+   share of val_count (gim_frame.per_light_budget; one read-back of the totals) -> selection of
+   that many VALs (none where its total is 0; when no light has any, one zero VAL, so the
+   image is made, black); then, when an instanced mesh has caches:
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
    light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
@@ -1524,7 +1529,7 @@ typedef struct gim_frame {
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
-   after the RSMs and the G-buffer: vpl_count VPLs per light (gim_rsm_vpls_sequence) -> k-means
+   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_sequence) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids) -> one layered pass of paraboloid maps (distance for visibility;
@@ -1570,7 +1575,8 @@ typedef struct gim_light_outputs {
     uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
     int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
                                    instance's bounds): every GL name above is 0 */
-    double importance_total;    /* BRSM: the sum of its importance map (0: no VALs); 0 otherwise */
+    double importance_total;    /* BRSM, shared budget, more than one rendered RSM: the sum of its importance
+                                   map (0: no VALs); 0 otherwise (not read back) */
 } gim_light_outputs;
 
 /* Everything the last successful gim_update left for the host and for later passes. */
@@ -7334,6 +7340,8 @@ struct gim_context {
     uint32_t light_count, light_capacity;
     gim__GLuint light_buffer;     /* gim_set_lights_buffer's (0: none), read back by every gim_update */
     uint32_t light_buffer_count;
+    gim_light_std430 *light_buffer_last; /* what the last read held (light_buffer_last_count; 0: none) */
+    uint32_t light_buffer_last_count;
     gim__GLuint materials;        /* SSBO: per material vec4 diffuse, vec4 (glossy, k) */
     uint32_t material_count;
     uint32_t glossy_material_count; /* materials with a glossy colour: the glossy pass runs */
@@ -7347,6 +7355,8 @@ struct gim_context {
     double *light_total;          /* per RSM: its importance total this frame (BRSM) */
     gim_light_outputs *light_outputs; /* what gim_frame_outputs.lights points to */
     uint32_t light_on_count;      /* RSMs rendered this frame */
+    gim__GLuint light_totals;     /* BRSM's shared budget: the RSMs' importance totals, read back */
+    uint64_t light_totals_bytes;
     uint32_t gbuffer_width, gbuffer_height;
     gim__GLuint decoded_normal, decoded_depth;   /* the host's G-buffer decoded (RGBA16F, R32F) */
     uint32_t decoded_width, decoded_height;
@@ -9082,7 +9092,7 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (count && !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is NULL");
     r = gim__set_lights(ctx, lights, count, where);
-    if (r == GIM_OK) ctx->light_buffer = 0, ctx->light_buffer_count = 0;
+    if (r == GIM_OK) ctx->light_buffer = 0, ctx->light_buffer_count = 0, ctx->light_buffer_last_count = 0;
     return r;
 }
 
@@ -9123,6 +9133,12 @@ static gim_result gim__gl_lights_from_buffer(gim_context *ctx, const char *where
     ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, buffer);
     ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)count * (gim__GLsizeiptr)sizeof *raw, raw);
     r = gim__gl_check(ctx, where);
+    if (r == GIM_OK && ctx->light_buffer_last_count == count &&
+        memcmp(ctx->light_buffer_last, raw, (size_t)count * sizeof *raw) == 0) { /* unchanged: the lights stand */
+        gim__free(&ctx->env, raw);
+        gim__free(&ctx->env, lights);
+        return GIM_OK;
+    }
     for (i = 0; i < count && r == GIM_OK; ++i) {
         if (raw[i].type_square_size_fit[0] > (uint32_t)GIM_LIGHT_POINT)
             r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: type %u", (unsigned)i,
@@ -9130,7 +9146,10 @@ static gim_result gim__gl_lights_from_buffer(gim_context *ctx, const char *where
         lights[i] = gim__light_from_std430(&raw[i]);
     }
     if (r == GIM_OK) r = gim__set_lights(ctx, lights, count, where);
-    gim__free(&ctx->env, raw);
+    gim__free(&ctx->env, ctx->light_buffer_last);   /* kept to skip the checks while it does not change */
+    ctx->light_buffer_last = r == GIM_OK ? raw : NULL;
+    ctx->light_buffer_last_count = r == GIM_OK ? count : 0u;
+    if (r != GIM_OK) gim__free(&ctx->env, raw);
     gim__free(&ctx->env, lights);
     return r;
 }
@@ -9141,7 +9160,7 @@ GIMANY_DEF gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
     if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
     if (buffer == 0 || count == 0) {
         r = gim__set_lights(ctx, NULL, 0, where);
-        ctx->light_buffer = 0, ctx->light_buffer_count = 0;
+        ctx->light_buffer = 0, ctx->light_buffer_count = 0, ctx->light_buffer_last_count = 0;
         return r;
     }
     if (count > GIM_MAX_LIGHTS)
@@ -9152,6 +9171,7 @@ GIMANY_DEF gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
     if (r != GIM_OK) return r;
     ctx->light_buffer = buffer;
     ctx->light_buffer_count = count;
+    ctx->light_buffer_last_count = 0;   /* read at the next gim_update */
     return GIM_OK;
 }
 
@@ -9171,6 +9191,8 @@ static void gim__scene_destroy(gim_context *ctx) {
     gim__free(&ctx->env, ctx->lights); gim__free(&ctx->env, ctx->light_gpu); gim__free(&ctx->env, ctx->light_on);
     gim__free(&ctx->env, ctx->light_vals); gim__free(&ctx->env, ctx->gather_key_sizes);
     gim__free(&ctx->env, ctx->light_total); gim__free(&ctx->env, ctx->light_outputs);
+    gim__free(&ctx->env, ctx->light_buffer_last);
+    if (ctx->light_totals) gl->DeleteBuffers(1, &ctx->light_totals);
     t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
     t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
     gl->DeleteTextures(5, t);
@@ -11120,25 +11142,39 @@ static int gim__light_meets_instances(gim_context *ctx, gim_mat4 view, gim_mat4 
    power reaching the view samples), by largest remainder, at least 1 where T_l > 0, none
    where T_l = 0. Each RSM's VALs weigh 1 / (N_l P), so every N_l >= 1 keeps the sum unbiased
    (paper 000 eq. 13-15 per light); the split only moves the variance to where the light is.
-   Reads the totals back: one wait for the importance passes per frame. */
+   Reads the totals back (one buffer): one wait for the importance passes per frame; with one
+   rendered RSM there is nothing to split, it gets val_count without it. */
 static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t val_count, const char *where) {
-    uint32_t i, given = 0, left;
+    uint32_t i, k, given = 0, left, on = ctx->light_on_count;
     double sum = 0.0;
-    if (!per_light) ctx->gl.MemoryBarrier(GIM__GL_BUFFER_UPDATE_BARRIER_BIT);   /* the scan's writes, then the read */
+    gim_result r;
     for (i = 0; i < ctx->light_count; ++i) {
-        const gim__light_gpu *g = &ctx->light_gpu[i];
-        ctx->light_vals[i] = 0;
+        ctx->light_vals[i] = per_light || on == 1u ? (ctx->light_on[i] ? val_count : 0u) : 0u;
         ctx->light_total[i] = 0.0;
-        if (!ctx->light_on[i]) continue;
-        if (per_light) { ctx->light_vals[i] = val_count; continue; }
-        ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, g->row);
-        ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)((uint64_t)(g->size - 1u) * 8u), 8,
-                                 &ctx->light_total[i]);
-        if (!(ctx->light_total[i] >= 0.0) || ctx->light_total[i] > DBL_MAX) ctx->light_total[i] = 0.0;  /* NaN-safe */
-        sum += ctx->light_total[i];
     }
-    if (per_light) return GIM_OK;
+    if (per_light || on <= 1u) return GIM_OK;   /* nothing to split: no read-back, no wait */
+    /* every total into one buffer on the GPU, then one read-back */
+    r = gim__gl_sized_buffer(ctx, &ctx->light_totals, &ctx->light_totals_bytes, (uint64_t)on * 8u, where);
+    if (r != GIM_OK) return r;
+    ctx->gl.MemoryBarrier(GIM__GL_BUFFER_UPDATE_BARRIER_BIT);   /* the scans' writes, then the copies */
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->light_totals);
+    for (i = 0, k = 0; i < ctx->light_count; ++i) {
+        if (!ctx->light_on[i]) continue;
+        ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_gpu[i].row);
+        ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER,
+                                  (gim__GLintptr)((uint64_t)(ctx->light_gpu[i].size - 1u) * 8u), (gim__GLintptr)k * 8, 8);
+        ++k;
+    }
+    ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_totals);
+    ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)on * 8, ctx->light_total);
     if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
+    for (i = ctx->light_count, k = on; i-- > 0;) {   /* the k-th total to its light (k <= i: from the end) */
+        double t = 0.0;
+        if (ctx->light_on[i]) t = ctx->light_total[--k];
+        if (!(t >= 0.0) || t > DBL_MAX) t = 0.0;   /* NaN-safe */
+        ctx->light_total[i] = t;
+        sum += t;
+    }
     if (!(sum > 0.0)) return GIM_OK;   /* nothing reaches a view sample: no VALs */
     for (i = 0; i < ctx->light_count; ++i) {
         double share = (double)val_count * (ctx->light_total[i] / sum);
@@ -11429,6 +11465,7 @@ GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
 /* GL bytes of a buffer or texture set the context owns. */
 static uint64_t gim__context_bytes(const gim_context *ctx) {
     uint64_t b = ctx->scan_blocks_bytes + ctx->proxy_state_bytes + ctx->view_sample_pixels_bytes + ctx->view_samples_bytes +
+                 ctx->light_totals_bytes +
                  (uint64_t)ctx->material_count * 32u;
     uint32_t i;
     for (i = 0; i < ctx->mesh_slots; ++i)

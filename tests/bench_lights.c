@@ -93,7 +93,7 @@ static void row_all(const char *name, gim_method m, int per_light, uint32_t vals
 }
 
 /* The 32 single-light frames summed: total time, error (BRSM: mean over SEEDS). */
-static void row_sum(gim_method m, uint32_t vals, double *ms, double *err) {
+static void row_sum(gim_method m, uint32_t vals, double *ms, double *err, uint32_t *vals_used) {
     static float img[W * H * 4];
     static double rgb[W * H * 3];
     int k, s, seeds = m == GIM_METHOD_LIGHTSKIN_FULL ? 1 : SEEDS;
@@ -103,12 +103,13 @@ static void row_sum(gim_method m, uint32_t vals, double *ms, double *err) {
     fr.val_count = vals;
     *ms = 0.0;
     *err = 0.0;
+    *vals_used = 0;
     for (s = 0; s < seeds; ++s) {
         memset(rgb, 0, sizeof rgb);
         fr.frame_index = (uint32_t)s;
         for (k = 0; k < NL; ++k) {
             gim_set_lights(ctx, &lights[k], 1);
-            if (s == 0) { *ms += timed(img, &st); fr.frame_index = 0; }
+            if (s == 0) { *ms += timed(img, &st); *vals_used += st.val_count; }
             else if (frame(img, &st)) return;
             to_rgb(img, rgb, 1.0, 1);
         }
@@ -125,6 +126,7 @@ int main(void) {
     gim_stats st;
     double ms_full, e_full, ms_full_sum, e_full_sum, ms_sh, e_sh, ms_pl, e_pl, ms_bsum, e_bsum;
     gim_stats st_sh, st_pl;
+    uint32_t v_full_sum, v_bsum;
     int k;
     const uint32_t per = 64, total = 24u * 64u;   /* 64 VALs per lamp */
     if (!gltest_init()) { printf("bench_lights: no GL (%s)\n", gltest.why); return 0; }
@@ -188,18 +190,20 @@ int main(void) {
     row_all("FULL", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, &ms_full, &e_full, &st);
     printf("  RSMs rendered %u of %u; GPU %.2f MiB\n", (unsigned)st.rsm_count, (unsigned)st.light_count,
            (double)st.gpu_bytes / 1048576.0);
-    row_sum(GIM_METHOD_LIGHTSKIN_FULL, 0, &ms_full_sum, &e_full_sum);
+    row_sum(GIM_METHOD_LIGHTSKIN_FULL, 0, &ms_full_sum, &e_full_sum, &v_full_sum);
     row_all("BRSM shared", GIM_METHOD_LIGHTSKIN_BRSM, 0, total, &ms_sh, &e_sh, &st_sh);
     row_all("BRSM per light", GIM_METHOD_LIGHTSKIN_BRSM, 1, total / 28u, &ms_pl, &e_pl, &st_pl);
-    row_sum(GIM_METHOD_LIGHTSKIN_BRSM, per, &ms_bsum, &e_bsum);
+    row_sum(GIM_METHOD_LIGHTSKIN_BRSM, per, &ms_bsum, &e_bsum, &v_bsum);
     printf("| frame | VALs | time ms | x the per-light sum | rel. MAE vs FULL (32 in one) |\n|---|---|---|---|---|\n");
-    printf("| FULL, 32 lights in one frame | %u | %.1f | %.2f | 0 (the reference) |\n", NL * RSM * RSM, ms_full,
+    printf("| FULL, 32 lights in one frame | %u | %.1f | %.2f | 0 (the reference) |\n", (unsigned)st.val_count, ms_full,
            ms_full / ms_full_sum);
-    printf("| FULL, sum of 32 single-light frames | %u | %.1f | 1 | %.2e |\n", 28 * RSM * RSM, ms_full_sum, e_full_sum);
-    printf("| BRSM shared budget, 32 in one | %u | %.1f | %.2f | %.4f |\n", total, ms_sh, ms_sh / ms_bsum, e_sh);
-    printf("| BRSM per-light budget (%u x 28), 32 in one | %u | %.1f | %.2f | %.4f |\n", total / 28u, (total / 28u) * 28u,
-           ms_pl, ms_pl / ms_bsum, e_pl);
-    printf("| BRSM, sum of 32 single-light frames (%u each) | %u | %.1f | 1 | %.4f |\n", per, per * 32u, ms_bsum, e_bsum);
+    printf("| FULL, sum of 32 single-light frames | %u | %.1f | 1 | %.2e |\n", (unsigned)v_full_sum, ms_full_sum, e_full_sum);
+    printf("| BRSM shared budget, 32 in one | %u | %.1f | %.2f | %.4f |\n", (unsigned)st_sh.val_count, ms_sh,
+           ms_sh / ms_bsum, e_sh);
+    printf("| BRSM per-light budget (%u x 28), 32 in one | %u | %.1f | %.2f | %.4f |\n", total / 28u,
+           (unsigned)st_pl.val_count, ms_pl, ms_pl / ms_bsum, e_pl);
+    printf("| BRSM, sum of 32 single-light frames (%u each) | %u | %.1f | 1 | %.4f |\n", per, (unsigned)v_bsum, ms_bsum,
+           e_bsum);
     printf("BRSM shared, per pass (ms): RSM %.1f, view samples %.1f, importance %.1f, cumsum %.1f, select %.1f, "
            "VALs %.1f, proxy %.1f, shade %.1f; frame %.1f\n",
            st_sh.pass_ms[GIM_PASS_RSM], st_sh.pass_ms[GIM_PASS_VIEW_SAMPLES], st_sh.pass_ms[GIM_PASS_IMPORTANCE_MAP],

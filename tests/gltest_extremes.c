@@ -98,9 +98,6 @@ typedef struct ex {
 static void ex_begin(ex *e) {
     memset(e, 0, sizeof *e);
     gltest_fixture_begin(&e->f);
-    /* val_count per light: a light whose importance is 0 everywhere still gets its VALs (drawn
-       uniformly), the path these extremes check; the shared budget gives it none (light_unseen) */
-    e->fr.per_light_budget = 1;
 }
 
 /* Add g as a mesh; caches (d_eps = cache_d) when cache_d > 0; an identity instance of it. */
@@ -1264,13 +1261,6 @@ static void light_unseen(void **state) {
                       (double)sel[0].pdf, 1.0 / 1024.0, o->val_flux, o->max);
         assert_true(s == 0.0 && o->val_flux > 0.0 && o->max == 0.0 && o->drawn > NPIX / 2);
         for (i = 0; i < 256; ++i) assert_true(sel[i].pdf == 1.0f / 1024.0f);
-    }
-    e.fr.per_light_budget = 0;   /* the shared budget: no VAL for it, one zero VAL makes the same zero image */
-    ex_frame(&e, o);
-    {
-        gim_frame_outputs fo = gim_outputs(e.f.ctx);
-        assert_true(fo.lights[0].rendered && fo.lights[0].selected_count == 0 && fo.lights[0].importance_total == 0.0);
-        assert_true(fo.indirect != 0 && fo.val_count == 1 && o->val_flux == 0.0 && o->max == 0.0 && o->drawn > NPIX / 2);
     }
     ex_end(&e);
     free(o);

@@ -11,10 +11,11 @@
      - 40 RSMs (six point lights and four spots), above the old limit of 16;
      - gim_set_lights_buffer: the same lights from a GL buffer (gim_light_std430) give the same
        image bit for bit; bad buffers refused.
-   Disabling the culling (gim__light_meets_instances returning 1) fails skipped_lights; giving
-   every rendered light VALs (per_light_budget forced) fails it too (selected_count of the zero
-   lights); a bias in the split (N_l in the weight replaced by val_count / lights) fails
-   brsm_shared_matches_sum. */
+   Checked to fail when broken (a copy of the header, run 2026-11-24): the culling off
+   (gim__light_meets_instances returning 1) fails skipped_lights (32 RSMs, not 28),
+   above_old_limit (40, not 34) and brsm_shared_matches_sum (640 VALs per light budget, not
+   560); one VAL to each rendered light whose importance total is 0 fails skipped_lights
+   (val_light_count 28, not 24). */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "room.h"
@@ -254,6 +255,7 @@ static void skipped_lights(void **state) {
     assert_int_equal(gim_set_lights(s.f.ctx, s.lights, NL), GIM_OK);
     s.fr.val_count = 512;
     s.fr.timing = 2;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);   /* builds the programs */
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     o = gim_outputs(s.f.ctx);
     assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
