@@ -1517,8 +1517,8 @@ typedef struct gim_frame {
    instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
    rendered light (BRSM only): importance map (eq. 10-11) -> cumulative sums (eq. 12) -> its
    share of val_count (gim_frame.per_light_budget; one read-back of the totals) -> selection of
-   that many VALs (none where its total is 0; when no light has any, one zero VAL, so the
-   image is made, black); then, when an instanced mesh has caches:
+   that many VALs (none where its total is 0, unless it is the only one rendered; when no
+   light has any, one zero VAL, so the image is made, black); then, when an instanced mesh has caches:
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
    light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
