@@ -872,7 +872,9 @@ typedef enum gim_light_type {
 } gim_light_type;
 
 #define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.temporal_steps */
-#define GIM_MAX_LIGHTS 16             /* RSMs per context: a point light takes six, others one */
+#define GIM_MAX_LIGHTS 4096           /* RSMs per context (a point light takes six, others one): a bound
+                                         on the arrays, not on memory; each RSM the frame renders has
+                                         its own textures (52 bytes a texel), one it culls has none */
 #define GIM_RSM_MIN_COS (1.0f / 64.0f) /* floor of the cosine in a VAL's area A = ... / cos */
 
 /* A light; zero means default. */
@@ -1455,16 +1457,45 @@ GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
 
 /* The lights (gim_light, see @section twins; copied); count 0 clears them. Each light is one
    RSM, a POINT light six (its cube faces, gim_point_light_faces), at most GIM_MAX_LIGHTS RSMs;
-   gim_frame_outputs.lights and the per-light budgets (val_count, vpl_count) count RSMs.
-   rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS. */
+   gim_frame_outputs.lights counts RSMs. A frame renders only the RSMs whose light frustum
+   meets the bounds of an instance (the others would be empty: no pass, no texture, no VAL or
+   VPL; gim_stats.rsm_count; when all would be, the last renders so the frame has its
+   outputs); val_count and vpl_count are shared by the rendered RSMs (see
+   gim_frame.per_light_budget). rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS.
+   Replaces a gim_set_lights_buffer. */
 GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
+
+/* One light in a host's GL buffer (gim_set_lights_buffer): std430, 64 bytes, the fields of
+   gim_light as four vec4s. GLSL:
+     struct GimLight {
+         vec4  color_power;       // rgb: color; a: irradiance (DIRECTIONAL) or intensity (SPOT, POINT)
+         vec4  position_cone;     // xyz: position; w: cone_angle (radians)
+         vec4  direction_extent;  // xyz: direction; w: extent
+         uvec4 type_square_size_fit; // x: gim_light_type, y: square_cone, z: rsm_size, w: fit_view
+     };
+     layout(std430) buffer Lights { GimLight lights[]; };
+   The same units and ranges as gim_light. */
+typedef struct gim_light_std430 {
+    float color_power[4];
+    float position_cone[4];
+    float direction_extent[4];
+    uint32_t type_square_size_fit[4];
+} gim_light_std430;
+
+/* The lights from a host's GL buffer of count gim_light_std430 (from offset 0), instead of a
+   CPU array: for a host that keeps its lights on the GPU. The RSMs need each light's camera on
+   the CPU, so every gim_update reads the buffer back (glGetBufferSubData of count x 64 bytes:
+   a wait for the GPU work that writes it) and checks and uses the lights as gim_set_lights
+   does; an invalid light fails that gim_update. buffer stays the host's (not deleted; it must
+   live while set); buffer 0 or count 0 clears the lights. Replaced by gim_set_lights. */
+GIMANY_API gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, uint32_t count);
 
 /* --- the frame ------------------------------------------------------------------------------ */
 
 /* Which method lights the frame (DESIGN.md sec. 5); each is one setting of the same runtime. */
 typedef enum gim_method {
     GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
-    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs per light drawn by importance (paper 000 sec. 4) */
+    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (paper 000 sec. 4) */
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
     GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
                                        gim_rsm_gather): the baseline, no caches, no visibility */
@@ -1510,7 +1541,8 @@ typedef struct gim_frame {
                                    a loop after 65535 iterations) */
     uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
-    uint32_t val_count;         /* VALs selected per light (paper 000 sec. 4); 0: 2048 */
+    uint32_t val_count;         /* VALs selected (paper 000 sec. 4), in all, shared by the rendered RSMs
+                                   by importance (per_light_budget: per RSM); 0: 2048 */
     uint32_t temporal_steps;    /* L > 1, temporal coherence (the aim of Laine et al.'s incremental
                                    instant radiosity, 2007): the random offsets of the BRSM selection
                                    and, with rotate_view_samples, of the view samples move by 1/L of
@@ -1534,7 +1566,8 @@ typedef struct gim_frame {
                                    RSM from any point of it (Dachsbacher's 0.15 left 0.24 of an open
                                    corner's light, tests/gltest_physics.c) */
     /* the VPL methods (CLUSTERED, SSVP); see the twins of the VPL methods in @section twins */
-    uint32_t vpl_count;         /* first-bounce VPLs per light; 0: 4096 (with the default interleave of 8, 64 per
+    uint32_t vpl_count;         /* first-bounce VPLs in all, split evenly over the rendered RSMs (per_light_budget:
+                                   per RSM); 0: 4096 (with the default interleave of 8, 64 per
                                    pixel: at 1024, 57-79% of the pixels of an open corner came within 20%
                                    of the closed form, at 4096 84-92%); <= 32768 in all */
     uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
@@ -1570,11 +1603,23 @@ typedef struct gim_frame {
                                    (32: their maps are made every frame) */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
+    int per_light_budget;       /* 0: val_count and vpl_count are totals for the frame. BRSM splits val_count
+                                   over the rendered RSMs in proportion to their importance totals (the sum
+                                   of each one's eq. 10-11 map: its power reaching the view samples), at
+                                   least one VAL to each whose total is > 0, none to one whose total is 0
+                                   (one read-back of the totals; a single rendered RSM gets all, unread);
+                                   each light's VALs weigh 1 / (N_l P), so the image's expectation does not
+                                   depend on the split. The VPL methods (no importance) split vpl_count
+                                   evenly. 1: every rendered RSM gets val_count VALs, vpl_count VPLs (the
+                                   budgets before issue 18) */
 } gim_frame;
 
-/* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light -> G-buffer (or the
-   host's) -> view samples -> per light (BRSM only): importance map (eq. 10-11) -> cumulative
-   sums (eq. 12) -> selection of val_count VALs; then, when an instanced mesh has caches:
+/* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light whose frustum meets an
+   instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
+   rendered light (BRSM only): importance map (eq. 10-11) -> cumulative sums (eq. 12) -> its
+   share of val_count (gim_frame.per_light_budget; one read-back of the totals) -> selection of
+   that many VALs (none where its total is 0, unless it is the only one rendered; when no
+   light has any, one zero VAL, so the image is made, black); then, when an instanced mesh has caches:
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
    light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
@@ -1585,7 +1630,7 @@ typedef struct gim_frame {
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
    texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
-   after the RSMs and the G-buffer: vpl_count VPLs per light (gim_rsm_vpls_sequence) -> k-means
+   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_sequence) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids) -> layered passes of paraboloid maps (distance for visibility,
@@ -1629,7 +1674,11 @@ typedef struct gim_light_outputs {
     uint32_t importance;        /* SSBO: rsm_size^2 floats, eq. 10-11, row-major, row 0 first */
     uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's) */
     uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
-    uint32_t selected_count;
+    uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
+    int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
+                                   instance's bounds): every GL name above is 0 */
+    double importance_total;    /* BRSM, shared budget, more than one rendered RSM: the sum of its importance
+                                   map (0: no VALs); 0 otherwise (not read back) */
 } gim_light_outputs;
 
 /* Everything the last successful gim_update left for the host and for later passes. */
@@ -1645,7 +1694,7 @@ typedef struct gim_frame_outputs {
     float scene_scale;
     float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
     uint32_t light_count;
-    gim_light_outputs lights[GIM_MAX_LIGHTS];
+    const gim_light_outputs *lights; /* light_count, one per RSM; the context's, valid as the rest */
     /* LightSkin (0 when the scene has no caches) */
     uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
                                    surface towards the eye (diffuse + glossy, albedo applied; with the
@@ -1717,6 +1766,8 @@ typedef struct gim_stats {
     uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
     uint32_t vpl_count, cluster_count;   /* the VPL methods: VPLs of both bounces, clusters */
     uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
+    uint32_t rsm_count;         /* RSMs rendered (light_count less the culled) */
+    uint32_t val_light_count;   /* BRSM: RSMs given VALs (importance total > 0) */
 } gim_stats;
 
 /* Stats of the last successful gim_update; waits for the GPU when it was timed. */
@@ -7692,7 +7743,7 @@ typedef struct gim__vpl_gpu {
     float texels_offsets[3];      /* offsets[0..1], [2] = 1 when offsets were given */
 } gim__vpl_gpu;
 
-#define GIM__MAX_STAMPS 96   /* timestamps a frame may take: 1 + 4 per light + 7 */
+#define GIM__MAX_STAMPS 96   /* timestamps a frame may take (a pass run per light merges into one) */
 
 struct gim_context {
     gim_env env;
@@ -7716,8 +7767,12 @@ struct gim_context {
     uint32_t mesh_slots;
     gim_instance *instances;
     uint32_t instance_count, instance_capacity;
-    gim_light lights[GIM_MAX_LIGHTS];
-    uint32_t light_count;
+    gim_light *lights;            /* light_capacity RSMs: a POINT light's six faces in its place */
+    uint32_t light_count, light_capacity;
+    gim__GLuint light_buffer;     /* gim_set_lights_buffer's (0: none), read back by every gim_update */
+    uint32_t light_buffer_count;
+    gim_light_std430 *light_buffer_last; /* what the last read held (light_buffer_last_count; 0: none) */
+    uint32_t light_buffer_last_count;
     gim__GLuint materials;        /* SSBO: per material vec4 diffuse, vec4 (glossy, k) */
     uint32_t material_count;
     uint32_t glossy_material_count; /* materials with a glossy colour: the glossy pass runs */
@@ -7725,7 +7780,14 @@ struct gim_context {
     float *material_exponent;     /* CPU: each material's k (for the caches' glossy lobes) */
     uint64_t materials_version;   /* bumped by gim_set_materials */
     /* the frame's resources, sized to what the last frame used */
-    gim__light_gpu light_gpu[GIM_MAX_LIGHTS];
+    gim__light_gpu *light_gpu;    /* light_capacity; a culled RSM has none */
+    unsigned char *light_on;      /* per RSM: rendered this frame */
+    uint32_t *light_vals;         /* per RSM: VALs selected this frame (BRSM) */
+    double *light_total;          /* per RSM: its importance total this frame (BRSM) */
+    gim_light_outputs *light_outputs; /* what gim_frame_outputs.lights points to */
+    uint32_t light_on_count;      /* RSMs rendered this frame */
+    gim__GLuint light_totals;     /* BRSM's shared budget: the RSMs' importance totals, read back */
+    uint64_t light_totals_bytes;
     uint32_t gbuffer_width, gbuffer_height;
     gim__GLuint decoded_normal, decoded_depth;   /* the host's G-buffer decoded (RGBA16F, R32F) */
     uint32_t decoded_width, decoded_height;
@@ -7754,7 +7816,7 @@ struct gim_context {
     gim__GLuint gather_samples, gather_sum;  /* RSM gather: the pattern, the per-pixel sum over lights */
     uint64_t gather_samples_bytes, gather_sum_bytes;
     /* what gather_samples holds: samples, lights, radius and each light's RSM size (n 0: nothing) */
-    uint32_t gather_key_n, gather_key_lights, gather_key_sizes[GIM_MAX_LIGHTS];
+    uint32_t gather_key_n, gather_key_lights, *gather_key_sizes;   /* sizes: light_capacity */
     float gather_key_frac;
     gim__vpl_gpu vpl;             /* the VPL methods (CLUSTERED, SSVP; see "the VPL frame") */
     /* GL timestamps of the last timed frame: queries[i] after the pass stamp_pass[i] */
@@ -9603,12 +9665,60 @@ static void gim__light_gpu_release(gim_context *ctx, gim__light_gpu *g) {
     memset(g, 0, sizeof *g);
 }
 
-GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count) {
-    static const char where[] = "gim_set_lights";
-    gim_light rsms[GIM_MAX_LIGHTS];   /* what the passes light with: a POINT light's six faces */
+/* Grow the per-RSM arrays to hold n (they only grow; the GL objects are made by the frame). */
+static gim_result gim__lights_reserve(gim_context *ctx, uint32_t n, const char *where) {
+    const gim_env *env = &ctx->env;
+    gim_light *l;
+    gim__light_gpu *g;
+    unsigned char *on;
+    uint32_t *vals, *sizes;
+    double *total;
+    gim_light_outputs *lo;
+    uint32_t cap = ctx->light_capacity, old = ctx->light_capacity;
+    if (n <= cap) return GIM_OK;
+    while (cap < n) cap = cap ? cap * 2u : 16u;
+    if (cap > GIM_MAX_LIGHTS) cap = GIM_MAX_LIGHTS;
+    l = (gim_light *)gim__alloc_array(env, cap, sizeof *l);
+    g = (gim__light_gpu *)gim__alloc_array(env, cap, sizeof *g);
+    on = (unsigned char *)gim__alloc_array(env, cap, 1u);
+    vals = (uint32_t *)gim__alloc_array(env, cap, sizeof *vals);
+    sizes = (uint32_t *)gim__alloc_array(env, cap, sizeof *sizes);
+    total = (double *)gim__alloc_array(env, cap, sizeof *total);
+    lo = (gim_light_outputs *)gim__alloc_array(env, cap, sizeof *lo);
+    if (!l || !g || !on || !vals || !sizes || !total || !lo) {
+        gim__free(env, l); gim__free(env, g); gim__free(env, on); gim__free(env, vals);
+        gim__free(env, sizes); gim__free(env, total); gim__free(env, lo);
+        return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "%u lights", (unsigned)n);
+    }
+    memset(g, 0, (size_t)cap * sizeof *g);
+    memset(on, 0, cap);
+    memset(vals, 0, (size_t)cap * sizeof *vals);
+    memset(sizes, 0, (size_t)cap * sizeof *sizes);
+    memset(total, 0, (size_t)cap * sizeof *total);
+    memset(lo, 0, (size_t)cap * sizeof *lo);
+    if (old) {
+        memcpy(l, ctx->lights, (size_t)old * sizeof *l);
+        memcpy(g, ctx->light_gpu, (size_t)old * sizeof *g);
+        memcpy(on, ctx->light_on, old);
+        memcpy(vals, ctx->light_vals, (size_t)old * sizeof *vals);
+        memcpy(sizes, ctx->gather_key_sizes, (size_t)old * sizeof *sizes);
+        memcpy(total, ctx->light_total, (size_t)old * sizeof *total);
+        memcpy(lo, ctx->light_outputs, (size_t)old * sizeof *lo);
+    }
+    gim__free(env, ctx->lights); gim__free(env, ctx->light_gpu); gim__free(env, ctx->light_on);
+    gim__free(env, ctx->light_vals); gim__free(env, ctx->gather_key_sizes); gim__free(env, ctx->light_total);
+    gim__free(env, ctx->light_outputs);
+    ctx->lights = l; ctx->light_gpu = g; ctx->light_on = on; ctx->light_vals = vals;
+    ctx->gather_key_sizes = sizes; ctx->light_total = total; ctx->light_outputs = lo;
+    ctx->outputs.lights = lo;   /* the last frame's, moved */
+    ctx->light_capacity = cap;
+    return GIM_OK;
+}
+
+/* gim_set_lights' work (buffer: from gim_set_lights_buffer, kept set). */
+static gim_result gim__set_lights(gim_context *ctx, const gim_light *lights, uint32_t count, const char *where) {
     uint32_t i, limit, n = 0;
-    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
-    if (count && !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is NULL");
+    gim_result r;
     for (i = 0; i < count && n <= GIM_MAX_LIGHTS; ++i) n += lights[i].type == GIM_LIGHT_POINT ? 6u : 1u;
     if (n > GIM_MAX_LIGHTS)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u lights need more than %u RSMs (a point light takes 6)",
@@ -9617,12 +9727,14 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
     if ((uint32_t)ctx->max_viewport[0] < limit) limit = (uint32_t)ctx->max_viewport[0];
     if ((uint32_t)ctx->max_viewport[1] < limit) limit = (uint32_t)ctx->max_viewport[1];
     for (i = 0; i < count; ++i) {
-        gim_result r = gim__light_check(&lights[i], &ctx->env, where, i);
+        r = gim__light_check(&lights[i], &ctx->env, where, i);
         if (r != GIM_OK) return r;
         if (gim__light_rsm_size(&lights[i]) > limit)
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: rsm_size %u above the GL limit %u",
                              (unsigned)i, (unsigned)gim__light_rsm_size(&lights[i]), (unsigned)limit);
     }
+    r = gim__lights_reserve(ctx, n, where);
+    if (r != GIM_OK) return r;
     for (i = 0; i < count; ++i)
         if (gim__light_rsm_size(&lights[i]) < GIM__MIN_GOOD_RSM)
             gim__log(&ctx->env, GIM_LOG_WARNING, where,
@@ -9630,16 +9742,15 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
                      (unsigned)i, (unsigned)lights[i].rsm_size, (unsigned)(lights[i].rsm_size * lights[i].rsm_size),
                      GIM__MIN_GOOD_RSM);
     ctx->half_warned = 0;
-    for (i = 0, n = 0; i < count; ++i) {
+    for (i = 0, n = 0; i < count; ++i) {   /* what the passes light with: a POINT light's six faces */
         if (lights[i].type == GIM_LIGHT_POINT) {
-            gim_point_light_faces(&lights[i], rsms + n);
+            gim_point_light_faces(&lights[i], ctx->lights + n);
             n += 6u;
         } else {
-            rsms[n++] = lights[i];
+            ctx->lights[n++] = lights[i];
         }
     }
     count = n;
-    if (count) memcpy(ctx->lights, rsms, (size_t)count * sizeof(gim_light));
     if (count < ctx->light_count) { /* buffers sized to what is used: drop the removed lights' */
         gim__gl_enter(ctx, where);
         for (i = count; i < ctx->light_count; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
@@ -9648,6 +9759,95 @@ GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, 
         return gim__gl_leave(ctx, gim__gl_check(ctx, where));
     }
     ctx->light_count = count;
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count) {
+    static const char where[] = "gim_set_lights";
+    gim_result r;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (count && !lights) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lights is NULL");
+    r = gim__set_lights(ctx, lights, count, where);
+    if (r == GIM_OK) ctx->light_buffer = 0, ctx->light_buffer_count = 0, ctx->light_buffer_last_count = 0;
+    return r;
+}
+
+/* A gim_light from its std430 form (gim_light_std430). */
+static gim_light gim__light_from_std430(const gim_light_std430 *b) {
+    gim_light l;
+    memset(&l, 0, sizeof l);
+    l.type = (gim_light_type)b->type_square_size_fit[0];
+    memcpy(l.color, b->color_power, sizeof l.color);
+    if (l.type == GIM_LIGHT_SPOT || l.type == GIM_LIGHT_POINT) l.intensity = b->color_power[3];
+    else l.irradiance = b->color_power[3];
+    l.position = gim_v3(b->position_cone[0], b->position_cone[1], b->position_cone[2]);
+    l.cone_angle = b->position_cone[3];
+    l.direction = gim_v3(b->direction_extent[0], b->direction_extent[1], b->direction_extent[2]);
+    l.extent = b->direction_extent[3];
+    l.square_cone = (int)b->type_square_size_fit[1];
+    l.rsm_size = b->type_square_size_fit[2];
+    l.fit_view = (int)b->type_square_size_fit[3];
+    return l;
+}
+
+/* Read the host's light buffer back and set its lights (inside gim__gl_enter). */
+static gim_result gim__gl_lights_from_buffer(gim_context *ctx, const char *where) {
+    uint32_t i, count = ctx->light_buffer_count;
+    gim_light_std430 *raw;
+    gim_light *lights;
+    gim_result r;
+    gim__GLuint buffer = ctx->light_buffer;
+    r = gim__gl_check_buffer(ctx, where, "light buffer", buffer, (uint64_t)count * sizeof(gim_light_std430));
+    if (r != GIM_OK) return r;
+    raw = (gim_light_std430 *)gim__alloc_array(&ctx->env, count, sizeof *raw);
+    lights = (gim_light *)gim__alloc_array(&ctx->env, count, sizeof *lights);
+    if (!raw || !lights) {
+        gim__free(&ctx->env, raw);
+        gim__free(&ctx->env, lights);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u lights", (unsigned)count);
+    }
+    ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, buffer);
+    ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)count * (gim__GLsizeiptr)sizeof *raw, raw);
+    r = gim__gl_check(ctx, where);
+    if (r == GIM_OK && ctx->light_buffer_last_count == count &&
+        memcmp(ctx->light_buffer_last, raw, (size_t)count * sizeof *raw) == 0) { /* unchanged: the lights stand */
+        gim__free(&ctx->env, raw);
+        gim__free(&ctx->env, lights);
+        return GIM_OK;
+    }
+    for (i = 0; i < count && r == GIM_OK; ++i) {
+        if (raw[i].type_square_size_fit[0] > (uint32_t)GIM_LIGHT_POINT)
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: type %u", (unsigned)i,
+                          (unsigned)raw[i].type_square_size_fit[0]);
+        lights[i] = gim__light_from_std430(&raw[i]);
+    }
+    if (r == GIM_OK) r = gim__set_lights(ctx, lights, count, where);
+    gim__free(&ctx->env, ctx->light_buffer_last);   /* kept to skip the checks while it does not change */
+    ctx->light_buffer_last = r == GIM_OK ? raw : NULL;
+    ctx->light_buffer_last_count = r == GIM_OK ? count : 0u;
+    if (r != GIM_OK) gim__free(&ctx->env, raw);
+    gim__free(&ctx->env, lights);
+    return r;
+}
+
+GIMANY_DEF gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, uint32_t count) {
+    static const char where[] = "gim_set_lights_buffer";
+    gim_result r;
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (buffer == 0 || count == 0) {
+        r = gim__set_lights(ctx, NULL, 0, where);
+        ctx->light_buffer = 0, ctx->light_buffer_count = 0, ctx->light_buffer_last_count = 0;
+        return r;
+    }
+    if (count > GIM_MAX_LIGHTS)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u lights above %u", (unsigned)count, GIM_MAX_LIGHTS);
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "buffer", buffer, (uint64_t)count * sizeof(gim_light_std430));
+    r = gim__gl_leave(ctx, r);
+    if (r != GIM_OK) return r;
+    ctx->light_buffer = buffer;
+    ctx->light_buffer_count = count;
+    ctx->light_buffer_last_count = 0;   /* read at the next gim_update */
     return GIM_OK;
 }
 
@@ -9663,7 +9863,12 @@ static void gim__scene_destroy(gim_context *ctx) {
         if (ctx->meshes[i].used) gim__mesh_release(ctx, &ctx->meshes[i]);
     gim__free(&ctx->env, ctx->meshes);
     gim__free(&ctx->env, ctx->instances);
-    for (i = 0; i < GIM_MAX_LIGHTS; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
+    for (i = 0; i < ctx->light_capacity; ++i) gim__light_gpu_release(ctx, &ctx->light_gpu[i]);
+    gim__free(&ctx->env, ctx->lights); gim__free(&ctx->env, ctx->light_gpu); gim__free(&ctx->env, ctx->light_on);
+    gim__free(&ctx->env, ctx->light_vals); gim__free(&ctx->env, ctx->gather_key_sizes);
+    gim__free(&ctx->env, ctx->light_total); gim__free(&ctx->env, ctx->light_outputs);
+    gim__free(&ctx->env, ctx->light_buffer_last);
+    if (ctx->light_totals) gl->DeleteBuffers(1, &ctx->light_totals);
     t[0] = ctx->gbuffer_depth; t[1] = ctx->gbuffer_normal; t[2] = ctx->gbuffer_albedo;
     t[3] = ctx->gbuffer_material; t[4] = ctx->indirect;
     gl->DeleteTextures(5, t);
@@ -10267,7 +10472,11 @@ static double gim__clock_ms(gim_context *ctx) {
    timestamp (timing 1), or glFinish and the clock (timing 2: llvmpipe runs queued work at the
    next flush, so its timestamps charge a pass's work to a later one). */
 static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
-    if (!timed || ctx->stamp_count >= GIM__MAX_STAMPS) return;
+    if (!timed) return;
+    /* a stamp after one of the same pass replaces it: the two intervals charged to the pass are
+       one, so a pass run once per light costs one stamp whatever the light count */
+    if (ctx->stamp_count > 1 && ctx->stamp_pass[ctx->stamp_count - 1] == (unsigned char)pass) --ctx->stamp_count;
+    if (ctx->stamp_count >= GIM__MAX_STAMPS) return;
     if (timed == 2) {
         ctx->gl.Finish();
         ctx->stamp_ms[ctx->stamp_count] = gim__clock_ms(ctx);
@@ -10385,7 +10594,7 @@ static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *hav
 
 /* The LightSkin passes of gim_update (see there); fills the LightSkin part of o. */
 static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
-                                    float scale, uint32_t val_count, gim_frame_outputs *o) {
+                                    float scale, gim_frame_outputs *o) {
     static const char where[] = "gim_update (LightSkin)";
     gim__lightskin_gpu *ls = &ctx->ls;
     gim_cache *world = NULL, *sorted = NULL;
@@ -10461,20 +10670,29 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
 vals:
     gim__stamp(ctx, f->timing, GIM_PASS_CACHES);
     /* the VALs of every light, one after the other */
+    vals_total = 0;
     for (i = 0; i < ctx->light_count; ++i) {
-        uint64_t c = f->method == GIM_METHOD_LIGHTSKIN_FULL ? (uint64_t)ctx->light_gpu[i].size * ctx->light_gpu[i].size
-                                                            : (uint64_t)val_count;
+        uint64_t c = !ctx->light_on[i]                       ? 0u
+                     : f->method == GIM_METHOD_LIGHTSKIN_FULL ? (uint64_t)ctx->light_gpu[i].size * ctx->light_gpu[i].size
+                                                              : (uint64_t)ctx->light_vals[i];
         if ((uint64_t)vals_total + c > 0xFFFFFFFFu / 48u)
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "too many VALs");
         vals_total += (uint32_t)c;
     }
-    r = gim__gl_upload(ctx, &ls->vals, &ls->vals_bytes, NULL, (uint64_t)vals_total * 48u, where);
+    if (vals_total == 0) {   /* no light reaches a view sample: one zero VAL, so the passes make the (black) image */
+        static const float zero_val[12] = {0.0f};
+        r = gim__gl_upload(ctx, &ls->vals, &ls->vals_bytes, zero_val, sizeof zero_val, where);
+        vals_total = 1;
+    } else {
+        r = gim__gl_upload(ctx, &ls->vals, &ls->vals_bytes, NULL, (uint64_t)vals_total * 48u, where);
+    }
     for (i = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         int full = f->method == GIM_METHOD_LIGHTSKIN_FULL;
+        if (!ctx->light_on[i] || (!full && !ctx->light_vals[i])) continue;
         r = gim__gl_vals_gather(ctx, g->position, g->normal, g->flux, g->size, full ? 0u : g->selected,
-                                full ? 0u : val_count, ls->vals, off);
-        off += full ? g->size * g->size : val_count;
+                                full ? 0u : ctx->light_vals[i], ls->vals, off);
+        off += full ? g->size * g->size : ctx->light_vals[i];
     }
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_VALS);
@@ -10785,7 +11003,7 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
                                      float scale, gim__GLenum format) {
     static const char where[] = "RSM gather (GL)";
     const gim__gl *gl = &ctx->gl;
-    uint32_t n = f->gather_samples ? f->gather_samples : GIM__GATHER_DEFAULT_SAMPLES, i;
+    uint32_t n = f->gather_samples ? f->gather_samples : GIM__GATHER_DEFAULT_SAMPLES, i, on;
     float frac = f->gather_radius > 0.0f ? f->gather_radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL;
     int host = f->gbuffer_depth != 0;
     gim__GLuint program = 0;
@@ -10822,24 +11040,26 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     }
     gim__free(&ctx->env, pattern);
     gim__free(&ctx->env, offsets);
-    if (r == GIM_OK && ctx->light_count > 1)
+    if (r == GIM_OK && ctx->light_on_count > 1)
         r = gim__gl_sized_buffer(ctx, &ctx->gather_sum, &ctx->gather_sum_bytes, (uint64_t)f->width * f->height * 16u, where);
     if (r != GIM_OK) return r;
     gim__gl_indirect_texture(ctx, f->width, f->height, format);
     r = gim__gl_pixel_pass(ctx, program, depth, normal, host ? 0u : ctx->gbuffer_albedo, host ? 0u : ctx->gbuffer_material,
                            f->width, f->height, f->view, f->proj, ctx->indirect, format, where);
     if (r != GIM_OK) return r;
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->light_count > 1 ? ctx->gather_sum : ctx->gather_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->light_on_count > 1 ? ctx->gather_sum : ctx->gather_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, host ? ctx->gather_samples : ctx->materials);
     gl->Uniform1ui(5, n);
     gl->Uniform1f(7, (GIM__TWINS_COINCIDENT * scale) * (GIM__TWINS_COINCIDENT * scale));
     gl->Uniform1ui(9, host ? 1u : ctx->material_count);
     gl->Uniform1f(10, format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
-    for (i = 0; i < ctx->light_count; ++i) {
+    for (i = 0, on = 0; i < ctx->light_count; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         gim_mat4 vp = gim_mat4_mul(g->proj, g->view);
         gim__GLuint rt[3];
         uint32_t k;
+        if (!ctx->light_on[i]) continue;   /* culled: nothing in its RSM */
+        ++on;
         rt[0] = g->position; rt[1] = g->normal; rt[2] = g->flux;
         for (k = 0; k < 3; ++k) {
             gl->ActiveTexture(GIM__GL_TEXTURE0 + 4u + k);
@@ -10849,7 +11069,7 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
         gl->UniformMatrix4fv(4, 1, GIM__GL_FALSE, vp.m);
         gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->gather_samples, (gim__GLintptr)(i * stride),
                             (gim__GLsizeiptr)n * 16);
-        gl->Uniform1ui(8, (i == 0 ? 1u : 0u) | (i + 1 == ctx->light_count ? 2u : 0u) | (host ? 4u : 0u));
+        gl->Uniform1ui(8, (on == 1u ? 1u : 0u) | (on == ctx->light_on_count ? 2u : 0u) | (host ? 4u : 0u));
         gl->DispatchCompute((f->width + 7u) / 8u, (f->height + 7u) / 8u, 1u);
         gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
     }
@@ -11194,6 +11414,22 @@ static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->blur_distance = f->blur_distance > 0.0f ? f->blur_distance : 0.1f;
 }
 
+/* First-bounce VPLs of a frame with `lights` rendered RSMs: vpl_count each (per_light_budget),
+   or vpl_count in all, at least one per RSM. */
+static uint32_t gim__vpl_first(const gim_frame *f, const gim__vpl_settings *s, uint32_t lights) {
+    if (f->per_light_budget) return s->vpls * lights;
+    return s->vpls > lights ? s->vpls : lights;
+}
+
+/* The share of the k-th of `lights` rendered RSMs: vpl_count split evenly (the VPL methods have
+   no importance to split it by; each RSM's VPLs weigh 1 / its count, so the sum stays
+   unbiased), the remainder one each to the first ones. */
+static uint32_t gim__vpl_share(const gim_frame *f, const gim__vpl_settings *s, uint32_t lights, uint32_t k) {
+    if (f->per_light_budget) return s->vpls;
+    if (s->vpls <= lights) return 1u;
+    return s->vpls / lights + (k < s->vpls % lights ? 1u : 0u);
+}
+
 /* The VPL fields of a frame, checked before any GL work (lights: the context's count). */
 static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "gim_update";
@@ -11204,12 +11440,12 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
                          "(blur_distance >= 0)");
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
     gim__vpl_settings_of(f, &s);
-    if ((uint64_t)s.vpls * lights > GIM__VPL_MAX)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs per light x %u lights above %u", (unsigned)s.vpls,
-                         (unsigned)lights, GIM__VPL_MAX);
-    if (s.clusters > GIM__VPL_MAX_CLUSTERS || s.clusters > s.vpls * lights)
+    if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs%s x %u lights above %u", (unsigned)s.vpls,
+                         f->per_light_budget ? " per light" : "", (unsigned)lights, GIM__VPL_MAX);
+    if (s.clusters > GIM__VPL_MAX_CLUSTERS || s.clusters > gim__vpl_first(f, &s, lights))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cluster_count %u: at most %u and at most the VPLs (%u)",
-                         (unsigned)s.clusters, GIM__VPL_MAX_CLUSTERS, (unsigned)(s.vpls * lights));
+                         (unsigned)s.clusters, GIM__VPL_MAX_CLUSTERS, (unsigned)gim__vpl_first(f, &s, lights));
     if (s.iterations > 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "kmeans_iterations %u above 64", (unsigned)s.iterations);
     if (s.size > 2048u || s.size > (uint32_t)ctx->max_texture_size || s.size > (uint32_t)ctx->max_viewport[0] ||
@@ -11221,7 +11457,7 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
     if (s.second > GIM__VPL_MAX_SECOND)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "second_bounce_vpls %u above %u", (unsigned)s.second,
                          GIM__VPL_MAX_SECOND);
-    if (s.interleave > 32u || s.interleave * s.interleave > s.vpls * lights + s.second)
+    if (s.interleave > 32u || s.interleave * s.interleave > gim__vpl_first(f, &s, lights) + s.second)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "interleave %u: at most 32, and k^2 at most the VPLs",
                          (unsigned)s.interleave);
     return GIM_OK;
@@ -11275,38 +11511,47 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
-    uint32_t i, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+    uint32_t i, k, off, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
     gim_result r = GIM_OK;
     uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
     int warm, ism = f->visibility == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
-    if (ctx->light_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
-    first = s.vpls * ctx->light_count;
+    if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
+    first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
+    if (s.clusters > first || s.interleave * s.interleave > total)   /* fewer VPLs than checked: lights were culled */
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u of %u lights reach the scene: %u VPLs, below "
+                         "cluster_count %u or interleave^2 %u", (unsigned)ctx->light_on_count, (unsigned)ctx->light_count,
+                         (unsigned)total, (unsigned)s.clusters, (unsigned)(s.interleave * s.interleave));
     /* first-bounce VPLs, one light after the other */
     r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->maps, &v->maps_bytes, (uint64_t)s.clusters * 48u, where);
-    if (r == GIM_OK && ctx->light_count > 1u)
-        r = gim__gl_sized_buffer(ctx, &v->staging, &v->staging_bytes, (uint64_t)s.vpls * 48u, where);
-    if (r == GIM_OK && ctx->light_count == 1u && v->staging) {
+    if (r == GIM_OK && ctx->light_on_count > 1u)
+        r = gim__gl_sized_buffer(ctx, &v->staging, &v->staging_bytes,
+                                 (uint64_t)gim__vpl_share(f, &s, ctx->light_on_count, 0u) * 48u, where);
+    if (r == GIM_OK && ctx->light_on_count == 1u && v->staging) {
         ctx->gl.DeleteBuffers(1, &v->staging);
         v->staging = 0; v->staging_bytes = 0;
     }
-    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+    for (i = 0, k = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
-        r = gim__gl_rsm_vpls(ctx, g->position, g->normal, g->flux, g->size, s.vpls,
+        uint32_t n;
+        if (!ctx->light_on[i]) continue;   /* culled: an empty RSM */
+        n = gim__vpl_share(f, &s, ctx->light_on_count, k++);
+        r = gim__gl_rsm_vpls(ctx, g->position, g->normal, g->flux, g->size, n,
                              s.ssvp ? GIM_VPL_SEQUENCE_HAMMERSLEY : GIM_VPL_SEQUENCE_HALTON, NULL,
-                             ctx->light_count > 1u ? v->staging : v->vpls);
-        if (r == GIM_OK && ctx->light_count > 1u) {
+                             ctx->light_on_count > 1u ? v->staging : v->vpls);
+        if (r == GIM_OK && ctx->light_on_count > 1u) {
             ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->staging);
             ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->vpls);
             ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER, 0,
-                                      (gim__GLintptr)((uint64_t)i * s.vpls * 48u), (gim__GLsizeiptr)s.vpls * 48);
+                                      (gim__GLintptr)((uint64_t)off * 48u), (gim__GLsizeiptr)n * 48);
             r = gim__gl_check(ctx, where);
         }
+        off += n;
     }
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
@@ -11567,7 +11812,7 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
         gim__vpl_settings_of(f, &s);
         if (f->no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
-        maps = (uint64_t)s.vpls * (ctx->light_count ? ctx->light_count : 1u) + s.second;
+        maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
         if (maps * vsize * vsize * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                              "%llu VPLs' ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): fewer VPLs or "
@@ -11578,6 +11823,104 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
                          (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+    return GIM_OK;
+}
+
+/* 1 when the frustum of a light's RSM camera (view, proj) meets the world bounds of an
+   instance: an RSM that meets none holds no texel, so it is not rendered (the library models
+   only what the scene requires). Conservative: a box is out only when its 8 corners lie beyond
+   one of the six clip planes (each a half-space of homogeneous clip space, linear in the
+   world position, so the box lies beyond it too). */
+static int gim__light_meets_instances(gim_context *ctx, gim_mat4 view, gim_mat4 proj) {
+    gim_mat4 vp = gim_mat4_mul(proj, view);
+    uint32_t i;
+    for (i = 0; i < ctx->instance_count; ++i) {
+        const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
+        gim_mat4 mvp;
+        unsigned out = 63u;
+        int k;
+        if (!m) return 1;   /* gim__frame_check refused it already; be safe */
+        mvp = gim_mat4_mul(vp, ctx->instances[i].model);
+        for (k = 0; k < 8 && out; ++k) {
+            gim_vec4 c;
+            unsigned code;
+            c.x = (k & 1) ? m->bmax[0] : m->bmin[0];
+            c.y = (k & 2) ? m->bmax[1] : m->bmin[1];
+            c.z = (k & 4) ? m->bmax[2] : m->bmin[2];
+            c.w = 1.0f;
+            c = gim_mat4_vec4(mvp, c);
+            code = (c.x < -c.w ? 1u : 0u) | (c.x > c.w ? 2u : 0u) | (c.y < -c.w ? 4u : 0u) |
+                            (c.y > c.w ? 8u : 0u) | (c.z < -c.w ? 16u : 0u) | (c.z > c.w ? 32u : 0u);
+            out &= code;
+        }
+        if (!out) return 1;
+    }
+    return 0;
+}
+
+/* BRSM's VALs per rendered RSM (ctx->light_vals) after the eq. 12 tables: per_light, val_count
+   each (the budget before issue 18); shared, val_count split in proportion to each RSM's
+   importance total T_l (the last entry of its row table: the sum of its eq. 10-11 map, its
+   power reaching the view samples), by largest remainder, at least 1 where T_l > 0, none
+   where T_l = 0. Each RSM's VALs weigh 1 / (N_l P), so every N_l >= 1 keeps the sum unbiased
+   (paper 000 eq. 13-15 per light); the split only moves the variance to where the light is.
+   Reads the totals back (one buffer): one wait for the importance passes per frame; with one
+   rendered RSM there is nothing to split, it gets val_count without it. */
+static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t val_count, const char *where) {
+    uint32_t i, k, given = 0, left, on = ctx->light_on_count;
+    double sum = 0.0;
+    gim_result r;
+    for (i = 0; i < ctx->light_count; ++i) {
+        ctx->light_vals[i] = per_light || on == 1u ? (ctx->light_on[i] ? val_count : 0u) : 0u;
+        ctx->light_total[i] = 0.0;
+    }
+    if (per_light || on <= 1u) return GIM_OK;   /* nothing to split: no read-back, no wait */
+    /* every total into one buffer on the GPU, then one read-back */
+    r = gim__gl_sized_buffer(ctx, &ctx->light_totals, &ctx->light_totals_bytes, (uint64_t)on * 8u, where);
+    if (r != GIM_OK) return r;
+    ctx->gl.MemoryBarrier(GIM__GL_BUFFER_UPDATE_BARRIER_BIT);   /* the scans' writes, then the copies */
+    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->light_totals);
+    for (i = 0, k = 0; i < ctx->light_count; ++i) {
+        if (!ctx->light_on[i]) continue;
+        ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_gpu[i].row);
+        ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER,
+                                  (gim__GLintptr)((uint64_t)(ctx->light_gpu[i].size - 1u) * 8u), (gim__GLintptr)k * 8, 8);
+        ++k;
+    }
+    ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_totals);
+    ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)on * 8, ctx->light_total);
+    if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
+    for (i = ctx->light_count, k = on; i-- > 0;) {   /* the k-th total to its light (k <= i: from the end) */
+        double t = 0.0;
+        if (ctx->light_on[i]) t = ctx->light_total[--k];
+        if (!(t >= 0.0) || t > DBL_MAX) t = 0.0;   /* NaN-safe */
+        ctx->light_total[i] = t;
+        sum += t;
+    }
+    if (!(sum > 0.0)) return GIM_OK;   /* nothing reaches a view sample: no VALs */
+    for (i = 0; i < ctx->light_count; ++i) {
+        double share = (double)val_count * (ctx->light_total[i] / sum);
+        uint32_t n;
+        if (!(ctx->light_total[i] > 0.0)) continue;
+        n = (uint32_t)floor(share);
+        if (n < 1u) n = 1u;
+        ctx->light_vals[i] = n;
+        given += n;
+    }
+    left = given < val_count ? val_count - given : 0u;
+    while (left) {   /* the rest to the largest remainders, one each (left < the lights given VALs) */
+        uint32_t best = ctx->light_count;
+        double best_rem = -1.0;
+        for (i = 0; i < ctx->light_count; ++i) {
+            double rem;
+            if (!ctx->light_vals[i]) continue;
+            rem = (double)val_count * (ctx->light_total[i] / sum) - (double)ctx->light_vals[i];
+            if (rem > best_rem) { best_rem = rem; best = i; }
+        }
+        if (best == ctx->light_count) break;
+        ctx->light_vals[best]++;
+        --left;
+    }
     return GIM_OK;
 }
 
@@ -11596,6 +11939,12 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
        reports a failure that only follows from it */
     if (!ctx->gl.GetString(GIM__GL_VERSION))
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
+    if (ctx->light_buffer) { /* the host's light buffer, read back: the RSMs need the cameras on the CPU */
+        gim__gl_enter(ctx, where);
+        r = gim__gl_lights_from_buffer(ctx, where);
+        r = gim__gl_leave(ctx, r);
+        if (r != GIM_OK) return r;
+    }
     if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
         gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
         ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
@@ -11663,11 +12012,24 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     gim__gl_enter(ctx, where);
     ctx->own_objects = 1;
     gim__stamp(ctx, frame->timing, GIM_PASS_COUNT);
+    ctx->light_on_count = 0;
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim_light fl;
+        gim_mat4 lv, lp;
         float fmin[3], fmax[3];
+        ctx->light_on[i] = 0;
+        ctx->light_vals[i] = 0;
+        ctx->light_total[i] = 0.0;
         r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, frame->view, frame->proj, frame->view_distance, &fl, fmin, fmax);
+        if (r == GIM_OK) r = gim_light_camera(&fl, fmin, fmax, &lv, &lp);
+        if (r == GIM_OK && !gim__light_meets_instances(ctx, lv, lp) &&
+            (ctx->light_on_count || i + 1u < ctx->light_count)) { /* the last of all-culled renders: the frame has outputs */
+            gim__light_gpu_release(ctx, &ctx->light_gpu[i]);   /* an empty RSM: no pass, no memory */
+            continue;
+        }
         if (r == GIM_OK) r = gim__gl_rsm(ctx, i, &fl, fmin, fmax);
+        ctx->light_on[i] = 1;
+        ctx->light_on_count++;
         gim__stamp(ctx, frame->timing, GIM_PASS_RSM);
     }
     if (r == GIM_OK && frame->gbuffer_depth) {
@@ -11705,23 +12067,42 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
         uint64_t texels = (uint64_t)g->size * g->size;
+        if (!ctx->light_on[i]) continue;
         if (texels * 8u > (uint64_t)ctx->max_ssbo_bytes)
             r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: a %u^2 RSM's eq. 12 table exceeds "
                           "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", (unsigned)i, (unsigned)g->size);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->map, &g->map_bytes, texels * 4u, where);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->column, &g->column_bytes, texels * 8u, where);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->size * 8u, where);
-        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->selected, &g->selected_bytes, (uint64_t)val_count * 12u, where);
         if (r == GIM_OK)
             r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
                                        scale, frame->importance_clamp, g->map);
         gim__stamp(ctx, frame->timing, GIM_PASS_IMPORTANCE_MAP);
-        if (r == GIM_OK) r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
+    }
+    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) { /* apart, so the stamps of a pass merge */
+        gim__light_gpu *g = &ctx->light_gpu[i];
+        if (!ctx->light_on[i]) continue;
+        r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
         gim__stamp(ctx, frame->timing, GIM_PASS_CUMSUM);
+    }
+    if (r == GIM_OK && !full) r = gim__gl_val_budget(ctx, frame->per_light_budget, val_count, where);
+    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) {
+        gim__light_gpu *g = &ctx->light_gpu[i];
+        if (!ctx->light_vals[i]) {   /* none of its light reaches a view sample: no VALs, no selection */
+            gim__GLuint b = g->selected;
+            if (b) ctx->gl.DeleteBuffers(1, &b);
+            g->selected = 0;
+            g->selected_bytes = 0;
+            continue;
+        }
+        r = gim__gl_sized_buffer(ctx, &g->selected, &g->selected_bytes, (uint64_t)ctx->light_vals[i] * 12u, where);
         if (r == GIM_OK) {
             float off[4];
+            /* temporal_steps: the drift's step from the frame's total, so a split that changes
+               by a VAL does not move the offsets */
             gim__select_offsets(frame, i, val_count, off);
-            r = gim__gl_importance_select_offsets(ctx, g->column, g->row, g->size, g->size, val_count, off, g->selected);
+            r = gim__gl_importance_select_offsets(ctx, g->column, g->row, g->size, g->size, ctx->light_vals[i], off,
+                                                  g->selected);
         }
         gim__stamp(ctx, frame->timing, GIM_PASS_SELECT);
     }
@@ -11731,10 +12112,10 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (r == GIM_OK && gather) {
         gim__lightskin_drop(ctx);   /* no LightSkin buffers in a gather frame */
         gim__vpl_release(ctx);
-        r = ctx->light_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
-                                                  frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
-                             : GIM_OK;
-        if (r == GIM_OK && ctx->light_count) {
+        r = ctx->light_on_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
+                                                     frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
+                                : GIM_OK;
+        if (r == GIM_OK && ctx->light_on_count) {
             o.indirect = ctx->indirect;
             gim__stamp(ctx, frame->timing, GIM_PASS_SHADE);
         }
@@ -11749,7 +12130,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o);
         } else {
             gim__vpl_release(ctx);
-            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, val_count, &o);
+            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, &o);
         }
     }
     ctx->own_objects = 0;
@@ -11765,9 +12146,11 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     o.view_sample_count = full ? 0u : vs_count;
     o.scene_scale = scale;
     o.light_count = ctx->light_count;
+    o.lights = ctx->light_outputs;
     for (i = 0; i < ctx->light_count; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
-        gim_light_outputs *lo = &o.lights[i];
+        gim_light_outputs *lo = &ctx->light_outputs[i];
+        memset(lo, 0, sizeof *lo);
         lo->light = ctx->lights[i];
         lo->rsm_size = g->size;
         lo->rsm_position = g->position;
@@ -11780,7 +12163,9 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         lo->column = g->column;
         lo->row = g->row;
         lo->selected = g->selected;
-        lo->selected_count = full ? 0u : val_count;
+        lo->selected_count = full ? 0u : ctx->light_vals[i];
+        lo->rendered = ctx->light_on[i];
+        lo->importance_total = full ? 0.0 : ctx->light_total[i];
     }
     ctx->outputs = o;
     memset(&ctx->stats, 0, sizeof ctx->stats);
@@ -11793,6 +12178,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     ctx->stats.vpl_count = o.vpl_count;
     ctx->stats.cluster_count = o.cluster_count;
     ctx->stats.pixel_count = frame->width * frame->height;
+    ctx->stats.rsm_count = ctx->light_on_count;
+    for (i = 0; i < ctx->light_count && !full; ++i) ctx->stats.val_light_count += ctx->light_vals[i] > 0u;
     return gim__gl_leave(ctx, GIM_OK);
 }
 
@@ -11806,11 +12193,12 @@ GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
 /* GL bytes of a buffer or texture set the context owns. */
 static uint64_t gim__context_bytes(const gim_context *ctx) {
     uint64_t b = ctx->scan_blocks_bytes + ctx->proxy_state_bytes + ctx->view_sample_pixels_bytes + ctx->view_samples_bytes +
+                 ctx->light_totals_bytes +
                  (uint64_t)ctx->material_count * 32u;
     uint32_t i;
     for (i = 0; i < ctx->mesh_slots; ++i)
         if (ctx->meshes[i].used) b += ctx->meshes[i].bytes;
-    for (i = 0; i < GIM_MAX_LIGHTS; ++i) {
+    for (i = 0; i < ctx->light_capacity; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes;
     }

@@ -15,6 +15,9 @@
 #define SCENE_GIMANY_FN static
 #endif
 
+/* RSMs the examples keep from a scene (fixed arrays; gimany itself takes up to GIM_MAX_LIGHTS). */
+#define SCENE_GIMANY_MAX_LIGHTS 256
+
 /* What scene_gimany_load made; free with scene_gimany_free. */
 typedef struct scene_gimany {
     gim_mesh *meshes;
@@ -22,7 +25,7 @@ typedef struct scene_gimany {
     gim_instance *instances;
     uint32_t mesh_count;
     uint32_t cache_count;        /* over all meshes */
-    gim_light lights[GIM_MAX_LIGHTS];
+    gim_light lights[SCENE_GIMANY_MAX_LIGHTS];
     uint32_t light_count;
 } scene_gimany;
 
@@ -118,16 +121,16 @@ SCENE_GIMANY_FN gim_result scene_gimany_load(gim_context *ctx, const scene *s, f
     if (r == GIM_OK) r = gim_set_instances(ctx, out->instances, out->mesh_count);
     {   /* as many as fit gimany's RSMs, in order (a point light takes six) */
         uint32_t rsms = 0;
-        for (i = 0; i < s->light_count && out->light_count < GIM_MAX_LIGHTS; ++i) {
+        for (i = 0; i < s->light_count && out->light_count < SCENE_GIMANY_MAX_LIGHTS; ++i) {
             gim_light g = scene_gimany_light(&s->lights[i], rsm_size);
             rsms += g.type == GIM_LIGHT_POINT ? 6u : 1u;
-            if (rsms > GIM_MAX_LIGHTS) break;
+            if (rsms > SCENE_GIMANY_MAX_LIGHTS) break;
             out->lights[out->light_count++] = g;
         }
         if (i < s->light_count && env.logger.func) {
             char msg[160];
             snprintf(msg, sizeof msg, "scene_gimany_load: lights after the first %u skipped: they need more than "
-                     "gimany's %u RSMs (a point light takes 6)", (unsigned)i, (unsigned)GIM_MAX_LIGHTS);
+                     "the examples' %u RSMs (a point light takes 6)", (unsigned)i, (unsigned)SCENE_GIMANY_MAX_LIGHTS);
             env.logger.func(GIM_LOG_WARNING, msg, env.logger.user_data);
         }
     }

@@ -46,7 +46,7 @@ typedef struct viewer {
     gim_mesh *plain;            /* the meshes without caches, for method none */
     gim_instance *plain_inst;
     display dp;
-    gim_light lights[GIM_MAX_LIGHTS];
+    gim_light lights[SCENE_GIMANY_MAX_LIGHTS];
     float yaw, pitch;           /* of the view direction; used once the camera moved */
     int moved, dragging, animate, meter, shots, lights_dirty, instances_dirty;
     int bounces;                /* --bounces: 1, or 2 with clustered / ssvp */

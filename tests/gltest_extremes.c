@@ -251,7 +251,8 @@ static void ex_read(ex *e, ex_out *out) {
                     fail_msg("light %u: row[%u] = %.17g after %.17g", (unsigned)l, (unsigned)i, d[i], prev);
                 prev = d[i];
             }
-            gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
+            if (lo->selected_count) gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
+            else assert_true(lo->selected == 0 && d[lo->rsm_size - 1u] == 0.0);   /* shared budget: none to a zero total */
             for (i = 0; i < lo->selected_count; ++i)
                 assert_true(s[i].x < lo->rsm_size && s[i].y < lo->rsm_size && isfinite(s[i].pdf) && s[i].pdf > 0.0f &&
                             s[i].pdf <= 1.0f);

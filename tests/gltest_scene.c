@@ -700,18 +700,21 @@ static void argument_errors(void **state) {
     l.position.y = 3.0f;
     l.direction = gim_v3(0.0f, -1.0f, 0.0f);
     {
-        gim_light many[GIM_MAX_LIGHTS + 1];
+        gim_light *many = (gim_light *)calloc(GIM_MAX_LIGHTS + 1, sizeof *many);
         int i;
+        assert_non_null(many);
         for (i = 0; i < GIM_MAX_LIGHTS + 1; ++i) many[i] = l;
         EXPECT(gim_set_lights(f.ctx, many, GIM_MAX_LIGHTS + 1), GIM_ERROR_OUT_OF_RANGE);
-        /* a point light takes six RSMs: two of them and four spots fill the 16, a third point does not fit */
+        /* a point light takes six RSMs: two of them and GIM_MAX_LIGHTS - 12 spots fill the limit, a
+           third point does not fit */
         many[0].type = many[1].type = GIM_LIGHT_POINT;
-        assert_int_equal(gim_set_lights(f.ctx, many, 6), GIM_OK);
-        assert_int_equal(f.ctx->light_count, 16u);
+        assert_int_equal(gim_set_lights(f.ctx, many, GIM_MAX_LIGHTS - 10), GIM_OK);
+        assert_int_equal(f.ctx->light_count, (uint32_t)GIM_MAX_LIGHTS);
         many[2].type = GIM_LIGHT_POINT;
-        EXPECT(gim_set_lights(f.ctx, many, 3), GIM_ERROR_OUT_OF_RANGE);
+        EXPECT(gim_set_lights(f.ctx, many, GIM_MAX_LIGHTS - 10), GIM_ERROR_OUT_OF_RANGE);
         many[0].intensity = -1.0f;   /* checked as a spot's intensity */
         EXPECT(gim_set_lights(f.ctx, many, 1), GIM_ERROR_INVALID_ARGUMENT);
+        free(many);
     }
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     /* frames */
@@ -753,7 +756,14 @@ static void argument_errors(void **state) {
     assert_int_equal(gim_set_instances(f.ctx, &inst, 1), GIM_OK);
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK); /* defaults: 256 view samples, 2048 VALs */
     assert_int_equal(gim_outputs(f.ctx).view_sample_count, 256);
+    /* one rendered light: nothing to split, it gets the 2048 in both budgets (drawn uniformly:
+       a flat quad does not light itself, every importance is 0) */
+    assert_int_equal(gim_outputs(f.ctx).lights[0].rendered, 1);
     assert_int_equal(gim_outputs(f.ctx).lights[0].selected_count, 2048);
+    fr.per_light_budget = 1;
+    assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
+    assert_int_equal(gim_outputs(f.ctx).lights[0].selected_count, 2048);
+    fr.per_light_budget = 0;
     assert_int_equal(gim_remove_mesh(f.ctx, mesh), GIM_OK);
     EXPECT(gim_remove_mesh(f.ctx, mesh), GIM_ERROR_INVALID_ARGUMENT);
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);

@@ -72,7 +72,7 @@ static const gim_material room_materials[4] = {
 
 /* A G-buffer pixel (its view sample vs, albedo rgba, material id) as a gim_receiver seen from
    eye: 0 where nothing is drawn. host: the host's G-buffer (albedo 1, no glossy term). */
-static int room_receiver(const gim_view_sample *vs, gim_vec3 eye, const float *albedo, float material, int host,
+static ROOM_UNUSED int room_receiver(const gim_view_sample *vs, gim_vec3 eye, const float *albedo, float material, int host,
                          gim_receiver *rc) {
     double l = 0.0;
     int k;
