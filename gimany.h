@@ -9962,11 +9962,11 @@ static void gim__gl_clear_targets(const gim__gl *gl, int n) {
 
 /* Draw every instance with program (scene.vert's uniforms: 0 model, 1 normal matrix,
    2 view_proj; SSBO 0 materials, 1 the mesh's triangle materials). */
-static void gim__gl_draw_instances(gim_context *ctx, gim_mat4 view_proj) {
+/* Every instance, copies times each (GL instancing: the paraboloid pass's one copy per map);
+   model and normal matrices at uniforms 0 and 1, the mesh's triangle materials at binding 1. */
+static void gim__gl_draw_meshes(gim_context *ctx, uint32_t copies) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i;
-    gl->UniformMatrix4fv(2, 1, GIM__GL_FALSE, view_proj.m);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
     for (i = 0; i < ctx->instance_count; ++i) {
         const gim_instance *in = &ctx->instances[i];
         const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
@@ -9975,8 +9975,19 @@ static void gim__gl_draw_instances(gim_context *ctx, gim_mat4 view_proj) {
         gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
         gl->BindVertexArray(m->vao);
-        gl->DrawElements(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type, (const void *)(size_t)m->index_offset);
+        if (copies == 1u)
+            gl->DrawElements(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type,
+                             (const void *)(size_t)m->index_offset);
+        else
+            gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type,
+                                      (const void *)(size_t)m->index_offset, (gim__GLsizei)copies);
     }
+}
+
+static void gim__gl_draw_instances(gim_context *ctx, gim_mat4 view_proj) {
+    ctx->gl.UniformMatrix4fv(2, 1, GIM__GL_FALSE, view_proj.m);
+    ctx->gl.BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
+    gim__gl_draw_meshes(ctx, 1u);
 }
 
 /* The eye of a camera as the fragment shaders take it: (position, 1) for a perspective
@@ -11247,17 +11258,7 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
         else for (k = 1; k < 4; ++k) gl->ClearBufferfv(GIM__GL_COLOR, k, zero);
         gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
         gl->Uniform1ui(7, (gim__GLuint)pass);
-        for (i = 0; i < ctx->instance_count; ++i) {
-            const gim_instance *in = &ctx->instances[i];
-            const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
-            gim_mat4 nm = gim_mat4_normal(in->model);
-            gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
-            gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
-            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
-            gl->BindVertexArray(m->vao);
-            gl->DrawElementsInstanced(GIM__GL_TRIANGLES, (gim__GLsizei)m->index_count, m->index_type,
-                                      (const void *)(size_t)m->index_offset, (gim__GLsizei)count);
-        }
+        gim__gl_draw_meshes(ctx, count);
     }
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
