@@ -11,6 +11,7 @@
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "room.h"
+#include "lamps.h"
 
 #define W 96
 #define H 64
@@ -125,7 +126,6 @@ static void row_sum(gim_method m, uint32_t vals, double *ms, double *err, uint32
 int main(void) {
     gim_desc d;
     room r[4];
-    float c[3], u[3], v[3];
     gim_instance in[4];
     gim_cache_set set[4];
     gim_stats st;
@@ -138,13 +138,7 @@ int main(void) {
     memset(&d, 0, sizeof d);
     d.get_proc_address = gltest_get_proc;
     if (gim_create(&d, &ctx) != GIM_OK) return 1;
-#define SET3(a, x, y, z) ((a)[0] = (x), (a)[1] = (y), (a)[2] = (z))
-    memset(r, 0, sizeof r);
-    SET3(c, -8, 0, 2); SET3(u, 16, 0, 0); SET3(v, 0, 0, -4); add_quad(&r[0], c, u, v, 0);
-    SET3(c, -8, 0, -2); SET3(u, 16, 0, 0); SET3(v, 0, 3, 0); add_quad(&r[1], c, u, v, 1);
-    SET3(c, -8, 0, 2); SET3(u, 0, 3, 0); SET3(v, 16, 0, 0); add_quad(&r[2], c, u, v, 2);
-    SET3(c, -12, 5, 2); SET3(u, 3, 0, 0); SET3(v, 0, 0, -4); add_quad(&r[3], c, u, v, 0);
-#undef SET3
+    lamps_quads(r);
     for (k = 0; k < 4; ++k) {
         gim_cache_desc cd;
         gim_mesh_desc md;
@@ -159,34 +153,9 @@ int main(void) {
         in[k].model = gim_mat4_identity();
     }
     if (gim_set_materials(ctx, room_materials, 3) != GIM_OK || gim_set_instances(ctx, in, 4) != GIM_OK) return 1;
-    for (k = 0; k < NL; ++k) {
-        gim_light *l = &lights[k];
-        memset(l, 0, sizeof *l);
-        l->type = GIM_LIGHT_SPOT;
-        l->rsm_size = RSM;
-        l->color[0] = 1.0f; l->color[1] = 0.8f + 0.1f * (float)(k % 3); l->color[2] = 0.5f + 0.5f * (float)(k % 2);
-        if (k < 24) {
-            l->intensity = 0.5f + 0.25f * (float)(k % 7);
-            l->position = gim_v3(-6.0f + 0.5f * (float)k, 2.7f, (k & 1) ? 1.0f : -1.0f);
-            l->direction = gim_v3(0.2f * sinf((float)k), -1.0f, (k & 1) ? 0.3f : -0.3f);
-            l->cone_angle = 0.6f;
-        } else if (k < 28) {
-            l->intensity = 3.0f;
-            l->position = gim_v3(-4.0f + 2.5f * (float)(k - 24), 2.8f, 0.0f);
-            l->direction = gim_v3(0.05f, 1.0f, 0.0f);
-            l->cone_angle = 0.5f;
-        } else {
-            l->intensity = 3.0f;
-            l->position = gim_v3(-11.5f + 0.6f * (float)(k - 28), 6.0f, (k & 1) ? 0.5f : -0.5f);
-            l->direction = gim_v3(0.0f, -1.0f, 0.0f);
-            l->cone_angle = 0.4f;
-        }
-    }
+    for (k = 0; k < NL; ++k) lights[k] = lamps_light(k, RSM);
     memset(&fr, 0, sizeof fr);
-    fr.view = gim_mat4_look_at(gim_v3(-7.0f, 1.6f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
-    fr.proj = gim_mat4_perspective(1.1f, (float)W / H, 0.1f, 30.0f);
-    fr.width = W;
-    fr.height = H;
+    lamps_view(&fr, W, H);
     fr.indirect_float32 = 1;
     fr.view_sample_count = 256;
     fr.timing = 2;

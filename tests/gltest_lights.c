@@ -19,6 +19,7 @@
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "room.h"
+#include "lamps.h"
 
 #define W 48
 #define H 32
@@ -33,23 +34,14 @@ typedef struct street_fix {
     gim_light lights[NL];
 } street_fix;
 
-/* Ground (white) x in [-8, 8], z in [-2, 2]; facades at z = -2 (red, facing +z) and z = 2
-   (green, facing -z), 3 high; a canopy (white, facing up) at y = 5, x in [-12, -9], behind
-   the camera; four meshes, four instances, each with its caches. */
+/* The lamp street (lamps.h): four meshes, four instances, each with its caches. */
 static void street_begin(street_fix *s) {
     room r[4];
-    float c[3], u[3], v[3];
     gim_instance in[4];
     int k;
     memset(s, 0, sizeof *s);
     gltest_fixture_begin(&s->f);
-#define SET3(a, x, y, z) ((a)[0] = (x), (a)[1] = (y), (a)[2] = (z))
-    memset(r, 0, sizeof r);
-    SET3(c, -8, 0, 2); SET3(u, 16, 0, 0); SET3(v, 0, 0, -4); add_quad(&r[0], c, u, v, 0);
-    SET3(c, -8, 0, -2); SET3(u, 16, 0, 0); SET3(v, 0, 3, 0); add_quad(&r[1], c, u, v, 1);
-    SET3(c, -8, 0, 2); SET3(u, 0, 3, 0); SET3(v, 16, 0, 0); add_quad(&r[2], c, u, v, 2);
-    SET3(c, -12, 5, 2); SET3(u, 3, 0, 0); SET3(v, 0, 0, -4); add_quad(&r[3], c, u, v, 0);
-#undef SET3
+    lamps_quads(r);
     for (k = 0; k < 4; ++k) {
         gim_cache_desc cd;
         gim_mesh_desc md;
@@ -66,34 +58,9 @@ static void street_begin(street_fix *s) {
     }
     assert_int_equal(gim_set_materials(s->f.ctx, room_materials, 3), GIM_OK);
     assert_int_equal(gim_set_instances(s->f.ctx, in, 4), GIM_OK);
-    for (k = 0; k < NL; ++k) {
-        gim_light *l = &s->lights[k];
-        memset(l, 0, sizeof *l);
-        l->type = GIM_LIGHT_SPOT;
-        l->rsm_size = RSM;
-        l->color[0] = 1.0f; l->color[1] = 0.8f + 0.2f * (float)(k % 3) / 2.0f; l->color[2] = 0.5f + 0.5f * (float)(k % 2);
-        if (k < 24) {          /* lamps over the street, pointing down */
-            l->intensity = 0.5f + 0.25f * (float)(k % 7);
-            l->position = gim_v3(-6.0f + 0.5f * (float)k, 2.7f, (k & 1) ? 1.0f : -1.0f);
-            l->direction = gim_v3(0.2f * sinf((float)k), -1.0f, (k & 1) ? 0.3f : -0.3f);
-            l->cone_angle = 0.6f;
-        } else if (k < 28) {   /* into the sky: their frusta meet no instance */
-            l->intensity = 3.0f;
-            l->position = gim_v3(-4.0f + 2.5f * (float)(k - 24), 2.8f, 0.0f);
-            l->direction = gim_v3(0.05f, 1.0f, 0.0f);
-            l->cone_angle = 0.5f;
-        } else {               /* down onto the canopy: its VALs face up, every view sample is below */
-            l->intensity = 3.0f;
-            l->position = gim_v3(-11.5f + 0.6f * (float)(k - 28), 6.0f, (k & 1) ? 0.5f : -0.5f);
-            l->direction = gim_v3(0.0f, -1.0f, 0.0f);
-            l->cone_angle = 0.4f;
-        }
-    }
+    for (k = 0; k < NL; ++k) s->lights[k] = lamps_light(k, RSM);
     memset(&s->fr, 0, sizeof s->fr);
-    s->fr.view = gim_mat4_look_at(gim_v3(-7.0f, 1.6f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
-    s->fr.proj = gim_mat4_perspective(1.1f, (float)W / H, 0.1f, 30.0f);
-    s->fr.width = W;
-    s->fr.height = H;
+    lamps_view(&s->fr, W, H);
     s->fr.indirect_float32 = 1;
     s->fr.view_sample_count = 128;
 }
