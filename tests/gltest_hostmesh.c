@@ -92,11 +92,7 @@ static void setup(host_fx *h, int host) {
     in.mesh = h->mesh;
     in.model = gim_mat4_identity();
     assert_int_equal(gim_set_instances(h->f.ctx, &in, 1), GIM_OK);
-    memset(&sun, 0, sizeof sun);
-    sun.type = GIM_LIGHT_DIRECTIONAL;
-    sun.irradiance = 1.0f;
-    sun.direction = gim_v3(0.3f, 1.0f, 0.6f);
-    sun.rsm_size = 64;
+    sun = room_sun();
     assert_int_equal(gim_set_lights(h->f.ctx, &sun, 1), GIM_OK);
     memset(&h->fr, 0, sizeof h->fr);
     h->fr.view = gim_mat4_look_at(gim_v3(0.0f, 1.2f, 3.5f), gim_v3(0.0f, 0.8f, -2.0f), gim_v3(0, 1, 0));

@@ -96,4 +96,15 @@ static ROOM_UNUSED int room_receiver(const gim_view_sample *vs, gim_vec3 eye, co
     return 1;
 }
 
+/* The sun of the room tests: irradiance 1 from (0.3, 1, 0.6), a 64^2 RSM. */
+static ROOM_UNUSED gim_light room_sun(void) {
+    gim_light sun;
+    memset(&sun, 0, sizeof sun);
+    sun.type = GIM_LIGHT_DIRECTIONAL;
+    sun.irradiance = 1.0f;
+    sun.direction = gim_v3(0.3f, 1.0f, 0.6f);
+    sun.rsm_size = 64;
+    return sun;
+}
+
 #endif
