@@ -8473,7 +8473,9 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
         uint32_t first = 0, mode = modes[step];
         if (mode == 3u && val_count <= GIM__VAL_NEAR_CAP) continue;   /* no cache can have more */
         do {
-            uint32_t n = mode == 2u ? 0u : (val_count - first < ctx->proxy_chunk ? val_count - first : ctx->proxy_chunk);
+            /* mode 3's list adds up to a loop iteration per VAL: half the chunk */
+            uint32_t chunk = mode == 3u ? (ctx->proxy_chunk + 1u) / 2u : ctx->proxy_chunk;
+            uint32_t n = mode == 2u ? 0u : (val_count - first < chunk ? val_count - first : chunk);
             gl->Uniform1ui(6, first);
             gl->Uniform1ui(7, n);
             gl->Uniform1ui(8, mode);

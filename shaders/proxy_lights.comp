@@ -350,8 +350,11 @@ void main() {
         }
     } else if (mode == 3u) {
         /* the near VALs past the first NEAR_CAP of a cache (many VALs on one spot: BRSM's
-           repeated picks, a dense RSM under a small cache), inline; only the work groups that
-           hold such a cache loop */
+           repeated picks, many lights on one surface), listed per tile (8-bit slots, four to
+           a uint) and evaluated after the tile's loop, so the VALs far from every cache of a
+           SIMD vector do not pay for the patch (llvmpipe runs both sides of a branch); only the
+           work groups that hold such a cache loop. The host halves the chunk for this mode:
+           the list's loop adds up to TILE iterations per tile */
         bool over = inside && near_seen > float(NEAR_CAP);
         if (local == 0u) any_work = 0u;
         barrier();
@@ -362,6 +365,8 @@ void main() {
                 load(base + local, local);
                 barrier();
                 uint count = min(uint(TILE), end - base);
+                uint late[TILE / 4];
+                uint late_n = 0u;
                 if (over)
                     for (uint t = 0u; t < count; ++t) {
                         vec3 d = tile_pa[t].xyz - c;
@@ -372,12 +377,23 @@ void main() {
                         if (!(d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0)) continue;
                         aux += 1.0;
                         if (aux <= float(NEAR_CAP)) continue;   /* listed in mode 0 */
-                        float den = tile_pa[t].w + PI * d2;
-                        float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;
-                        e_n = val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, tile_nw[t].w, e_n, cos_x);
-                        accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii,
-                                   ism_o, ism_t, ism_b, n, glossy, v, k);
+                        uint sh = (late_n & 3u) * 8u;
+                        late[late_n >> 2u] = sh == 0u ? t : late[late_n >> 2u] | (t << sh);
+                        late_n += 1u;
                     }
+                for (uint q = 0u; q < late_n; ++q) {
+                    uint t = (late[q >> 2u] >> ((q & 3u) * 8u)) & 0xffu;
+                    vec3 d = tile_pa[t].xyz - c;
+                    float d2 = dot(d, d);
+                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+                    float cos_x = max(dot(n, d) * inv, 0.0);
+                    float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                    float den = tile_pa[t].w + PI * d2;
+                    float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;
+                    e_n = val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, tile_nw[t].w, e_n, cos_x);
+                    accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii,
+                               ism_o, ism_t, ism_b, n, glossy, v, k);
+                }
                 barrier();
             }
         }
