@@ -10,8 +10,9 @@
      (GIM_NORMAL_OCTAHEDRAL_UNORM), drawn by its own shaders and passed in gim_frame.
    Per frame: G-buffer + direct light (no shadows: kept simple) -> gim_update -> composite
    direct + albedo x indirect (the host's G-buffer gives albedo-1 indirect) to the window.
-   Options: --size WxH, --frames N (render N frames, then exit), --screenshot FILE.png. At the
-   end it prints the mean of gimany's indirect texture ("indirect mean X"). */
+   Options: --size WxH, --frames N (render N frames, then exit), --rsm N (the light's RSM side,
+   128), --screenshot FILE.png. A failing gimany call: one line on stderr, exit 1. At the end
+   it prints the mean of gimany's indirect texture ("indirect mean X"). */
 #define _POSIX_C_SOURCE 200809L
 #define GIMANY_IMPLEMENTATION
 #include "gimany.h"
@@ -36,6 +37,7 @@
 
 #define PROG "gimany-host-buffers"
 #define FAIL(...) do { fprintf(stderr, PROG ": " __VA_ARGS__); fputc('\n', stderr); goto out; } while (0)
+#define CHECK(call) do { if ((call) != GIM_OK) FAIL("%s: %s", #call, last_error); } while (0)
 
 enum { MAX_QUADS = 16, STRIDE = 32 };   /* vertex: position, normal, uv (8 floats) */
 
@@ -155,14 +157,16 @@ static GLuint texture(GLenum format, int w, int h) {
     return t;
 }
 
+/* gimany's last error message, printed on the one line of the failing call */
+static char last_error[512] = "no message";
 static void log_gimany(gim_log_level level, const char *message, void *user) {
     (void)user;
-    if (level == GIM_LOG_ERROR) fprintf(stderr, PROG ": %s\n", message);
+    if (level == GIM_LOG_ERROR) snprintf(last_error, sizeof last_error, "%s", message);
 }
 
 int main(int argc, char **argv) {
     static geometry g;
-    int width = 320, height = 240, frames = 0, rc = 1, i, frame;
+    int width = 320, height = 240, frames = 0, rsm = 128, rc = 1, i, frame;
     const char *shot = NULL;
     GLFWwindow *win = NULL;
     gim_context *ctx = NULL;
@@ -178,10 +182,11 @@ int main(int argc, char **argv) {
     memset(&caches, 0, sizeof caches);
     for (i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--frames") && i + 1 < argc && (frames = atoi(argv[i + 1])) > 0) ++i;
+        else if (!strcmp(argv[i], "--rsm") && i + 1 < argc && (rsm = atoi(argv[i + 1])) > 0) ++i;
         else if (!strcmp(argv[i], "--screenshot") && i + 1 < argc) shot = argv[++i];
         else if (!strcmp(argv[i], "--size") && i + 1 < argc && sscanf(argv[i + 1], "%dx%d", &width, &height) == 2 &&
                  width >= 16 && height >= 16 && width <= 4096 && height <= 4096) ++i;
-        else { fprintf(stderr, PROG ": bad option %s (--size WxH, --frames N, --screenshot FILE.png)\n", argv[i]); return 2; }
+        else { fprintf(stderr, PROG ": bad option %s (--size WxH, --frames N, --rsm N, --screenshot FILE.png)\n", argv[i]); return 2; }
     }
     if (shot && frames <= 0) { fprintf(stderr, PROG ": --screenshot needs --frames N\n"); return 2; }
     if (!glfwInit()) { fprintf(stderr, PROG ": no window system (GLFW cannot start; is DISPLAY set?)\n"); return 1; }
@@ -212,8 +217,9 @@ int main(int argc, char **argv) {
     cd.mesh.indices = g.idx;
     cd.mesh.index_count = g.quads * 6;
     cd.mesh.index_type = GIM_INDEX_U16;
+    cd.env.logger.func = log_gimany;
     cd.d_eps = 0.125f;   /* a cache within 1/8 of every point: 16 across a wall */
-    if (gim_cache_generate(&cd, &caches) != GIM_OK) FAIL("gim_cache_generate failed");
+    CHECK(gim_cache_generate(&cd, &caches));
 
     /* the light: a spot under the ceiling, aimed down, in the engine's light buffer */
     memset(&spot, 0, sizeof spot);
@@ -222,7 +228,7 @@ int main(int argc, char **argv) {
     spot.position_cone[1] = 1.95f; spot.position_cone[3] = 1.2f;  /* y, half-angle (radians) */
     spot.direction_extent[1] = -1.0f;
     spot.type_square_size_fit[0] = GIM_LIGHT_SPOT;
-    spot.type_square_size_fit[2] = 128;                           /* RSM size */
+    spot.type_square_size_fit[2] = (uint32_t)rsm;                 /* RSM size: gimany checks it */
     glGenBuffers(1, &lbo);
     glBindBuffer(GL_SHADER_STORAGE_BUFFER, lbo);
     glBufferData(GL_SHADER_STORAGE_BUFFER, sizeof spot, &spot, GL_STATIC_DRAW);
@@ -232,7 +238,7 @@ int main(int argc, char **argv) {
     memset(&gd, 0, sizeof gd);
     gd.get_proc_address = (gim_gl_proc (*)(const char *))glfwGetProcAddress;
     gd.env.logger.func = log_gimany;
-    if (gim_create(&gd, &ctx) != GIM_OK) FAIL("gim_create failed");
+    CHECK(gim_create(&gd, &ctx));
     memset(&md, 0, sizeof md);
     md.data.vertex_count = g.quads * 4;
     md.data.index_count = g.quads * 6;
@@ -243,12 +249,12 @@ int main(int argc, char **argv) {
     md.buffers.position_stride = md.buffers.normal_stride = STRIDE;
     md.buffers.normal_offset = 12;
     md.buffers.indices = ibo;
-    if (gim_add_mesh(ctx, &md, &mesh) != GIM_OK) FAIL("gim_add_mesh failed");
+    CHECK(gim_add_mesh(ctx, &md, &mesh));
     inst.mesh = mesh;
     inst.model = gim_mat4_identity();
-    if (gim_set_materials(ctx, materials, 3) != GIM_OK) FAIL("gim_set_materials failed");
-    if (gim_set_instances(ctx, &inst, 1) != GIM_OK) FAIL("gim_set_instances failed");
-    if (gim_set_lights_buffer(ctx, lbo, 1) != GIM_OK) FAIL("gim_set_lights_buffer failed");
+    CHECK(gim_set_materials(ctx, materials, 3));
+    CHECK(gim_set_instances(ctx, &inst, 1));
+    CHECK(gim_set_lights_buffer(ctx, lbo, 1));
 
     /* the engine's G-buffer: depth, octahedral normals (RG16), albedo, direct light */
     tex[0] = texture(GL_DEPTH_COMPONENT32F, width, height);
@@ -314,7 +320,7 @@ int main(int argc, char **argv) {
         f.val_count = 512;
         f.frame_index = (uint32_t)frame;
         f.rotate_view_samples = 1;
-        if (gim_update(ctx, &f) != GIM_OK) FAIL("gim_update failed (frame %d)", frame);
+        CHECK(gim_update(ctx, &f));
         /* 3. composite to the window */
         glUseProgram(cprog);
         glUniform1f(glGetUniformLocation(cprog, "exposure"), 2.0f);

@@ -1,8 +1,8 @@
 /* build/gimany-host-buffers (examples/host_buffers.c) under Xvfb: gimany driven from the host's
    own vertex / index / light buffers and G-buffer renders --frames N, writes the screenshot at
    the window's size, and gimany's indirect light (printed as "indirect mean X") is finite and
-   not black; bad options fail with one line and exit 2 before any window opens. Skipped when
-   xvfb-run is absent. Checked to fail: with the light buffer's intensity set to 0 in the
+   not black; a light gimany refuses fails gim_update with one line and exit 1; bad options
+   fail with one line and exit 2 before any window opens. Skipped when xvfb-run is absent. Checked to fail: with the light buffer's intensity set to 0 in the
    example the indirect mean is 0 and `screenshot` fails. */
 #define _POSIX_C_SOURCE 200809L /* popen */
 #include <stdarg.h>
@@ -60,9 +60,25 @@ static void screenshot(void **state) {
     free(shot);
 }
 
+/* A light gimany refuses (RSM side above GL_MAX_TEXTURE_SIZE, read from the light buffer at
+   gim_update): one line naming the call and gimany's reason, exit 1. */
+static void refused_light(void **state) {
+    char *out = NULL;
+    int rc;
+    (void)state;
+    if (!have_xvfb()) skip();
+    rc = cli_run("xvfb-run -a -s '-screen 0 320x240x24' " HOST_BIN " --size 32x24 --frames 1 --rsm 1000000", &out);
+    print_message("--rsm 1000000 -> %d: %s", rc, out);
+    assert_int_equal(rc, 1);
+    assert_true(strncmp(out, "gimany-host-buffers: gim_update", 31) == 0);
+    assert_non_null(strstr(out, "rsm_size"));
+    assert_true(strchr(out, '\n') == out + strlen(out) - 1);
+    free(out);
+}
+
 /* Option errors need no window: one line, exit 2. */
 static void bad_options(void **state) {
-    static const char *bad[] = {"--bogus", "--frames x", "--screenshot a.png", "--size 3x3", "--frames"};
+    static const char *bad[] = {"--bogus", "--frames x", "--screenshot a.png", "--size 3x3", "--frames", "--rsm 0"};
     size_t k;
     (void)state;
     for (k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
@@ -79,6 +95,7 @@ static void bad_options(void **state) {
 }
 
 int main(void) {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(screenshot), cmocka_unit_test(bad_options)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(screenshot), cmocka_unit_test(refused_light),
+                                         cmocka_unit_test(bad_options)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
