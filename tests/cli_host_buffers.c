@@ -2,8 +2,9 @@
    own vertex / index / light buffers and G-buffer renders --frames N, writes the screenshot at
    the window's size, and gimany's indirect light (printed as "indirect mean X") is finite and
    not black; a light gimany refuses fails gim_update with one line and exit 1; bad options
-   fail with one line and exit 2 before any window opens. Skipped when xvfb-run is absent. Checked to fail: with the light buffer's intensity set to 0 in the
-   example the indirect mean is 0 and `screenshot` fails. */
+   fail with one line and exit 2 before any window opens. Skipped when xvfb-run is absent.
+   Checked to fail: with the light buffer's intensity set to 0 in the example the indirect mean
+   is 0 and `screenshot` fails. */
 #define _POSIX_C_SOURCE 200809L /* popen */
 #include <stdarg.h>
 #include <stddef.h>
