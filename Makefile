@@ -96,7 +96,10 @@ $(B)/cli/cli_demo: tests/cli_demo.c tests/cliutil.h examples/scene.h $(B)/ref/as
 $(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
 	@mkdir -p $(@D)
 	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' -DDEMO_BIN='"$(B)/gimany-demo"' $< -o $@ -lcmocka -lm
-CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare
+$(B)/cli/cli_host_buffers: tests/cli_host_buffers.c tests/cliutil.h $(B)/gimany-host-buffers
+	@mkdir -p $(@D)
+	$(CLI_CC) -DHOST_BIN='"$(B)/gimany-host-buffers"' $< -o $@ -lcmocka -lm
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 REF_BINS := $(B)/ref/test_reference $(B)/ref/test_loader
@@ -214,6 +217,10 @@ $(B)/gimany-demo: examples/demo.c examples/egl_headless.h $(EX_HDRS) $(B)/ref/sc
 	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 $(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
 	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lglfw -lGL -lm -lstdc++
+# gimany driven from a host's own GL buffers, lights buffer and G-buffer (no scene layer)
+$(B)/gimany-host-buffers: examples/host_buffers.c gimany.h shaders_embedded.h
+	@mkdir -p $(@D)
+	$(EX_CC) $< -o $@ -lglfw -lGL -lm
 
 demo:
 	@$(DEPS) build gl examples
