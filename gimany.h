@@ -203,7 +203,7 @@ GIMANY_API gim_result gim_hammersley_points(float *out, uint32_t count, uint32_t
                                             const float *offsets);
 /* Per-frame Cranley-Patterson offsets in [0,1): a decorrelating hash of (frame, dim). */
 GIMANY_API void gim_rotation_offsets(float *out, uint32_t dims, uint32_t frame);
-/* Offsets that move instead of jumping (gim_frame.temporal_steps): 48-bit offsets for dims
+/* Offsets that move instead of jumping (gim_frame.lightskin.temporal_steps): 48-bit offsets for dims
    dimensions, o_d = frac(b_d + frame * step * g_d) with b_d = r[d] + r[d + dims] 2^-24 from
    r = gim_rotation_offsets(2 dims, seed) and g = (1, 0.618..., frac(d phi) ...) so the walk
    never repeats; written as out[d] + out[d + dims] 2^-24 (out holds 2 dims floats, each 24
@@ -871,7 +871,7 @@ typedef enum gim_light_type {
                                   a cube around it (gim_point_light_faces), each its own RSM */
 } gim_light_type;
 
-#define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.temporal_steps */
+#define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.lightskin.temporal_steps */
 #define GIM_MAX_LIGHTS 4096           /* RSMs per context (a point light takes six, others one): a bound
                                          on the arrays, not on memory; each RSM the frame renders has
                                          its own textures (52 bytes a texel), one it culls has none */
@@ -967,7 +967,7 @@ typedef struct gim_gbuffer_texel {
 } gim_gbuffer_texel;
 
 /* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
-/* How a host's G-buffer texture holds its normals (gim_frame.gbuffer_normal_encoding). */
+/* How a host's G-buffer texture holds its normals (gim_frame.gbuffer.normal_encoding). */
 typedef enum gim_normal_encoding {
     GIM_NORMAL_XYZ = 0,          /* signed xyz (float or snorm formats): gimany's own layout */
     GIM_NORMAL_XYZ_UNORM,        /* xyz * 0.5 + 0.5 (GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
@@ -1510,7 +1510,7 @@ typedef enum gim_method {
 
 /* Visibility of the indirect light (DESIGN.md sec. 6c). The VPL methods (CLUSTERED, SSVP) have
    their own exact visibility: DEFAULT and OFF keep it (one paraboloid depth map per cluster,
-   rendered from the triangles, soft PCSS lookups; gim_frame.no_visibility turns it off); ISM
+   rendered from the triangles, soft PCSS lookups; gim_frame.vpl.no_visibility turns it off); ISM
    replaces it with one imperfect shadow map per VPL. */
 typedef enum gim_visibility {
     GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
@@ -1523,62 +1523,68 @@ typedef enum gim_visibility {
                                        instead of the clusters' paraboloid maps */
 } gim_visibility;
 
-/* Input of gim_update; zero means default. */
-typedef struct gim_frame {
-    gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
-    uint32_t width, height;     /* G-buffer size in pixels (the host's viewport), > 0 */
-    uint32_t gbuffer_depth;     /* the host's G-buffer instead of gimany's: a 2D depth texture of
-                                   the same view (window depth in [0, 1], 1 = nothing) ... */
-    uint32_t gbuffer_normal;    /* ... and a 2D float texture with the world normal in .xyz;
-                                   both >= width x height, or both 0 (gimany draws one) */
-    gim_normal_encoding gbuffer_normal_encoding; /* how gbuffer_normal holds it; not XYZ (or the
-                                   two below set): one decode pass (gim_gbuffer_decode_twin) */
-    int gbuffer_view_space;     /* 1: the host's normals are in view space */
-    int gbuffer_depth_view_z;   /* 1: gbuffer_depth is a float texture (GL_R32F, GL_R16F) holding the
-                                   positive view-space distance along -z (0: nothing drawn) */
+/* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
+typedef struct gim_frame_gbuffer {
+    uint32_t depth;             /* a 2D depth texture of the frame's view (window depth in [0, 1], 1 =
+                                   nothing) ... */
+    uint32_t normal;            /* ... and a 2D float texture with the world normal in .xyz; both
+                                   >= width x height, or both 0 */
+    gim_normal_encoding normal_encoding; /* how normal holds it; not XYZ (or the two below set): one
+                                   decode pass (gim_gbuffer_decode_twin) */
+    int view_space;             /* 1: the host's normals are in view space */
+    int depth_view_z;           /* 1: depth is a float texture (GL_R32F, GL_R16F) holding the positive
+                                   view-space distance along -z (0: nothing drawn) */
+} gim_frame_gbuffer;
+
+/* Visibility of the indirect light (gim_frame.visibility). */
+typedef struct gim_frame_visibility {
+    gim_visibility mode;        /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
+                                   their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
+                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
+    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64), halved
+                                   until every cache's map fits one shader storage block (at 128 MiB: 64^2 up
+                                   to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP: GIM_ISM_DEFAULT_VPL_SIZE
+                                   (32: their maps are made every frame) */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
+                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
+} gim_frame_visibility;
+
+/* LightSkin, LIGHTSKIN_BRSM and LIGHTSKIN_FULL (gim_frame.lightskin). */
+typedef struct gim_frame_lightskin {
+    uint32_t val_count;         /* VALs selected (paper 000 sec. 4), in all, shared by the rendered RSMs
+                                   by importance (per_light_budget: per RSM); 0: 2048 */
+    uint32_t temporal_steps;    /* L > 1: the random offsets of the BRSM selection (and, with
+                                   rotate_view_samples, of the view samples) drift by 1/L of their points'
+                                   spacing a frame (gim_drift_offsets) instead of being drawn anew, so each
+                                   VAL moves to a nearby texel or stays (the aim of Laine et al. 2007); each
+                                   frame is still unbiased and as stratified. 0 or 1: new offsets every
+                                   frame; at most GIM_MAX_TEMPORAL_STEPS */
     uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
                                    importance-map invocation loops over them all; llvmpipe stops
                                    a loop after 65535 iterations) */
-    uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
-    uint32_t val_count;         /* VALs selected (paper 000 sec. 4), in all, shared by the rendered RSMs
-                                   by importance (per_light_budget: per RSM); 0: 2048 */
-    uint32_t temporal_steps;    /* L > 1, temporal coherence (the aim of Laine et al.'s incremental
-                                   instant radiosity, 2007): the random offsets of the BRSM selection
-                                   and, with rotate_view_samples, of the view samples move by 1/L of
-                                   their points' spacing a frame (gim_drift_offsets) instead of
-                                   being drawn anew, so each VAL moves to a nearby texel or stays;
-                                   each frame is still unbiased and as stratified. Cornell box, 128
-                                   VALs (tests/gltest_temporal.c): L = 32 leaves 0.15 of the frame-
-                                   to-frame change, each frame's error 0.067 against 0.064; L = 128:
-                                   0.034, 0.073. Nothing is kept that a moving light could make stale:
-                                   every VAL is read from this frame's RSM. 0 or 1: new offsets every
-                                   frame; at most GIM_MAX_TEMPORAL_STEPS */
-    float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
-                                   bounds of the instances; else within 1e-3..1e3 of it */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
-    gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
-    int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
-    float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
-    uint32_t gather_samples;    /* RSM_GATHER: texels per pixel and light; 0: 256; at most 16384 */
-    float gather_radius;        /* RSM_GATHER: pattern radius as a fraction of the RSM side; 0: 1.5, the whole
-                                   RSM from any point of it (Dachsbacher's 0.15 left 0.24 of an open
-                                   corner's light, tests/gltest_physics.c) */
-    /* the VPL methods (CLUSTERED, SSVP); see the twins of the VPL methods in @section twins */
-    uint32_t vpl_count;         /* first-bounce VPLs in all, split evenly over the rendered RSMs (per_light_budget:
-                                   per RSM); 0: 4096 (with the default interleave of 8, 64 per
-                                   pixel: at 1024, 57-79% of the pixels of an open corner came within 20%
-                                   of the closed form, at 4096 84-92%); <= 32768 in all */
+} gim_frame_lightskin;
+
+/* RSM_GATHER (gim_frame.gather). */
+typedef struct gim_frame_gather {
+    uint32_t samples;           /* texels per pixel and light; 0: 256; at most 16384 */
+    float radius;               /* pattern radius as a fraction of the RSM side; 0: 1.5, the whole RSM from
+                                   any point of it (Dachsbacher's 0.15 misses much of an open corner's light) */
+} gim_frame_gather;
+
+/* The VPL methods, CLUSTERED and SSVP (gim_frame.vpl; see their twins in @section twins). */
+typedef struct gim_frame_vpl {
+    uint32_t count;             /* first-bounce VPLs in all, split evenly over the rendered RSMs
+                                   (per_light_budget: per RSM); 0: 4096 (64 per pixel with the default
+                                   interleave of 8; 1024 is visibly noisier); <= 32768 in all */
     uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
                                    <= 256 and <= the VPLs */
     uint32_t kmeans_iterations; /* k-means steps per frame; 0: 3 from the last frame's centres, 8 from seeds */
     int kmeans_restart;         /* 1: k-means restarts from the same seeds every frame (Dong sec. 5.2); 0: warm
-                                   from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded
-                                   (Dong's reason to restart). On the Cornell box with the light turning 1
-                                   degree a frame the restart relabels clusters (centres jump 0.33 scene
-                                   scales: a near-uniform patch has many equal clusterings), warm moves them
-                                   0.009 (tests/gltest_vplframe.c) */
+                                   from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded;
+                                   warm keeps the clusters from jumping between frames */
     uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
     int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
                                    still renders its attribute maps) */
@@ -1588,30 +1594,38 @@ typedef struct gim_frame {
                                    k x k; 0: 8 (Dong sec. 6); 1: every VPL at every pixel, no blur */
     float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
     float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
+} gim_frame_vpl;
+
+/* Input of gim_update: the settings every method shares, then one sub-struct per method family
+   (a method reads only its own). Zero means default everywhere; gim_frame_defaults writes every
+   default out. */
+typedef struct gim_frame {
+    gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
+    uint32_t width, height;     /* G-buffer size in pixels (the host's viewport), > 0 */
+    gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
+    uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
+    float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
+                                   bounds of the instances; else within 1e-3..1e3 of it */
+    float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
+    int per_light_budget;       /* 0: lightskin.val_count and vpl.count are totals for the frame: BRSM splits
+                                   val_count over the rendered RSMs in proportion to their importance totals
+                                   (each one's power reaching the view samples; one read-back), at least one
+                                   VAL to each whose total is > 0, none to one whose total is 0; each light's
+                                   VALs weigh 1 / (N_l P), so the image's expectation does not depend on the
+                                   split. The VPL methods split vpl.count evenly. 1: every rendered RSM gets
+                                   val_count VALs, vpl.count VPLs */
+    int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
     int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
                                    2: glFinish after every pass, then the CPU's clock (see
                                    gim_stats.cpu_clock): a driver that runs queued work at a later
                                    flush (llvmpipe, even between timestamps) still charges it to
                                    its pass; it serialises the frame, for profiling only;
                                    other values: GIM_ERROR_OUT_OF_RANGE */
-    gim_visibility visibility;  /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
-                                   their paraboloid maps, ISM is one map per VPL (not with no_visibility;
-                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
-    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64), halved
-                                   until every cache's map fits one shader storage block (at 128 MiB: 64^2 up
-                                   to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP: GIM_ISM_DEFAULT_VPL_SIZE
-                                   (32: their maps are made every frame) */
-    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
-                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
-    int per_light_budget;       /* 0: val_count and vpl_count are totals for the frame. BRSM splits val_count
-                                   over the rendered RSMs in proportion to their importance totals (the sum
-                                   of each one's eq. 10-11 map: its power reaching the view samples), at
-                                   least one VAL to each whose total is > 0, none to one whose total is 0
-                                   (one read-back of the totals; a single rendered RSM gets all, unread);
-                                   each light's VALs weigh 1 / (N_l P), so the image's expectation does not
-                                   depend on the split. The VPL methods (no importance) split vpl_count
-                                   evenly. 1: every rendered RSM gets val_count VALs, vpl_count VPLs (the
-                                   budgets before issue 18) */
+    gim_frame_gbuffer gbuffer;       /* the host's G-buffer (all 0: gimany draws one) */
+    gim_frame_visibility visibility; /* indirect visibility: OFF or ISM */
+    gim_frame_lightskin lightskin;   /* LIGHTSKIN_BRSM, LIGHTSKIN_FULL */
+    gim_frame_gather gather;         /* RSM_GATHER */
+    gim_frame_vpl vpl;               /* CLUSTERED, SSVP */
 } gim_frame;
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light whose frustum meets an
@@ -8109,7 +8123,7 @@ static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where
         "GIM_NORMAL_XYZ_UNORM needs GL_RGB10_A2, GL_RGB(A)8 or GL_RGB(A)16",
         "GIM_NORMAL_OCTAHEDRAL needs GL_RG16_SNORM, GL_RG8_SNORM, GL_RG16F, GL_RG32F (or RGBA16F/32F/SNORM)",
         "GIM_NORMAL_OCTAHEDRAL_UNORM needs GL_RG16, GL_RG8, GL_RGB10_A2, GL_RGBA8 or GL_RGBA16"};
-    const gim__GLint *list = fr->gbuffer_depth_view_z ? view_z_formats : depth_formats;
+    const gim__GLint *list = fr->gbuffer.depth_view_z ? view_z_formats : depth_formats;
     gim__GLint f = 0;
     unsigned i, ok = 0;
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, depth);
@@ -8117,18 +8131,18 @@ static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where
     for (i = 0; list[i]; ++i) ok |= f == list[i];
     if (!ok)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
-                         fr->gbuffer_depth_view_z ? "gbuffer_depth has internal format 0x%04x: view-space depth needs GL_R32F "
+                         fr->gbuffer.depth_view_z ? "gbuffer_depth has internal format 0x%04x: view-space depth needs GL_R32F "
                                                     "or GL_R16F"
                                                   : "gbuffer_depth has internal format 0x%04x: it must be a depth format "
                                                     "(GL_DEPTH_COMPONENT16/24/32/32F, GL_DEPTH24_STENCIL8, GL_DEPTH32F_STENCIL8; "
                                                     "or set gbuffer_depth_view_z)", (unsigned)f);
     ctx->gl.BindTexture(GIM__GL_TEXTURE_2D, normal);
     ctx->gl.GetTexLevelParameteriv(GIM__GL_TEXTURE_2D, 0, GIM__GL_TEXTURE_INTERNAL_FORMAT, &f);
-    list = normal_formats[fr->gbuffer_normal_encoding];
+    list = normal_formats[fr->gbuffer.normal_encoding];
     for (i = 0, ok = 0; list[i]; ++i) ok |= f == list[i];
     if (!ok)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_normal has internal format 0x%04x: %s",
-                         (unsigned)f, normal_names[fr->gbuffer_normal_encoding]);
+                         (unsigned)f, normal_names[fr->gbuffer.normal_encoding]);
     /* texture state texelFetch obeys and no sampler overrides: the host's to keep, so refused */
     for (i = 0; i < 2; ++i) {
         gim__GLint v = 0, k;
@@ -8306,8 +8320,8 @@ static uint32_t gim__select_seed(uint32_t frame_index, uint32_t light) {
    seed, or with f->temporal_steps L > 1 light i's offsets of frame 0 moved by frame_index / (count
    L) (gim_drift_offsets). */
 static void gim__select_offsets(const gim_frame *f, uint32_t light, uint32_t count, float off[4]) {
-    if (f->temporal_steps > 1u)
-        gim_drift_offsets(off, 2u, gim__select_seed(0u, light), f->frame_index, 1.0 / ((double)count * f->temporal_steps));
+    if (f->lightskin.temporal_steps > 1u)
+        gim_drift_offsets(off, 2u, gim__select_seed(0u, light), f->frame_index, 1.0 / ((double)count * f->lightskin.temporal_steps));
     else
         gim_rotation_offsets(off, 4u, gim__select_seed(f->frame_index, light));
 }
@@ -10153,7 +10167,7 @@ static void gim__gl_nearest_sampler(gim_context *ctx) {
    computed here and uploaded: the same pixels as the twin, bit for bit), unprojected. */
 /* 1 when the frame's host G-buffer needs the decode pass (not gimany's own layout). */
 static int gim__gbuffer_needs_decode(const gim_frame *f) {
-    return f->gbuffer_depth && (f->gbuffer_normal_encoding != GIM_NORMAL_XYZ || f->gbuffer_view_space || f->gbuffer_depth_view_z);
+    return f->gbuffer.depth && (f->gbuffer.normal_encoding != GIM_NORMAL_XYZ || f->gbuffer.view_space || f->gbuffer.depth_view_z);
 }
 
 /* The host's packed G-buffer into decoded_normal / decoded_depth (shaders/gbuffer_decode.comp;
@@ -10188,10 +10202,10 @@ static gim_result gim__gl_gbuffer_decode(gim_context *ctx, const gim_frame *f, g
     gl->BindImageTexture(1, ctx->decoded_depth, 0, GIM__GL_FALSE, 0, GIM__GL_WRITE_ONLY, GIM__GL_R32F);
     gl->UseProgram(program);
     gl->Uniform2ui(0, f->width, f->height);
-    gl->Uniform1i(1, (gim__GLint)f->gbuffer_normal_encoding);
-    gl->Uniform1i(2, f->gbuffer_view_space ? 1 : 0);
+    gl->Uniform1i(1, (gim__GLint)f->gbuffer.normal_encoding);
+    gl->Uniform1i(2, f->gbuffer.view_space ? 1 : 0);
     gl->UniformMatrix4fv(3, 1, GIM__GL_FALSE, r3.m);
-    gl->Uniform1i(7, f->gbuffer_depth_view_z ? 1 : 0);
+    gl->Uniform1i(7, f->gbuffer.depth_view_z ? 1 : 0);
     gl->Uniform4f(8, f->proj.m[10], f->proj.m[14], f->proj.m[11], f->proj.m[15]);
     gl->DispatchCompute((f->width + 7u) / 8u, (f->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
@@ -10213,12 +10227,12 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     if (!gim_mat4_invert(f->view, &inv_view) || !gim_mat4_invert(f->proj, &inv_proj))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is singular");
     off[0] = off[1] = 0.0f;
-    if (f->rotate_view_samples && f->temporal_steps > 1u) {   /* frame 0's offsets, moving 1 / (count L) a frame */
+    if (f->lightskin.rotate_view_samples && f->lightskin.temporal_steps > 1u) {   /* frame 0's offsets, moving 1 / (count L) a frame */
         float o4[4];
-        gim_drift_offsets(o4, 2u, 0u, f->frame_index, 1.0 / ((double)count * f->temporal_steps));
+        gim_drift_offsets(o4, 2u, 0u, f->frame_index, 1.0 / ((double)count * f->lightskin.temporal_steps));
         off[0] = o4[0];
         off[1] = o4[1];
-    } else if (f->rotate_view_samples) {
+    } else if (f->lightskin.rotate_view_samples) {
         gim_rotation_offsets(off, 2u, f->frame_index);
     }
     r = gim__gl_sized_buffer(ctx, &ctx->view_samples, &ctx->view_samples_bytes, (uint64_t)count * 32u, where);
@@ -10226,10 +10240,10 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     /* the pixels depend on these only: made and uploaded when one changes */
     if (!ctx->view_sample_pixels || ctx->view_sample_key[0] != count || ctx->view_sample_key[1] != f->width ||
         ctx->view_sample_key[2] != f->height || ctx->view_sample_off[0] != off[0] || ctx->view_sample_off[1] != off[1] ||
-        ctx->view_sample_off[2] != (f->rotate_view_samples ? 1.0f : 0.0f)) {
+        ctx->view_sample_off[2] != (f->lightskin.rotate_view_samples ? 1.0f : 0.0f)) {
         pixels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
         if (!pixels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u view samples", (unsigned)count);
-        gim_view_sample_pixels(count, f->width, f->height, f->rotate_view_samples ? off : NULL, pixels);
+        gim_view_sample_pixels(count, f->width, f->height, f->lightskin.rotate_view_samples ? off : NULL, pixels);
         ctx->view_sample_key[0] = 0;
         r = gim__gl_sized_buffer(ctx, &ctx->view_sample_pixels, &ctx->view_sample_pixels_bytes, (uint64_t)count * 8u, where);
         if (r == GIM_OK) {
@@ -10240,7 +10254,7 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
             ctx->view_sample_key[2] = f->height;
             ctx->view_sample_off[0] = off[0];
             ctx->view_sample_off[1] = off[1];
-            ctx->view_sample_off[2] = f->rotate_view_samples ? 1.0f : 0.0f;
+            ctx->view_sample_off[2] = f->lightskin.rotate_view_samples ? 1.0f : 0.0f;
         }
         gim__free(&ctx->env, pixels);
         if (r != GIM_OK) return r;
@@ -10628,7 +10642,7 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
         gim__ism_release(ctx);
         return GIM_OK;
     }
-    n = f->neighbour_count ? f->neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
+    n = f->lightskin.neighbour_count ? f->lightskin.neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
     if (ls->caches && ctx->ls_version == ctx->scene_version && ctx->ls_scale == scale) {
         grid = ctx->ls_grid;   /* nothing moved: the world caches and their grid stand */
         goto vals;
@@ -10743,10 +10757,10 @@ vals:
         eye[0] = c[0]; eye[1] = c[1]; eye[2] = c[2];
     }
     memset(&ism, 0, sizeof ism);
-    if (f->visibility == GIM_VISIBILITY_ISM) {
+    if (f->visibility.mode == GIM_VISIBILITY_ISM) {
         /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
         uint32_t size = gim__ism_frame_size(ctx, f, total);
-        uint32_t per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_POINTS;
+        uint32_t per = f->visibility.ism_points ? f->visibility.ism_points : GIM_ISM_DEFAULT_POINTS;
         uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
         if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
             ctx->ism_scale != scale || ctx->ism_point_count != pool) {
@@ -10774,8 +10788,8 @@ vals:
     memset(&sa, 0, sizeof sa);
     sa.depth = depth;
     sa.normal = normal;
-    sa.albedo = f->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
-    sa.material = f->gbuffer_depth ? 0u : ctx->gbuffer_material;
+    sa.albedo = f->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
+    sa.material = f->gbuffer.depth ? 0u : ctx->gbuffer_material;
     sa.width = f->width;
     sa.height = f->height;
     sa.view = f->view;
@@ -11016,9 +11030,9 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
                                      float scale, gim__GLenum format) {
     static const char where[] = "RSM gather (GL)";
     const gim__gl *gl = &ctx->gl;
-    uint32_t n = f->gather_samples ? f->gather_samples : GIM__GATHER_DEFAULT_SAMPLES, i, on;
-    float frac = f->gather_radius > 0.0f ? f->gather_radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL;
-    int host = f->gbuffer_depth != 0;
+    uint32_t n = f->gather.samples ? f->gather.samples : GIM__GATHER_DEFAULT_SAMPLES, i, on;
+    float frac = f->gather.radius > 0.0f ? f->gather.radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL;
+    int host = f->gbuffer.depth != 0;
     gim__GLuint program = 0;
     uint64_t stride;
     int same = ctx->gather_samples && ctx->gather_key_n == n && ctx->gather_key_lights == ctx->light_count &&
@@ -11369,7 +11383,7 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
 /* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
    Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
    RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (warm from the
-   last frame's centres, or seeded every frame: gim_frame.kmeans_restart) -> the clusters' VALs and
+   last frame's centres, or seeded every frame: gim_frame.vpl.kmeans_restart) -> the clusters' VALs and
    paraboloid parameters (clusters.comp) -> a layered pass of paraboloid maps for each of
    visibility (distance) and the second bounce (position, normal, albedo), each with its own
    near skip -> second-bounce VPLs -> per
@@ -11404,17 +11418,17 @@ typedef struct gim__vpl_settings {
 
 static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->ssvp = f->method == GIM_METHOD_SSVP;
-    s->visibility = !f->no_visibility;
-    s->vpls = f->vpl_count ? f->vpl_count : 4096u;   /* 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024: 57-79% */
-    s->clusters = f->cluster_count ? f->cluster_count : s->ssvp ? 8u : 30u;
-    s->restart = f->kmeans_restart != 0;
-    s->iterations = f->kmeans_iterations ? f->kmeans_iterations : s->restart ? 8u : 3u;
-    s->size = f->paraboloid_size ? f->paraboloid_size : 256u;
-    s->bounces = f->bounces ? f->bounces : s->ssvp ? 2u : 1u;
-    s->second = s->bounces == 2u ? (f->second_bounce_vpls ? f->second_bounce_vpls : 256u) : 0u;
-    s->interleave = f->interleave ? f->interleave : 8u;
-    s->clamp_distance = f->clamp_distance < 0.0f ? 0.0f : f->clamp_distance > 0.0f ? f->clamp_distance : 0.01f;
-    s->blur_distance = f->blur_distance > 0.0f ? f->blur_distance : 0.1f;
+    s->visibility = !f->vpl.no_visibility;
+    s->vpls = f->vpl.count ? f->vpl.count : 4096u;   /* 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024: 57-79% */
+    s->clusters = f->vpl.cluster_count ? f->vpl.cluster_count : s->ssvp ? 8u : 30u;
+    s->restart = f->vpl.kmeans_restart != 0;
+    s->iterations = f->vpl.kmeans_iterations ? f->vpl.kmeans_iterations : s->restart ? 8u : 3u;
+    s->size = f->vpl.paraboloid_size ? f->vpl.paraboloid_size : 256u;
+    s->bounces = f->vpl.bounces ? f->vpl.bounces : s->ssvp ? 2u : 1u;
+    s->second = s->bounces == 2u ? (f->vpl.second_bounce_vpls ? f->vpl.second_bounce_vpls : 256u) : 0u;
+    s->interleave = f->vpl.interleave ? f->vpl.interleave : 8u;
+    s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance > 0.0f ? f->vpl.clamp_distance : 0.01f;
+    s->blur_distance = f->vpl.blur_distance > 0.0f ? f->vpl.blur_distance : 0.1f;
 }
 
 /* First-bounce VPLs of a frame with `lights` rendered RSMs: vpl_count each (per_light_budget),
@@ -11438,7 +11452,7 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "gim_update";
     gim__vpl_settings s;
     uint32_t lights = ctx->light_count ? ctx->light_count : 1u;
-    if (!gim__isfinitef(f->clamp_distance) || !gim__isfinitef(f->blur_distance) || f->blur_distance < 0.0f)
+    if (!gim__isfinitef(f->vpl.clamp_distance) || !gim__isfinitef(f->vpl.blur_distance) || f->vpl.blur_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
                          "(blur_distance >= 0)");
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
@@ -11514,11 +11528,11 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
-    uint32_t i, k, off, first, total, it, iterations, ism_size = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_SIZE;
+    uint32_t i, k, off, first, total, it, iterations, ism_size = f->visibility.ism_size ? f->visibility.ism_size : GIM_ISM_DEFAULT_SIZE;
     gim_result r = GIM_OK;
-    uint32_t ism_per = f->ism_points ? f->ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
+    uint32_t ism_per = f->visibility.ism_points ? f->visibility.ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
-    int warm, ism = f->visibility == GIM_VISIBILITY_ISM;
+    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
@@ -11561,7 +11575,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
     if (r == GIM_OK) r = gim__gl_clusters_reset(ctx);
     if (r == GIM_OK && !warm) r = gim__gl_clusters(ctx, first, s.clusters, scale, 1u);
-    iterations = warm || s.iterations >= 8u || f->kmeans_iterations ? s.iterations : 8u;   /* from seeds: 8 at least */
+    iterations = warm || s.iterations >= 8u || f->vpl.kmeans_iterations ? s.iterations : 8u;   /* from seeds: 8 at least */
     for (it = 0; it < iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */
         r = gim__gl_kmeans_step(ctx, v->vpls, first, v->centres, s.clusters, v->cluster_of,
                                 s.ssvp ? GIM_KMEANS_METRIC_SSVP : GIM_KMEANS_METRIC_DONG, 0.0f, 0.0f, scale);
@@ -11641,8 +11655,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         memset(&a, 0, sizeof a);
         a.depth = depth;
         a.normal = normal;
-        a.albedo = f->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
-        a.material = f->gbuffer_depth ? 0u : ctx->gbuffer_material;
+        a.albedo = f->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
+        a.material = f->gbuffer.depth ? 0u : ctx->gbuffer_material;
         a.width = f->width;
         a.height = f->height;
         a.view = f->view;
@@ -11717,25 +11731,25 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..GL limits (%d, viewport %dx%d)",
                          (unsigned)f->width, (unsigned)f->height, (int)ctx->max_texture_size, (int)ctx->max_viewport[0],
                          (int)ctx->max_viewport[1]);
-    if ((f->gbuffer_depth == 0) != (f->gbuffer_normal == 0))
+    if ((f->gbuffer.depth == 0) != (f->gbuffer.normal == 0))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_depth and gbuffer_normal: both or neither");
-    if ((unsigned)f->gbuffer_normal_encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
+    if ((unsigned)f->gbuffer.normal_encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown gbuffer_normal_encoding %d",
-                         (int)f->gbuffer_normal_encoding);
-    if (!f->gbuffer_depth && (f->gbuffer_normal_encoding != GIM_NORMAL_XYZ || f->gbuffer_view_space || f->gbuffer_depth_view_z))
+                         (int)f->gbuffer.normal_encoding);
+    if (!f->gbuffer.depth && (f->gbuffer.normal_encoding != GIM_NORMAL_XYZ || f->gbuffer.view_space || f->gbuffer.depth_view_z))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "gbuffer_normal_encoding, gbuffer_view_space and "
                          "gbuffer_depth_view_z describe the host's G-buffer: none is given");
-    if (f->view_sample_count > GIM__MAX_VIEW_SAMPLES)
+    if (f->lightskin.view_sample_count > GIM__MAX_VIEW_SAMPLES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "view_sample_count %u above %u",
-                         (unsigned)f->view_sample_count, GIM__MAX_VIEW_SAMPLES);
-    if (f->val_count > 65535u * 64u)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "val_count %u above %u", (unsigned)f->val_count,
+                         (unsigned)f->lightskin.view_sample_count, GIM__MAX_VIEW_SAMPLES);
+    if (f->lightskin.val_count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "val_count %u above %u", (unsigned)f->lightskin.val_count,
                          65535u * 64u);
-    if (f->temporal_steps > GIM_MAX_TEMPORAL_STEPS)
+    if (f->lightskin.temporal_steps > GIM_MAX_TEMPORAL_STEPS)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "temporal_steps %u above %u",
-                         (unsigned)f->temporal_steps, GIM_MAX_TEMPORAL_STEPS);
-    if (!gim__isfinitef(f->scene_scale) || f->scene_scale < 0.0f || !gim__isfinitef(f->importance_clamp) ||
-        f->importance_clamp < 0.0f)
+                         (unsigned)f->lightskin.temporal_steps, GIM_MAX_TEMPORAL_STEPS);
+    if (!gim__isfinitef(f->scene_scale) || f->scene_scale < 0.0f || !gim__isfinitef(f->lightskin.importance_clamp) ||
+        f->lightskin.importance_clamp < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale and importance_clamp: finite, >= 0");
     if (f->method != GIM_METHOD_DEFAULT && f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL &&
         f->method != GIM_METHOD_RSM_GATHER && f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP)
@@ -11744,15 +11758,15 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         gim_result r = gim__vpl_check(ctx, f);
         if (r != GIM_OK) return r;
     }
-    if (f->gather_samples > 16384u || !gim__isfinitef(f->gather_radius) || f->gather_radius < 0.0f || f->gather_radius > 2.0f)
+    if (f->gather.samples > 16384u || !gim__isfinitef(f->gather.radius) || f->gather.radius < 0.0f || f->gather.radius > 2.0f)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "gather_samples at most 16384, gather_radius in [0, 2]");
     if (!gim__isfinitef(f->view_distance) || f->view_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view_distance must be finite and >= 0");
     if (f->timing < 0 || f->timing > 2)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "timing %d: 0 (off), 1 (GL timestamps) or 2 (glFinish and the CPU clock)", f->timing);
-    if (f->neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->neighbour_count,
+    if (f->lightskin.neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->lightskin.neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
     if (ctx->instance_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no instances");
     for (i = 0; i < 3; ++i) { bmin[i] = FLT_MAX; bmax[i] = -FLT_MAX; }
@@ -11787,7 +11801,7 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
    texel fit one shader storage block (never below GIM_ISM_MIN_SIZE). */
 static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches) {
     uint32_t size = GIM_ISM_DEFAULT_SIZE;
-    if (f->ism_size) return f->ism_size;
+    if (f->visibility.ism_size) return f->visibility.ism_size;
     while (size > GIM_ISM_MIN_SIZE && caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes) size /= 2u;
     return size;
 }
@@ -11797,23 +11811,23 @@ static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, 
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
     uint32_t size, i;
     uint64_t caches = 0;
-    if (f->visibility != GIM_VISIBILITY_DEFAULT && f->visibility != GIM_VISIBILITY_OFF && f->visibility != GIM_VISIBILITY_ISM)
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility);
-    if (f->visibility != GIM_VISIBILITY_ISM) return GIM_OK;
+    if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF && f->visibility.mode != GIM_VISIBILITY_ISM)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility.mode);
+    if (f->visibility.mode != GIM_VISIBILITY_ISM) return GIM_OK;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     size = gim__ism_frame_size(ctx, f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
-                         (unsigned)f->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
-    if (f->ism_points > GIM_ISM_MAX_POINTS)
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->ism_points,
+                         (unsigned)f->visibility.ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (f->visibility.ism_points > GIM_ISM_MAX_POINTS)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->visibility.ism_points,
                          GIM_ISM_MAX_POINTS);
     if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
         gim__vpl_settings s;
         uint64_t maps;
-        uint32_t vsize = f->ism_size ? f->ism_size : GIM_ISM_DEFAULT_VPL_SIZE;
+        uint32_t vsize = f->visibility.ism_size ? f->visibility.ism_size : GIM_ISM_DEFAULT_VPL_SIZE;
         gim__vpl_settings_of(f, &s);
-        if (f->no_visibility)
+        if (f->vpl.no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
         maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
         if (maps * vsize * vsize * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
@@ -12005,8 +12019,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "positions are too coarse there; move the world origin near the scene",
                              diag, d, GIM__MAX_ORIGIN_DIAGONALS);
     }
-    vs_count = frame->view_sample_count ? frame->view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
-    val_count = frame->val_count ? frame->val_count : GIM__DEFAULT_VAL_COUNT;
+    vs_count = frame->lightskin.view_sample_count ? frame->lightskin.view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
+    val_count = frame->lightskin.val_count ? frame->lightskin.val_count : GIM__DEFAULT_VAL_COUNT;
     gather = frame->method == GIM_METHOD_RSM_GATHER;
     vplm = frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP;
     full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather || vplm;   /* none needs importance */
@@ -12035,9 +12049,9 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         ctx->light_on_count++;
         gim__stamp(ctx, frame->timing, GIM_PASS_RSM);
     }
-    if (r == GIM_OK && frame->gbuffer_depth) {
-        depth = frame->gbuffer_depth;
-        normal = frame->gbuffer_normal;
+    if (r == GIM_OK && frame->gbuffer.depth) {
+        depth = frame->gbuffer.depth;
+        normal = frame->gbuffer.normal;
         ctx->own_objects = 0;   /* the host's */
         r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
         if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
@@ -12079,7 +12093,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->size * 8u, where);
         if (r == GIM_OK)
             r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
-                                       scale, frame->importance_clamp, g->map);
+                                       scale, frame->lightskin.importance_clamp, g->map);
         gim__stamp(ctx, frame->timing, GIM_PASS_IMPORTANCE_MAP);
     }
     for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) { /* apart, so the stamps of a pass merge */
@@ -12143,8 +12157,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     o.height = frame->height;
     o.gbuffer_depth = depth;
     o.gbuffer_normal = normal;
-    o.gbuffer_albedo = frame->gbuffer_depth ? 0u : ctx->gbuffer_albedo;
-    o.gbuffer_material = frame->gbuffer_depth ? 0u : ctx->gbuffer_material;
+    o.gbuffer_albedo = frame->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
+    o.gbuffer_material = frame->gbuffer.depth ? 0u : ctx->gbuffer_material;
     o.view_samples = full ? 0u : ctx->view_samples;
     o.view_sample_count = full ? 0u : vs_count;
     o.scene_scale = scale;
@@ -12235,7 +12249,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     if (r != GIM_OK) return r;
     /* what gim_update's passes build for this method and these settings */
     ids[n++] = GIM__PROGRAM_RSM;
-    if (!frame->gbuffer_depth) ids[n++] = GIM__PROGRAM_GBUFFER;
+    if (!frame->gbuffer.depth) ids[n++] = GIM__PROGRAM_GBUFFER;
     if (gim__gbuffer_needs_decode(frame)) ids[n++] = GIM__PROGRAM_GBUFFER_DECODE;
     if (frame->method == GIM_METHOD_RSM_GATHER) {
         ids[n++] = GIM__PROGRAM_RSM_GATHER;
@@ -12246,8 +12260,8 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_CLUSTERS;
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
-        if ((s.visibility && frame->visibility != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
-        if (frame->visibility == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        if ((s.visibility && frame->visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
+        if (frame->visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;
@@ -12262,7 +12276,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         }
         ids[n++] = GIM__PROGRAM_VALS_GATHER;
         ids[n++] = GIM__PROGRAM_PROXY_LIGHTS;
-        if (frame->visibility == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        if (frame->visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         ids[n++] = GIM__PROGRAM_LIGHTSKIN_SHADE;
     }
     for (i = 0; i < ctx->instance_count; ++i) {   /* a deforming mesh's bounds and caches follow it */

@@ -314,12 +314,12 @@ int main(int argc, char **argv) {
         /* 2. gimany's indirect light on that G-buffer */
         f.width = (uint32_t)width;
         f.height = (uint32_t)height;
-        f.gbuffer_depth = tex[0];
-        f.gbuffer_normal = tex[1];
-        f.gbuffer_normal_encoding = GIM_NORMAL_OCTAHEDRAL_UNORM;
-        f.val_count = 512;
+        f.gbuffer.depth = tex[0];
+        f.gbuffer.normal = tex[1];
+        f.gbuffer.normal_encoding = GIM_NORMAL_OCTAHEDRAL_UNORM;
+        f.lightskin.val_count = 512;
         f.frame_index = (uint32_t)frame;
-        f.rotate_view_samples = 1;
+        f.lightskin.rotate_view_samples = 1;
         CHECK(gim_update(ctx, &f));
         /* 3. composite to the window */
         glUseProgram(cprog);

@@ -25,7 +25,7 @@ typedef struct demo_options {
     uint32_t view_samples;
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
-    int ism;                 /* brsm, full: 1 turns on gim_frame.visibility = ISM */
+    int ism;                 /* brsm, full: 1 turns on gim_frame.visibility.mode = ISM */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;

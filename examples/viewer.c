@@ -223,16 +223,16 @@ static int run(viewer *v, GLFWwindow *w) {
         f.width = (uint32_t)fw;
         f.height = (uint32_t)fh;
         f.method = demo_method(&v->d);
-        f.vpl_count = v->d.vpls;
-        f.cluster_count = v->d.clusters;
-        f.bounces = (uint32_t)v->bounces;
-        f.no_visibility = v->d.no_visibility;
-        f.val_count = v->d.vals;
-        f.view_sample_count = v->d.view_samples;
-        f.visibility = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
-        f.ism_size = v->d.ism_size;
-        f.ism_points = v->d.ism_points;
-        f.rotate_view_samples = 1;
+        f.vpl.count = v->d.vpls;
+        f.vpl.cluster_count = v->d.clusters;
+        f.vpl.bounces = (uint32_t)v->bounces;
+        f.vpl.no_visibility = v->d.no_visibility;
+        f.lightskin.val_count = v->d.vals;
+        f.lightskin.view_sample_count = v->d.view_samples;
+        f.visibility.mode = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+        f.visibility.ism_size = v->d.ism_size;
+        f.visibility.ism_points = v->d.ism_points;
+        f.lightskin.rotate_view_samples = 1;
         f.frame_index = frame;
         f.timing = 1;
         if (gim_update(v->ctx, &f) != GIM_OK) { rc = 1; break; }

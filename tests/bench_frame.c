@@ -27,7 +27,7 @@
    (visibility_over_off: the maps' lookups; the maps are reused while the scene stands still)
    and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2; on the
    row of the first VAL count of each RSM size, the others reuse the maps).
-   brsm-temporal: BRSM at the default VAL count with gim_frame.temporal_steps 32 (its flicker
+   brsm-temporal: BRSM at the default VAL count with gim_frame.lightskin.temporal_steps 32 (its flicker
    against brsm's at the same count).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
@@ -73,16 +73,16 @@ struct bench_method {
 
 static void setup_gather(gim_frame *f, const bench_method *m) {
     (void)m;
-    f->gather_samples = 256;   /* over gather_radius 0: 0.15 of the RSM */
+    f->gather.samples = 256;   /* over gather_radius 0: 0.15 of the RSM */
 }
 
 /* the VPL methods (issue 5): clusters, second-bounce VPLs and bounces of the row, the rest at
    the library's defaults (1024 Halton VPLs for clustered, 256 Hammersley for SSVP; 256^2
    paraboloid maps; 8 x 8 interleaving) */
 static void setup_vpl(gim_frame *f, const bench_method *m) {
-    f->cluster_count = m->clusters;
-    f->second_bounce_vpls = m->second_bounce_vpls;
-    f->bounces = m->bounces;
+    f->vpl.cluster_count = m->clusters;
+    f->vpl.second_bounce_vpls = m->second_bounce_vpls;
+    f->vpl.bounces = m->bounces;
 }
 
 /* LightSkin with imperfect shadow maps per cache (Ritschel et al. 2008) at the library's
@@ -90,12 +90,12 @@ static void setup_vpl(gim_frame *f, const bench_method *m) {
    visibility_over_off column divides by */
 static void setup_ism(gim_frame *f, const bench_method *m) {
     (void)m;
-    f->visibility = GIM_VISIBILITY_ISM;
+    f->visibility.mode = GIM_VISIBILITY_ISM;
 }
 
 static void setup_temporal(gim_frame *f, const bench_method *m) {
     (void)m;
-    f->temporal_steps = 32;   /* the offsets move 1/32 of their spacing a frame */
+    f->lightskin.temporal_steps = 32;   /* the offsets move 1/32 of their spacing a frame */
 }
 
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
@@ -287,7 +287,7 @@ static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
         g->lights[0].direction = gim_v3((float)(cos(a) * d0.x + sin(a) * d0.z), d0.y, (float)(-sin(a) * d0.x + cos(a) * d0.z));
         gim_set_lights(ctx, g->lights, g->light_count);
         f.frame_index = (uint32_t)k + 1u;
-        f.rotate_view_samples = 1;
+        f.lightskin.rotate_view_samples = 1;
         update(ctx, &f);
         read_image(ctx, cur);
         if (k > 0) {
@@ -312,10 +312,10 @@ static void clamp_loss(gim_context *ctx, gim_frame f, const float *img_default, 
     double sa = 0.0, sb = 0.0;
     int i;
     (void)img_default;
-    f.kmeans_restart = 1;
+    f.vpl.kmeans_restart = 1;
     update(ctx, &f);
     read_image(ctx, a);
-    f.clamp_distance = -1.0f;
+    f.vpl.clamp_distance = -1.0f;
     update(ctx, &f);
     read_image(ctx, b);
     for (i = 0; i < W * H * 4; ++i) if (i % 4 != 3) { sa += a[i]; sb += b[i]; }
@@ -510,8 +510,8 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         gim_set_lights(ctx, g.lights, g.light_count);
         /* FULL (no warm-up: a BRSM frame at this size has built every program and buffer it shares) */
         f.method = GIM_METHOD_LIGHTSKIN_BRSM;
-        f.val_count = sw->vals[0];
-        f.view_sample_count = sw->view_samples[0];
+        f.lightskin.val_count = sw->vals[0];
+        f.lightskin.view_sample_count = sw->view_samples[0];
         update(ctx, &f);
         f.method = baseline.method;
         have_full = measure_frames(ctx, &f, 0, sw->full_runs, 1, &mf);
@@ -534,16 +534,16 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     gim_frame fm = f;
                     double c = -2.0, t_off = 0.0, ism_build = 0.0;
                     fm.method = bm->method;
-                    fm.val_count = bm->per_val ? sw->vals[vi] : 0;
-                    fm.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
+                    fm.lightskin.val_count = bm->per_val ? sw->vals[vi] : 0;
+                    fm.lightskin.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
-                    if (fm.visibility == GIM_VISIBILITY_ISM) {
+                    if (fm.visibility.mode == GIM_VISIBILITY_ISM) {
                         /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
                            a frame without them frees them, the next makes them */
                         if (vi == 0 && si == 0) {
                             gim_frame off = fm, build = fm;
                             gim_stats st;
-                            off.visibility = GIM_VISIBILITY_OFF;
+                            off.visibility.mode = GIM_VISIBILITY_OFF;
                             update(ctx, &off);
                             build.timing = 2;
                             update(ctx, &build);
@@ -558,7 +558,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     if (flick && si == 0) c = image_change(ctx, &g, fm);
                     if (bm->vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
-                    row(bs->name, bm, rsm, fm.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
+                    row(bs->name, bm, rsm, fm.lightskin.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
                         error_vs(img, bm->bounces == 2 ? ref2 : ref), bm->bounces == 2 ? ref2_noise : ref_noise, c,
                         c > -1.0 ? c - c_full : 0.0, t_off, ism_build);
                 }

@@ -126,16 +126,16 @@ static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *
     scene_gimany_camera(&s, &f.view, &f.proj);
     f.width = (uint32_t)W;
     f.height = (uint32_t)H;
-    f.val_count = val_count;
-    f.view_sample_count = 256;
+    f.lightskin.val_count = val_count;
+    f.lightskin.view_sample_count = 256;
     for (mi = 0; mi < METHOD_COUNT; ++mi) {
         double frame_ms, pass_ms[GIM_PASS_COUNT], mib;
         char passes[512];
         size_t used = 0;
         int k;
         f.method = methods[mi].method;
-        f.visibility = methods[mi].visibility;
-        f.bounces = methods[mi].bounces;
+        f.visibility.mode = methods[mi].visibility;
+        f.vpl.bounces = methods[mi].bounces;
         if (!measure(ctx, &f, &frame_ms, pass_ms, &mib)) {
             fprintf(out, "| %s | %s | refused (see the log line above) | | |\n", gs->name, methods[mi].name);
             continue;

@@ -78,7 +78,7 @@ static void row_all(const char *name, gim_method m, int per_light, uint32_t vals
     int s;
     fr.method = m;
     fr.per_light_budget = per_light;
-    fr.val_count = vals;
+    fr.lightskin.val_count = vals;
     fr.frame_index = 0;
     gim_set_lights(ctx, lights, NL);
     *ms = timed(img, st);
@@ -102,7 +102,7 @@ static void row_sum(gim_method m, uint32_t vals, double *ms, double *err, uint32
     gim_stats st;
     fr.method = m;
     fr.per_light_budget = 0;
-    fr.val_count = vals;
+    fr.lightskin.val_count = vals;
     *ms = 0.0;
     *err = 0.0;
     *vals_used = 0;
@@ -157,7 +157,7 @@ int main(void) {
     memset(&fr, 0, sizeof fr);
     lamps_view(&fr, W, H);
     fr.indirect_float32 = 1;
-    fr.view_sample_count = 256;
+    fr.lightskin.view_sample_count = 256;
     fr.timing = 2;
     printf("bench_lights: street, %d spots (24 lamps, 4 into the sky, 4 onto an unseen canopy), RSM %d^2, %dx%d, %s\n",
            NL, RSM, W, H, (const char *)glGetString(GL_RENDERER));

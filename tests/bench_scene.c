@@ -83,10 +83,10 @@ int main(void) {
     fr.proj = gim_mat4_perspective(1.0f, 16.0f / 9.0f, 0.5f, 60.0f);
     fr.width = 320;
     fr.height = 180;
-    fr.view_sample_count = 256;
-    fr.val_count = 1024;
+    fr.lightskin.view_sample_count = 256;
+    fr.lightskin.val_count = 1024;
     printf("bench_scene (%s): floor + 64 boxes, G-buffer %ux%u, %u view samples, %u VALs; median of %d, ms\n",
-           (const char *)glGetString(GL_RENDERER), fr.width, fr.height, fr.view_sample_count, fr.val_count, RUNS);
+           (const char *)glGetString(GL_RENDERER), fr.width, fr.height, fr.lightskin.view_sample_count, fr.lightskin.val_count, RUNS);
     for (s = 0; s < sizeof rsm_sizes / sizeof rsm_sizes[0]; ++s) {
         float bmin[3], bmax[3], fmin[3], fmax[3];
         gim_light fitted;

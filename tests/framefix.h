@@ -41,7 +41,7 @@ static FRAMEFIX_UNUSED int frame_begin(frame_fixture *ff, const char *gltf, uint
     scene_gimany_camera(&ff->s, &ff->fr.view, &ff->fr.proj);
     ff->fr.width = W;
     ff->fr.height = H;
-    ff->fr.view_sample_count = 128;
+    ff->fr.lightskin.view_sample_count = 128;
     ff->fr.indirect_float32 = 1;   /* RGBA16F rounds to 2^-11: compared once, in its own case */
     return 0;
 }
@@ -49,14 +49,14 @@ static FRAMEFIX_UNUSED int frame_begin(frame_fixture *ff, const char *gltf, uint
 /* Method m at sizes small enough for llvmpipe (every method's pass runs, little work each). */
 static FRAMEFIX_UNUSED void frame_small(frame_fixture *ff, gim_method m) {
     ff->fr.method = m;
-    ff->fr.view_sample_count = 16;
-    ff->fr.val_count = 64;
-    ff->fr.gather_samples = 16;
-    ff->fr.vpl_count = 64;
-    ff->fr.cluster_count = 4;
-    ff->fr.paraboloid_size = 16;
-    ff->fr.second_bounce_vpls = 16;
-    ff->fr.interleave = 2;
+    ff->fr.lightskin.view_sample_count = 16;
+    ff->fr.lightskin.val_count = 64;
+    ff->fr.gather.samples = 16;
+    ff->fr.vpl.count = 64;
+    ff->fr.vpl.cluster_count = 4;
+    ff->fr.vpl.paraboloid_size = 16;
+    ff->fr.vpl.second_bounce_vpls = 16;
+    ff->fr.vpl.interleave = 2;
 }
 
 static FRAMEFIX_UNUSED void frame_end(frame_fixture *ff) {

@@ -331,7 +331,7 @@ static void affine_caches(void **state) {
 static void image(int mode, const float *p, const gim_cache_set *caches, gim_visibility vis, float *rgba) {
     deform_fx h;
     setup(&h, mode, p, caches);
-    h.fr.visibility = vis;
+    h.fr.visibility.mode = vis;
     if (mode != 0) {
         assert_int_equal(gim_update(h.f.ctx, &h.fr), GIM_OK);   /* at rest: caches, grid, ISMs made for it */
         if (mode == 1) assert_int_equal(gim_update_mesh_vertices(h.f.ctx, h.plate, p, NULL, NV), GIM_OK);
@@ -382,7 +382,7 @@ static void same_as_static(void (*deform)(const float *, float *), gim_visibilit
     {   /* the pass and the invalidation off: the rest pose's frame */
         deform_fx r;
         setup(&r, 1, NULL, NULL);
-        r.fr.visibility = vis;
+        r.fr.visibility.mode = vis;
         assert_int_equal(gim_update(r.f.ctx, &r.fr), GIM_OK);
         gltest_read_texture(gim_outputs(r.f.ctx).indirect, GL_RGBA, rest);
         teardown(&r);

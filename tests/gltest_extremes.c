@@ -354,8 +354,8 @@ static void room_at(ex *e, double s, const double o[3], int use_spot, gim_method
     e->light = use_spot ? spot(40.0 * s * s, s, o, 32) : sun(3.0f, gim_v3(0.3f, 1.0f, 0.45f), 32);
     room_camera(&e->fr, s, o);
     e->fr.method = method;
-    e->fr.val_count = 512;
-    e->fr.view_sample_count = 64;
+    e->fr.lightskin.val_count = 512;
+    e->fr.lightskin.view_sample_count = 64;
     e->fr.indirect_float32 = 1;
     ex_frame(e, out);
 }
@@ -660,11 +660,11 @@ static void near_plane_and_coincident_caches(void **state) {
     ex_end(&e);
 
     room_at(&e, 1.0, o0, 0, GIM_METHOD_LIGHTSKIN_FULL, a);
-    e.fr.neighbour_count = 8;
+    e.fr.lightskin.neighbour_count = 8;
     ex_frame(&e, a);
     e.inst[1] = e.inst[0];
     e.inst_count = 2;
-    e.fr.neighbour_count = 16;
+    e.fr.lightskin.neighbour_count = 16;
     ex_frame(&e, b);
     assert_int_equal(gim_outputs(e.f.ctx).cache_count, 2u * e.set[0].count);
     ex_end(&e);
@@ -850,7 +850,7 @@ static void sizes_and_counts(void **state) {
         ex_frame(&e, a);
         assert_int_equal(gim_outputs(e.f.ctx).val_count, 1);
         e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
-        e.fr.val_count = 100;
+        e.fr.lightskin.val_count = 100;
         ex_frame(&e, b);
         print_message("RSM 1^2 %s: FULL %u lit, max %g; BRSM x100 %u lit, max %g\n", light ? "spot" : "sun", a->lit, a->max,
                       b->lit, b->max);
@@ -863,26 +863,26 @@ static void sizes_and_counts(void **state) {
     e.light.rsm_size = 8;
     ex_frame(&e, a);
     e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
-    e.fr.val_count = 8192;
+    e.fr.lightskin.val_count = 8192;
     ex_frame(&e, b);
     d = ex_compare(b, a, 1e-3, 1e-2);
     print_message("RSM 8^2, 8192 VALs vs FULL: max rel %.2e, mean rel %.2e, %u above 1e-2\n", d.max_rel, d.mean_rel, d.above);
     assert_true(d.mean_rel < 5e-3);
     /* one view sample, one neighbour */
-    e.fr.val_count = 256;
-    e.fr.view_sample_count = 1;
+    e.fr.lightskin.val_count = 256;
+    e.fr.lightskin.view_sample_count = 1;
     ex_frame(&e, b);
     print_message("1 view sample: %u lit, max %g, warnings %u\n", b->lit, b->max, b->warnings);
-    e.fr.view_sample_count = 64;
-    e.fr.neighbour_count = 1;
+    e.fr.lightskin.view_sample_count = 64;
+    e.fr.lightskin.neighbour_count = 1;
     ex_frame(&e, b);
     print_message("1 neighbour: %u lit, max %g\n", b->lit, b->max);
     assert_true(b->lit > b->drawn / 2);
     /* 2048^2, BRSM: the largest RSM llvmpipe holds quickly (4M texels x 52 bytes + 48 MB of tables) */
     e.light.rsm_size = 2048;
-    e.fr.neighbour_count = 0;
-    e.fr.view_sample_count = 16;
-    e.fr.val_count = 1024;
+    e.fr.lightskin.neighbour_count = 0;
+    e.fr.lightskin.view_sample_count = 16;
+    e.fr.lightskin.val_count = 1024;
     ex_frame(&e, b);
     print_message("RSM 2048^2 BRSM: %u lit, max %g\n", b->lit, b->max);
     assert_true(b->lit > b->drawn / 2);
@@ -1245,8 +1245,8 @@ static void light_unseen(void **state) {
     e.fr.view = look_along(c, u);
     e.fr.proj = gim_mat4_perspective(1.2f, (float)W / H, 0.05f, 5.0f);   /* the roof is behind the eye */
     e.fr.width = W; e.fr.height = H;
-    e.fr.val_count = 256;
-    e.fr.view_sample_count = 64;
+    e.fr.lightskin.val_count = 256;
+    e.fr.lightskin.view_sample_count = 64;
     ex_frame(&e, o);
     {
         gim_frame_outputs fo = gim_outputs(e.f.ctx);
@@ -1331,7 +1331,7 @@ static void hostile_arguments(void **state) {
         }
         fr = e.fr; fr.scene_scale = bad[k];
         EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
-        fr = e.fr; fr.importance_clamp = bad[k];
+        fr = e.fr; fr.lightskin.importance_clamp = bad[k];
         EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
     }
     fr = e.fr; fr.view = gim_mat4_mul(fr.view, gim_mat4_ortho(1, 1, -1, 1, -1, 1));   /* finite, not invertible */
@@ -1342,7 +1342,7 @@ static void hostile_arguments(void **state) {
     EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
     fr = e.fr; fr.width = 0xFFFFFFFFu;
     EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
-    fr = e.fr; fr.importance_clamp = -1.0f;
+    fr = e.fr; fr.lightskin.importance_clamp = -1.0f;
     EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
     /* instances: Inf in the model */
     in = e.inst[0];
@@ -1427,8 +1427,8 @@ static void hostile_arguments(void **state) {
         glBindTexture(GL_TEXTURE_2D, tex[1]);
         glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, 8, 8);
         fr = e.fr;
-        fr.gbuffer_depth = tex[0];
-        fr.gbuffer_normal = tex[1];
+        fr.gbuffer.depth = tex[0];
+        fr.gbuffer.normal = tex[1];
         EXPECT(gim_update(e.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
         glDeleteTextures(2, tex);
         glGenTextures(2, tex);
@@ -1447,13 +1447,13 @@ static void hostile_arguments(void **state) {
         glTexStorage2D(GL_TEXTURE_2D, 1, GL_RGBA32F, W, H);
         glTexSubImage2D(GL_TEXTURE_2D, 0, 0, 0, W, H, GL_RGBA, GL_FLOAT, nor);
         glBindTexture(GL_TEXTURE_2D, 0);
-        e.fr.gbuffer_depth = tex[0];
-        e.fr.gbuffer_normal = tex[1];
+        e.fr.gbuffer.depth = tex[0];
+        e.fr.gbuffer.normal = tex[1];
         e.host_gbuffer = 1;
         ex_frame(&e, o);
         print_message("hostile host G-buffer: %u lit, max %g\n", o->lit, o->max);
         assert_true(o->lit > NPIX / 4);    /* the pixels whose normal is usable */
-        e.fr.gbuffer_depth = e.fr.gbuffer_normal = 0;
+        e.fr.gbuffer.depth = e.fr.gbuffer.normal = 0;
         e.host_gbuffer = 0;
         glDeleteTextures(2, tex);
         free(dep);

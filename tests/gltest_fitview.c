@@ -56,7 +56,7 @@ static void fit_view_follows_the_camera(void **state) {
     fr.proj = gim_mat4_perspective(1.0f, 1.0f, 0.1f, 40.0f);
     fr.width = 32;
     fr.height = 32;
-    fr.view_sample_count = 256;
+    fr.lightskin.view_sample_count = 256;
 
     /* the whole world: the window is the world's bounding radius */
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);

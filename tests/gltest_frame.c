@@ -140,7 +140,7 @@ static void cornell_frame(const char *gltf) {
     for (k = 0; k < 3; ++k) {
         err[k] = 0.0;
         for (seed = 0; seed < 2; ++seed) {
-            ff.fr.val_count = counts[k];
+            ff.fr.lightskin.val_count = counts[k];
             ff.fr.frame_index = seed + 1;
             assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
             o = gim_outputs(ff.f.ctx);
@@ -179,8 +179,8 @@ static void rsm_gather_matches_twin(void **state) {
     GLTEST_BEGIN();
     frame_begin(&ff, NULL, 32);
     ff.fr.method = GIM_METHOD_RSM_GATHER;
-    ff.fr.gather_samples = 64;
-    ff.fr.gather_radius = 0.15f;   /* Dachsbacher's narrow pattern (the default holds the whole RSM) */
+    ff.fr.gather.samples = 64;
+    ff.fr.gather.radius = 0.15f;   /* Dachsbacher's narrow pattern (the default holds the whole RSM) */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     gltest_state_unchanged(&ff.f);
     o = gim_outputs(ff.f.ctx);
@@ -219,8 +219,8 @@ static void rsm_gather_matches_twin(void **state) {
     print_message("RSM gather: max rel %.2e, %u pixels above 0.15\n", max_rel, bad);
     assert_true(bad <= nrec / 1000);
     /* a wider pattern gathers more of the light */
-    ff.fr.gather_radius = 1.0f;
-    ff.fr.gather_samples = 1024;
+    ff.fr.gather.radius = 1.0f;
+    ff.fr.gather.samples = 1024;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     read_indirect(&o, gpu);
     for (i = 0; i < W * H; ++i) sum_wide += gpu[i * 4];
@@ -269,7 +269,7 @@ static void glossy_sizes_and_no_caches(void **state) {
         }
     }
     assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
-    ff.fr.val_count = 512;
+    ff.fr.lightskin.val_count = 512;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     assert_true(o.proxy_glossy != 0);
@@ -319,8 +319,8 @@ static void glossy_sizes_and_no_caches(void **state) {
     for (i = 0; i < ff.s.material_count; ++i) { m[i].glossy[0] = m[i].glossy[1] = m[i].glossy[2] = 0.0f; }
     assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
     ff.fr.indirect_float32 = 1;
-    ff.fr.neighbour_count = 6;
-    ff.fr.val_count = 300;
+    ff.fr.lightskin.neighbour_count = 6;
+    ff.fr.lightskin.val_count = 300;
     ff.g.lights[0].rsm_size = 40;
     assert_int_equal(gim_set_lights(ff.f.ctx, ff.g.lights, 1), GIM_OK);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
@@ -342,7 +342,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     ff.fr.method = (gim_method)7;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_INVALID_ARGUMENT);
     ff.fr.method = GIM_METHOD_DEFAULT;
-    ff.fr.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES + 1;
+    ff.fr.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES + 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     ff.f.log.errors = 0;
     gltest_state_unchanged(&ff.f);

@@ -517,8 +517,8 @@ static void runtime_rsm_and_selection(void **state) {
     fr.view = gim_mat4_look_at(gim_v3(2.0f, 2.5f, 3.0f), gim_v3(0.0f, 0.2f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
     fr.proj = gim_mat4_perspective(0.9f, 1.0f, 0.5f, 20.0f);
     fr.width = fr.height = 32;
-    fr.view_sample_count = 64;
-    fr.val_count = VALS;
+    fr.lightskin.view_sample_count = 64;
+    fr.lightskin.val_count = VALS;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     o = gim_outputs(f.ctx);
     assert_int_equal(o.lights[0].selected_count, VALS);

@@ -1,4 +1,4 @@
-/* The host's G-buffer in the encodings engines keep (gim_frame.gbuffer_normal_encoding,
+/* The host's G-buffer in the encodings engines keep (gim_frame.gbuffer.normal_encoding,
    gbuffer_view_space, gbuffer_depth_view_z): normals as unorm xyz (GL_RGB10_A2), octahedral in
    GL_RG16_SNORM and GL_RG16, in view space; depth as the view-space distance in GL_R32F. Each
    gives the image of the float world-normal G-buffer within its quantisation; the decode pass
@@ -130,11 +130,11 @@ static void encode(const fx *x, const variant *v, float *nrm, float *dep) {
 /* Renders with the host's G-buffer (depth, normal, settings of v) into img. */
 static void render(fx *x, GLuint depth, GLuint normal, const variant *v, float *img) {
     gim_frame f = x->fr;
-    f.gbuffer_depth = depth;
-    f.gbuffer_normal = normal;
-    f.gbuffer_normal_encoding = v ? v->encoding : GIM_NORMAL_XYZ;
-    f.gbuffer_view_space = v ? v->view_space : 0;
-    f.gbuffer_depth_view_z = v ? v->view_z : 0;
+    f.gbuffer.depth = depth;
+    f.gbuffer.normal = normal;
+    f.gbuffer.normal_encoding = v ? v->encoding : GIM_NORMAL_XYZ;
+    f.gbuffer.view_space = v ? v->view_space : 0;
+    f.gbuffer.depth_view_z = v ? v->view_z : 0;
     assert_int_equal(gim_update(x->f.ctx, &f), GIM_OK);
     gltest_read_texture(gim_outputs(x->f.ctx).indirect, GL_RGBA, img);
 }
@@ -230,19 +230,19 @@ static void refused(void **state) {
 #define EXPECT(call, code) do { assert_int_equal((call), (code)); assert_int_equal(x->f.log.errors, ++errors); \
         assert_int_equal(glGetError(), GL_NO_ERROR); } while (0)
     f = x->fr;
-    f.gbuffer_depth = d;
-    f.gbuffer_normal = rg16;                         /* unorm RG as signed xyz */
+    f.gbuffer.depth = d;
+    f.gbuffer.normal = rg16;                         /* unorm RG as signed xyz */
     EXPECT(gim_update(x->f.ctx, &f), GIM_ERROR_INVALID_ARGUMENT);
-    f.gbuffer_normal_encoding = (gim_normal_encoding)7;
+    f.gbuffer.normal_encoding = (gim_normal_encoding)7;
     EXPECT(gim_update(x->f.ctx, &f), GIM_ERROR_INVALID_ARGUMENT);
-    f.gbuffer_normal_encoding = GIM_NORMAL_OCTAHEDRAL_UNORM;
-    f.gbuffer_depth_view_z = 1;                      /* a depth texture as view z */
+    f.gbuffer.normal_encoding = GIM_NORMAL_OCTAHEDRAL_UNORM;
+    f.gbuffer.depth_view_z = 1;                      /* a depth texture as view z */
     EXPECT(gim_update(x->f.ctx, &f), GIM_ERROR_INVALID_ARGUMENT);
-    f.gbuffer_depth = r32;
-    f.gbuffer_depth_view_z = 0;                      /* R32F as window depth */
+    f.gbuffer.depth = r32;
+    f.gbuffer.depth_view_z = 0;                      /* R32F as window depth */
     EXPECT(gim_update(x->f.ctx, &f), GIM_ERROR_INVALID_ARGUMENT);
     f = x->fr;
-    f.gbuffer_view_space = 1;                        /* no host G-buffer */
+    f.gbuffer.view_space = 1;                        /* no host G-buffer */
     EXPECT(gim_update(x->f.ctx, &f), GIM_ERROR_INVALID_ARGUMENT);
 #undef EXPECT
     x->f.log.errors = 0;

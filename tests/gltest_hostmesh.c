@@ -116,7 +116,7 @@ static void render(int host, gim_method method, gim_visibility vis, float *rgba,
     gim_stats st;
     setup(&h, host);
     h.fr.method = method;
-    h.fr.visibility = vis;
+    h.fr.visibility.mode = vis;
     assert_int_equal(gim_update(h.f.ctx, &h.fr), GIM_OK);
     gltest_read_texture(gim_outputs(h.f.ctx).indirect, GL_RGBA, rgba);
     assert_int_equal(gim_frame_stats(h.f.ctx, &st), GIM_OK);

@@ -166,7 +166,7 @@ static void same_image(gim_method m) {
     GLTEST_BEGIN();
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
     frame_small(&ff, m);
-    ff.fr.kmeans_restart = 1;
+    ff.fr.vpl.kmeans_restart = 1;
     set_default(NULL);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
@@ -206,7 +206,7 @@ static void no_current_context(void **state) {
     assert_non_null(strstr(ff.f.log.last, "no GL context is current"));
     assert_true(eglMakeCurrent(gltest.display, EGL_NO_SURFACE, EGL_NO_SURFACE, gltest.context));
     ff.f.log.errors = 0;   /* the one expected */
-    ff.fr.view_sample_count = 16;
+    ff.fr.lightskin.view_sample_count = 16;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     frame_end(&ff);
     GLTEST_END();

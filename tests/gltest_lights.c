@@ -62,7 +62,7 @@ static void street_begin(street_fix *s) {
     memset(&s->fr, 0, sizeof s->fr);
     lamps_view(&s->fr, W, H);
     s->fr.indirect_float32 = 1;
-    s->fr.view_sample_count = 128;
+    s->fr.lightskin.view_sample_count = 128;
 }
 
 static void street_end(street_fix *s) {
@@ -167,7 +167,7 @@ static void brsm_shared_matches_sum(void **state) {
     for (b = 0; b < 2; ++b) {   /* 0: shared (the default), 1: per rendered light, TOTAL / 28 */
         mean[b] = (double *)calloc((size_t)W * H * 3, sizeof(double));
         s.fr.per_light_budget = b;
-        s.fr.val_count = b ? TOTAL / RENDERED : TOTAL;
+        s.fr.lightskin.val_count = b ? TOTAL / RENDERED : TOTAL;
         for (fi = 0; fi < FRAMES; ++fi) {
             double e, m;
             s.fr.frame_index = (uint32_t)fi;
@@ -220,7 +220,7 @@ static void skipped_lights(void **state) {
     GLTEST_BEGIN();
     street_begin(&s);
     assert_int_equal(gim_set_lights(s.f.ctx, s.lights, NL), GIM_OK);
-    s.fr.val_count = 512;
+    s.fr.lightskin.val_count = 512;
     s.fr.timing = 2;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);   /* builds the programs */
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
@@ -287,10 +287,10 @@ static void above_old_limit(void **state) {
     for (k = 0; k < 4; ++k) {
         double sum = 0.0;
         s.fr.method = m[k];
-        s.fr.val_count = 400;
-        s.fr.vpl_count = 400;
-        s.fr.gather_samples = 64;
-        s.fr.paraboloid_size = 16;
+        s.fr.lightskin.val_count = 400;
+        s.fr.vpl.count = 400;
+        s.fr.gather.samples = 64;
+        s.fr.vpl.paraboloid_size = 16;
         frame_image(&s, img);
         o = gim_outputs(s.f.ctx);
         assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
@@ -321,7 +321,7 @@ static void lights_buffer(void **state) {
     GLTEST_BEGIN();
     street_begin(&s);
     assert_int_equal(gim_set_lights(s.f.ctx, s.lights, NL), GIM_OK);
-    s.fr.val_count = 300;
+    s.fr.lightskin.val_count = 300;
     frame_image(&s, a);
     memset(b, 0, sizeof b);
     for (k = 0; k < NL; ++k) {

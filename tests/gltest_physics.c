@@ -183,9 +183,9 @@ static void check_scene(phys_which which, double scale, const double *offset, in
     frame_begin(p, which, scale, offset);
     for (k = 0; k < sizeof methods / sizeof methods[0]; ++k) {
         phys_stats st;
-        if (methods[k] == GIM_METHOD_SSVP) p->fr.bounces = 1;   /* the closed forms are one bounce */
+        if (methods[k] == GIM_METHOD_SSVP) p->fr.vpl.bounces = 1;   /* the closed forms are one bounce */
         st = run_method(p, methods[k]);
-        p->fr.bounces = 0;
+        p->fr.vpl.bounces = 0;
         print_message("%-13s scale %-6g %-15s median %.3f, %3.0f%% within 10%%, %3.0f%% within 20%% (%u pixels, %u caches)\n",
                       p->s.name, scale, method_name(methods[k]), st.median, 100.0 * st.within10, 100.0 * st.within20,
                       st.counted, p->caches.count);
@@ -222,22 +222,22 @@ static void corner_ism_removes_nothing(void **state) {
     for (w = 0; w < 2; ++w) {
         phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
         frame_begin(p, which[w], 1.0, origin);
-        p->fr.vpl_count = 1024;
-        p->fr.interleave = 4;
-        p->fr.bounces = 1;
-        p->fr.ism_size = 16;
-        p->fr.ism_points = 1024;
+        p->fr.vpl.count = 1024;
+        p->fr.vpl.interleave = 4;
+        p->fr.vpl.bounces = 1;
+        p->fr.visibility.ism_size = 16;
+        p->fr.visibility.ism_points = 1024;
         for (m = 0; m < 2; ++m) {
             float *none = (float *)malloc(W * H * 16), *ism = (float *)malloc(W * H * 16);
             double sn = 0.0, si = 0.0;
             uint32_t i, dark = 0, counted = 0;
             p->fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
-            p->fr.visibility = GIM_VISIBILITY_OFF;
-            p->fr.no_visibility = 1;
+            p->fr.visibility.mode = GIM_VISIBILITY_OFF;
+            p->fr.vpl.no_visibility = 1;
             assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
             gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, none);
-            p->fr.visibility = GIM_VISIBILITY_ISM;
-            p->fr.no_visibility = 0;
+            p->fr.visibility.mode = GIM_VISIBILITY_ISM;
+            p->fr.vpl.no_visibility = 0;
             assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
             gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, ism);
             for (i = 0; i < W * H; ++i) {

@@ -120,9 +120,9 @@ static void prepared(gim_method m, int variant) {
     GLTEST_BEGIN();
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
     frame_small(&ff, m);
-    if (variant == 1) ff.fr.visibility = GIM_VISIBILITY_ISM;
-    if (variant == 2) { ff.fr.no_visibility = 1; ff.fr.interleave = 1; ff.fr.bounces = 1; }
-    if (variant == 3) ff.fr.bounces = 2;
+    if (variant == 1) ff.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    if (variant == 2) { ff.fr.vpl.no_visibility = 1; ff.fr.vpl.interleave = 1; ff.fr.vpl.bounces = 1; }
+    if (variant == 3) ff.fr.vpl.bounces = 2;
     ff.fr.width = 0;
     assert_int_equal(gim_prepare(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(programs_built(ff.f.ctx), 0);

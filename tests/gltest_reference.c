@@ -272,7 +272,7 @@ static void cornell_methods(void **state) {
         double mae, ratio;
         int vpl = m->method == GIM_METHOD_CLUSTERED || m->method == GIM_METHOD_SSVP;
         f.method = m->method;
-        f.visibility = m->visibility;
+        f.visibility.mode = m->visibility;
         t0 = wall_ms();
         render(&r, &f, vpl ? 3 : 1, img);
         mae = rel_mae(img, ref);
@@ -345,9 +345,9 @@ static void courtyard_pillar(void **state) {
     run_begin(&r, 0.0f);
     f = r.fr;
     f.method = GIM_METHOD_LIGHTSKIN_BRSM;
-    f.visibility = GIM_VISIBILITY_ISM;
+    f.visibility.mode = GIM_VISIBILITY_ISM;
     render(&r, &f, 1, on);
-    f.visibility = GIM_VISIBILITY_OFF;
+    f.visibility.mode = GIM_VISIBILITY_OFF;
     render(&r, &f, 1, off);
     run_end(&r);
     ref_sh = wall_mean(ref.rgb, &ref, 0.0, 0.4, &n_sh);

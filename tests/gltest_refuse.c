@@ -14,8 +14,8 @@
 
 static void begin(frame_fixture *ff) {
     assert_int_equal(frame_begin(ff, NULL, 16), 0);
-    ff->fr.view_sample_count = 16;
-    ff->fr.val_count = 64;
+    ff->fr.lightskin.view_sample_count = 16;
+    ff->fr.lightskin.val_count = 64;
 }
 
 /* The result, one error logged with `text` in it (then forgotten, so frame_end passes). */
@@ -159,18 +159,18 @@ static void host_gbuffer_formats(void **state) {
     colour = texture(GL_TEXTURE_2D, GL_RGBA32F);
     array = texture(GL_TEXTURE_2D_ARRAY, GL_DEPTH_COMPONENT32F);
     fr = ff.fr;
-    fr.gbuffer_depth = depth;
-    fr.gbuffer_normal = rgba8;
+    fr.gbuffer.depth = depth;
+    fr.gbuffer.normal = rgba8;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "GIM_NORMAL_XYZ needs signed values");
     assert_int_equal(glGetError(), GL_NO_ERROR);
-    fr.gbuffer_depth = colour;
-    fr.gbuffer_normal = normal;
+    fr.gbuffer.depth = colour;
+    fr.gbuffer.normal = normal;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "must be a depth format");
     assert_int_equal(glGetError(), GL_NO_ERROR);
-    fr.gbuffer_depth = array;
+    fr.gbuffer.depth = array;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "is not a 2D texture");
     assert_int_equal(glGetError(), GL_NO_ERROR);
-    fr.gbuffer_depth = depth;   /* the right formats pass */
+    fr.gbuffer.depth = depth;   /* the right formats pass */
     assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
     /* texture state that texelFetch obeys: a swizzle, a base level, stencil reads */
     glBindTexture(GL_TEXTURE_2D, normal);
@@ -182,7 +182,7 @@ static void host_gbuffer_formats(void **state) {
     glBindTexture(GL_TEXTURE_2D, normal);
     glTexStorage2D(GL_TEXTURE_2D, 2, GL_RGBA16F, 2 * W, 2 * H);
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_BASE_LEVEL, 1);
-    fr.gbuffer_normal = normal;
+    fr.gbuffer.normal = normal;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "GL_TEXTURE_BASE_LEVEL 1");
     glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_BASE_LEVEL, 0);
     glDeleteTextures(1, &depth);
@@ -191,7 +191,7 @@ static void host_gbuffer_formats(void **state) {
     glTexStorage2D(GL_TEXTURE_2D, 1, GL_DEPTH24_STENCIL8, W, H);
     glTexParameteri(GL_TEXTURE_2D, GL_DEPTH_STENCIL_TEXTURE_MODE, GL_STENCIL_INDEX);
     glBindTexture(GL_TEXTURE_2D, 0);
-    fr.gbuffer_depth = depth;
+    fr.gbuffer.depth = depth;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT, "would read stencil");
     assert_int_equal(glGetError(), GL_NO_ERROR);
     glDeleteTextures(1, &depth);
@@ -228,13 +228,13 @@ static void flipped_begin(frame_fixture *ff, int flipped, gim_method m) {
     ff->fr.height = H;
     ff->fr.indirect_float32 = 1;
     ff->fr.method = m;
-    ff->fr.view_sample_count = 16;
-    ff->fr.val_count = 64;
-    ff->fr.vpl_count = 64;
-    ff->fr.cluster_count = 4;
-    ff->fr.paraboloid_size = 16;
-    ff->fr.interleave = 2;
-    ff->fr.kmeans_restart = 1;
+    ff->fr.lightskin.view_sample_count = 16;
+    ff->fr.lightskin.val_count = 64;
+    ff->fr.vpl.count = 64;
+    ff->fr.vpl.cluster_count = 4;
+    ff->fr.vpl.paraboloid_size = 16;
+    ff->fr.vpl.interleave = 2;
+    ff->fr.vpl.kmeans_restart = 1;
 }
 
 /* Two frames: the image's mean and the warnings of both (the count is read once its frame is done). */

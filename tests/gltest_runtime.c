@@ -802,8 +802,8 @@ static void scene_state_restored(void **state) {
     fr.proj = gim_mat4_perspective(1.0f, 1.5f, 0.1f, 10.0f);
     fr.width = 24;
     fr.height = 16;
-    fr.view_sample_count = 32;
-    fr.val_count = 16;
+    fr.lightskin.view_sample_count = 32;
+    fr.lightskin.val_count = 16;
     fr.timing = 1;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     check_distinctive_state(&h);
@@ -821,15 +821,15 @@ static void scene_state_restored(void **state) {
     check_distinctive_state(&h);
     fr.method = GIM_METHOD_DEFAULT;
     fr.timing = 0;
-    fr.gbuffer_depth = o.gbuffer_depth; /* the host's G-buffer path */
-    fr.gbuffer_normal = o.gbuffer_normal;
+    fr.gbuffer.depth = o.gbuffer_depth; /* the host's G-buffer path */
+    fr.gbuffer.normal = o.gbuffer_normal;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     check_distinctive_state(&h);
     fr.width = 25; /* larger than those textures: fails after the RSM passes ran */
     assert_int_equal(gim_update(ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
     check_distinctive_state(&h);
-    fr.gbuffer_depth = fr.gbuffer_normal = 0;
-    fr.rotate_view_samples = 1;
+    fr.gbuffer.depth = fr.gbuffer.normal = 0;
+    fr.lightskin.rotate_view_samples = 1;
     fr.frame_index = 3;
     assert_int_equal(gim_set_lights(ctx, l, 1), GIM_OK); /* frees light 1's objects */
     check_distinctive_state(&h);

@@ -172,8 +172,8 @@ static gim_frame default_frame(float s, const float offset[3], int w, int h) {
     fr.proj = gim_mat4_perspective(0.9f, (float)w / (float)h, 0.5f * s, 20.0f * s);
     fr.width = (uint32_t)w;
     fr.height = (uint32_t)h;
-    fr.view_sample_count = 64;
-    fr.val_count = 128;
+    fr.lightskin.view_sample_count = 64;
+    fr.lightskin.val_count = 128;
     return fr;
 }
 
@@ -340,8 +340,8 @@ static double plane_flux(float h, float plane_size_for_instances, const gim_ligh
     fr.view = gim_mat4_look_at(gim_v3(0.0f, 3.0f * h, 0.1f), gim_v3(0.0f, 0.0f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
     fr.proj = gim_mat4_perspective(1.2f, 1.0f, 0.1f * h, 10.0f * h);
     fr.width = fr.height = 16;
-    fr.view_sample_count = 16;
-    fr.val_count = 16;
+    fr.lightskin.view_sample_count = 16;
+    fr.lightskin.val_count = 16;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     total = total_flux(ctx, 0, rgb);
     gim_destroy(ctx);
@@ -423,7 +423,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     l.rsm_size = 32;
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     fr = default_frame(1.0f, origin, W, H);
-    fr.view_sample_count = 256;
+    fr.lightskin.view_sample_count = 256;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     o = gim_outputs(f.ctx);
     read_texture(o.gbuffer_normal, GL_RGBA, 4, W, H, nrm);
@@ -453,7 +453,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     /* view samples: not rotated, then rotated per frame */
     for (round = 0; round < 2; ++round) {
         if (round) {
-            fr.rotate_view_samples = 1;
+            fr.lightskin.rotate_view_samples = 1;
             fr.frame_index = 5;
             assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
             o = gim_outputs(f.ctx);
@@ -488,8 +488,8 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     {
         float again[256 * 8];
         gim_frame hf = fr;
-        hf.gbuffer_depth = o.gbuffer_depth;
-        hf.gbuffer_normal = o.gbuffer_normal;
+        hf.gbuffer.depth = o.gbuffer_depth;
+        hf.gbuffer.normal = o.gbuffer_normal;
         gltest_read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_update(f.ctx, &hf), GIM_OK);
         o = gim_outputs(f.ctx);
@@ -529,8 +529,8 @@ static void importance_chain_matches_twin(void **state) {
     l.rsm_size = N;
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     fr = default_frame(1.0f, origin, 32, 24);
-    fr.view_sample_count = VS;
-    fr.val_count = VALS;
+    fr.lightskin.view_sample_count = VS;
+    fr.lightskin.val_count = VALS;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     o = gim_outputs(f.ctx);
     read_texture(o.lights[0].rsm_position, GL_RGBA, 4, N, N, pos);
@@ -731,17 +731,17 @@ static void argument_errors(void **state) {
     fr.width = 1u << 20;
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
     fr.width = 16;
-    fr.gbuffer_depth = 5;
+    fr.gbuffer.depth = 5;
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
-    fr.gbuffer_normal = 987654; /* not textures */
+    fr.gbuffer.normal = 987654; /* not textures */
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
-    fr.gbuffer_depth = fr.gbuffer_normal = 0;
-    fr.view_sample_count = 1u << 20;
+    fr.gbuffer.depth = fr.gbuffer.normal = 0;
+    fr.lightskin.view_sample_count = 1u << 20;
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
-    fr.view_sample_count = 0;
-    fr.val_count = 0xFFFFFFFFu;
+    fr.lightskin.view_sample_count = 0;
+    fr.lightskin.val_count = 0xFFFFFFFFu;
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE);
-    fr.val_count = 0;
+    fr.lightskin.val_count = 0;
     fr.scene_scale = -1.0f;
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
     fr.scene_scale = 0.0f;
@@ -780,8 +780,8 @@ static void argument_errors(void **state) {
     l.rsm_size = 24;
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     fr = default_frame(1.0f, origin, 20, 10);
-    fr.view_sample_count = 32;
-    fr.val_count = 40;
+    fr.lightskin.view_sample_count = 32;
+    fr.lightskin.val_count = 40;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     assert_int_equal(gim_outputs(f.ctx).lights[0].rsm_size, 24);
     assert_int_equal(gim_outputs(f.ctx).width, 20);

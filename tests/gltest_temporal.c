@@ -1,4 +1,4 @@
-/* Temporal coherence, gim_frame.temporal_steps L (the aim of Laine et al.'s incremental instant
+/* Temporal coherence, gim_frame.lightskin.temporal_steps L (the aim of Laine et al.'s incremental instant
    radiosity, 2007): the BRSM selection's and the view samples' offsets move by 1/L of their
    points' spacing a frame instead of jumping. On the built-in Cornell box:
    - the selection is the twin's (gim_importance_select_offsets with gim_drift_offsets), and
@@ -71,10 +71,10 @@ static void selection_moves(void **state) {
     GLTEST_BEGIN();
     frame_begin(&ff, NULL, RSM);
     frame_small(&ff, GIM_METHOD_LIGHTSKIN_BRSM);
-    ff.fr.val_count = N;
-    ff.fr.rotate_view_samples = 1;
+    ff.fr.lightskin.val_count = N;
+    ff.fr.lightskin.rotate_view_samples = 1;
     for (q = 0; q < 2; ++q) {
-        ff.fr.temporal_steps = steps[q];
+        ff.fr.lightskin.temporal_steps = steps[q];
         for (k = 0; k < 6; ++k) {
             ff.fr.frame_index = 10 + k;
             update(&ff);
@@ -90,7 +90,7 @@ static void selection_moves(void **state) {
     print_message("VALs on another texel than last frame's, over 5 frames of %u: %u with new offsets, %u with 32 steps\n", N,
                   changed[0], changed[1]);
     assert_true(changed[0] > 4 * N && changed[1] < N);
-    ff.fr.temporal_steps = GIM_MAX_TEMPORAL_STEPS + 1u;
+    ff.fr.lightskin.temporal_steps = GIM_MAX_TEMPORAL_STEPS + 1u;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     ff.f.log.errors = 0;   /* that refusal's one line */
     free(prev);
@@ -107,7 +107,7 @@ static double run_frames(frame_fixture *ff, uint32_t steps, int count, const flo
     double change = 0.0;
     int k;
     *err = 0.0;
-    ff->fr.temporal_steps = steps;
+    ff->fr.lightskin.temporal_steps = steps;
     for (k = 0; k < count; ++k) {
         ff->fr.frame_index = (uint32_t)k + 1u;
         update(ff);
@@ -135,9 +135,9 @@ static void static_scene(void **state) {
     update(&ff);
     indirect_of(ff.f.ctx, full);
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
-    ff.fr.val_count = 128;
-    ff.fr.view_sample_count = 32;
-    ff.fr.rotate_view_samples = 1;
+    ff.fr.lightskin.val_count = 128;
+    ff.fr.lightskin.view_sample_count = 32;
+    ff.fr.lightskin.rotate_view_samples = 1;
     for (q = 0; q < 3; ++q) {
         c[q] = run_frames(&ff, steps[q], FRAMES, full, &e[q]);
         print_message("%d frames, 128 VALs, temporal_steps %u: each frame vs FULL %.4f, frame-to-frame change %.4f\n", FRAMES,
@@ -160,10 +160,10 @@ static void moving_light(void **state) {
     GLTEST_BEGIN();
     frame_begin(&ff, NULL, RSM);
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
-    ff.fr.val_count = 256;
-    ff.fr.view_sample_count = 32;
-    ff.fr.rotate_view_samples = 1;
-    ff.fr.temporal_steps = 32;
+    ff.fr.lightskin.val_count = 256;
+    ff.fr.lightskin.view_sample_count = 32;
+    ff.fr.lightskin.rotate_view_samples = 1;
+    ff.fr.lightskin.temporal_steps = 32;
     for (k = 0; k < 8; ++k) {   /* every entry drawn for the light where it is */
         ff.fr.frame_index = (uint32_t)k + 1u;
         update(&ff);
@@ -176,7 +176,7 @@ static void moving_light(void **state) {
     ff.fr.frame_index = 9;
     update(&ff);
     indirect_of(ff.f.ctx, img);
-    ff.fr.temporal_steps = 0;   /* the same frame with new offsets */
+    ff.fr.lightskin.temporal_steps = 0;   /* the same frame with new offsets */
     update(&ff);
     indirect_of(ff.f.ctx, fresh);
     ff.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
@@ -188,7 +188,7 @@ static void moving_light(void **state) {
     assert_true(e_kept < 1.5 * e_fresh + 0.02);
     /* switched off: black at once */
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
-    ff.fr.temporal_steps = 32;
+    ff.fr.lightskin.temporal_steps = 32;
     for (k = 0; k < 8; ++k) {
         ff.fr.frame_index = 20u + (uint32_t)k;
         update(&ff);

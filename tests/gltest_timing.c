@@ -94,8 +94,8 @@ static void corner_scene(gim_context *ctx, gim_frame *fr) {
     fr->proj = gim_mat4_perspective(1.0f, 1.5f, 0.1f, 20.0f);
     fr->width = 96;
     fr->height = 64;
-    fr->view_sample_count = 256;
-    fr->val_count = 1024;
+    fr->lightskin.view_sample_count = 256;
+    fr->lightskin.val_count = 1024;
 }
 
 /* One frame with timing t: its stats and the wall time around gim_update + glFinish. */
@@ -181,14 +181,14 @@ static void timing2_per_pass(void **state) {
     gltest_state_unchanged(&f);
 
     /* with imperfect shadow maps: their pass in the frame that makes them, none in the next */
-    fr.visibility = GIM_VISIBILITY_ISM;
-    fr.ism_points = 1024;
+    fr.visibility.mode = GIM_VISIBILITY_ISM;
+    fr.visibility.ism_points = 1024;
     wall = timed_frame(f.ctx, fr, 2, &st);
     print_passes("BRSM + ISM (maps made), timing 2", &st, wall);
     check_timing2(&st, wall, shared_passes | importance_passes | RAN(GIM_PASS_ISM));
     wall = timed_frame(f.ctx, fr, 2, &st);
     check_timing2(&st, wall, shared_passes | importance_passes);
-    fr.visibility = GIM_VISIBILITY_OFF;
+    fr.visibility.mode = GIM_VISIBILITY_OFF;
 
     /* FULL: no view samples, no importance passes; 16384 VALs against 1152 caches make the proxy pass the heaviest */
     fr.method = GIM_METHOD_LIGHTSKIN_FULL;

@@ -1,4 +1,4 @@
-/* Visibility in the frame (gim_frame.visibility = ISM): a sealed box with 0.3-thick walls, roof
+/* Visibility in the frame (gim_frame.visibility.mode = ISM): a sealed box with 0.3-thick walls, roof
    and floor on a sunlit ground, the camera inside. The exact indirect light inside is 0;
    without visibility LightSkin lets the sunlit ground through the walls (12% of the ground's
    radiance on the CPU twin, bench_ism). With the caches' imperfect shadow maps the mean inside
@@ -110,8 +110,8 @@ static void no_light_through_walls(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     off = inside(&s);
     assert_int_equal(s.f.ctx->ism_maps, 0);   /* off: no ISM buffer */
-    s.fr.visibility = GIM_VISIBILITY_ISM;
-    s.fr.ism_points = 0;   /* the default */
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_points = 0;   /* the default */
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     ism = inside(&s);
     print_message("mean indirect inside / sunlit ground: %.4f without visibility, %.4f with ISMs (%u caches)\n", off, ism,
@@ -122,8 +122,8 @@ static void no_light_through_walls(void **state) {
         int k;
         s.fr.timing = 2;
         for (k = 0; k < 3; ++k) {
-            if (k == 0) { s.fr.ism_size = 16; assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK); s.fr.ism_size = 0; }
-            if (k == 2) s.fr.visibility = GIM_VISIBILITY_OFF;
+            if (k == 0) { s.fr.visibility.ism_size = 16; assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK); s.fr.visibility.ism_size = 0; }
+            if (k == 2) s.fr.visibility.mode = GIM_VISIBILITY_OFF;
             assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
             assert_int_equal(gim_frame_stats(s.f.ctx, &st[k]), GIM_OK);
         }
@@ -132,12 +132,12 @@ static void no_light_through_walls(void **state) {
                       st[0].pass_ms[GIM_PASS_PROXY_LIGHTS], st[1].pass_ms[GIM_PASS_PROXY_LIGHTS],
                       st[2].pass_ms[GIM_PASS_PROXY_LIGHTS], st[0].frame_ms, st[1].frame_ms, st[2].frame_ms);
         s.fr.timing = 0;
-        s.fr.visibility = GIM_VISIBILITY_ISM;
+        s.fr.visibility.mode = GIM_VISIBILITY_ISM;
     }
     assert_true(off > 0.05);
     assert_true(ism < 0.01);
     gltest_state_unchanged(&s.f);
-    s.fr.visibility = GIM_VISIBILITY_OFF;
+    s.fr.visibility.mode = GIM_VISIBILITY_OFF;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     assert_int_equal(s.f.ctx->ism_maps, 0);   /* turned off: released */
     assert_int_equal(s.f.ctx->ism_points, 0);
@@ -172,22 +172,22 @@ static void vpl_methods_no_light_through_walls(void **state) {
     (void)state;
     GLTEST_BEGIN();
     setup(&s);
-    s.fr.vpl_count = 4096;   /* the default; at 1024 clustered's own maps leak 0.3-0.5 % here */
-    s.fr.second_bounce_vpls = 128;
-    s.fr.paraboloid_size = 64;
+    s.fr.vpl.count = 4096;   /* the default; at 1024 clustered's own maps leak 0.3-0.5 % here */
+    s.fr.vpl.second_bounce_vpls = 128;
+    s.fr.vpl.paraboloid_size = 64;
     for (m = 0; m < 2; ++m) {
         double def, ism, ism_hi;
         gim_stats st[2];
         s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
-        s.fr.visibility = GIM_VISIBILITY_OFF;
+        s.fr.visibility.mode = GIM_VISIBILITY_OFF;
         s.fr.timing = 2;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
         assert_int_equal(gim_frame_stats(s.f.ctx, &st[0]), GIM_OK);
         def = inside(&s);
         assert_int_equal(s.f.ctx->ism_maps, 0);
-        s.fr.visibility = GIM_VISIBILITY_ISM;
-        s.fr.ism_size = 16;
-        s.fr.ism_points = 1024;
+        s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+        s.fr.visibility.ism_size = 16;
+        s.fr.visibility.ism_points = 1024;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
         assert_int_equal(gim_frame_stats(s.f.ctx, &st[1]), GIM_OK);
         ism = inside(&s);
@@ -209,7 +209,7 @@ static void vpl_methods_no_light_through_walls(void **state) {
         s.fr.timing = 0;
     }
     gltest_state_unchanged(&s.f);
-    s.fr.visibility = GIM_VISIBILITY_OFF;
+    s.fr.visibility.mode = GIM_VISIBILITY_OFF;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     assert_int_equal(s.f.ctx->ism_maps, 0);   /* turned off: released */
     assert_int_equal(s.f.ctx->ism_points, 0);
@@ -232,9 +232,9 @@ static void maps_are_the_twins(void **state) {
     (void)state;
     GLTEST_BEGIN();
     setup(&s);
-    s.fr.visibility = GIM_VISIBILITY_ISM;
-    s.fr.ism_size = 16;
-    s.fr.ism_points = 2048;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 16;
+    s.fr.visibility.ism_points = 2048;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     o = gim_outputs(s.f.ctx);
     assert_true(o.ism_maps != 0);
@@ -292,12 +292,12 @@ static void vpl_maps_are_the_twins(void **state) {
     GLTEST_BEGIN();
     setup(&s);
     s.fr.method = GIM_METHOD_SSVP;
-    s.fr.vpl_count = 256;
-    s.fr.second_bounce_vpls = 64;
-    s.fr.paraboloid_size = 32;
-    s.fr.visibility = GIM_VISIBILITY_ISM;
-    s.fr.ism_size = 8;
-    s.fr.ism_points = 512;
+    s.fr.vpl.count = 256;
+    s.fr.vpl.second_bounce_vpls = 64;
+    s.fr.vpl.paraboloid_size = 32;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 8;
+    s.fr.visibility.ism_points = 512;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     o = gim_outputs(s.f.ctx);
     n = o.vpl_count;
@@ -360,58 +360,58 @@ static void bad_settings(void **state) {
     (void)state;
     GLTEST_BEGIN();
     setup(&s);
-    s.fr.visibility = GIM_VISIBILITY_ISM;
-    s.fr.ism_size = 48;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 48;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    s.fr.ism_size = 128;
+    s.fr.visibility.ism_size = 128;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    s.fr.ism_size = 2;
+    s.fr.visibility.ism_size = 2;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    s.fr.ism_size = 0;
-    s.fr.ism_points = GIM_ISM_MAX_POINTS + 1u;
+    s.fr.visibility.ism_size = 0;
+    s.fr.visibility.ism_points = GIM_ISM_MAX_POINTS + 1u;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    s.fr.ism_points = 0;
-    s.fr.visibility = (gim_visibility)7;
+    s.fr.visibility.ism_points = 0;
+    s.fr.visibility.mode = (gim_visibility)7;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
     s.f.ctx->max_ssbo_bytes = 1024;   /* a GL whose blocks cannot hold the maps */
-    s.fr.visibility = GIM_VISIBILITY_ISM;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(s.f.log.errors, 6);
     s.f.log.errors = 0;
     s.f.ctx->max_ssbo_bytes = 64 << 20;   /* a GL with 64 MiB blocks */
     /* the VPL methods: one map per VPL of 16-bit depths; 16384 VPLs of 64^2 are 128 MiB; 8192 fit */
     s.fr.method = GIM_METHOD_CLUSTERED;
-    s.fr.vpl_count = 16384;
-    s.fr.ism_size = 64;
+    s.fr.vpl.count = 16384;
+    s.fr.visibility.ism_size = 64;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
     s.fr.method = GIM_METHOD_SSVP;   /* and the second bounce's VPLs count too */
-    s.fr.vpl_count = 8192;
+    s.fr.vpl.count = 8192;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
-    s.fr.ism_size = 48;
+    s.fr.visibility.ism_size = 48;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    s.fr.ism_size = 16;
-    s.fr.no_visibility = 1;   /* no visibility, or ISMs: not both */
+    s.fr.visibility.ism_size = 16;
+    s.fr.vpl.no_visibility = 1;   /* no visibility, or ISMs: not both */
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(s.f.log.errors, 4);
     s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ism_maps, 0);
     assert_int_equal(s.f.ctx->ism_cluster_maps, 0);
     s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;   /* the caches' maps again */
-    s.fr.no_visibility = 0;
-    s.fr.vpl_count = 0;
-    s.fr.ism_size = 0;
+    s.fr.vpl.no_visibility = 0;
+    s.fr.vpl.count = 0;
+    s.fr.visibility.ism_size = 0;
     {   /* the default side halves until the maps fit: 64^2 of these caches do not fit 3 MiB, 32^2 do */
         gim__GLint64 keep = s.f.ctx->max_ssbo_bytes;
         uint64_t n = 0;
         uint32_t i;
         for (i = 0; i < s.f.ctx->instance_count; ++i) n += gim__mesh_get(s.f.ctx, s.f.ctx->instances[i].mesh)->cache_count;
         s.f.ctx->max_ssbo_bytes = (gim__GLint64)(n * 32 * 32 * 2);
-        s.fr.ism_points = 256;
+        s.fr.visibility.ism_points = 256;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
         assert_int_equal(gim_outputs(s.f.ctx).ism_size, 32);
         s.f.ctx->max_ssbo_bytes = keep;
-        s.fr.ism_points = 0;
-        s.fr.visibility = GIM_VISIBILITY_OFF;
+        s.fr.visibility.ism_points = 0;
+        s.fr.visibility.mode = GIM_VISIBILITY_OFF;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     }
     gltest_state_unchanged(&s.f);

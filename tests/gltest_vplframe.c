@@ -28,10 +28,10 @@ static void vpl_frame_begin(frame_fixture *ff, gim_method m) {
     assert_int_equal(frame_begin(ff, NULL, 64), 0);
     wall_light(ff, 0.0f);
     ff->fr.method = m;
-    ff->fr.vpl_count = 256;
-    ff->fr.cluster_count = 8;
-    ff->fr.paraboloid_size = 64;
-    ff->fr.interleave = 4;
+    ff->fr.vpl.count = 256;
+    ff->fr.vpl.cluster_count = 8;
+    ff->fr.vpl.paraboloid_size = 64;
+    ff->fr.vpl.interleave = 4;
 }
 
 /* The GPU's clusters against gim_cluster_paraboloids on the GPU's own VPLs, assignment and
@@ -109,7 +109,7 @@ static void grid_receivers(frame_fixture *ff, gim_receiver *grid) {
 static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
     uint32_t n = o.vpl_count, m = o.cluster_count, s = o.paraboloid_size, i, bad;
-    uint32_t k = ff->fr.interleave ? ff->fr.interleave : 8u, *cl = (uint32_t *)malloc(n * 4), *map = (uint32_t *)malloc(W * H * 4);
+    uint32_t k = ff->fr.vpl.interleave ? ff->fr.vpl.interleave : 8u, *cl = (uint32_t *)malloc(n * 4), *map = (uint32_t *)malloc(W * H * 4);
     gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
     gim_paraboloid *maps = (gim_paraboloid *)malloc(m * sizeof *maps);
     float *dist = NULL, *shade = (float *)malloc(W * H * 12), *blur = (float *)malloc(W * H * 12);
@@ -133,14 +133,14 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
     sd.distance = dist; sd.map_size = s;
     sd.receivers = grid; sd.width = W; sd.height = H;
     sd.interleave = k;
-    sd.clamp_distance = (ff->fr.clamp_distance < 0.0f ? 0.0f : ff->fr.clamp_distance > 0.0f ? ff->fr.clamp_distance : 0.01f) *
+    sd.clamp_distance = (ff->fr.vpl.clamp_distance < 0.0f ? 0.0f : ff->fr.vpl.clamp_distance > 0.0f ? ff->fr.vpl.clamp_distance : 0.01f) *
                         o.scene_scale;
     sd.scene_scale = o.scene_scale;
     sd.env = ff->f.env;
     assert_int_equal(gim_vpl_shade(&sd, shade), GIM_OK);
     memset(&bd, 0, sizeof bd);
     bd.radiance = shade; bd.receivers = grid; bd.width = W; bd.height = H; bd.window = k;
-    bd.position_tolerance = (ff->fr.blur_distance > 0.0f ? ff->fr.blur_distance : 0.1f) * o.scene_scale;
+    bd.position_tolerance = (ff->fr.vpl.blur_distance > 0.0f ? ff->fr.vpl.blur_distance : 0.1f) * o.scene_scale;
     bd.normal_tolerance = 0.8f;
     bd.env = ff->f.env;
     if (k > 1) assert_int_equal(gim_geometry_blur(&bd, blur), GIM_OK);
@@ -161,7 +161,7 @@ static void frame_matches_cpu_chain(void **state) {
     GLTEST_BEGIN();
     for (k = 0; k < 3; ++k) {   /* CLUSTERED; CLUSTERED without interleaving; SSVP, two bounces */
         vpl_frame_begin(&ff, k == 2 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
-        if (k == 1) ff.fr.interleave = 1;
+        if (k == 1) ff.fr.vpl.interleave = 1;
         assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
         gltest_state_unchanged(&ff.f);
         { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
@@ -208,13 +208,13 @@ static void shadows_and_second_bounce(void **state) {
     (void)state;
     GLTEST_BEGIN();
     vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
-    ff.fr.vpl_count = 1024;
-    ff.fr.cluster_count = 16;
-    ff.fr.kmeans_restart = 1;   /* every frame the same clusters, whatever came before */
+    ff.fr.vpl.count = 1024;
+    ff.fr.vpl.cluster_count = 16;
+    ff.fr.vpl.kmeans_restart = 1;   /* every frame the same clusters, whatever came before */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &on, &all_on, &n);
-    ff.fr.no_visibility = 1;
+    ff.fr.vpl.no_visibility = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &off, &all_off, &n);
@@ -222,8 +222,8 @@ static void shadows_and_second_bounce(void **state) {
                   "image %.4g / %.4g\n", on, off, n, all_on, all_off);
     assert_true(on < 0.7 * off);
     assert_true(all_on > 0.7 * all_off);
-    ff.fr.no_visibility = 0;
-    ff.fr.clamp_distance = -1.0f;   /* no clamping */
+    ff.fr.vpl.no_visibility = 0;
+    ff.fr.vpl.clamp_distance = -1.0f;   /* no clamping */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &unclamped, &all_unclamped, &n);
@@ -233,13 +233,13 @@ static void shadows_and_second_bounce(void **state) {
     frame_end(&ff);
 
     vpl_frame_begin(&ff, GIM_METHOD_SSVP);
-    ff.fr.kmeans_restart = 1;
-    ff.fr.bounces = 1;
+    ff.fr.vpl.kmeans_restart = 1;
+    ff.fr.vpl.bounces = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &b1, &all1, &n);
-    ff.fr.bounces = 2;
-    ff.fr.second_bounce_vpls = 1024;
+    ff.fr.vpl.bounces = 2;
+    ff.fr.vpl.second_bounce_vpls = 1024;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, img); }
     shadow_region(&ff, img, &b2, &all2, &n);
@@ -266,8 +266,8 @@ static void clusters_move_smoothly(void **state) {
         double worst = 0.0, mean = 0.0;
         uint32_t steps = 0;
         vpl_frame_begin(&ff, k == 1 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
-        ff.fr.bounces = 1;
-        ff.fr.kmeans_restart = k == 2;
+        ff.fr.vpl.bounces = 1;
+        ff.fr.vpl.kmeans_restart = k == 2;
         for (fr = 0; fr < 8; ++fr) {
             gim_frame_outputs o;
             wall_light(&ff, (float)fr);
@@ -317,7 +317,7 @@ static void only_what_is_enabled(void **state) {
     assert_int_equal(o.vpl_count, o.first_bounce_count);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     with_maps = st.gpu_bytes;
-    ff.fr.no_visibility = 1;
+    ff.fr.vpl.no_visibility = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     assert_true(o.paraboloid_distance == 0 && o.paraboloid_position == 0);
@@ -326,7 +326,7 @@ static void only_what_is_enabled(void **state) {
     print_message("GPU bytes: %llu with visibility, %llu without\n", (unsigned long long)with_maps,
                   (unsigned long long)without);
     assert_true(without + 8ull * 64 * 64 * 8 <= with_maps);   /* 8 maps of 64^2: distance + depth */
-    ff.fr.bounces = 2;                                       /* the second bounce needs the maps' attributes */
+    ff.fr.vpl.bounces = 2;                                       /* the second bounce needs the maps' attributes */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
     assert_true(o.paraboloid_position != 0 && o.paraboloid_normal != 0 && o.paraboloid_albedo != 0);
@@ -361,7 +361,7 @@ static void same_image_at_any_scale(void **state) {
         gim_light l0;
         gim_frame f0;
         vpl_frame_begin(&ff, m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
-        ff.fr.kmeans_restart = 1;   /* each frame from the same seeds */
+        ff.fr.vpl.kmeans_restart = 1;   /* each frame from the same seeds */
         assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
         { gim_frame_outputs oo = gim_outputs(ff.f.ctx); read_indirect(&oo, ref); }
         l0 = ff.g.lights[0];   /* the box's own spot, which wall_light turns */
@@ -413,12 +413,12 @@ static void bad_settings(void **state) {
     vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
     for (k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
         gim_frame f = ff.fr;
-        f.vpl_count = bad[k].vpls; f.cluster_count = bad[k].clusters; f.paraboloid_size = bad[k].size;
-        f.bounces = bad[k].bounces; f.interleave = bad[k].interleave; f.kmeans_iterations = bad[k].iters;
+        f.vpl.count = bad[k].vpls; f.vpl.cluster_count = bad[k].clusters; f.vpl.paraboloid_size = bad[k].size;
+        f.vpl.bounces = bad[k].bounces; f.vpl.interleave = bad[k].interleave; f.vpl.kmeans_iterations = bad[k].iters;
         assert_int_equal(gim_update(ff.f.ctx, &f), GIM_ERROR_OUT_OF_RANGE);
         gltest_state_unchanged(&ff.f);
     }
-    ff.fr.clamp_distance = NAN;
+    ff.fr.vpl.clamp_distance = NAN;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_INVALID_ARGUMENT);
     ff.f.log.errors = 0;
     frame_end(&ff);
