@@ -1541,10 +1541,10 @@ typedef struct gim_frame_visibility {
     gim_visibility mode;        /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
                                    their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
                                    their VPLs x ism_size^2 16-bit depths within one shader storage block) */
-    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64), halved
-                                   until every cache's map fits one shader storage block (at 128 MiB: 64^2 up
-                                   to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP: GIM_ISM_DEFAULT_VPL_SIZE
-                                   (32: their maps are made every frame) */
+    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
+                                   halves it until every cache's map fits one shader storage block (at 128
+                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64
+                                   (GIM_ISM_DEFAULT_VPL_SIZE, 32, is not what their frame uses) */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame_visibility;
@@ -1627,6 +1627,18 @@ typedef struct gim_frame {
     gim_frame_gather gather;         /* RSM_GATHER */
     gim_frame_vpl vpl;               /* CLUSTERED, SSVP */
 } gim_frame;
+
+/* A frame with every default of `method` written out: the value each zero field stands for,
+   the method-dependent ones (vpl.cluster_count, vpl.bounces, the ISM sizes and points) for
+   this method (GIM_METHOD_DEFAULT: LIGHTSKIN_BRSM). Left 0: what only the host knows (view,
+   proj, width, height, the G-buffer), what is measured every frame (scene_scale: the bounds'
+   diagonal; view_distance: the far plane), the off switches, and vpl.kmeans_iterations, whose
+   default depends on the frame (3 from the last frame's centres, 8 from seeds). One more
+   default depends on the scene: a zero visibility.ism_size is halved below 64 for LightSkin
+   when the caches' maps would not fit one shader storage block (the 64 written here is then
+   refused instead). With view, proj, width and height set, it renders what the zero frame of
+   the same method renders (tests/gltest_frame.c). */
+GIMANY_API gim_frame gim_frame_defaults(gim_method method);
 
 /* Run the frame's passes (DESIGN.md sec. 5, paper 000): RSM per light whose frustum meets an
    instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
@@ -10642,7 +10654,7 @@ static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__G
         gim__ism_release(ctx);
         return GIM_OK;
     }
-    n = f->lightskin.neighbour_count ? f->lightskin.neighbour_count : GIM_MAX_NEIGHBOUR_CACHES;
+    n = f->lightskin.neighbour_count;
     if (ls->caches && ctx->ls_version == ctx->scene_version && ctx->ls_scale == scale) {
         grid = ctx->ls_grid;   /* nothing moved: the world caches and their grid stand */
         goto vals;
@@ -10759,8 +10771,8 @@ vals:
     memset(&ism, 0, sizeof ism);
     if (f->visibility.mode == GIM_VISIBILITY_ISM) {
         /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
-        uint32_t size = gim__ism_frame_size(ctx, f, total);
-        uint32_t per = f->visibility.ism_points ? f->visibility.ism_points : GIM_ISM_DEFAULT_POINTS;
+        uint32_t size = f->visibility.ism_size;   /* resolved: halved to fit the caches' maps (gim__frame_resolve_scene) */
+        uint32_t per = f->visibility.ism_points;
         uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
         if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
             ctx->ism_scale != scale || ctx->ism_point_count != pool) {
@@ -11030,8 +11042,8 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
                                      float scale, gim__GLenum format) {
     static const char where[] = "RSM gather (GL)";
     const gim__gl *gl = &ctx->gl;
-    uint32_t n = f->gather.samples ? f->gather.samples : GIM__GATHER_DEFAULT_SAMPLES, i, on;
-    float frac = f->gather.radius > 0.0f ? f->gather.radius : GIM__GATHER_DEFAULT_RADIUS, *pattern = NULL, *offsets = NULL;
+    uint32_t n = f->gather.samples, i, on;
+    float frac = f->gather.radius, *pattern = NULL, *offsets = NULL;
     int host = f->gbuffer.depth != 0;
     gim__GLuint program = 0;
     uint64_t stride;
@@ -11379,7 +11391,65 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
-/* Argument checks of gim_update that need no GL. */
+/* --- the frame's settings resolved ---------------------------------------------------------
+   gim_update checks the host's frame, then resolves it once: every zero becomes its default
+   (gim_frame_defaults), and every pass after that reads the resolved frame. */
+
+GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
+    gim_frame f;
+    int vplm = method == GIM_METHOD_CLUSTERED || method == GIM_METHOD_SSVP;
+    memset(&f, 0, sizeof f);
+    f.method = method == GIM_METHOD_DEFAULT ? GIM_METHOD_LIGHTSKIN_BRSM : method;
+    f.visibility.mode = GIM_VISIBILITY_OFF;
+    f.visibility.ism_size = GIM_ISM_DEFAULT_SIZE;   /* the VPL methods' too (their frame has always used it) */
+    f.visibility.ism_points = vplm ? GIM_ISM_DEFAULT_VPL_POINTS : GIM_ISM_DEFAULT_POINTS;
+    f.lightskin.val_count = GIM__DEFAULT_VAL_COUNT;
+    f.lightskin.temporal_steps = 1u;               /* no drift: new offsets every frame */
+    f.lightskin.view_sample_count = GIM__DEFAULT_VIEW_SAMPLES;
+    f.lightskin.importance_clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
+    f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;
+    f.gather.samples = GIM__GATHER_DEFAULT_SAMPLES;
+    f.gather.radius = GIM__GATHER_DEFAULT_RADIUS;
+    f.vpl.count = 4096u;   /* 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024: 57-79% */
+    f.vpl.cluster_count = method == GIM_METHOD_SSVP ? 8u : 30u;
+    f.vpl.kmeans_iterations = 0u;   /* depends on the frame: 3 warm, 8 from seeds (gim__vpl_settings_of) */
+    f.vpl.paraboloid_size = 256u;
+    f.vpl.bounces = method == GIM_METHOD_SSVP ? 2u : 1u;
+    f.vpl.second_bounce_vpls = 256u;
+    f.vpl.interleave = 8u;
+    f.vpl.clamp_distance = 0.01f;
+    f.vpl.blur_distance = 0.1f;
+    return f;
+}
+
+/* `in` with every zero made its default (gim_frame_defaults of its method); `in` checked. A
+   negative clamp_distance (none) stays. */
+static void gim__frame_resolve(const gim_frame *in, gim_frame *out) {
+    gim_frame d = gim_frame_defaults(in->method);
+    *out = *in;
+#define GIM__RESOLVE(field) if (out->field == 0) out->field = d.field
+    GIM__RESOLVE(method);
+    GIM__RESOLVE(visibility.mode);
+    GIM__RESOLVE(visibility.ism_size);
+    GIM__RESOLVE(visibility.ism_points);
+    GIM__RESOLVE(lightskin.val_count);
+    GIM__RESOLVE(lightskin.temporal_steps);
+    GIM__RESOLVE(lightskin.view_sample_count);
+    GIM__RESOLVE(lightskin.importance_clamp);
+    GIM__RESOLVE(lightskin.neighbour_count);
+    GIM__RESOLVE(gather.samples);
+    GIM__RESOLVE(gather.radius);
+    GIM__RESOLVE(vpl.count);
+    GIM__RESOLVE(vpl.cluster_count);
+    GIM__RESOLVE(vpl.paraboloid_size);
+    GIM__RESOLVE(vpl.bounces);
+    GIM__RESOLVE(vpl.second_bounce_vpls);
+    GIM__RESOLVE(vpl.interleave);
+    GIM__RESOLVE(vpl.clamp_distance);
+    GIM__RESOLVE(vpl.blur_distance);
+#undef GIM__RESOLVE
+}
+
 /* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
    Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
    RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (warm from the
@@ -11409,7 +11479,7 @@ static void gim__vpl_release(gim_context *ctx) {
     ctx->vpl_partial_bytes = 0;
 }
 
-/* The resolved settings of a VPL frame (gim_frame's zeros made defaults). */
+/* The settings of a resolved VPL frame (gim__frame_resolve), as the passes use them. */
 typedef struct gim__vpl_settings {
     int ssvp, visibility, restart;
     uint32_t vpls, clusters, iterations, size, bounces, second, interleave;
@@ -11419,16 +11489,18 @@ typedef struct gim__vpl_settings {
 static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->ssvp = f->method == GIM_METHOD_SSVP;
     s->visibility = !f->vpl.no_visibility;
-    s->vpls = f->vpl.count ? f->vpl.count : 4096u;   /* 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024: 57-79% */
-    s->clusters = f->vpl.cluster_count ? f->vpl.cluster_count : s->ssvp ? 8u : 30u;
+    s->vpls = f->vpl.count;
+    s->clusters = f->vpl.cluster_count;
     s->restart = f->vpl.kmeans_restart != 0;
+    /* 0 (the default): 3 steps from the last frame's centres; from seeds (restart, or a cold
+       start) gim__gl_vpl_frame takes 8 */
     s->iterations = f->vpl.kmeans_iterations ? f->vpl.kmeans_iterations : s->restart ? 8u : 3u;
-    s->size = f->vpl.paraboloid_size ? f->vpl.paraboloid_size : 256u;
-    s->bounces = f->vpl.bounces ? f->vpl.bounces : s->ssvp ? 2u : 1u;
-    s->second = s->bounces == 2u ? (f->vpl.second_bounce_vpls ? f->vpl.second_bounce_vpls : 256u) : 0u;
-    s->interleave = f->vpl.interleave ? f->vpl.interleave : 8u;
-    s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance > 0.0f ? f->vpl.clamp_distance : 0.01f;
-    s->blur_distance = f->vpl.blur_distance > 0.0f ? f->vpl.blur_distance : 0.1f;
+    s->size = f->vpl.paraboloid_size;
+    s->bounces = f->vpl.bounces;
+    s->second = s->bounces == 2u ? f->vpl.second_bounce_vpls : 0u;
+    s->interleave = f->vpl.interleave;
+    s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance;
+    s->blur_distance = f->vpl.blur_distance;
 }
 
 /* First-bounce VPLs of a frame with `lights` rendered RSMs: vpl_count each (per_light_budget),
@@ -11451,12 +11523,14 @@ static uint32_t gim__vpl_share(const gim_frame *f, const gim__vpl_settings *s, u
 static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
     static const char where[] = "gim_update";
     gim__vpl_settings s;
+    gim_frame rf;
     uint32_t lights = ctx->light_count ? ctx->light_count : 1u;
     if (!gim__isfinitef(f->vpl.clamp_distance) || !gim__isfinitef(f->vpl.blur_distance) || f->vpl.blur_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
                          "(blur_distance >= 0)");
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
-    gim__vpl_settings_of(f, &s);
+    gim__frame_resolve(f, &rf);
+    gim__vpl_settings_of(&rf, &s);
     if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs%s x %u lights above %u", (unsigned)s.vpls,
                          f->per_light_budget ? " per light" : "", (unsigned)lights, GIM__VPL_MAX);
@@ -11528,9 +11602,9 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
-    uint32_t i, k, off, first, total, it, iterations, ism_size = f->visibility.ism_size ? f->visibility.ism_size : GIM_ISM_DEFAULT_SIZE;
+    uint32_t i, k, off, first, total, it, iterations, ism_size = f->visibility.ism_size;
     gim_result r = GIM_OK;
-    uint32_t ism_per = f->visibility.ism_points ? f->visibility.ism_points : GIM_ISM_DEFAULT_VPL_POINTS;
+    uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
     int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
@@ -11806,6 +11880,17 @@ static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, 
     return size;
 }
 
+/* gim__frame_resolve, then the default that depends on the scene: a LightSkin frame's zero
+   ism_size halved until every cache's map fits one shader storage block. */
+static void gim__frame_resolve_scene(gim_context *ctx, const gim_frame *in, gim_frame *out) {
+    uint64_t caches = 0;
+    uint32_t i;
+    gim__frame_resolve(in, out);
+    if (in->visibility.ism_size || out->method == GIM_METHOD_CLUSTERED || out->method == GIM_METHOD_SSVP) return;
+    for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
+    out->visibility.ism_size = gim__ism_frame_size(ctx, in, caches);
+}
+
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
    in range, a point count in range, and every cache's map within one shader storage block. */
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
@@ -11824,9 +11909,12 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
                          GIM_ISM_MAX_POINTS);
     if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
         gim__vpl_settings s;
+        gim_frame rf;
         uint64_t maps;
-        uint32_t vsize = f->visibility.ism_size ? f->visibility.ism_size : GIM_ISM_DEFAULT_VPL_SIZE;
-        gim__vpl_settings_of(f, &s);
+        uint32_t vsize;
+        gim__frame_resolve(f, &rf);   /* the map side the VPL frame renders with */
+        vsize = rf.visibility.ism_size;
+        gim__vpl_settings_of(&rf, &s);
         if (f->vpl.no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
         maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
@@ -11944,6 +12032,7 @@ static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t v
 GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_update";
     gim_frame_outputs o;
+    gim_frame resolved;
     float bmin[3], bmax[3], scale;
     uint32_t i, vs_count, val_count;
     gim__GLuint depth, normal;
@@ -11975,6 +12064,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     if (r == GIM_OK) r = gim__frame_check(ctx, frame, bmin, bmax);
     if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
     if (r != GIM_OK) return r;
+    gim__frame_resolve_scene(ctx, frame, &resolved);
+    frame = &resolved;
     diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
                 ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
                 ((double)bmax[2] - bmin[2]) * ((double)bmax[2] - bmin[2]));
@@ -12019,8 +12110,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "positions are too coarse there; move the world origin near the scene",
                              diag, d, GIM__MAX_ORIGIN_DIAGONALS);
     }
-    vs_count = frame->lightskin.view_sample_count ? frame->lightskin.view_sample_count : GIM__DEFAULT_VIEW_SAMPLES;
-    val_count = frame->lightskin.val_count ? frame->lightskin.val_count : GIM__DEFAULT_VAL_COUNT;
+    vs_count = frame->lightskin.view_sample_count;
+    val_count = frame->lightskin.val_count;
     gather = frame->method == GIM_METHOD_RSM_GATHER;
     vplm = frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP;
     full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather || vplm;   /* none needs importance */
@@ -12236,6 +12327,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
 GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_prepare";
     gim__program_id ids[GIM__PROGRAM_COUNT];
+    gim_frame f;
     float bmin[3], bmax[3];
     uint32_t n = 0, i;
     gim_result r;
@@ -12247,26 +12339,27 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     r = gim__frame_check(ctx, frame, bmin, bmax);
     if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
     if (r != GIM_OK) return r;
+    gim__frame_resolve(frame, &f);
     /* what gim_update's passes build for this method and these settings */
     ids[n++] = GIM__PROGRAM_RSM;
-    if (!frame->gbuffer.depth) ids[n++] = GIM__PROGRAM_GBUFFER;
-    if (gim__gbuffer_needs_decode(frame)) ids[n++] = GIM__PROGRAM_GBUFFER_DECODE;
-    if (frame->method == GIM_METHOD_RSM_GATHER) {
+    if (!f.gbuffer.depth) ids[n++] = GIM__PROGRAM_GBUFFER;
+    if (gim__gbuffer_needs_decode(&f)) ids[n++] = GIM__PROGRAM_GBUFFER_DECODE;
+    if (f.method == GIM_METHOD_RSM_GATHER) {
         ids[n++] = GIM__PROGRAM_RSM_GATHER;
-    } else if (frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP) {
+    } else if (f.method == GIM_METHOD_CLUSTERED || f.method == GIM_METHOD_SSVP) {
         gim__vpl_settings s;
-        gim__vpl_settings_of(frame, &s);
+        gim__vpl_settings_of(&f, &s);
         ids[n++] = GIM__PROGRAM_RSM_VPLS;
         ids[n++] = GIM__PROGRAM_CLUSTERS;
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
-        if ((s.visibility && frame->visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
-        if (frame->visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
+        if (f.visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;
     } else {
-        if (frame->method != GIM_METHOD_LIGHTSKIN_FULL) {
+        if (f.method != GIM_METHOD_LIGHTSKIN_FULL) {
             ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
             ids[n++] = GIM__PROGRAM_IMPORTANCE_MAP;
             ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
@@ -12276,7 +12369,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         }
         ids[n++] = GIM__PROGRAM_VALS_GATHER;
         ids[n++] = GIM__PROGRAM_PROXY_LIGHTS;
-        if (frame->visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        if (f.visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
         ids[n++] = GIM__PROGRAM_LIGHTSKIN_SHADE;
     }
     for (i = 0; i < ctx->instance_count; ++i) {   /* a deforming mesh's bounds and caches follow it */

@@ -352,12 +352,82 @@ static void glossy_sizes_and_no_caches(void **state) {
     GLTEST_END();
 }
 
+/* gim_frame_defaults writes out the documented defaults, and a frame of them renders exactly
+   what the zero frame renders (gim_update resolves every zero from gim_frame_defaults once):
+   every method, and ISM visibility with LightSkin and CLUSTERED, each on a fresh context (the
+   k-means start warm from a context's last frame). Shown to fail: with gim__frame_resolve
+   leaving vpl.interleave 0, CLUSTERED's zero frame is refused. */
+static void frame_defaults_render_as_zero(void **state) {
+    static const gim_method methods[] = {GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_LIGHTSKIN_FULL, GIM_METHOD_RSM_GATHER,
+                                         GIM_METHOD_CLUSTERED, GIM_METHOD_SSVP, GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_CLUSTERED};
+    float *img[2];
+    gim_frame d = gim_frame_defaults(GIM_METHOD_DEFAULT);
+    unsigned mi, k;
+    (void)state;
+    GLTEST_BEGIN();
+    assert_int_equal(d.method, GIM_METHOD_LIGHTSKIN_BRSM);
+    assert_int_equal(d.visibility.mode, GIM_VISIBILITY_OFF);
+    assert_int_equal(d.visibility.ism_size, 64);
+    assert_int_equal(d.visibility.ism_points, 16384);
+    assert_int_equal(d.lightskin.val_count, 2048);
+    assert_int_equal(d.lightskin.temporal_steps, 1);
+    assert_int_equal(d.lightskin.view_sample_count, 256);
+    assert_true(d.lightskin.importance_clamp == 1.0f / 64.0f);
+    assert_int_equal(d.lightskin.neighbour_count, 16);
+    assert_int_equal(d.gather.samples, 256);
+    assert_true(d.gather.radius == 1.5f);
+    assert_int_equal(d.vpl.count, 4096);
+    assert_int_equal(d.vpl.cluster_count, 30);
+    assert_int_equal(d.vpl.bounces, 1);
+    assert_int_equal(d.vpl.paraboloid_size, 256);
+    assert_int_equal(d.vpl.second_bounce_vpls, 256);
+    assert_int_equal(d.vpl.interleave, 8);
+    assert_true(d.vpl.clamp_distance == 0.01f && d.vpl.blur_distance == 0.1f);
+    assert_true(d.width == 0 && d.height == 0 && d.gbuffer.depth == 0 && d.scene_scale == 0.0f && d.vpl.kmeans_iterations == 0);
+    d = gim_frame_defaults(GIM_METHOD_SSVP);
+    assert_true(d.method == GIM_METHOD_SSVP && d.vpl.cluster_count == 8 && d.vpl.bounces == 2 && d.visibility.ism_points == 2048);
+    d = gim_frame_defaults(GIM_METHOD_CLUSTERED);
+    assert_true(d.vpl.cluster_count == 30 && d.vpl.bounces == 1 && d.visibility.ism_size == 64 && d.visibility.ism_points == 2048);
+    img[0] = (float *)malloc(W * H * 16);
+    img[1] = (float *)malloc(W * H * 16);
+    for (mi = 0; mi < sizeof methods / sizeof methods[0]; ++mi) {
+        int ism = mi >= 5;
+        double sum = 0.0;
+        for (k = 0; k < 2; ++k) {
+            frame_fixture ff;
+            gim_frame zero = {0};
+            frame_begin(&ff, NULL, 32);
+            if (k == 1) ff.fr = gim_frame_defaults(methods[mi]);
+            else ff.fr = zero, ff.fr.method = methods[mi];
+            scene_gimany_camera(&ff.s, &ff.fr.view, &ff.fr.proj);
+            ff.fr.width = W;
+            ff.fr.height = H;
+            ff.fr.indirect_float32 = 1;
+            if (ism) ff.fr.visibility.mode = GIM_VISIBILITY_ISM;
+            assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+            {
+                gim_frame_outputs o = gim_outputs(ff.f.ctx);
+                read_indirect(&o, img[k]);
+            }
+            frame_end(&ff);
+        }
+        for (k = 0; k < W * H; ++k) sum += img[0][k * 4];
+        print_message("method %d%s: zero and default frames %s, red sum %.4g\n", (int)methods[mi], ism ? " ISM" : "",
+                      memcmp(img[0], img[1], W * H * 16) ? "DIFFER" : "identical", sum);
+        assert_true(sum > 0.0);
+        assert_memory_equal(img[0], img[1], W * H * 16);
+    }
+    free(img[0]); free(img[1]);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_builtin),
         cmocka_unit_test(cornell_gltf),
         cmocka_unit_test(glossy_sizes_and_no_caches),
         cmocka_unit_test(rsm_gather_matches_twin),
+        cmocka_unit_test(frame_defaults_render_as_zero),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
