@@ -1707,24 +1707,34 @@ typedef struct gim_light_outputs {
                                    map (0: no VALs); 0 otherwise (not read back) */
 } gim_light_outputs;
 
-/* Everything the last successful gim_update left for the host and for later passes. */
+/* What the last successful gim_update left for the host. */
 typedef struct gim_frame_outputs {
     int valid;                  /* 0 before the first successful gim_update, or after a failed one */
     uint32_t width, height;
+    uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
+                                   surface towards the eye (diffuse + glossy, albedo applied; with the
+                                   host's G-buffer albedo 1 and no glossy term), a = 1 where a surface is;
+                                   0 when there is nothing to light (LightSkin: a scene without caches) */
     uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
     uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
     uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
     uint32_t gbuffer_material;  /* R32F material id (0 with the host's G-buffer) */
-    uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} */
-    uint32_t view_sample_count;
     float scene_scale;
     float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
     uint32_t light_count;
     const gim_light_outputs *lights; /* light_count, one per RSM; the context's, valid as the rest */
+} gim_frame_outputs;
+
+/* The outputs of the last gim_update (all zero for NULL). */
+GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
+
+/* The internal buffers of the last successful gim_update, for tests and tools that compare
+   the passes with their twins (a host needs none of them; GL names, valid until the next
+   gim_update; zero when the frame's method has no such buffer). */
+typedef struct gim_debug_outputs {
+    uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} (BRSM) */
+    uint32_t view_sample_count;
     /* LightSkin (0 when the scene has no caches) */
-    uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
-                                   surface towards the eye (diffuse + glossy, albedo applied; with the
-                                   host's G-buffer albedo 1 and no glossy term), a = 1 where a surface is */
     uint32_t caches;            /* SSBO: cache_count world-space gim_cache, in hash-grid order */
     uint32_t cache_count;
     uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
@@ -1737,7 +1747,7 @@ typedef struct gim_frame_outputs {
     uint32_t neighbour_count;   /* n of the interpolation */
     float neighbour_cos;        /* cosine of the normal compatibility angle */
     float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
-    /* VPL methods (0 otherwise); indirect as above */
+    /* VPL methods (0 otherwise) */
     uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
     uint32_t vpl_count;
     uint32_t first_bounce_count; /* VPLs [0, first_bounce_count) are the first bounce */
@@ -1753,10 +1763,10 @@ typedef struct gim_frame_outputs {
                                    two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
                                    methods: map i of VPL i of vpls */
     uint32_t ism_size;
-} gim_frame_outputs;
+} gim_debug_outputs;
 
-/* The outputs of the last gim_update (all zero for NULL). */
-GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
+/* The internal buffers of the last successful gim_update (all zero for NULL, or before one). */
+GIMANY_API gim_debug_outputs gim_debug(const gim_context *ctx);
 
 /* The passes a frame may run, for the timings of gim_frame_stats. */
 typedef enum gim_pass {
@@ -7852,6 +7862,7 @@ struct gim_context {
     double stamp_ms[GIM__MAX_STAMPS];  /* timing 2: the clock (gim__clock_ms) after each stamp's glFinish */
     gim_stats stats;
     gim_frame_outputs outputs;
+    gim_debug_outputs debug;    /* gim_debug's, set with outputs */
     /* paraboloid maps (issue 5) */
     uint32_t para_size, para_count;   /* of the textures below; 0: none */
     int para_attributes;              /* GIM__PARA_*: the maps that exist (distance, attributes, both) */
@@ -10633,7 +10644,7 @@ static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *hav
 
 /* The LightSkin passes of gim_update (see there); fills the LightSkin part of o. */
 static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
-                                    float scale, gim_frame_outputs *o) {
+                                    float scale, gim_frame_outputs *o, gim_debug_outputs *dbg) {
     static const char where[] = "gim_update (LightSkin)";
     gim__lightskin_gpu *ls = &ctx->ls;
     gim_cache *world = NULL, *sorted = NULL;
@@ -10819,19 +10830,19 @@ vals:
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
     o->indirect = ctx->indirect;
-    o->caches = ls->caches;
-    o->cache_count = total;
-    o->vals = ls->vals;
-    o->val_count = vals_total;
-    o->proxy_diffuse = ls->diffuse;
-    o->proxy_glossy = glossy ? ls->glossy : 0u;
-    o->glossy_exponent = glossy ? k_glossy : 0.0f;
-    o->cache_exponents = glossy ? ls->exponents : 0u;
-    o->neighbour_count = n;
-    o->neighbour_cos = sa.cos_theta;
-    o->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
-    o->ism_maps = ism.maps;
-    o->ism_size = ism.maps ? ism.size : 0u;
+    dbg->caches = ls->caches;
+    dbg->cache_count = total;
+    dbg->vals = ls->vals;
+    dbg->val_count = vals_total;
+    dbg->proxy_diffuse = ls->diffuse;
+    dbg->proxy_glossy = glossy ? ls->glossy : 0u;
+    dbg->glossy_exponent = glossy ? k_glossy : 0.0f;
+    dbg->cache_exponents = glossy ? ls->exponents : 0u;
+    dbg->neighbour_count = n;
+    dbg->neighbour_cos = sa.cos_theta;
+    dbg->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
+    dbg->ism_maps = ism.maps;
+    dbg->ism_size = ism.maps ? ism.size : 0u;
     return GIM_OK;
 }
 
@@ -11598,7 +11609,7 @@ static gim_result gim__gl_clusters_reset(gim_context *ctx) {
 }
 
 static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
-                                    gim_frame_outputs *o) {
+                                    gim_frame_outputs *o, gim_debug_outputs *dbg) {
     static const char where[] = "gim_update";
     gim__vpl_gpu *v = &ctx->vpl;
     gim__vpl_settings s;
@@ -11775,20 +11786,20 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         if (r != GIM_OK) return r;
     }
     o->indirect = ctx->indirect;
-    o->vpls = v->vpls;
-    o->vpl_count = total;
-    o->first_bounce_count = first;
-    o->vpl_clusters = v->cluster_of;
-    o->clusters = v->maps;
-    o->cluster_count = s.clusters;
-    o->kmeans_centres = v->centres;
-    o->paraboloid_size = s.size;
-    o->paraboloid_distance = ctx->para_distance;
-    o->paraboloid_position = ctx->para_position;
-    o->paraboloid_normal = ctx->para_normal;
-    o->paraboloid_albedo = ctx->para_albedo;
-    o->ism_maps = ism ? ctx->ism_maps : 0u;
-    o->ism_size = ism ? ism_size : 0u;
+    dbg->vpls = v->vpls;
+    dbg->vpl_count = total;
+    dbg->first_bounce_count = first;
+    dbg->vpl_clusters = v->cluster_of;
+    dbg->clusters = v->maps;
+    dbg->cluster_count = s.clusters;
+    dbg->kmeans_centres = v->centres;
+    dbg->paraboloid_size = s.size;
+    dbg->paraboloid_distance = ctx->para_distance;
+    dbg->paraboloid_position = ctx->para_position;
+    dbg->paraboloid_normal = ctx->para_normal;
+    dbg->paraboloid_albedo = ctx->para_albedo;
+    dbg->ism_maps = ism ? ctx->ism_maps : 0u;
+    dbg->ism_size = ism ? ism_size : 0u;
     return GIM_OK;
 }
 
@@ -12032,6 +12043,7 @@ static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t v
 GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_update";
     gim_frame_outputs o;
+    gim_debug_outputs dbg;
     gim_frame resolved;
     float bmin[3], bmax[3], scale;
     uint32_t i, vs_count, val_count;
@@ -12215,6 +12227,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         gim__stamp(ctx, frame->timing, GIM_PASS_SELECT);
     }
     memset(&o, 0, sizeof o);
+    memset(&dbg, 0, sizeof dbg);
     memcpy(o.bounds_min, bmin, sizeof bmin);
     memcpy(o.bounds_max, bmax, sizeof bmax);
     if (r == GIM_OK && gather) {
@@ -12235,10 +12248,10 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
         if (vplm) {
             gim__lightskin_drop(ctx);   /* no LightSkin buffers in a VPL frame */
-            r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o);
+            r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o, &dbg);
         } else {
             gim__vpl_release(ctx);
-            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, &o);
+            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, &o, &dbg);
         }
     }
     ctx->own_objects = 0;
@@ -12250,8 +12263,8 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     o.gbuffer_normal = normal;
     o.gbuffer_albedo = frame->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
     o.gbuffer_material = frame->gbuffer.depth ? 0u : ctx->gbuffer_material;
-    o.view_samples = full ? 0u : ctx->view_samples;
-    o.view_sample_count = full ? 0u : vs_count;
+    dbg.view_samples = full ? 0u : ctx->view_samples;
+    dbg.view_sample_count = full ? 0u : vs_count;
     o.scene_scale = scale;
     o.light_count = ctx->light_count;
     o.lights = ctx->light_outputs;
@@ -12276,15 +12289,16 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         lo->importance_total = full ? 0.0 : ctx->light_total[i];
     }
     ctx->outputs = o;
+    ctx->debug = dbg;
     memset(&ctx->stats, 0, sizeof ctx->stats);
     ctx->stats.timed = frame->timing ? 1 : 0;
     ctx->stats.cpu_clock = frame->timing == 2 ? GIM__CPU_CLOCK : 0;
     ctx->stats.light_count = ctx->light_count;
-    ctx->stats.view_sample_count = o.view_sample_count;
-    ctx->stats.cache_count = o.cache_count;
-    ctx->stats.val_count = o.val_count;
-    ctx->stats.vpl_count = o.vpl_count;
-    ctx->stats.cluster_count = o.cluster_count;
+    ctx->stats.view_sample_count = dbg.view_sample_count;
+    ctx->stats.cache_count = dbg.cache_count;
+    ctx->stats.val_count = dbg.val_count;
+    ctx->stats.vpl_count = dbg.vpl_count;
+    ctx->stats.cluster_count = dbg.cluster_count;
     ctx->stats.pixel_count = frame->width * frame->height;
     ctx->stats.rsm_count = ctx->light_on_count;
     for (i = 0; i < ctx->light_count && !full; ++i) ctx->stats.val_light_count += ctx->light_vals[i] > 0u;
@@ -12296,6 +12310,13 @@ GIMANY_DEF gim_frame_outputs gim_outputs(const gim_context *ctx) {
     if (ctx) return ctx->outputs;
     memset(&o, 0, sizeof o);
     return o;
+}
+
+GIMANY_DEF gim_debug_outputs gim_debug(const gim_context *ctx) {
+    gim_debug_outputs d;
+    if (ctx) return ctx->debug;
+    memset(&d, 0, sizeof d);
+    return d;
 }
 
 /* GL bytes of a buffer or texture set the context owns. */

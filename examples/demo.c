@@ -274,13 +274,14 @@ static int demo_render(demo_run *r, char *err, size_t cap) {
     }
     for (fr = 0; fr < r->d.frames; ++fr) {
         gim_frame_outputs o;
+        gim_debug_outputs od;
         double t0 = now_ms(), *row = samples + (size_t)fr * (GIM_PASS_COUNT + 4);
         f.frame_index = fr;
         if (gim_update(ctx, &f) != GIM_OK) { snprintf(err, cap, "gim_update failed (logged above)"); goto done; }
-        o = gim_outputs(ctx);
-        if (o.cluster_count) {   /* the VPL methods: report what ran, the defaults resolved */
-            r->d.vpls = o.first_bounce_count / (o.light_count ? o.light_count : 1u);
-            r->d.clusters = o.cluster_count;
+        o = gim_outputs(ctx); od = gim_debug(ctx);
+        if (od.cluster_count) {   /* the VPL methods: report what ran, the defaults resolved */
+            r->d.vpls = od.first_bounce_count / (o.light_count ? o.light_count : 1u);
+            r->d.clusters = od.cluster_count;
         }
         if (f.timing == 2) { /* as gimany's passes: finish, then the CPU's clock */
             double t1, t2;

@@ -192,6 +192,7 @@ static int finite_nonneg(float v) { return isfinite(v) && v >= 0.0f; }
 /* Check every buffer and texture the last frame wrote. */
 static void ex_read(ex *e, ex_out *out) {
     gim_frame_outputs o = gim_outputs(e->f.ctx);
+    gim_debug_outputs od = gim_debug(e->f.ctx);
     uint32_t i, l, k;
     assert_true(o.valid);
     memset(out, 0, sizeof *out);
@@ -203,10 +204,10 @@ static void ex_read(ex *e, ex_out *out) {
         assert_true(out->depth[i] >= 0.0f && out->depth[i] <= 1.0f);
         if (out->nrm[i * 4 + 3] == 1.0f) out->drawn++;
     }
-    if (o.view_samples) {   /* {vec4 position; vec4 normal}: finite (an unusable sample is zero) */
-        float *vs = (float *)malloc((size_t)o.view_sample_count * 32u);
-        gltest_read_buffer(o.view_samples, (size_t)o.view_sample_count * 32u, vs);
-        for (i = 0; i < o.view_sample_count * 8u; ++i) assert_true(isfinite(vs[i]));
+    if (od.view_samples) {   /* {vec4 position; vec4 normal}: finite (an unusable sample is zero) */
+        float *vs = (float *)malloc((size_t)od.view_sample_count * 32u);
+        gltest_read_buffer(od.view_samples, (size_t)od.view_sample_count * 32u, vs);
+        for (i = 0; i < od.view_sample_count * 8u; ++i) assert_true(isfinite(vs[i]));
         free(vs);
     }
     if (o.indirect) {
@@ -261,10 +262,10 @@ static void ex_read(ex *e, ex_out *out) {
         }
         free(t);
     }
-    if (o.vals) {
-        gim_val *v = (gim_val *)malloc((size_t)o.val_count * sizeof *v);
-        gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *v, v);
-        for (i = 0; i < o.val_count; ++i) {
+    if (od.vals) {
+        gim_val *v = (gim_val *)malloc((size_t)od.val_count * sizeof *v);
+        gltest_read_buffer(od.vals, (size_t)od.val_count * sizeof *v, v);
+        for (i = 0; i < od.val_count; ++i) {
             assert_true(gim__all_finite(v[i].position, 3) && gim__all_finite(v[i].normal, 3));
             assert_true(finite_nonneg(v[i].area) && finite_nonneg(v[i].weight));
             for (k = 0; k < 3; ++k) {
@@ -274,17 +275,17 @@ static void ex_read(ex *e, ex_out *out) {
         }
         free(v);
     }
-    if (o.caches) {
-        gim_cache *c = (gim_cache *)malloc((size_t)o.cache_count * sizeof *c);
-        gim_proxy_light *p = (gim_proxy_light *)malloc((size_t)o.cache_count * sizeof *p);
-        gltest_read_buffer(o.caches, (size_t)o.cache_count * sizeof *c, c);
-        for (i = 0; i < o.cache_count; ++i)
+    if (od.caches) {
+        gim_cache *c = (gim_cache *)malloc((size_t)od.cache_count * sizeof *c);
+        gim_proxy_light *p = (gim_proxy_light *)malloc((size_t)od.cache_count * sizeof *p);
+        gltest_read_buffer(od.caches, (size_t)od.cache_count * sizeof *c, c);
+        for (i = 0; i < od.cache_count; ++i)
             assert_true(gim__all_finite(c[i].position, 3) && gim__all_finite(c[i].normal, 3) && finite_nonneg(c[i].area));
         for (k = 0; k < 2; ++k) {
-            uint32_t b = k == 0 ? o.proxy_diffuse : o.proxy_glossy;
+            uint32_t b = k == 0 ? od.proxy_diffuse : od.proxy_glossy;
             if (!b) continue;
-            gltest_read_buffer(b, (size_t)o.cache_count * sizeof *p, p);
-            for (i = 0; i < o.cache_count; ++i) {
+            gltest_read_buffer(b, (size_t)od.cache_count * sizeof *p, p);
+            for (i = 0; i < od.cache_count; ++i) {
                 int a;
                 assert_true(gim__all_finite(p[i].position, 3) && finite_nonneg(p[i].radius));
                 assert_true(p[i].visibility >= 0.0f && p[i].visibility <= 1.0f);
@@ -643,7 +644,7 @@ static void near_plane_and_coincident_caches(void **state) {
         m[3].exponent = 50.0f;
         assert_int_equal(gim_set_materials(e.f.ctx, m, 4), GIM_OK);
         ex_frame(&e, b);
-        assert_true(gim_outputs(e.f.ctx).proxy_glossy != 0 && b->lit > b->drawn / 2);
+        assert_true(gim_debug(e.f.ctx).proxy_glossy != 0 && b->lit > b->drawn / 2);
     }
     ex_end(&e);
 
@@ -666,7 +667,7 @@ static void near_plane_and_coincident_caches(void **state) {
     e.inst_count = 2;
     e.fr.lightskin.neighbour_count = 16;
     ex_frame(&e, b);
-    assert_int_equal(gim_outputs(e.f.ctx).cache_count, 2u * e.set[0].count);
+    assert_int_equal(gim_debug(e.f.ctx).cache_count, 2u * e.set[0].count);
     ex_end(&e);
     d = ex_compare(b, a, 1e-3, 1e-4);
     print_message("coincident caches (n 16, doubled) vs n 8: max rel %.2e, mean rel %.2e, %u above 1e-4\n", d.max_rel,
@@ -805,7 +806,7 @@ static void materials_at_the_ends(void **state) {
     m[3].glossy[0] = m[3].glossy[1] = m[3].glossy[2] = 0.6f;
     m[3].exponent = 0.0f;
     room_with(&e, m, 4, b);                                /* back wall: glossy 0.6, k = 0 */
-    assert_true(gim_outputs(e.f.ctx).proxy_glossy != 0 && gim_outputs(e.f.ctx).glossy_exponent == 0.0f);
+    assert_true(gim_debug(e.f.ctx).proxy_glossy != 0 && gim_debug(e.f.ctx).glossy_exponent == 0.0f);
     ex_end(&e);
     k = back_wall_only(a);
     back_wall_only(b);
@@ -820,7 +821,7 @@ static void materials_at_the_ends(void **state) {
             m[3].exponent = ks[i];
             m[3].diffuse[0] = m[3].diffuse[1] = m[3].diffuse[2] = 0.2f;
             room_with(&e, m, 4, b);
-            assert_true(gim_outputs(e.f.ctx).glossy_exponent == ks[i]);
+            assert_true(gim_debug(e.f.ctx).glossy_exponent == ks[i]);
             ex_end(&e);
             print_message("glossy exponent %g: %u lit of %u, max %g\n", (double)ks[i], b->lit, b->drawn, b->max);
             assert_true(b->lit > b->drawn / 2);
@@ -848,7 +849,7 @@ static void sizes_and_counts(void **state) {
         room_at(&e, 1.0, o0, light, GIM_METHOD_LIGHTSKIN_FULL, a);
         e.light.rsm_size = 1;
         ex_frame(&e, a);
-        assert_int_equal(gim_outputs(e.f.ctx).val_count, 1);
+        assert_int_equal(gim_debug(e.f.ctx).val_count, 1);
         e.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
         e.fr.lightskin.val_count = 100;
         ex_frame(&e, b);

@@ -26,6 +26,7 @@ static void fit_view_follows_the_camera(void **state) {
     gim_light l, fl;
     gim_frame fr;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     float fmin[3], fmax[3], *pos = (float *)malloc(S * S * 16), *nrm = (float *)malloc(S * S * 16),
                             *flux = (float *)malloc(S * S * 16), vs[256 * 8];
     double area_scene, area_view, total = 0.0, a;
@@ -61,7 +62,7 @@ static void fit_view_follows_the_camera(void **state) {
     /* the whole world: the window is the world's bounding radius */
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     area_scene = pow(2.0 / o.lights[0].proj.m[0] / S, 2.0);
 
     /* following the view */
@@ -69,14 +70,14 @@ static void fit_view_follows_the_camera(void **state) {
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     gltest_state_unchanged(&f);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     area_view = pow(2.0 / o.lights[0].proj.m[0] / S, 2.0);
     print_message("texel area: whole world %.4g, fitted to the view %.4g (%.0f x smaller)\n", area_scene, area_view,
                   area_scene / area_view);
     assert_true(area_view < area_scene / 1000.0);
 
     /* every visible point (the view samples) lies inside the RSM's window */
-    gltest_read_buffer(o.view_samples, sizeof vs, vs);
+    gltest_read_buffer(od.view_samples, sizeof vs, vs);
     for (i = 0; i < 256; ++i) {
         gim_vec4 c;
         if (vs[i * 8 + 4] == 0.0f && vs[i * 8 + 5] == 0.0f && vs[i * 8 + 6] == 0.0f) continue;
@@ -139,7 +140,7 @@ static void fit_view_follows_the_camera(void **state) {
     /* a view_distance nearer than the far plane shrinks the window further; bad values fail */
     fr.view_distance = 10.0f;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     assert_true(pow(2.0 / o.lights[0].proj.m[0] / S, 2.0) < area_view);
     fr.view_distance = -1.0f;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
@@ -150,7 +151,7 @@ static void fit_view_follows_the_camera(void **state) {
     fr.view_distance = 0.0f;
     fr.view = gim_mat4_look_at(gim_v3(0.0f, 3000.0f, 0.0f), gim_v3(0.0f, 4000.0f, 1.0f), gim_v3(0.0f, 1.0f, 0.0f));
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     assert_true(fabs(pow(2.0 / o.lights[0].proj.m[0] / S, 2.0) - area_scene) < 1e-3 * area_scene);
     gim_remove_mesh(f.ctx, mesh);
     free(pos); free(nrm); free(flux);

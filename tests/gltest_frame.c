@@ -18,18 +18,19 @@
    pixels, and how many exceed tol. */
 static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
-    uint32_t n = o.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt;
+    gim_debug_outputs od = gim_debug(ff->f.ctx);
+    uint32_t n = od.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt;
     gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
-    gim_cache *caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
-    gim_val *vals = (gim_val *)malloc((size_t)o.val_count * sizeof *vals);
+    gim_cache *caches = (gim_cache *)malloc(od.cache_count * sizeof *caches);
+    gim_val *vals = (gim_val *)malloc((size_t)od.val_count * sizeof *vals);
     float *pos_nrm = (float *)malloc(W * H * 24), *dcmax, *cpu, *kc = NULL;
     gim_cache_set set;
     gim_neighbour_desc nd;
     gim_neighbour_result nr;
     gim_lightskin_desc ld;
     gim_vec3 eye;
-    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
-    gltest_read_buffer(o.vals, (size_t)o.val_count * sizeof *vals, vals);
+    gltest_read_buffer(od.caches, od.cache_count * sizeof *caches, caches);
+    gltest_read_buffer(od.vals, (size_t)od.val_count * sizeof *vals, vals);
     nrec = frame_receivers(ff, rec, map, &eye);
     for (i = 0; i < nrec; ++i) {
         memcpy(pos_nrm + i * 6, rec[i].position, 12);
@@ -41,27 +42,27 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, doub
     cpu = (float *)malloc(nrec * 12);
     memset(&set, 0, sizeof set);
     set.caches = caches;
-    set.count = o.cache_count;
+    set.count = od.cache_count;
     memset(&nd, 0, sizeof nd);
     nd.mesh.positions = pos_nrm; nd.mesh.position_stride = 24;
     nd.mesh.normals = pos_nrm + 3; nd.mesh.normal_stride = 24;
     nd.mesh.vertex_count = nrec;
     nd.caches = &set;
     nd.n = n;
-    nd.theta_eps = (float)acos((double)o.neighbour_cos);
-    nd.max_distance = o.neighbour_radius;   /* the pass searches within this radius */
+    nd.theta_eps = (float)acos((double)od.neighbour_cos);
+    nd.max_distance = od.neighbour_radius;   /* the pass searches within this radius */
     nd.env = ff->f.env;
     nr.index = nb_idx; nr.count = nb_cnt; nr.d_cmax = dcmax;
     assert_int_equal(gim_cache_neighbours(&nd, &nr), GIM_OK);
     memset(&ld, 0, sizeof ld);
-    ld.caches = caches; ld.cache_count = o.cache_count;
-    ld.vals = vals; ld.val_count = o.val_count;
+    ld.caches = caches; ld.cache_count = od.cache_count;
+    ld.vals = vals; ld.val_count = od.val_count;
     ld.eye = eye;
-    ld.glossy = o.proxy_glossy != 0;
-    ld.glossy_exponent = o.glossy_exponent;
-    if (o.cache_exponents) {   /* each cache's own lobe, as the frame made it */
-        kc = (float *)malloc(o.cache_count * sizeof(float));
-        gltest_read_buffer(o.cache_exponents, o.cache_count * sizeof(float), kc);
+    ld.glossy = od.proxy_glossy != 0;
+    ld.glossy_exponent = od.glossy_exponent;
+    if (od.cache_exponents) {   /* each cache's own lobe, as the frame made it */
+        kc = (float *)malloc(od.cache_count * sizeof(float));
+        gltest_read_buffer(od.cache_exponents, od.cache_count * sizeof(float), kc);
         ld.cache_glossy_exponent = kc;
     }
     ld.receivers = rec; ld.receiver_count = nrec;
@@ -95,6 +96,7 @@ static void cornell_frame(const char *gltf) {
     frame_fixture ff;
     float *full = (float *)malloc(W * H * 16), *brsm = (float *)malloc(W * H * 16), *nrm = (float *)malloc(W * H * 16);
     gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_stats st;
     double left, right, err[3], max_rel;
     static const uint32_t counts[3] = {128, 512, 2048};
@@ -109,17 +111,17 @@ static void cornell_frame(const char *gltf) {
     ff.fr.timing = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     gltest_state_unchanged(&ff.f);
-    o = gim_outputs(ff.f.ctx);
-    assert_int_equal(o.val_count, 48u * 48u);
-    assert_int_equal(o.cache_count, ff.g.cache_count);
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+    assert_int_equal(od.val_count, 48u * 48u);
+    assert_int_equal(od.cache_count, ff.g.cache_count);
     assert_int_equal(o.lights[0].importance, 0);    /* FULL has no importance buffers */
     assert_int_equal(o.lights[0].selected, 0);
-    assert_int_equal(o.proxy_glossy, 0);             /* no glossy material in the box */
+    assert_int_equal(od.proxy_glossy, 0);             /* no glossy material in the box */
     read_indirect(&o, full);
     gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
     bad = compare_with_cpu_frame(&ff, full, 5e-4, &max_rel);
     print_message("%s FULL: %u caches, GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n",
-                  gltf ? "glTF" : "builtin", o.cache_count, max_rel, bad);
+                  gltf ? "glTF" : "builtin", od.cache_count, max_rel, bad);
     assert_true(bad <= W * H / 200);
     /* colour bleeding: the white floor is redder near the red (left) wall */
     floor_redness(full, nrm, &left, &right);
@@ -130,9 +132,9 @@ static void cornell_frame(const char *gltf) {
     assert_true(st.timed && st.frame_ms > 0.0);
     assert_true(st.pass_ms[GIM_PASS_PROXY_LIGHTS] > 0.0 && st.pass_ms[GIM_PASS_SHADE] > 0.0);
     assert_true(st.pass_ms[GIM_PASS_IMPORTANCE_MAP] == 0.0);
-    assert_int_equal(st.cache_count, o.cache_count);
-    assert_int_equal(st.val_count, o.val_count);
-    assert_true(st.gpu_bytes > (uint64_t)o.cache_count * 32u + (uint64_t)W * H * 8u);
+    assert_int_equal(st.cache_count, od.cache_count);
+    assert_int_equal(st.val_count, od.val_count);
+    assert_true(st.gpu_bytes > (uint64_t)od.cache_count * 32u + (uint64_t)W * H * 8u);
 
     /* BRSM converges to FULL as N_sVAL grows (each error the mean of two frames) */
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
@@ -143,8 +145,8 @@ static void cornell_frame(const char *gltf) {
             ff.fr.lightskin.val_count = counts[k];
             ff.fr.frame_index = seed + 1;
             assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-            o = gim_outputs(ff.f.ctx);
-            assert_int_equal(o.val_count, counts[k]);
+            o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+            assert_int_equal(od.val_count, counts[k]);
             assert_true(o.lights[0].importance != 0);
             read_indirect(&o, brsm);
             err[k] += 0.5 * mean_rel_diff(brsm, full);
@@ -168,6 +170,7 @@ static void cornell_frame(const char *gltf) {
 static void rsm_gather_matches_twin(void **state) {
     frame_fixture ff;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_rsm_data rsm;
     gim_gather_desc gd;
     float *gpu = (float *)malloc(W * H * 16), *pos, *nrm, *flux, *cpu, *area, *valid, *pattern;
@@ -183,8 +186,8 @@ static void rsm_gather_matches_twin(void **state) {
     ff.fr.gather.radius = 0.15f;   /* Dachsbacher's narrow pattern (the default holds the whole RSM) */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     gltest_state_unchanged(&ff.f);
-    o = gim_outputs(ff.f.ctx);
-    assert_int_equal(o.cache_count, 0);          /* no LightSkin passes in a gather frame */
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+    assert_int_equal(od.cache_count, 0);          /* no LightSkin passes in a gather frame */
     assert_int_equal(o.lights[0].importance, 0);
     read_indirect(&o, gpu);
     for (i = 0; i < W * H; ++i) sum_narrow += gpu[i * 4];
@@ -251,6 +254,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     frame_fixture ff;
     gim_material *m;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     float *img = (float *)malloc(W * H * 16);
     double max_rel;
     uint32_t i, bad;
@@ -271,9 +275,9 @@ static void glossy_sizes_and_no_caches(void **state) {
     assert_int_equal(gim_set_materials(ff.f.ctx, m, ff.s.material_count), GIM_OK);
     ff.fr.lightskin.val_count = 512;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_true(o.proxy_glossy != 0);
-    assert_true(o.glossy_exponent == 30.0f);
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+    assert_true(od.proxy_glossy != 0);
+    assert_true(od.glossy_exponent == 30.0f);
     read_indirect(&o, img);
     bad = compare_with_cpu_frame(&ff, img, 5e-4, &max_rel);
     print_message("glossy BRSM: GPU vs CPU frame max rel %.2e, %u pixels above 5e-4\n", max_rel, bad);
@@ -281,7 +285,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     /* the default RGBA16F output: the same frame within half precision (2^-11 relative) */
     ff.fr.indirect_float32 = 0;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
     read_indirect(&o, img);
     bad = compare_with_cpu_frame(&ff, img, 1.1e-3, &max_rel);
     print_message("glossy BRSM, RGBA16F: GPU vs CPU frame max rel %.2e, %u pixels above 1.1e-3\n", max_rel, bad);
@@ -300,8 +304,8 @@ static void glossy_sizes_and_no_caches(void **state) {
         ff.fr.indirect_float32 = 1;
         assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
         assert_true(ff.f.ctx->ls_version == ff.f.ctx->scene_version);
-        o = gim_outputs(ff.f.ctx);
-        gltest_read_buffer(o.caches, ff.g.cache_count * sizeof *cs, cs);
+        o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+        gltest_read_buffer(od.caches, ff.g.cache_count * sizeof *cs, cs);
         for (k = 0; k < ff.g.cache_count; ++k) y_moved += cs[k].position[1];
         read_indirect(&o, img);
         bad = compare_with_cpu_frame(&ff, img, 5e-4, &max_rel);   /* its caches: the moved ones */
@@ -310,7 +314,7 @@ static void glossy_sizes_and_no_caches(void **state) {
         for (i = 0; i < ff.g.mesh_count; ++i) ff.g.instances[i].model.m[13] -= 0.05f;
         assert_int_equal(gim_set_instances(ff.f.ctx, ff.g.instances, ff.g.mesh_count), GIM_OK);
         assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-        gltest_read_buffer(gim_outputs(ff.f.ctx).caches, ff.g.cache_count * sizeof *cs, cs);
+        gltest_read_buffer(gim_debug(ff.f.ctx).caches, ff.g.cache_count * sizeof *cs, cs);
         for (k = 0; k < ff.g.cache_count; ++k) y_back += cs[k].position[1];
         assert_true(fabs((y_moved - y_back) / ff.g.cache_count - 0.05) < 1e-5);
         free(cs);
@@ -324,17 +328,17 @@ static void glossy_sizes_and_no_caches(void **state) {
     ff.g.lights[0].rsm_size = 40;
     assert_int_equal(gim_set_lights(ff.f.ctx, ff.g.lights, 1), GIM_OK);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_int_equal(o.proxy_glossy, 0);
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+    assert_int_equal(od.proxy_glossy, 0);
     assert_int_equal(ff.f.ctx->ls.glossy, 0);
-    assert_int_equal(o.neighbour_count, 6);
-    assert_int_equal(o.val_count, 300);
+    assert_int_equal(od.neighbour_count, 6);
+    assert_int_equal(od.val_count, 300);
     assert_int_equal(o.lights[0].rsm_size, 40);
     read_indirect(&o, img);
     /* no lights: no LightSkin passes, and what they owned is freed */
     assert_int_equal(gim_set_lights(ff.f.ctx, NULL, 0), GIM_OK);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
+    o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
     assert_int_equal(o.indirect, 0);
     assert_int_equal(ff.f.ctx->ls.vals, 0);
     assert_int_equal(ff.f.ctx->ls.diffuse, 0);

@@ -263,7 +263,7 @@ static void corner_ism_removes_nothing(void **state) {
 static void caches_take_their_material(void **state) {
     phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
     gim_material m[2];
-    gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_cache *caches;
     float *k;
     uint32_t i, floor_ = 0, wall = 0;
@@ -280,17 +280,17 @@ static void caches_take_their_material(void **state) {
     assert_int_equal(gim_set_materials(p->f.ctx, m, 2), GIM_OK);
     p->fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
     assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
-    o = gim_outputs(p->f.ctx);
-    assert_true(o.cache_exponents != 0 && o.cache_count > 0);
-    caches = (gim_cache *)malloc(o.cache_count * sizeof *caches);
-    k = (float *)malloc(o.cache_count * sizeof *k);
-    gltest_read_buffer(o.caches, o.cache_count * sizeof *caches, caches);
-    gltest_read_buffer(o.cache_exponents, o.cache_count * sizeof *k, k);
-    for (i = 0; i < o.cache_count; ++i) {
+    od = gim_debug(p->f.ctx);
+    assert_true(od.cache_exponents != 0 && od.cache_count > 0);
+    caches = (gim_cache *)malloc(od.cache_count * sizeof *caches);
+    k = (float *)malloc(od.cache_count * sizeof *k);
+    gltest_read_buffer(od.caches, od.cache_count * sizeof *caches, caches);
+    gltest_read_buffer(od.cache_exponents, od.cache_count * sizeof *k, k);
+    for (i = 0; i < od.cache_count; ++i) {
         if (caches[i].normal[1] > 0.9f) { assert_true(k[i] == 1.0f); ++floor_; }
         if (caches[i].normal[0] > 0.9f) { assert_true(k[i] == 50.0f); ++wall; }
     }
-    assert_true(floor_ > 0 && wall > 0 && floor_ + wall == o.cache_count);
+    assert_true(floor_ > 0 && wall > 0 && floor_ + wall == od.cache_count);
     free(caches);
     free(k);
     frame_end(p);

@@ -741,6 +741,7 @@ static void scene_state_restored(void **state) {
     gim_light l[2];
     gim_frame fr;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     gim__gl_state before, after;
     (void)state;
     GLTEST_BEGIN();
@@ -807,9 +808,9 @@ static void scene_state_restored(void **state) {
     fr.timing = 1;
     assert_int_equal(gim_update(ctx, &fr), GIM_OK);
     check_distinctive_state(&h);
-    o = gim_outputs(ctx);
+    o = gim_outputs(ctx); od = gim_debug(ctx);
     assert_true(o.valid && o.light_count == 2);
-    assert_true(o.indirect != 0 && o.proxy_glossy != 0 && o.cache_count == 4);
+    assert_true(o.indirect != 0 && od.proxy_glossy != 0 && od.cache_count == 4);
     {
         gim_stats st;
         assert_int_equal(gim_frame_stats(ctx, &st), GIM_OK);

@@ -407,6 +407,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     gim_light l;
     gim_frame fr;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     float *nrm = (float *)malloc(W * H * 16), *alb = (float *)malloc(W * H * 16), *depth = (float *)malloc(W * H * 4);
     gim_gbuffer_texel *tw = (gim_gbuffer_texel *)malloc(W * H * sizeof *tw);
     float vs_gpu[256 * 8], off[2];
@@ -425,7 +426,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     fr = default_frame(1.0f, origin, W, H);
     fr.lightskin.view_sample_count = 256;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     read_texture(o.gbuffer_normal, GL_RGBA, 4, W, H, nrm);
     read_texture(o.gbuffer_albedo, GL_RGBA, 4, W, H, alb);
     read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, 1, W, H, depth);
@@ -456,11 +457,11 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
             fr.lightskin.rotate_view_samples = 1;
             fr.frame_index = 5;
             assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-            o = gim_outputs(f.ctx);
+            o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
             gim_rotation_offsets(off, 2, 5);
         }
-        assert_int_equal(o.view_sample_count, 256);
-        gltest_read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
+        assert_int_equal(od.view_sample_count, 256);
+        gltest_read_buffer(od.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_view_sample_pixels(256, W, H, round ? off : NULL, pixels), GIM_OK);
         assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pixels, 256, vs_twin), GIM_OK);
         usable = 0;
@@ -490,11 +491,11 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
         gim_frame hf = fr;
         hf.gbuffer.depth = o.gbuffer_depth;
         hf.gbuffer.normal = o.gbuffer_normal;
-        gltest_read_buffer(o.view_samples, sizeof vs_gpu, vs_gpu);
+        gltest_read_buffer(od.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_update(f.ctx, &hf), GIM_OK);
-        o = gim_outputs(f.ctx);
+        o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
         assert_int_equal(o.gbuffer_albedo, 0);
-        gltest_read_buffer(o.view_samples, sizeof again, again);
+        gltest_read_buffer(od.view_samples, sizeof again, again);
         assert_memory_equal(vs_gpu, again, sizeof again);
         hf.width = W + 1; /* larger than the host's textures */
         assert_int_equal(gim_update(f.ctx, &hf), GIM_ERROR_INVALID_ARGUMENT);
@@ -513,6 +514,7 @@ static void importance_chain_matches_twin(void **state) {
     gim_light l;
     gim_frame fr;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     enum { N = 32, VS = 64, VALS = 128 };
     float *pos = (float *)malloc(N * N * 16), *nrm = (float *)malloc(N * N * 16), *flux = (float *)malloc(N * N * 16);
     float p3[N * N * 3], n3[N * N * 3], f3[N * N * 3], valid[N * N], map_gpu[N * N], map_twin[N * N], vsb[VS * 8];
@@ -532,11 +534,11 @@ static void importance_chain_matches_twin(void **state) {
     fr.lightskin.view_sample_count = VS;
     fr.lightskin.val_count = VALS;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx);
+    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     read_texture(o.lights[0].rsm_position, GL_RGBA, 4, N, N, pos);
     read_texture(o.lights[0].rsm_normal, GL_RGBA, 4, N, N, nrm);
     read_texture(o.lights[0].rsm_flux, GL_RGBA, 4, N, N, flux);
-    gltest_read_buffer(o.view_samples, sizeof vsb, vsb);
+    gltest_read_buffer(od.view_samples, sizeof vsb, vsb);
     gltest_read_buffer(o.lights[0].importance, sizeof map_gpu, map_gpu);
     gltest_read_buffer(o.lights[0].selected, sizeof sel, sel);
     for (i = 0; i < N * N; ++i) {
@@ -755,7 +757,7 @@ static void argument_errors(void **state) {
     EXPECT(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim_set_instances(f.ctx, &inst, 1), GIM_OK);
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK); /* defaults: 256 view samples, 2048 VALs */
-    assert_int_equal(gim_outputs(f.ctx).view_sample_count, 256);
+    assert_int_equal(gim_debug(f.ctx).view_sample_count, 256);
     /* one rendered light: nothing to split, it gets the 2048 in both budgets (drawn uniformly:
        a flat quad does not light itself, every importance is 0) */
     assert_int_equal(gim_outputs(f.ctx).lights[0].rendered, 1);

@@ -200,11 +200,11 @@ static void vpl_methods_no_light_through_walls(void **state) {
         assert_true(ism_hi < 0.01);
         assert_true(def > 0.01);   /* what the maps are for */
         {
-            gim_frame_outputs o = gim_outputs(s.f.ctx);
-            assert_true(o.ism_maps != 0 && o.ism_size == 16);
+            gim_debug_outputs od = gim_debug(s.f.ctx);
+            assert_true(od.ism_maps != 0 && od.ism_size == 16);
             /* SSVP's second bounce still needs its attribute maps, no one the distance maps */
-            assert_int_equal(o.paraboloid_position != 0, m);
-            assert_int_equal(o.paraboloid_distance, 0);
+            assert_int_equal(od.paraboloid_position != 0, m);
+            assert_int_equal(od.paraboloid_distance, 0);
         }
         s.fr.timing = 0;
     }
@@ -222,6 +222,7 @@ static void vpl_methods_no_light_through_walls(void **state) {
 static void maps_are_the_twins(void **state) {
     scene_fx s;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_cache *caches;
     gim_twin_scene ts;
     gim_ism_desc d;
@@ -236,12 +237,12 @@ static void maps_are_the_twins(void **state) {
     s.fr.visibility.ism_size = 16;
     s.fr.visibility.ism_points = 2048;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-    o = gim_outputs(s.f.ctx);
-    assert_true(o.ism_maps != 0);
-    assert_int_equal(o.ism_size, 16);
-    n = o.cache_count;
+    o = gim_outputs(s.f.ctx); od = gim_debug(s.f.ctx);
+    assert_true(od.ism_maps != 0);
+    assert_int_equal(od.ism_size, 16);
+    n = od.cache_count;
     caches = (gim_cache *)malloc(n * sizeof *caches);
-    gltest_read_buffer(o.caches, n * sizeof *caches, caches);
+    gltest_read_buffer(od.caches, n * sizeof *caches, caches);
     for (t = 0; t < s.r.quads * 2; ++t)
         for (k = 0; k < 3; ++k) {
             memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
@@ -257,7 +258,7 @@ static void maps_are_the_twins(void **state) {
     cpu = (float *)malloc((size_t)n * 256 * 4);
     gpu = (float *)malloc((size_t)n * 256 * 4);
     assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
-    gltest_read_ism(o.ism_maps, (size_t)n * 256, gpu);   /* 16 bits a texel, two to a uint */
+    gltest_read_ism(od.ism_maps, (size_t)n * 256, gpu);   /* 16 bits a texel, two to a uint */
     for (k = 0; k < n * 256; ++k) off += memcmp(gpu + k, cpu + k, 4) != 0;
     print_message("%u caches: %u of %u texels differ from the twin\n", n, off, n * 256);
     assert_true(off <= n * 256 / 200);
@@ -282,6 +283,7 @@ static void maps_are_the_twins(void **state) {
 static void vpl_maps_are_the_twins(void **state) {
     scene_fx s;
     gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_vpl *v;
     gim_cache *c;
     gim_twin_scene ts;
@@ -299,13 +301,13 @@ static void vpl_maps_are_the_twins(void **state) {
     s.fr.visibility.ism_size = 8;
     s.fr.visibility.ism_points = 512;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-    o = gim_outputs(s.f.ctx);
-    n = o.vpl_count;
+    o = gim_outputs(s.f.ctx); od = gim_debug(s.f.ctx);
+    n = od.vpl_count;
     assert_int_equal(n, 256 + 64);
-    assert_true(o.ism_maps != 0 && o.ism_size == 8);
+    assert_true(od.ism_maps != 0 && od.ism_size == 8);
     v = (gim_vpl *)malloc(n * sizeof *v);
     c = (gim_cache *)calloc(n, sizeof *c);
-    gltest_read_buffer(o.vpls, n * sizeof *v, v);
+    gltest_read_buffer(od.vpls, n * sizeof *v, v);
     for (i = 0; i < n; ++i) {   /* an unlit VPL (zero normal) gets a stand-in; its map is not compared */
         memcpy(c[i].position, v[i].position, 12);
         memcpy(c[i].normal, v[i].normal, 12);
@@ -327,11 +329,11 @@ static void vpl_maps_are_the_twins(void **state) {
     cpu = (float *)malloc((size_t)n * 64 * 4);
     gpu = (float *)malloc((size_t)n * 64 * 4);
     assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
-    gltest_read_ism(o.ism_maps, (size_t)n * 64, gpu);   /* 16 bits a texel, two to a uint */
+    gltest_read_ism(od.ism_maps, (size_t)n * 64, gpu);   /* 16 bits a texel, two to a uint */
     for (i = 0; i < n; ++i) {
         if (!(v[i].lit > 0.0f)) continue;
         ++lit;
-        lit2 += i >= o.first_bounce_count;
+        lit2 += i >= od.first_bounce_count;
         for (k = 0; k < 64; ++k, ++texels) off += !(fabsf(gpu[i * 64 + k] - cpu[i * 64 + k]) <= 1e-4f * cpu[i * 64 + k]);
     }
     print_message("%u lit VPLs' maps (%u of the second bounce): %u of %u texels differ from the twin\n", lit, lit2, off,
@@ -344,7 +346,7 @@ static void vpl_maps_are_the_twins(void **state) {
     s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     assert_int_equal(s.f.ctx->ism_size, 8);
-    assert_int_equal(gim_outputs(s.f.ctx).ism_size, 8);
+    assert_int_equal(gim_debug(s.f.ctx).ism_size, 8);
     s.fr.method = GIM_METHOD_CLUSTERED;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     assert_int_equal(s.f.ctx->ism_size, 0);
@@ -408,7 +410,7 @@ static void bad_settings(void **state) {
         s.f.ctx->max_ssbo_bytes = (gim__GLint64)(n * 32 * 32 * 2);
         s.fr.visibility.ism_points = 256;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_int_equal(gim_outputs(s.f.ctx).ism_size, 32);
+        assert_int_equal(gim_debug(s.f.ctx).ism_size, 32);
         s.f.ctx->max_ssbo_bytes = keep;
         s.fr.visibility.ism_points = 0;
         s.fr.visibility.mode = GIM_VISIBILITY_OFF;

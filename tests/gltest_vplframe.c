@@ -38,16 +38,17 @@ static void vpl_frame_begin(frame_fixture *ff, gim_method m) {
    k-means centres. */
 static void clusters_match_twin(frame_fixture *ff) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
-    uint32_t n = o.first_bounce_count, m = o.cluster_count, i, *asg = (uint32_t *)malloc(n * 4);
+    gim_debug_outputs od = gim_debug(ff->f.ctx);
+    uint32_t n = od.first_bounce_count, m = od.cluster_count, i, *asg = (uint32_t *)malloc(n * 4);
     gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
     gim_paraboloid *gpu = (gim_paraboloid *)malloc(m * sizeof *gpu), *cpu = (gim_paraboloid *)malloc(m * sizeof *cpu);
     float *centres4 = (float *)malloc(m * 32), *c3 = (float *)malloc(m * 12), *n3 = (float *)malloc(m * 12);
     double worst = 0.0;
-    assert_true(n > 0 && m > 0 && o.vpls && o.clusters && o.kmeans_centres && o.vpl_clusters);
-    gltest_read_buffer(o.vpls, n * sizeof *v, v);
-    gltest_read_buffer(o.vpl_clusters, n * 4, asg);
-    gltest_read_buffer(o.clusters, m * sizeof *gpu, gpu);
-    gltest_read_buffer(o.kmeans_centres, m * 32, centres4);
+    assert_true(n > 0 && m > 0 && od.vpls && od.clusters && od.kmeans_centres && od.vpl_clusters);
+    gltest_read_buffer(od.vpls, n * sizeof *v, v);
+    gltest_read_buffer(od.vpl_clusters, n * 4, asg);
+    gltest_read_buffer(od.clusters, m * sizeof *gpu, gpu);
+    gltest_read_buffer(od.kmeans_centres, m * 32, centres4);
     for (i = 0; i < n; ++i) assert_true(asg[i] < m);
     for (i = 0; i < m; ++i) {
         memcpy(c3 + 3 * i, centres4 + 8 * i, 12);
@@ -108,7 +109,8 @@ static void grid_receivers(frame_fixture *ff, gim_receiver *grid) {
    channel differs by more than tol relative (floored at 1e-3 of the image's maximum). */
 static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
-    uint32_t n = o.vpl_count, m = o.cluster_count, s = o.paraboloid_size, i, bad;
+    gim_debug_outputs od = gim_debug(ff->f.ctx);
+    uint32_t n = od.vpl_count, m = od.cluster_count, s = od.paraboloid_size, i, bad;
     uint32_t k = ff->fr.vpl.interleave ? ff->fr.vpl.interleave : 8u, *cl = (uint32_t *)malloc(n * 4), *map = (uint32_t *)malloc(W * H * 4);
     gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
     gim_paraboloid *maps = (gim_paraboloid *)malloc(m * sizeof *maps);
@@ -116,12 +118,12 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
     gim_receiver *grid = (gim_receiver *)malloc(W * H * sizeof *grid);
     gim_vpl_shade_desc sd;
     gim_blur_desc bd;
-    gltest_read_buffer(o.vpls, n * sizeof *v, v);
-    gltest_read_buffer(o.vpl_clusters, n * 4, cl);
-    gltest_read_buffer(o.clusters, m * sizeof *maps, maps);
-    if (o.paraboloid_distance) {
+    gltest_read_buffer(od.vpls, n * sizeof *v, v);
+    gltest_read_buffer(od.vpl_clusters, n * 4, cl);
+    gltest_read_buffer(od.clusters, m * sizeof *maps, maps);
+    if (od.paraboloid_distance) {
         dist = (float *)malloc((size_t)m * s * s * 4);
-        glBindTexture(GL_TEXTURE_2D_ARRAY, o.paraboloid_distance);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, od.paraboloid_distance);
         glGetTexImage(GL_TEXTURE_2D_ARRAY, 0, GL_RED, GL_FLOAT, dist);
         glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
     }
@@ -270,12 +272,13 @@ static void clusters_move_smoothly(void **state) {
         ff.fr.vpl.kmeans_restart = k == 2;
         for (fr = 0; fr < 8; ++fr) {
             gim_frame_outputs o;
+            gim_debug_outputs od;
             wall_light(&ff, (float)fr);
             ff.fr.frame_index = (uint32_t)fr;
             assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-            o = gim_outputs(ff.f.ctx);
-            assert_int_equal(o.cluster_count, 8u);
-            gltest_read_buffer(o.kmeans_centres, 8 * 32, cur);
+            o = gim_outputs(ff.f.ctx); od = gim_debug(ff.f.ctx);
+            assert_int_equal(od.cluster_count, 8u);
+            gltest_read_buffer(od.kmeans_centres, 8 * 32, cur);
             for (i = 0; i < 8; ++i) {
                 assert_true(cur[i * 8 + 3] >= 1.0f);   /* no cluster lost */
                 if (fr > 0) {
@@ -304,23 +307,23 @@ static void clusters_move_smoothly(void **state) {
    attribute maps at one bounce, and nothing of the VPL methods in a LightSkin frame. */
 static void only_what_is_enabled(void **state) {
     frame_fixture ff;
-    gim_frame_outputs o;
+    gim_debug_outputs od;
     gim_stats st;
     uint64_t with_maps, without, two;
     (void)state;
     GLTEST_BEGIN();
     vpl_frame_begin(&ff, GIM_METHOD_CLUSTERED);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_true(o.paraboloid_distance != 0);
-    assert_true(o.paraboloid_position == 0 && o.paraboloid_normal == 0 && o.paraboloid_albedo == 0);
-    assert_int_equal(o.vpl_count, o.first_bounce_count);
+    od = gim_debug(ff.f.ctx);
+    assert_true(od.paraboloid_distance != 0);
+    assert_true(od.paraboloid_position == 0 && od.paraboloid_normal == 0 && od.paraboloid_albedo == 0);
+    assert_int_equal(od.vpl_count, od.first_bounce_count);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     with_maps = st.gpu_bytes;
     ff.fr.vpl.no_visibility = 1;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_true(o.paraboloid_distance == 0 && o.paraboloid_position == 0);
+    od = gim_debug(ff.f.ctx);
+    assert_true(od.paraboloid_distance == 0 && od.paraboloid_position == 0);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     without = st.gpu_bytes;
     print_message("GPU bytes: %llu with visibility, %llu without\n", (unsigned long long)with_maps,
@@ -328,17 +331,17 @@ static void only_what_is_enabled(void **state) {
     assert_true(without + 8ull * 64 * 64 * 8 <= with_maps);   /* 8 maps of 64^2: distance + depth */
     ff.fr.vpl.bounces = 2;                                       /* the second bounce needs the maps' attributes */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_true(o.paraboloid_position != 0 && o.paraboloid_normal != 0 && o.paraboloid_albedo != 0);
-    assert_true(o.paraboloid_distance == 0);   /* without visibility, the attribute pass alone */
-    assert_int_equal(o.vpl_count, o.first_bounce_count + 256u);
+    od = gim_debug(ff.f.ctx);
+    assert_true(od.paraboloid_position != 0 && od.paraboloid_normal != 0 && od.paraboloid_albedo != 0);
+    assert_true(od.paraboloid_distance == 0);   /* without visibility, the attribute pass alone */
+    assert_int_equal(od.vpl_count, od.first_bounce_count + 256u);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     two = st.gpu_bytes;
     assert_true(two > without + 8ull * 64 * 64 * 48);
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    o = gim_outputs(ff.f.ctx);
-    assert_true(o.vpls == 0 && o.clusters == 0 && o.paraboloid_distance == 0 && o.paraboloid_position == 0);
+    od = gim_debug(ff.f.ctx);
+    assert_true(od.vpls == 0 && od.clusters == 0 && od.paraboloid_distance == 0 && od.paraboloid_position == 0);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     assert_true(st.gpu_bytes < two);
     gltest_state_unchanged(&ff.f);
