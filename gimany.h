@@ -10642,7 +10642,7 @@ static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *hav
     return GIM_OK;
 }
 
-/* The LightSkin passes of gim_update (see there); fills the LightSkin part of o. */
+/* The LightSkin passes of gim_update (see there); fills the LightSkin part of o and dbg. */
 static gim_result gim__gl_lightskin(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
                                     float scale, gim_frame_outputs *o, gim_debug_outputs *dbg) {
     static const char where[] = "gim_update (LightSkin)";
@@ -12040,48 +12040,17 @@ static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t v
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
+/* The checks of gim_update that need the scene's bounds: its extent and scene_scale, each
+   light's power, the distance from the origin (README "Supported ranges"); the scale of the
+   frame's unit-free thresholds into *scale. Warns once when RGBA16F output can saturate. */
+static gim_result gim__frame_scene_check(gim_context *ctx, const gim_frame *frame, const float bmin[3], const float bmax[3],
+                                         float *scale_out) {
     static const char where[] = "gim_update";
-    gim_frame_outputs o;
-    gim_debug_outputs dbg;
-    gim_frame resolved;
-    float bmin[3], bmax[3], scale;
-    uint32_t i, vs_count, val_count;
-    gim__GLuint depth, normal;
-    gim_result r;
-    double diag;
-    int full, gather, vplm;
-    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
-    if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
-    /* without a current context every GL call is a no-op returning 0: say so before a pass
-       reports a failure that only follows from it */
-    if (!ctx->gl.GetString(GIM__GL_VERSION))
-        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
-    if (ctx->light_buffer) { /* the host's light buffer, read back: the RSMs need the cameras on the CPU */
-        gim__gl_enter(ctx, where);
-        r = gim__gl_lights_from_buffer(ctx, where);
-        r = gim__gl_leave(ctx, r);
-        if (r != GIM_OK) return r;
-    }
-    if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
-        gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
-        ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
-        ctx->gl.GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &mode);
-        if (origin != GIM__GL_LOWER_LEFT || mode != GIM__GL_NEGATIVE_ONE_TO_ONE)
-            return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
-                             "the host's glClipControl is not the default and glClipControl was not loaded "
-                             "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
-    }
-    r = gim__deform_prepare(ctx, frame);   /* before the bounds: a deforming mesh's are this frame's */
-    if (r == GIM_OK) r = gim__frame_check(ctx, frame, bmin, bmax);
-    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
-    if (r != GIM_OK) return r;
-    gim__frame_resolve_scene(ctx, frame, &resolved);
-    frame = &resolved;
-    diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
-                ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
-                ((double)bmax[2] - bmin[2]) * ((double)bmax[2] - bmin[2]));
-    scale = frame->scene_scale > 0.0f ? frame->scene_scale : (float)diag;
+    double diag = sqrt(((double)bmax[0] - bmin[0]) * ((double)bmax[0] - bmin[0]) +
+                       ((double)bmax[1] - bmin[1]) * ((double)bmax[1] - bmin[1]) +
+                       ((double)bmax[2] - bmin[2]) * ((double)bmax[2] - bmin[2]));
+    float scale = frame->scene_scale > 0.0f ? frame->scene_scale : (float)diag;
+    uint32_t i;
     if (!(scale > 0.0f) || !gim__isfinitef(scale))
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "scene scale %g (the scene has no extent)", (double)scale);
     if (!(diag >= GIM__MIN_SCENE_DIAGONAL && diag <= GIM__MAX_SCENE_DIAGONAL))
@@ -12122,16 +12091,45 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "positions are too coarse there; move the world origin near the scene",
                              diag, d, GIM__MAX_ORIGIN_DIAGONALS);
     }
-    vs_count = frame->lightskin.view_sample_count;
-    val_count = frame->lightskin.val_count;
-    gather = frame->method == GIM_METHOD_RSM_GATHER;
-    vplm = frame->method == GIM_METHOD_CLUSTERED || frame->method == GIM_METHOD_SSVP;
-    full = frame->method == GIM_METHOD_LIGHTSKIN_FULL || gather || vplm;   /* none needs importance */
-    ctx->outputs.valid = 0;
-    ctx->stamp_count = 0;
-    gim__gl_enter(ctx, where);
-    ctx->own_objects = 1;
-    gim__stamp(ctx, frame->timing, GIM_PASS_COUNT);
+    *scale_out = scale;
+    return GIM_OK;
+}
+
+/* The buffers of the methods this frame does not run, freed (a feature not used costs no
+   memory): BRSM's importance tables unless BRSM, LightSkin's unless LightSkin, the VPL
+   methods' unless one of them, the gather's unless RSM_GATHER. */
+static void gim__release_other_methods(gim_context *ctx, gim_method method) {
+    int brsm = method == GIM_METHOD_LIGHTSKIN_BRSM, lightskin = brsm || method == GIM_METHOD_LIGHTSKIN_FULL;
+    int gather = method == GIM_METHOD_RSM_GATHER, vplm = method == GIM_METHOD_CLUSTERED || method == GIM_METHOD_SSVP;
+    uint32_t i;
+    for (i = 0; i < ctx->light_count && !brsm; ++i) {
+        gim__light_gpu *g = &ctx->light_gpu[i];
+        gim__GLuint b[4];
+        b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
+        ctx->gl.DeleteBuffers(4, b);
+        g->map = g->column = g->row = g->selected = 0;
+        g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = 0;
+    }
+    if (!lightskin) gim__lightskin_drop(ctx);
+    if (!vplm) gim__vpl_release(ctx);
+    if (!gather) {
+        gim__GLuint b[2];
+        b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
+        ctx->gl.DeleteBuffers(2, b);
+        ctx->gather_samples = ctx->gather_sum = 0;
+        ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
+    }
+}
+
+/* The passes every method shares: an RSM per light whose frustum meets an instance's bounds
+   (the others culled: no pass, no memory), then the G-buffer (gimany's, or the host's checked
+   and, when its encoding asks, decoded) into *depth, *normal. */
+static gim_result gim__gl_shared_passes(gim_context *ctx, const gim_frame *f, const float bmin[3], const float bmax[3],
+                                        gim__GLuint *depth, gim__GLuint *normal) {
+    static const char where[] = "gim_update";
+    gim_result r = GIM_OK;
+    uint32_t i;
+    *depth = *normal = 0;
     ctx->light_on_count = 0;
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim_light fl;
@@ -12140,7 +12138,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         ctx->light_on[i] = 0;
         ctx->light_vals[i] = 0;
         ctx->light_total[i] = 0.0;
-        r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, frame->view, frame->proj, frame->view_distance, &fl, fmin, fmax);
+        r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, f->view, f->proj, f->view_distance, &fl, fmin, fmax);
         if (r == GIM_OK) r = gim_light_camera(&fl, fmin, fmax, &lv, &lp);
         if (r == GIM_OK && !gim__light_meets_instances(ctx, lv, lp) &&
             (ctx->light_on_count || i + 1u < ctx->light_count)) { /* the last of all-culled renders: the frame has outputs */
@@ -12150,41 +12148,40 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         if (r == GIM_OK) r = gim__gl_rsm(ctx, i, &fl, fmin, fmax);
         ctx->light_on[i] = 1;
         ctx->light_on_count++;
-        gim__stamp(ctx, frame->timing, GIM_PASS_RSM);
+        gim__stamp(ctx, f->timing, GIM_PASS_RSM);
     }
-    if (r == GIM_OK && frame->gbuffer.depth) {
-        depth = frame->gbuffer.depth;
-        normal = frame->gbuffer.normal;
+    if (r != GIM_OK) return r;
+    if (f->gbuffer.depth) {
+        *depth = f->gbuffer.depth;
+        *normal = f->gbuffer.normal;
         ctx->own_objects = 0;   /* the host's */
-        r = gim__gl_check_texture(ctx, where, "gbuffer_depth", depth, frame->width, frame->height);
-        if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", normal, frame->width, frame->height);
-        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, frame, depth, normal);
+        r = gim__gl_check_texture(ctx, where, "gbuffer_depth", *depth, f->width, f->height);
+        if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "gbuffer_normal", *normal, f->width, f->height);
+        if (r == GIM_OK) r = gim__gl_check_host_gbuffer(ctx, where, f, *depth, *normal);
         ctx->own_objects = 1;
-        if (r == GIM_OK && gim__gbuffer_needs_decode(frame)) {
-            r = gim__gl_gbuffer_decode(ctx, frame, &depth, &normal);
-            gim__stamp(ctx, frame->timing, GIM_PASS_GBUFFER);
+        if (r == GIM_OK && gim__gbuffer_needs_decode(f)) {
+            r = gim__gl_gbuffer_decode(ctx, f, depth, normal);
+            gim__stamp(ctx, f->timing, GIM_PASS_GBUFFER);
         }
-    } else if (r == GIM_OK) {
-        r = gim__gl_gbuffer(ctx, frame);
-        depth = ctx->gbuffer_depth;
-        normal = ctx->gbuffer_normal;
-        gim__stamp(ctx, frame->timing, GIM_PASS_GBUFFER);
     } else {
-        depth = normal = 0;
+        r = gim__gl_gbuffer(ctx, f);
+        *depth = ctx->gbuffer_depth;
+        *normal = ctx->gbuffer_normal;
+        gim__stamp(ctx, f->timing, GIM_PASS_GBUFFER);
     }
-    if (r == GIM_OK && !full) {
-        r = gim__gl_view_samples(ctx, frame, depth, normal, vs_count);
-        gim__stamp(ctx, frame->timing, GIM_PASS_VIEW_SAMPLES);
-    }
-    for (i = 0; i < ctx->light_count && r == GIM_OK && full; ++i) { /* FULL needs no importance: free it */
-        gim__light_gpu *g = &ctx->light_gpu[i];
-        gim__GLuint b[4];
-        b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
-        ctx->gl.DeleteBuffers(4, b);
-        g->map = g->column = g->row = g->selected = 0;
-        g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = 0;
-    }
-    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) {
+    return r;
+}
+
+/* BRSM's selection (paper 000 sec. 4), per rendered light: view samples -> importance map
+   (eq. 10-11) -> cumulative sums (eq. 12) -> its share of val_count (gim__gl_val_budget) ->
+   that many VALs drawn (none where no light reaches a view sample). */
+static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                      float scale) {
+    static const char where[] = "gim_update";
+    uint32_t i, vs_count = f->lightskin.view_sample_count, val_count = f->lightskin.val_count;
+    gim_result r = gim__gl_view_samples(ctx, f, depth, normal, vs_count);
+    gim__stamp(ctx, f->timing, GIM_PASS_VIEW_SAMPLES);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
         uint64_t texels = (uint64_t)g->size * g->size;
         if (!ctx->light_on[i]) continue;
@@ -12196,17 +12193,17 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->size * 8u, where);
         if (r == GIM_OK)
             r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
-                                       scale, frame->lightskin.importance_clamp, g->map);
-        gim__stamp(ctx, frame->timing, GIM_PASS_IMPORTANCE_MAP);
+                                       scale, f->lightskin.importance_clamp, g->map);
+        gim__stamp(ctx, f->timing, GIM_PASS_IMPORTANCE_MAP);
     }
-    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) { /* apart, so the stamps of a pass merge */
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) { /* apart, so the stamps of a pass merge */
         gim__light_gpu *g = &ctx->light_gpu[i];
         if (!ctx->light_on[i]) continue;
         r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
-        gim__stamp(ctx, frame->timing, GIM_PASS_CUMSUM);
+        gim__stamp(ctx, f->timing, GIM_PASS_CUMSUM);
     }
-    if (r == GIM_OK && !full) r = gim__gl_val_budget(ctx, frame->per_light_budget, val_count, where);
-    for (i = 0; i < ctx->light_count && r == GIM_OK && !full; ++i) {
+    if (r == GIM_OK) r = gim__gl_val_budget(ctx, f->per_light_budget, val_count, where);
+    for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
         if (!ctx->light_vals[i]) {   /* none of its light reaches a view sample: no VALs, no selection */
             gim__GLuint b = g->selected;
@@ -12220,54 +12217,55 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
             float off[4];
             /* temporal_steps: the drift's step from the frame's total, so a split that changes
                by a VAL does not move the offsets */
-            gim__select_offsets(frame, i, val_count, off);
+            gim__select_offsets(f, i, val_count, off);
             r = gim__gl_importance_select_offsets(ctx, g->column, g->row, g->size, g->size, ctx->light_vals[i], off,
                                                   g->selected);
         }
-        gim__stamp(ctx, frame->timing, GIM_PASS_SELECT);
+        gim__stamp(ctx, f->timing, GIM_PASS_SELECT);
     }
-    memset(&o, 0, sizeof o);
-    memset(&dbg, 0, sizeof dbg);
-    memcpy(o.bounds_min, bmin, sizeof bmin);
-    memcpy(o.bounds_max, bmax, sizeof bmax);
-    if (r == GIM_OK && gather) {
-        gim__lightskin_drop(ctx);   /* no LightSkin buffers in a gather frame */
-        gim__vpl_release(ctx);
-        r = ctx->light_on_count ? gim__gl_rsm_gather(ctx, frame, depth, normal, scale,
-                                                     frame->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F)
-                                : GIM_OK;
-        if (r == GIM_OK && ctx->light_on_count) {
-            o.indirect = ctx->indirect;
-            gim__stamp(ctx, frame->timing, GIM_PASS_SHADE);
-        }
-    } else if (r == GIM_OK) {
-        gim__GLuint b[2];   /* no gather buffers in a LightSkin or VPL frame */
-        b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
-        ctx->gl.DeleteBuffers(2, b);
-        ctx->gather_samples = ctx->gather_sum = 0;
-        ctx->gather_samples_bytes = ctx->gather_sum_bytes = 0;
-        if (vplm) {
-            gim__lightskin_drop(ctx);   /* no LightSkin buffers in a VPL frame */
-            r = gim__gl_vpl_frame(ctx, frame, depth, normal, scale, &o, &dbg);
-        } else {
-            gim__vpl_release(ctx);
-            r = gim__gl_lightskin(ctx, frame, depth, normal, scale, &o, &dbg);
-        }
+    return r;
+}
+
+/* LIGHTSKIN_BRSM and LIGHTSKIN_FULL: BRSM's selection, then the LightSkin passes. */
+static gim_result gim__gl_lightskin_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                          float scale, gim_frame_outputs *o, gim_debug_outputs *dbg) {
+    gim_result r = GIM_OK;
+    if (f->method == GIM_METHOD_LIGHTSKIN_BRSM) {
+        r = gim__gl_brsm_select(ctx, f, depth, normal, scale);
+        dbg->view_samples = ctx->view_samples;
+        dbg->view_sample_count = f->lightskin.view_sample_count;
     }
-    ctx->own_objects = 0;
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    o.valid = 1;
-    o.width = frame->width;
-    o.height = frame->height;
-    o.gbuffer_depth = depth;
-    o.gbuffer_normal = normal;
-    o.gbuffer_albedo = frame->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
-    o.gbuffer_material = frame->gbuffer.depth ? 0u : ctx->gbuffer_material;
-    dbg.view_samples = full ? 0u : ctx->view_samples;
-    dbg.view_sample_count = full ? 0u : vs_count;
-    o.scene_scale = scale;
-    o.light_count = ctx->light_count;
-    o.lights = ctx->light_outputs;
+    if (r == GIM_OK) r = gim__gl_lightskin(ctx, f, depth, normal, scale, o, dbg);
+    return r;
+}
+
+/* RSM_GATHER: every pixel gathers its pattern of RSM texels (nothing to gather without a light). */
+static gim_result gim__gl_gather_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                       float scale, gim_frame_outputs *o) {
+    gim_result r;
+    if (!ctx->light_on_count) return GIM_OK;
+    r = gim__gl_rsm_gather(ctx, f, depth, normal, scale, f->indirect_float32 ? GIM__GL_RGBA32F : GIM__GL_RGBA16F);
+    if (r != GIM_OK) return r;
+    o->indirect = ctx->indirect;
+    gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
+    return GIM_OK;
+}
+
+/* The frame's outputs, the lights' and the stats, after every pass succeeded. */
+static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
+                               gim_frame_outputs *o, const gim_debug_outputs *dbg) {
+    int brsm = f->method == GIM_METHOD_LIGHTSKIN_BRSM;
+    uint32_t i;
+    o->valid = 1;
+    o->width = f->width;
+    o->height = f->height;
+    o->gbuffer_depth = depth;
+    o->gbuffer_normal = normal;
+    o->gbuffer_albedo = f->gbuffer.depth ? 0u : ctx->gbuffer_albedo;
+    o->gbuffer_material = f->gbuffer.depth ? 0u : ctx->gbuffer_material;
+    o->scene_scale = scale;
+    o->light_count = ctx->light_count;
+    o->lights = ctx->light_outputs;
     for (i = 0; i < ctx->light_count; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         gim_light_outputs *lo = &ctx->light_outputs[i];
@@ -12284,24 +12282,87 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         lo->column = g->column;
         lo->row = g->row;
         lo->selected = g->selected;
-        lo->selected_count = full ? 0u : ctx->light_vals[i];
+        lo->selected_count = brsm ? ctx->light_vals[i] : 0u;
         lo->rendered = ctx->light_on[i];
-        lo->importance_total = full ? 0.0 : ctx->light_total[i];
+        lo->importance_total = brsm ? ctx->light_total[i] : 0.0;
     }
-    ctx->outputs = o;
-    ctx->debug = dbg;
+    ctx->outputs = *o;
+    ctx->debug = *dbg;
     memset(&ctx->stats, 0, sizeof ctx->stats);
-    ctx->stats.timed = frame->timing ? 1 : 0;
-    ctx->stats.cpu_clock = frame->timing == 2 ? GIM__CPU_CLOCK : 0;
+    ctx->stats.timed = f->timing ? 1 : 0;
+    ctx->stats.cpu_clock = f->timing == 2 ? GIM__CPU_CLOCK : 0;
     ctx->stats.light_count = ctx->light_count;
-    ctx->stats.view_sample_count = dbg.view_sample_count;
-    ctx->stats.cache_count = dbg.cache_count;
-    ctx->stats.val_count = dbg.val_count;
-    ctx->stats.vpl_count = dbg.vpl_count;
-    ctx->stats.cluster_count = dbg.cluster_count;
-    ctx->stats.pixel_count = frame->width * frame->height;
+    ctx->stats.view_sample_count = dbg->view_sample_count;
+    ctx->stats.cache_count = dbg->cache_count;
+    ctx->stats.val_count = dbg->val_count;
+    ctx->stats.vpl_count = dbg->vpl_count;
+    ctx->stats.cluster_count = dbg->cluster_count;
+    ctx->stats.pixel_count = f->width * f->height;
     ctx->stats.rsm_count = ctx->light_on_count;
-    for (i = 0; i < ctx->light_count && !full; ++i) ctx->stats.val_light_count += ctx->light_vals[i] > 0u;
+    for (i = 0; i < ctx->light_count && brsm; ++i) ctx->stats.val_light_count += ctx->light_vals[i] > 0u;
+}
+
+/* check -> resolve -> shared passes -> the method's passes -> outputs (see the declaration). */
+GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
+    static const char where[] = "gim_update";
+    gim_frame_outputs o;
+    gim_debug_outputs dbg;
+    gim_frame f;
+    float bmin[3], bmax[3], scale = 0.0f;
+    gim__GLuint depth = 0, normal = 0;
+    gim_result r;
+    /* check */
+    if (!ctx) return GIM_ERROR_INVALID_ARGUMENT;
+    if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
+    /* without a current context every GL call is a no-op returning 0: say so before a pass
+       reports a failure that only follows from it */
+    if (!ctx->gl.GetString(GIM__GL_VERSION))
+        return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
+    if (ctx->light_buffer) { /* the host's light buffer, read back: the RSMs need the cameras on the CPU */
+        gim__gl_enter(ctx, where);
+        r = gim__gl_lights_from_buffer(ctx, where);
+        r = gim__gl_leave(ctx, r);
+        if (r != GIM_OK) return r;
+    }
+    if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
+        gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
+        ctx->gl.GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &mode);
+        if (origin != GIM__GL_LOWER_LEFT || mode != GIM__GL_NEGATIVE_ONE_TO_ONE)
+            return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                             "the host's glClipControl is not the default and glClipControl was not loaded "
+                             "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
+    }
+    r = gim__deform_prepare(ctx, frame);   /* before the bounds: a deforming mesh's are this frame's */
+    if (r == GIM_OK) r = gim__frame_check(ctx, frame, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
+    if (r == GIM_OK) r = gim__frame_scene_check(ctx, frame, bmin, bmax, &scale);
+    if (r != GIM_OK) return r;
+    /* resolve: every later pass reads f, the frame with its defaults */
+    gim__frame_resolve_scene(ctx, frame, &f);
+    /* the shared passes */
+    ctx->outputs.valid = 0;
+    ctx->stamp_count = 0;
+    gim__gl_enter(ctx, where);
+    ctx->own_objects = 1;
+    gim__stamp(ctx, f.timing, GIM_PASS_COUNT);
+    r = gim__gl_shared_passes(ctx, &f, bmin, bmax, &depth, &normal);
+    /* the method's own passes */
+    memset(&o, 0, sizeof o);
+    memset(&dbg, 0, sizeof dbg);
+    memcpy(o.bounds_min, bmin, sizeof bmin);
+    memcpy(o.bounds_max, bmax, sizeof bmax);
+    if (r == GIM_OK) {
+        gim__release_other_methods(ctx, f.method);
+        if (f.method == GIM_METHOD_RSM_GATHER) r = gim__gl_gather_frame(ctx, &f, depth, normal, scale, &o);
+        else if (f.method == GIM_METHOD_CLUSTERED || f.method == GIM_METHOD_SSVP)
+            r = gim__gl_vpl_frame(ctx, &f, depth, normal, scale, &o, &dbg);
+        else r = gim__gl_lightskin_frame(ctx, &f, depth, normal, scale, &o, &dbg);
+    }
+    ctx->own_objects = 0;
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    /* outputs */
+    gim__frame_outputs(ctx, &f, depth, normal, scale, &o, &dbg);
     return gim__gl_leave(ctx, GIM_OK);
 }
 
