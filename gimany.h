@@ -1370,7 +1370,10 @@ typedef struct gim_context gim_context;
    (GIM_ERROR_UNSUPPORTED, with what is missing logged), logs the renderer. Shaders are
    compiled lazily on first use. *out is written only on GIM_OK. */
 GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
-/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine. */
+/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine.
+   ctx is freed: destroying it again, or any later call with it, is the caller's error (as a
+   double free() is; sokol's rule too). gimany keeps no global state to catch it, so the second
+   call reads freed memory; set your pointer to NULL after the call. */
 GIMANY_API void gim_destroy(gim_context *ctx);
 
 /* --- the scene the host hands over (DESIGN.md sec. 2) --------------------------------------
@@ -7310,6 +7313,7 @@ enum {
     X(void, Uniform2d, (gim__GLint location, double v0, double v1))                              \
     X(void, GenBuffers, (gim__GLsizei n, gim__GLuint *buffers))                                  \
     X(gim__GLboolean, IsBuffer, (gim__GLuint buffer))                                           \
+    X(gim__GLboolean, IsProgram, (gim__GLuint program))                                         \
     X(void, GetBufferParameteri64v, (gim__GLenum target, gim__GLenum pname, gim__GLint64 *data)) \
     X(gim__GLboolean, IsTexture, (gim__GLuint texture))                                         \
     X(void, GetTexLevelParameteriv, (gim__GLenum target, gim__GLint level, gim__GLenum pname,    \
@@ -7612,7 +7616,10 @@ static void gim__gl_state_baseline(const gim__gl *gl) {
 
 static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     unsigned i;
-    gl->UseProgram((gim__GLuint)s->program);
+    /* the host may have deleted its program while current: it lived only as long as it stayed
+       current, and binding the dead name would leave GL_INVALID_VALUE for the host (imgui's guard) */
+    if (s->program == 0 || gl->IsProgram((gim__GLuint)s->program)) gl->UseProgram((gim__GLuint)s->program);
+    else gl->UseProgram(0);
     gl->BindVertexArray((gim__GLuint)s->vertex_array);
     if (s->vertex_array) gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, (gim__GLuint)s->element_array_buffer);
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);

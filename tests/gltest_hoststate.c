@@ -212,10 +212,36 @@ static void no_current_context(void **state) {
     GLTEST_END();
 }
 
+/* A host that deleted its program while it was current (GL keeps it until it stops being
+   current): gimany's passes bind their own, which frees it, so the restore must not bind the
+   dead name (GL_INVALID_VALUE left for the host); no program is current afterwards. Shown to
+   fail without the glIsProgram guard in gim__gl_state_restore (1 GL error). */
+static void deleted_host_program(void **state) {
+    frame_fixture ff;
+    GLuint p;
+    GLint current = -1;
+    (void)state;
+    GLTEST_BEGIN();
+    assert_int_equal(frame_begin(&ff, NULL, 16), 0);
+    frame_small(&ff, GIM_METHOD_LIGHTSKIN_BRSM);
+    p = hostile_program();
+    glUseProgram(p);
+    glDeleteProgram(p);
+    assert_true(glIsProgram(p));   /* flagged, alive while current */
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    assert_int_equal(glGetError(), GL_NO_ERROR);
+    assert_false(glIsProgram(p));
+    glGetIntegerv(GL_CURRENT_PROGRAM, &current);
+    assert_int_equal(current, 0);
+    frame_end(&ff);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
-        cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context)};
+        cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context),
+        cmocka_unit_test(deleted_host_program)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;
