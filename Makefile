@@ -188,7 +188,7 @@ bench-gpu: deps
 	@$(DEPS) examples
 	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu
 	@mkdir -p bench/gpu && $(B)/bench/bench_gpu --out bench/gpu/table.md
-	@tools/readme-block.sh gpu bench/gpu/table.md
+	@tools/bench-table.sh gpu bench/gpu/table.md
 
 # bench_frame's full sweep (RSM 128^2..2048^2, 320x180; about half an hour on 2 llvmpipe cores)
 bench-full: deps

@@ -97,5 +97,5 @@ table="$tmp/table.md"
            ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
 if [ "$sweep" = full ]; then marker=frame; else marker=$sweep; fi
-tools/readme-block.sh "$marker" "$table"
+tools/bench-table.sh "$marker" "$table"
 echo "bench-plots: $dir/pareto_*.png $dir/fig3.png $dir/fig5.png $dir/flicker.png, README table ($sweep sweep)"
