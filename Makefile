@@ -24,6 +24,7 @@ deps:
 	@$(DEPS) build test gl shaders fuzz examples reference
 
 # --- shaders ------------------------------------------------------------------------------
+# shaders/*.glsl are not programs: embed_shaders puts them where a shader says #include "NAME"
 $(B)/embed-shaders: tools/embed_shaders.c 
 	@mkdir -p $(@D)
 	$(CC) $(CSTD) $(WARN) -O2 $< -o $@
@@ -35,7 +36,7 @@ shaders: $(B)/embed-shaders
 check-shaders: $(B)/embed-shaders
 	@$(B)/embed-shaders $(B)/shaders_embedded.h $(SHADERS)
 	@cmp -s $(B)/shaders_embedded.h shaders_embedded.h || { echo "shaders_embedded.h is stale: run 'make shaders' and commit it"; exit 1; }
-	@for s in $(SHADERS); do tools/validate-shader.sh $$s || exit 1; done
+	@for s in $(SHADERS); do EMBED=$(B)/embed-shaders tools/validate-shader.sh $$s || exit 1; done
 	@echo "shaders: $(words $(SHADERS)) validated, shaders_embedded.h up to date"
 
 # --- tests --------------------------------------------------------------------------------

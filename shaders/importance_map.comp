@@ -4,6 +4,7 @@
    One invocation per texel; the view samples pass through shared memory in tiles, one sample
    loaded per invocation. Positions are subtracted before scaling, so a scene far from the
    origin keeps the precision of its float positions. */
+#include "common.glsl"
 #define TILE 256
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -22,13 +23,6 @@ layout(location = 3) uniform float clamp2;           /* (clamp in scene scales)^
 
 shared vec3 tile_position[TILE];
 shared vec3 tile_normal[TILE];                       /* zero: the sample sees nothing */
-
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 v) {   /* exponent bits, not isinf/isnan, which fast-math may fold away */
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 void main() {
     uvec2 p = gl_GlobalInvocationID.xy;

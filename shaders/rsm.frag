@@ -6,6 +6,7 @@
      sun:  a = (2 extent / size)^2, the texel's area perpendicular to the light;
            Phi = albedo E a (E cos on a / cos); A = a / cos
    cos is clamped below at min_cos so A stays finite at grazing angles. */
+#include "common.glsl"
 in vec3 world_position;
 in vec3 world_normal;
 
@@ -24,8 +25,6 @@ layout(location = 6) uniform vec3 power;     /* spot: colour I; sun: colour E a 
 layout(location = 7) uniform vec4 axis_cos;  /* spot: unit axis, cos(cone half-angle) */
 layout(location = 8) uniform vec4 rsm;       /* size, tan(half fov) (spot), s^2 (spot) or a (sun) */
 layout(location = 9) uniform float min_cos;
-
-const float FLT_MAX = 3.402823466e+38;
 
 void main() {
     uint id = min(triangle_material[gl_PrimitiveID], material_count - 1u);

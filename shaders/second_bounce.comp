@@ -4,6 +4,7 @@
    finite, albedo >= 0, centre inside the unit disk) carries
      Phi = albedo Phi_m w.z / (pi S_m pdf) = albedo Phi_m 4 (1 - r^2) / (S_m (1 + r^2)^3),
    r^2 = u^2 + v^2 of the texel centre; anything else is an unlit VPL (all zero). */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 struct Paraboloid { vec4 origin_near; vec4 normal_size; vec4 flux; };
@@ -29,8 +30,6 @@ layout(location = 3) uniform uint ism_size;
 layout(location = 4) uniform float ism_bias;
 layout(location = 5) uniform float ism_texel;   /* slope 2 / size */
 layout(location = 6) uniform float ism_lift;    /* GIM_ISM_LIFT scene_scale */
-const float ISM_EMPTY = 3.0e38;
-const float ISM_MAX_TAN = 8.0;
 
 float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     precise vec3 n = nv;
@@ -54,7 +53,7 @@ float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
     uint zi = m * ism_size * ism_size + uint(iy * int(ism_size) + ix);
     uint zw = ism[zi >> 1u];
-    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
+    float z = ism_unpack(zw, zi);
     precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray */
     precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
     precise float r2 = u * u + v * v;
@@ -75,16 +74,6 @@ float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
 }
 
-const uint SIGN = 0x80000000u, EXPONENT = 0x7f800000u;
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 x) { return all(notEqual(floatBitsToUint(x) & EXPONENT, uvec3(EXPONENT))); }
-/* x >= 0 on a finite x: +x or -0 */
-bool nonneg3(vec3 x) {
-    uvec3 b = floatBitsToUint(x);
-    return all(bvec3((b.x & SIGN) == 0u || b.x == SIGN, (b.y & SIGN) == 0u || b.y == SIGN,
-                     (b.z & SIGN) == 0u || b.z == SIGN));
-}
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
@@ -99,8 +88,8 @@ void main() {
     o.position = vec4(0.0);
     o.normal = vec4(0.0);
     o.flux = vec4(0.0);
-    if ((pw & SIGN) == 0u && pw != 0u && pw <= EXPONENT && finite3(p.xyz) && finite3(n.xyz) && finite3(a.rgb) &&
-        nonneg3(a.rgb) && r2 <= 1.0) {
+    if (positive(pw) && finite3(floatBitsToUint(p.xyz)) && finite3(floatBitsToUint(n.xyz)) &&
+        finite3(floatBitsToUint(a.rgb)) && nonneg3(a.rgb) && r2 <= 1.0) {
         float q = 1.0 + r2;
         float scale = 4.0 * (1.0 - r2) / (float(s.w) * q * q * q);
         o.position = vec4(p.xyz, 1.0);

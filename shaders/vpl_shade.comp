@@ -8,6 +8,7 @@
    [first, last) of its members (llvmpipe stops an invocation's loops after 65535 iterations in
    all), the running float sums kept per pixel in `partial` between them. Writes rgb radiance,
    a = 1 where a surface is, at the last dispatch. */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define TAPS 16
@@ -51,11 +52,7 @@ layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;
 layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
 layout(location = 17) uniform float ism_lift;   /* GIM_ISM_LIFT scene_scale */
-const float ISM_MAX_TAN = 8.0;
 
-const float PI = 3.14159265358979323846;
-const float FLT_MAX = 3.402823466e+38;
-const float EMPTY = 3.0e38;                     /* GIM_PARABOLOID_EMPTY */
 const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(0.176776692, 0.0), vec2(-0.225772187, 0.206825823), vec2(0.0345580503, -0.393771172),
     vec2(0.28457123, 0.371172756), vec2(-0.522223175, -0.0923739299), vec2(0.494695395, -0.314684719),
@@ -63,11 +60,6 @@ const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(-0.712256074, 0.29400897), vec2(0.343354493, -0.733728647), vec2(0.253730237, 0.808932006),
     vec2(-0.764745891, -0.443185866), vec2(0.897134006, -0.197232395), vec2(-0.547506928, 0.778772235),
     vec2(-0.126486778, -0.976089716));
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 /* gim__paraboloid_block: 1 where the texel under (u, v) holds a blocker nearer than the
    reference (the receiver's plane along the texel's centre ray when pl_on, else ref) */
@@ -169,7 +161,7 @@ float ism_visibility(uint i, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     int tx = iy * int(ism_size) + ix;
     uint zi = i * ism_size * ism_size + uint(tx);
     uint zw = ism[zi >> 1u];
-    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
+    float z = ism_unpack(zw, zi);
     precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray, gim__ism_texel_ray */
     precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
     precise float r2 = u * u + v * v;
@@ -187,7 +179,7 @@ float ism_visibility(uint i, vec3 c, vec3 nv, vec3 x, vec3 nl) {
     cl = cl < 0.0 ? -cl : cl;
     precise float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
     precise float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
-    return z < EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
+    return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
 }
 
 /* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n));
@@ -227,10 +219,7 @@ void main() {
         if (last) imageStore(indirect, px, vec4(0.0));
         return;
     }
-    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-    vec4 vh = inv_proj * ndc;
-    vh /= vh.w;
-    vec3 x = (inv_view * vec4(vh.xyz, 1.0)).xyz;
+    vec3 x = unproject(px, depth, size, inv_proj, inv_view);
     vec3 nx = normalize(nw.xyz);
     vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
     vec3 albedo = vec3(1.0), gcol = vec3(0.0);
