@@ -103,6 +103,8 @@ $(B)/cli/cli_host_buffers: tests/cli_host_buffers.c tests/cliutil.h $(B)/gimany-
 CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
+# the header's own compile checks also refuse implicit sign changes (tests and tools need not)
+$(CXX_BINS): WARN += -Wsign-conversion
 REF_BINS := $(B)/ref/test_reference $(B)/ref/test_loader
 
 test: deps check-shaders

@@ -2416,7 +2416,8 @@ GIMANY_DEF gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result 
     gim__kmeans k;
     uint32_t n, m, i, j, it, max_it, repaired = 0;
     double lo[3], hi[3], anchor[3], diag, scale, wx, wa, fsum[3] = {0.0, 0.0, 0.0};
-    int a, warm, want_area;
+    int warm, want_area;
+    size_t a;
     size_t off[12], total = 0, sz[12];
     unsigned char *mem;
     double *pts = NULL, *hull = NULL;
@@ -4971,7 +4972,7 @@ GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *rad
             gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg);
             for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * eg[a];
         }
-        for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + a] = gim__clamp_flt(out[a]);
+        for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + (size_t)a] = gim__clamp_flt(out[a]);
     }
     return GIM_OK;
 }
@@ -5108,7 +5109,7 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
             }
         }
         for (a = 0; a < 3; ++a)
-            radiance_out[i * 3 + a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
+            radiance_out[i * 3 + (uint32_t)a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
                                                      rc->glossy[a] * (rc->exponent + 2.0) / (2.0 * GIM__PI) * sg[a]);
     }
     return GIM_OK;
@@ -5170,7 +5171,7 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
         for (x = 0; x < rsm->width; ++x) {
             size_t t = (size_t)y * rsm->width + x;
             if (gim__rsm_vpl_lit(rsm, t))
-                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + a];
+                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + (size_t)a];
         }
         for (a = 0; a < 3; ++a) total[a] += row[a];
     }
@@ -5185,7 +5186,7 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
             gim__rsm_vpl_texel(k, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
             t = (size_t)y * rsm->width + x;
             if (gim__rsm_vpl_lit(rsm, t))
-                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + a];
+                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + (size_t)a];
         }
         for (a = 0; a < 3; ++a) sampled[a] += block[a];
     }
@@ -5199,10 +5200,10 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
         {   /* position and normal copied where finite (an unlit texel may hold anything) */
             int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
             for (a = 0; a < 3; ++a) {
-                double f = lit ? (double)rsm->flux[t * 3 + a] * scale[a] : 0.0;
-                positions[(size_t)i * 3 + a] = pok ? rsm->position[t * 3 + a] : 0.0f;
-                normals[(size_t)i * 3 + a] = nok ? rsm->normal[t * 3 + a] : 0.0f;
-                flux[(size_t)i * 3 + a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
+                double f = lit ? (double)rsm->flux[t * 3 + (size_t)a] * scale[a] : 0.0;
+                positions[(size_t)i * 3 + (size_t)a] = pok ? rsm->position[t * 3 + (size_t)a] : 0.0f;
+                normals[(size_t)i * 3 + (size_t)a] = nok ? rsm->normal[t * 3 + (size_t)a] : 0.0f;
+                flux[(size_t)i * 3 + (size_t)a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
             }
         }
     }
@@ -5561,7 +5562,7 @@ GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
         int k, plain;
         float lift = 1e-4f * scene_scale, near_skip = 1e-2f * scene_scale;
         gim_basis(n, &t, &b);
-        for (k = 0; k < 3; ++k) c[k] = centres[3 * m + k];
+        for (k = 0; k < 3; ++k) c[k] = centres[3 * m + (uint32_t)k];
         for (i = 0; i < vpl_count; ++i) {
             const gim_vpl *v = vpls + i;
             double d[3], ps, pt, wi;
@@ -6042,7 +6043,7 @@ GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
     for (i = 0; i < 3; ++i) {
         out->position[i] = (float)h.p[i];
         out->normal[i] = (float)h.n[i];
-        out->albedo[i] = scene->albedo[(size_t)h.triangle * 3 + i];
+        out->albedo[i] = scene->albedo[(size_t)h.triangle * 3 + (size_t)i];
     }
     return GIM_OK;
 }
@@ -6190,7 +6191,7 @@ GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
             out->position[i] = (float)(o[i] + best[1] * d[i]);
             /* two-sided: turned towards the origin (zero for a degenerate normal) */
             out->normal[i] = len > 0.0 ? (float)((side < 0.0 ? -nn[i] : nn[i]) / len) : 0.0f;
-            out->albedo[i] = scene->albedo[(size_t)best_t[1] * 3 + i];
+            out->albedo[i] = scene->albedo[(size_t)best_t[1] * 3 + (size_t)i];
         }
     }
     return GIM_OK;
@@ -6981,10 +6982,10 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
                     }
                     for (a = 0; a < 3; ++a) {
                         if (gx) {
-                            sum[a] += desc->radiance[q * 3 + a];
+                            sum[a] += desc->radiance[q * 3 + (size_t)a];
                             cnt[a] += 1.0f;
                         } else if (nb->albedo[a] > 0.0f) {   /* the light, without the neighbour's albedo */
-                            sum[a] += desc->radiance[q * 3 + a] / nb->albedo[a];
+                            sum[a] += desc->radiance[q * 3 + (size_t)a] / nb->albedo[a];
                             cnt[a] += 1.0f;
                         }
                     }
@@ -6992,7 +6993,7 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
             for (a = 0; a < 3; ++a) {
                 float o = cnt[a] > 0.0f ? sum[a] / cnt[a] : 0.0f;
                 if (!gx) o = rc->albedo[a] > 0.0f ? rc->albedo[a] * o : 0.0f;   /* no albedo: no light, even from an overflowed sum */
-                out[p * 3 + a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
+                out[p * 3 + (size_t)a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
             }
         }
     return GIM_OK;
@@ -9205,7 +9206,7 @@ static gim_result gim__add_mesh(gim_context *ctx, const gim_mesh_desc *desc, con
             goto done;
         }
         for (k = 0; k < 3; ++k) {
-            pos[i * 3 + k] = p[k];
+            pos[i * 3 + (uint32_t)k] = p[k];
             if (p[k] < m.bmin[k]) m.bmin[k] = p[k];
             if (p[k] > m.bmax[k]) m.bmax[k] = p[k];
         }
