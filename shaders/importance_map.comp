@@ -1,4 +1,4 @@
-/* Paper 000 eq. 10-11: the importance of every RSM texel (a VAL) for the view, the twin of
+/* Bischoff 2017 eq. 10-11: the importance of every RSM texel (a VAL) for the view, the twin of
    gim_importance_map. I = lum(flux) * 1/S * sum over view samples of
        cos+(n_l, l) cos+(n_vs, -l) / max(|l|^2, clamp^2),   l = (x_vs - x_l) / scene_scale.
    One invocation per texel; the view samples pass through shared memory in tiles, one sample

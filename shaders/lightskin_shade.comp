@@ -1,4 +1,4 @@
-/* LightSkin interpolation and shading per pixel (paper 000 "Interpolation using the Proxy
+/* LightSkin interpolation and shading per pixel (Bischoff 2017 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
    gim_lightskin_shade: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
    1. finds its n nearest caches whose normal is within the compatibility angle, within

@@ -1,4 +1,4 @@
-/* LightSkin proxy lights (paper 000 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
+/* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
    one invocation per cache looping over every VAL in a fixed order, the VAL list passed
    through shared memory in tiles of TILE (one VAL loaded per invocation). The formulas,
    guards and clamps are the twin's (see gim_proxy_lights in gimany.h); the sums are in float

@@ -1,4 +1,4 @@
-/* The VAL list of one light (paper 000 sec. 3: every RSM texel is a virtual area light; sec. 4
+/* The VAL list of one light (Bischoff 2017 sec. 3: every RSM texel is a virtual area light; sec. 4
    eq. 13-15: a selected one weighs 1 / (N P)), the GPU twin of gim_vals_gather. One invocation
    per VAL i < count, written to val[first + i]:
      brsm == 0 (FULL): texel (i % size, i / size), row-major, row 0 first, weight 1;

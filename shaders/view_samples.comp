@@ -1,4 +1,4 @@
-/* View samples (paper 000 sec. 4): the G-buffer at the Halton pixels the CPU computed
+/* View samples (Bischoff 2017 sec. 4): the G-buffer at the Halton pixels the CPU computed
    (gim_view_sample_pixels), unprojected to world space through the inverses of proj and view,
    written as {vec4 position; vec4 normal} for the importance pass. Where nothing was drawn
    (depth 1) or the normal is zero or not finite the sample is unusable: zero normal. */
