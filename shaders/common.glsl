@@ -1,7 +1,7 @@
 /* What several shaders share: constants, float tests made on the bits, gim_basis, the imperfect
    shadow maps' texel format and rays, the G-buffer's unprojection. tools/embed_shaders.c puts
-   this file in place of a shader's line `#include "common.glsl"` (compiler messages give its
-   lines as 10000 + the line here). The compiler drops what a shader does not call. */
+   this file in place of a shader's line `#include "common.glsl"`, its first include (compiler
+   messages give the lines here as 10000 + line). The compiler drops what a shader does not call. */
 
 const float PI = 3.14159265358979323846;
 const float FLT_MAX = 3.402823466e+38;
@@ -32,6 +32,18 @@ void basis(vec3 n, out vec3 t, out vec3 b) {
     float c = n.x * n.y * a;
     t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
     b = vec3(c, s + n.y * n.y * a, -n.y);
+}
+
+/* basis() with every step `precise`, so that no multiply-add is fused: for the lookups that
+   follow their twins' float steps */
+void basis_precise(vec3 n, out vec3 t, out vec3 b) {
+    precise float s = n.z >= 0.0 ? 1.0 : -1.0;
+    precise float a = -1.0 / (s + n.z);
+    precise float c = n.x * n.y * a;
+    precise vec3 pt = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
+    precise vec3 pb = vec3(c, s + n.y * n.y * a, -n.y);
+    t = pt;
+    b = pb;
 }
 
 /* Imperfect shadow maps (Ritschel et al. 2008): size x size texels in the hemisphere of the

@@ -31,49 +31,7 @@ layout(location = 4) uniform float ism_bias;
 layout(location = 5) uniform float ism_texel;   /* slope 2 / size */
 layout(location = 6) uniform float ism_lift;    /* GIM_ISM_LIFT scene_scale */
 
-float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
-    precise vec3 n = nv;
-    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;          /* gim_basis (Duff et al. 2017) */
-    precise float a = -1.0 / (sg + n.z);
-    precise float k_ = n.x * n.y * a;
-    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * k_, -sg * n.x);
-    precise vec3 b = vec3(k_, sg + n.y * n.y * a, -n.y);
-    precise vec3 o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z);
-    precise vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
-    precise float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    if (!(dist > 0.0)) return 1.0;
-    precise float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
-    if (!(wz > 0.0)) return 1.0;
-    precise float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
-    precise float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
-    precise float fs = float(ism_size);
-    precise float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
-    precise float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
-    int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
-    int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
-    uint zi = m * ism_size * ism_size + uint(iy * int(ism_size) + ix);
-    uint zw = ism[zi >> 1u];
-    float z = ism_unpack(zw, zi);
-    precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray */
-    precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
-    precise float r2 = u * u + v * v;
-    precise float q = 1.0 / (1.0 + r2);
-    precise vec3 w = vec3(2.0 * u * q, 2.0 * v * q, (1.0 - r2) * q);
-    precise vec3 dir = vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y,
-                            w.x * t.z + w.y * b.z + w.z * n.z);
-    precise float dref = dist;
-    precise float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
-    if (den >= 1e-3 || den <= -1e-3) {
-        precise float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
-        if (s > 0.0 && s < 2.0 * dist) dref = s;
-    }
-    precise float cl = -(nl.x * d.x + nl.y * d.y + nl.z * d.z) / dist;
-    cl = cl < 0.0 ? -cl : cl;
-    precise float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
-    precise float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
-    return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
-}
-
+#include "ism_lookup.glsl"
 
 void main() {
     uint i = gl_GlobalInvocationID.x;

@@ -4,13 +4,13 @@
    A line `#include "NAME"` in a shader is replaced by the file NAME beside it (shaders/
    common.glsl: the helpers several shaders share), one level deep. #line directives around it
    keep the compiler's line numbers what they were: the shader's lines one past the file's (the
-   runtime prepends #version), the included file's lines reported as 10000 + its line.
+   runtime prepends #version), the k-th included file's lines reported as k * 10000 + its line.
    Output is deterministic: same files, same bytes. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define INCLUDED_LINE0 10000 /* an included file's line n is reported as INCLUDED_LINE0 + n */
+#define INCLUDED_LINE0 10000 /* the k-th included file's line n is reported as k INCLUDED_LINE0 + n */
 
 typedef struct text { char *p; size_t n, cap; } text;
 
@@ -76,7 +76,7 @@ static int has_include(const text *t) {
 static int expand(const char *path, text *out) {
     text src = {0, 0, 0};
     size_t at = 0;
-    long line = 0;
+    long line = 0, included = 0;
     int ok = load(path, &src);
     while (ok && at < src.n) {
         const char *s = src.p + at, *nl = memchr(s, '\n', src.n - at);
@@ -98,7 +98,7 @@ static int expand(const char *path, text *out) {
                 fprintf(stderr, "%s: includes are one level deep (%s includes a file)\n", path, inc);
                 ok = 0;
             }
-            snprintf(dir, sizeof dir, "#line %d\n", INCLUDED_LINE0 + 1);
+            snprintf(dir, sizeof dir, "#line %ld\n", ++included * INCLUDED_LINE0 + 1);
             ok = ok && put(out, dir, strlen(dir)) && put(out, t.p, t.n) &&
                  (t.n == 0 || t.p[t.n - 1] == '\n' || put(out, "\n", 1));
             /* the next line of the shader is file line `line + 1`, reported one past it */
