@@ -140,7 +140,7 @@ int main(int argc, char **argv) {
         text t = {0, 0, 0};
         size_t k;
         int col = 0;
-        if (!expand(argv[i], &t)) { free(t.p); fclose(o); return 1; }
+        if (!expand(argv[i], &t)) { free(t.p); fclose(o); remove(argv[1]); return 1; }   /* no half header */
         ident(argv[i], name, sizeof name);
         fprintf(o, "/* %s */\nstatic const unsigned char gim__shader_%s[] = {\n", argv[i], name);
         for (k = 0; k < t.n; ++k) {
