@@ -90,7 +90,8 @@ $(B)/cxx/static_cxx: tests/compile/static_tu.c $(HDRS)
 	@mkdir -p $(@D)
 	clang++ -x c++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $< -o $@ -lm
 
-# Command-line tests of the examples: they run build/gimany-demo and build/gimany-viewer
+# Command-line tests of the examples: they run build/gimany-demo, build/gimany-viewer,
+# build/gimany-host-buffers and build/gimany-minimal
 # (the viewer under Xvfb) and read back what they wrote.
 CLI_CC := gcc $(CSTD) $(WARN) -Iscene -Itests/support -isystem /usr/include/stb -O1 -g $(SAN)
 $(B)/cli/cli_demo: tests/cli/cli_demo.c tests/support/cliutil.h scene/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
@@ -102,7 +103,10 @@ $(B)/cli/cli_viewer: tests/cli/cli_viewer.c tests/support/cliutil.h $(B)/gimany-
 $(B)/cli/cli_host_buffers: tests/cli/cli_host_buffers.c tests/support/cliutil.h $(B)/gimany-host-buffers
 	@mkdir -p $(@D)
 	$(CLI_CC) -DHOST_BIN='"$(B)/gimany-host-buffers"' $< -o $@ -lcmocka -lm
-CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers
+$(B)/cli/cli_minimal: tests/cli/cli_minimal.c tests/support/cliutil.h $(B)/gimany-minimal
+	@mkdir -p $(@D)
+	$(CLI_CC) -DMINIMAL_BIN='"$(B)/gimany-minimal"' $< -o $@ -lcmocka -lm
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers $(B)/cli/cli_minimal
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 REF_BINS := $(B)/ref/test_reference $(B)/ref/test_loader
@@ -224,6 +228,10 @@ $(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
 $(B)/gimany-host-buffers: examples/host_buffers.c gimany.h shaders_embedded.h
 	@mkdir -p $(@D)
 	$(EX_CC) $< -o $@ -lglfw -lGL -lm
+# the smallest host: GLFW, a box built in code, gimany.h and shaders_embedded.h only
+$(B)/gimany-minimal: examples/minimal.c gimany.h shaders_embedded.h
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) -I. -O2 $< -o $@ -lglfw -lGL -lm
 
 demo:
 	@$(DEPS) build gl examples
