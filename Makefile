@@ -92,7 +92,7 @@ $(B)/cxx/static_cxx: tests/compile/static_tu.c $(HDRS)
 
 # Command-line tests of the examples: they run build/gimany-demo, build/gimany-viewer,
 # build/gimany-host-buffers and build/gimany-minimal
-# (the viewer under Xvfb) and read back what they wrote.
+# (the GLFW ones under Xvfb) and read back what they wrote.
 CLI_CC := gcc $(CSTD) $(WARN) -Iscene -Itests/support -isystem /usr/include/stb -O1 -g $(SAN)
 $(B)/cli/cli_demo: tests/cli/cli_demo.c tests/support/cliutil.h scene/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
 	@mkdir -p $(@D)
