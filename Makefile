@@ -27,6 +27,7 @@ deps:
 	@$(DEPS) build test gl shaders fuzz examples reference
 
 # --- shaders ------------------------------------------------------------------------------
+# shaders/*.glsl are not programs: embed_shaders puts them where a shader says #include "NAME"
 $(B)/embed-shaders: tools/embed_shaders.c 
 	@mkdir -p $(@D)
 	$(CC) $(CSTD) $(WARN) -O2 $< -o $@
@@ -38,7 +39,7 @@ shaders: $(B)/embed-shaders
 check-shaders: $(B)/embed-shaders
 	@$(B)/embed-shaders $(B)/shaders_embedded.h $(SHADERS)
 	@cmp -s $(B)/shaders_embedded.h shaders_embedded.h || { echo "shaders_embedded.h is stale: run 'make shaders' and commit it"; exit 1; }
-	@for s in $(SHADERS); do tools/validate-shader.sh $$s || exit 1; done
+	@for s in $(SHADERS); do EMBED=$(B)/embed-shaders tools/validate-shader.sh $$s || exit 1; done
 	@echo "shaders: $(words $(SHADERS)) validated, shaders_embedded.h up to date"
 
 # --- tests --------------------------------------------------------------------------------
@@ -109,6 +110,8 @@ $(B)/cli/cli_minimal: tests/cli/cli_minimal.c tests/support/cliutil.h $(B)/giman
 CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers $(B)/cli/cli_minimal
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
+# the header's own compile checks also refuse implicit sign changes (tests and tools need not)
+$(CXX_BINS): WARN += -Wsign-conversion
 REF_BINS := $(B)/ref/test_reference $(B)/ref/test_loader
 
 test: deps check-shaders
@@ -195,7 +198,7 @@ bench-gpu: deps
 	@$(DEPS) examples
 	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu
 	@mkdir -p bench/gpu && $(B)/bench/bench_gpu --out bench/gpu/table.md
-	@tools/readme-block.sh gpu bench/gpu/table.md
+	@tools/bench-table.sh gpu bench/gpu/table.md
 
 # bench_frame's full sweep (RSM 128^2..2048^2, 320x180; about half an hour on 2 llvmpipe cores)
 bench-full: deps

@@ -297,7 +297,7 @@ typedef struct gim_kmeans_result {
 GIMANY_API gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result *result);
 
 /* @section caches ========================================================================= */
-/* LightSkin light caches (paper 000 sec. 3 "Cache Distribution"; Lensing 2013): sparse points
+/* LightSkin light caches (Bischoff 2017 sec. 3 "Cache Distribution"; Lensing 2013): sparse points
    on the surface where indirect light is accumulated, then interpolated per pixel. Built once
    per mesh in model space. d_eps bounds the cache-to-surface distance (voxels of edge d_eps/2),
    theta_eps the normal deviation a cache may represent. */
@@ -450,7 +450,7 @@ GIMANY_API gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, 
 GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out);
 
 /* @section importance ===================================================================== */
-/* Bidirectional importance sampling of the RSM (paper 000 sec. 4, after Ritschel 2011).
+/* Bidirectional importance sampling of the RSM (Bischoff 2017 sec. 4, after Ritschel 2011).
    Every RSM texel is a VAL; its importance is its flux luminance times a geometry term
    averaged over view samples (eq. 10), with the squared distance clamped below at
    (clamp * scene_scale)^2 (eq. 11 made unit-free). Three steps, each the CPU twin of a GPU
@@ -543,7 +543,7 @@ GIMANY_API gim_result gim_importance_select_offsets(const double *column, const 
                                                     gim_selected_val *out, gim_env env);
 
 /* @section twins ========================================================================== */
-/* LightSkin cache lighting, CPU twins of its GPU passes (paper 000 sec. 3 "Cache Lighting",
+/* LightSkin cache lighting, CPU twins of its GPU passes (Bischoff 2017 sec. 3 "Cache Lighting",
    "Proxy Lights Generation", "Interpolation using the Proxy Lights"; sec. 4 eq. 13-15).
    Each function has the structure of its pass: one independent invocation per cache
    (gim_proxy_lights) or per receiver pixel (gim_lightskin_shade),
@@ -848,7 +848,7 @@ GIMANY_API gim_result gim_caches_follow(const gim_cache *rest, const gim_cache_b
    is power per unit area perpendicular to its direction (W / L^2); a spot's intensity I is
    power per steradian (W / sr) inside its cone and 0 outside. An RSM texel is a VAL:
      footprint area A (L^2): for the spot the texel's solid angle w at the light times d^2
-       over the cosine at the surface, A = w d^2 / cos (eq. 1 of paper 000 is the on-axis
+       over the cosine at the surface, A = w d^2 / cos (eq. 1 of Bischoff 2017 is the on-axis
        case w = s^2, with s the texel side on the plane at distance 1; the exact
        w = s^2 / (1 + u^2 + v^2)^(3/2) at image-plane point (u, v) makes the texels' w sum to
        the cone's solid angle); for the orthographic sun A = a / cos with a = (2 extent /
@@ -990,7 +990,7 @@ GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
                                              uint32_t width, uint32_t height, uint32_t x, uint32_t y,
                                              gim_gbuffer_texel *out);
 
-/* The pixels of the view samples (paper 000 sec. 4): Halton points 1..count in bases 2 and 3
+/* The pixels of the view samples (Bischoff 2017 sec. 4): Halton points 1..count in bases 2 and 3
    (point 0 is the corner), Cranley-Patterson rotated by offsets (2 values in [0,1), e.g. from
    gim_rotation_offsets(off, 2, frame), or NULL), scaled to the width x height G-buffer:
    pixels[2 i] = min(floor(u_i width), width - 1), pixels[2 i + 1] likewise with v_i, height. */
@@ -1495,7 +1495,7 @@ GIMANY_API gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
 /* Which method lights the frame (DESIGN.md sec. 5); each is one setting of the same runtime. */
 typedef enum gim_method {
     GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
-    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (paper 000 sec. 4) */
+    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (Bischoff 2017 sec. 4) */
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
     GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
                                        gim_rsm_gather): the baseline, no caches, no visibility */
@@ -2416,7 +2416,8 @@ GIMANY_DEF gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result 
     gim__kmeans k;
     uint32_t n, m, i, j, it, max_it, repaired = 0;
     double lo[3], hi[3], anchor[3], diag, scale, wx, wa, fsum[3] = {0.0, 0.0, 0.0};
-    int a, warm, want_area;
+    int warm, want_area;
+    size_t a;
     size_t off[12], total = 0, sz[12];
     unsigned char *mem;
     double *pts = NULL, *hull = NULL;
@@ -4971,7 +4972,7 @@ GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *rad
             gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg);
             for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * eg[a];
         }
-        for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + a] = gim__clamp_flt(out[a]);
+        for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + (size_t)a] = gim__clamp_flt(out[a]);
     }
     return GIM_OK;
 }
@@ -5108,7 +5109,7 @@ GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_o
             }
         }
         for (a = 0; a < 3; ++a)
-            radiance_out[i * 3 + a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
+            radiance_out[i * 3 + (uint32_t)a] = gim__clamp_flt(rc->albedo[a] / GIM__PI * sd[a] +
                                                      rc->glossy[a] * (rc->exponent + 2.0) / (2.0 * GIM__PI) * sg[a]);
     }
     return GIM_OK;
@@ -5170,7 +5171,7 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
         for (x = 0; x < rsm->width; ++x) {
             size_t t = (size_t)y * rsm->width + x;
             if (gim__rsm_vpl_lit(rsm, t))
-                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + a];
+                for (a = 0; a < 3; ++a) row[a] += rsm->flux[t * 3 + (size_t)a];
         }
         for (a = 0; a < 3; ++a) total[a] += row[a];
     }
@@ -5185,7 +5186,7 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
             gim__rsm_vpl_texel(k, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
             t = (size_t)y * rsm->width + x;
             if (gim__rsm_vpl_lit(rsm, t))
-                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + a];
+                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + (size_t)a];
         }
         for (a = 0; a < 3; ++a) sampled[a] += block[a];
     }
@@ -5199,10 +5200,10 @@ GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
         {   /* position and normal copied where finite (an unlit texel may hold anything) */
             int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
             for (a = 0; a < 3; ++a) {
-                double f = lit ? (double)rsm->flux[t * 3 + a] * scale[a] : 0.0;
-                positions[(size_t)i * 3 + a] = pok ? rsm->position[t * 3 + a] : 0.0f;
-                normals[(size_t)i * 3 + a] = nok ? rsm->normal[t * 3 + a] : 0.0f;
-                flux[(size_t)i * 3 + a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
+                double f = lit ? (double)rsm->flux[t * 3 + (size_t)a] * scale[a] : 0.0;
+                positions[(size_t)i * 3 + (size_t)a] = pok ? rsm->position[t * 3 + (size_t)a] : 0.0f;
+                normals[(size_t)i * 3 + (size_t)a] = nok ? rsm->normal[t * 3 + (size_t)a] : 0.0f;
+                flux[(size_t)i * 3 + (size_t)a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
             }
         }
     }
@@ -5561,7 +5562,7 @@ GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_
         int k, plain;
         float lift = 1e-4f * scene_scale, near_skip = 1e-2f * scene_scale;
         gim_basis(n, &t, &b);
-        for (k = 0; k < 3; ++k) c[k] = centres[3 * m + k];
+        for (k = 0; k < 3; ++k) c[k] = centres[3 * m + (uint32_t)k];
         for (i = 0; i < vpl_count; ++i) {
             const gim_vpl *v = vpls + i;
             double d[3], ps, pt, wi;
@@ -6042,7 +6043,7 @@ GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
     for (i = 0; i < 3; ++i) {
         out->position[i] = (float)h.p[i];
         out->normal[i] = (float)h.n[i];
-        out->albedo[i] = scene->albedo[(size_t)h.triangle * 3 + i];
+        out->albedo[i] = scene->albedo[(size_t)h.triangle * 3 + (size_t)i];
     }
     return GIM_OK;
 }
@@ -6190,7 +6191,7 @@ GIMANY_DEF gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
             out->position[i] = (float)(o[i] + best[1] * d[i]);
             /* two-sided: turned towards the origin (zero for a degenerate normal) */
             out->normal[i] = len > 0.0 ? (float)((side < 0.0 ? -nn[i] : nn[i]) / len) : 0.0f;
-            out->albedo[i] = scene->albedo[(size_t)best_t[1] * 3 + i];
+            out->albedo[i] = scene->albedo[(size_t)best_t[1] * 3 + (size_t)i];
         }
     }
     return GIM_OK;
@@ -6295,7 +6296,7 @@ GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc,
 }
 #endif
 
-/* --- VPL shading (issue 5): soft visibility, shading, geometry-aware blur -----------------
+/* --- VPL shading: soft visibility, shading, geometry-aware blur ---------------------------
    Twins of vpl_shade.comp and geometry_blur.comp. Every step is float arithmetic written in
    the order the shaders write it (their variables `precise`, so no multiply-add is fused),
    so the GPU reads the same texels and sums the same terms. */
@@ -6981,10 +6982,10 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
                     }
                     for (a = 0; a < 3; ++a) {
                         if (gx) {
-                            sum[a] += desc->radiance[q * 3 + a];
+                            sum[a] += desc->radiance[q * 3 + (size_t)a];
                             cnt[a] += 1.0f;
                         } else if (nb->albedo[a] > 0.0f) {   /* the light, without the neighbour's albedo */
-                            sum[a] += desc->radiance[q * 3 + a] / nb->albedo[a];
+                            sum[a] += desc->radiance[q * 3 + (size_t)a] / nb->albedo[a];
                             cnt[a] += 1.0f;
                         }
                     }
@@ -6992,7 +6993,7 @@ GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
             for (a = 0; a < 3; ++a) {
                 float o = cnt[a] > 0.0f ? sum[a] / cnt[a] : 0.0f;
                 if (!gx) o = rc->albedo[a] > 0.0f ? rc->albedo[a] * o : 0.0f;   /* no albedo: no light, even from an overflowed sum */
-                out[p * 3 + a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
+                out[p * 3 + (size_t)a] = gim__isfinitef(o) ? o : (o > 0.0f ? FLT_MAX : -FLT_MAX);
             }
         }
     return GIM_OK;
@@ -7826,14 +7827,14 @@ struct gim_context {
     double stamp_ms[GIM__MAX_STAMPS];  /* timing 2: the clock (gim__clock_ms) after each stamp's glFinish */
     gim_stats stats;
     gim_frame_outputs outputs;
-    /* paraboloid maps (issue 5) */
+    /* paraboloid maps */
     uint32_t para_size, para_count;   /* of the textures below; 0: none */
     int para_attributes;              /* GIM__PARA_*: the maps that exist (distance, attributes, both) */
     gim__GLuint para_distance, para_depth, para_position, para_normal, para_albedo, para_fbo;
     gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
     uint64_t para_samples_bytes;
     uint32_t para_key[3];             /* map_count, size, vpl_count para_samples was made for */
-    /* VPL shading (issue 5) */
+    /* VPL shading */
     gim__GLuint vpl_partial;      /* per pixel running sums between VPL-shading dispatches (2 vec4) */
     uint64_t vpl_partial_bytes;
     uint32_t vpl_chunk;           /* subset members per VPL-shading dispatch (GIM__VPL_SHADE_CHUNK) */
@@ -8018,7 +8019,7 @@ static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_
     return GIM_OK;
 }
 
-/* --- importance sampling passes (paper 000 sec. 4) -----------------------------------
+/* --- importance sampling passes (Bischoff 2017 sec. 4) -------------------------------
    The shape of every pass: argument checks (no GL) -> gim__gl_enter -> the host objects it
    reads or writes checked (gim__gl_check_buffer/_texture) -> gim__gl_program (built on first
    use) -> bindings on the units/bindings of the state list only -> dispatch -> barrier for how
@@ -8347,7 +8348,7 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
-/* --- LightSkin passes (paper 000 sec. 3) --------------------------------------------------- */
+/* --- LightSkin passes (Bischoff 2017 sec. 3) ----------------------------------------------- */
 
 #define GIM__PROXY_GROUP 64u   /* TILE of proxy_lights.comp */
 /* VALs per dispatch: under 65535 loop iterations per invocation, the
@@ -8589,7 +8590,7 @@ static gim_result gim__gl_check_rsm(gim_context *ctx, const char *where, const g
 
 #define GIM__GATHER_GROUP 64u   /* local_size_x of vals_gather.comp */
 
-/* The VAL list on the GPU, the twin of gim_vals_gather (paper 000 sec. 3, eq. 13-15).
+/* The VAL list on the GPU, the twin of gim_vals_gather (Bischoff 2017 sec. 3, eq. 13-15).
    rsm_position, rsm_normal, rsm_flux: RGBA32F 2D textures of size x size as gim__gl_rsm writes
    them (position.w > 0 where lit: the twin's valid; normal.w = area A; flux.rgb), read on image
    units 0-2 as rgba32ui, so every value reaches the VAL bit for bit (texelFetch would also need
@@ -9205,7 +9206,7 @@ static gim_result gim__add_mesh(gim_context *ctx, const gim_mesh_desc *desc, con
             goto done;
         }
         for (k = 0; k < 3; ++k) {
-            pos[i * 3 + k] = p[k];
+            pos[i * 3 + (uint32_t)k] = p[k];
             if (p[k] < m.bmin[k]) m.bmin[k] = p[k];
             if (p[k] > m.bmax[k]) m.bmax[k] = p[k];
         }
@@ -10005,7 +10006,7 @@ static void gim__camera_eye(gim_mat4 view, gim_mat4 proj, float eye[4]) {
     }
 }
 
-/* RSM of light i (paper 000 sec. 3; units in @section twins): position (w = lit),
+/* RSM of light i (Bischoff 2017 sec. 3; units in @section twins): position (w = lit),
    normal (w = A), flux, depth. */
 static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, const float bmin[3], const float bmax[3]) {
     static const char where[] = "RSM (GL)";
@@ -10149,7 +10150,7 @@ static void gim__gl_nearest_sampler(gim_context *ctx) {
     gl->SamplerParameteri(ctx->nearest_sampler, GIM__GL_TEXTURE_COMPARE_MODE, GIM__GL_NONE);
 }
 
-/* View samples (paper 000 sec. 4): the G-buffer at count Halton pixels (gim_view_sample_pixels,
+/* View samples (Bischoff 2017 sec. 4): the G-buffer at count Halton pixels (gim_view_sample_pixels,
    computed here and uploaded: the same pixels as the twin, bit for bit), unprojected. */
 /* 1 when the frame's host G-buffer needs the decode pass (not gimany's own layout). */
 static int gim__gbuffer_needs_decode(const gim_frame *f) {
@@ -10264,7 +10265,7 @@ static gim_result gim__gl_view_samples(gim_context *ctx, const gim_frame *f, gim
     return gim__gl_check(ctx, where);
 }
 
-/* --- the LightSkin frame (paper 000 sec. 3-4) ----------------------------------------------
+/* --- the LightSkin frame (Bischoff 2017 sec. 3-4) ------------------------------------------
    After the shared passes: caches to world space (CPU, gim_caches_to_world) sorted into a hash
    grid -> the lights' VALs -> proxy lights -> per pixel neighbours,
    interpolation and shading into the indirect texture. */
@@ -10809,7 +10810,7 @@ vals:
     return GIM_OK;
 }
 
-/* --- VPL shading (issue 5): clustered visibility and SSVP --------------------------------- */
+/* --- VPL shading: clustered visibility and SSVP ------------------------------------------- */
 
 /* Subset members per VPL-shading dispatch: each costs an invocation up to 1 + 2 x 16 loop
    iterations (the two visibility kernels) plus the subset scramble's cycle walk (5 a step,
@@ -11091,7 +11092,7 @@ static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__
     return gim__gl_check(ctx, where);
 }
 
-/* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C; issue 5) ------- */
+/* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C) ---------------- */
 
 /* Which paraboloid maps a pass makes (gim__gl_paraboloids' what). */
 #define GIM__PARA_DISTANCE 0      /* the visibility maps only */
@@ -11367,7 +11368,7 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
 
 /* Argument checks of gim_update that need no GL. */
 /* --- the VPL frame (CLUSTERED, SSVP) ----------------------------------------------------------
-   Dong et al. (paper 004) and SSVP (paper 003) on the shared passes: per light VPLs from its
+   Dong et al. 2009 and SSVP (Aranha et al.) on the shared passes: per light VPLs from its
    RSM (rsm_vpls.comp) copied one light after the other -> k-means on the GPU (warm from the
    last frame's centres, or seeded every frame: gim_frame.kmeans_restart) -> the clusters' VALs and
    paraboloid parameters (clusters.comp) -> a layered pass of paraboloid maps for each of
@@ -11862,11 +11863,11 @@ static int gim__light_meets_instances(gim_context *ctx, gim_mat4 view, gim_mat4 
 }
 
 /* BRSM's VALs per rendered RSM (ctx->light_vals) after the eq. 12 tables: per_light, val_count
-   each (the budget before issue 18); shared, val_count split in proportion to each RSM's
+   each (the budget before the lights shared one); shared, val_count split in proportion to each RSM's
    importance total T_l (the last entry of its row table: the sum of its eq. 10-11 map, its
    power reaching the view samples), by largest remainder, at least 1 where T_l > 0, none
    where T_l = 0. Each RSM's VALs weigh 1 / (N_l P), so every N_l >= 1 keeps the sum unbiased
-   (paper 000 eq. 13-15 per light); the split only moves the variance to where the light is.
+   (Bischoff 2017 eq. 13-15 per light); the split only moves the variance to where the light is.
    Reads the totals back (one buffer): one wait for the importance passes per frame; with one
    rendered RSM there is nothing to split, it gets val_count without it. */
 static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t val_count, const char *where) {

@@ -1,4 +1,4 @@
-/* gimany-host-buffers - gimany driven entirely from a host's GL buffers (issue #18): the small
+/* gimany-host-buffers - gimany driven entirely from a host's GL buffers: the small
    engine below keeps its geometry, its lights and its G-buffer itself and lends them to gimany.
    - geometry: a Cornell-like box with a block, in ONE interleaved vertex buffer (position,
      normal, uv; 32-byte stride) and a 16-bit index buffer, handed over by gim_mesh_desc.buffers.

@@ -5,7 +5,7 @@
    A scene is what both programs render:
      meshes     triangles in WORLD space (node transforms applied), unit vertex normals,
                 one material id per triangle
-     materials  diffuse albedo rho_d and a normalised Phong glossy lobe (paper 000 eq. 3-4):
+     materials  diffuse albedo rho_d and a normalised Phong glossy lobe (Bischoff 2017 eq. 3-4):
                   f_r(wi, wo) = rho_d / pi + rho_g (k + 2) / (2 pi) cos+^k(theta_e)
                 theta_e is the angle between the mirror direction of wi and wo
      lights     directional (a sun: direction TOWARDS it, irradiance E on a surface facing it)

@@ -1,4 +1,4 @@
-/* street.h - a procedural open-world street after the urban test scene of paper 000:
+/* street.h - a procedural open-world street after the urban test scene of Bischoff 2017:
    a road along +x between two rows of box buildings on a ground plane, with red, green and
    blue panels beside the road for colour bleeding. Faces are subdivided evenly so the mesh
    reaches a requested triangle count (1M for the benchmarks). C99 and C++11, header only,

@@ -13,6 +13,7 @@
              invocation: the lit VPL farthest from its own centre among the clusters of two or
              more VPLs (ties: the lowest index) moves to it and seeds it, as gim_kmeans
              re-seeds (which takes the farthest VPL of the cluster of largest error). */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 struct Vpl { vec4 position; vec4 normal; vec4 flux; };
@@ -28,14 +29,6 @@ layout(location = 1) uniform uint cluster_count;
 layout(location = 2) uniform float scene_scale;
 layout(location = 3) uniform uint mode;
 layout(location = 4) uniform uint target;
-
-void basis(vec3 n, out vec3 t, out vec3 b) {   /* gim_basis (Duff et al. 2017), the same formula */
-    float s = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + n.z);
-    float c = n.x * n.y * a;
-    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
-    b = vec3(c, s + n.y * n.y * a, -n.y);
-}
 
 void main() {
     uint m = gl_GlobalInvocationID.x;

@@ -6,6 +6,7 @@
    rows (0, negative or not finite: nothing drawn). Runs only when the encoding is not gimany's
    own (a host that writes float world normals and window depth pays nothing). Twin:
    gim_gbuffer_decode_twin. */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0) uniform sampler2D host_depth;
@@ -19,11 +20,6 @@ layout(location = 2) uniform int view_space;        /* 1: rotate by view_to_worl
 layout(location = 3) uniform mat4 view_to_world;   /* its 3x3: the transpose of view's */
 layout(location = 7) uniform int depth_view_z;      /* 1: host_depth.r is the distance along -z */
 layout(location = 8) uniform vec4 proj_zw;          /* proj[2][2], proj[3][2], proj[2][3], proj[3][3] */
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 vec3 decode_normal(vec4 e) {
     if (normal_encoding == 1) return e.xyz * 2.0 - 1.0;

@@ -6,6 +6,7 @@
    and applies its own albedo (the light is blurred, not the materials), a glossy one averages
    radiance; summed in float rows first as the twin. Positions are unprojected from the
    G-buffer as in vpl_shade.comp. */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
@@ -27,24 +28,15 @@ layout(location = 6) uniform float normal_cos;
 layout(location = 7) uniform float max_value;
 layout(location = 8) uniform uint material_count;   /* 0: the host's G-buffer (albedo 1, no glossy) */
 
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
-
 /* The pixel's surface: position in xyz, w = 1; w = 0 where there is none. */
 vec4 surface(ivec2 px, out vec3 n) {
     float depth = texelFetch(gbuffer_depth, px, 0).r;
     vec4 nw = texelFetch(gbuffer_normal, px, 0);
     n = vec3(0.0);
     if (!(depth < 1.0) || !finite3(nw.xyz) || !(dot(nw.xyz, nw.xyz) > 0.0)) return vec4(0.0);
-    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-    vec4 v = inv_proj * ndc;
-    v /= v.w;
+    vec3 x = unproject(px, depth, size, inv_proj, inv_view);
     n = normalize(nw.xyz);
-    return vec4((inv_view * vec4(v.xyz, 1.0)).xyz, 1.0);
+    return vec4(x, 1.0);
 }
 
 /* The pixel's albedo, and whether its material is glossy (gim__receiver_glossy). */

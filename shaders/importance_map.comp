@@ -1,9 +1,10 @@
-/* Paper 000 eq. 10-11: the importance of every RSM texel (a VAL) for the view, the twin of
+/* Bischoff 2017 eq. 10-11: the importance of every RSM texel (a VAL) for the view, the twin of
    gim_importance_map. I = lum(flux) * 1/S * sum over view samples of
        cos+(n_l, l) cos+(n_vs, -l) / max(|l|^2, clamp^2),   l = (x_vs - x_l) / scene_scale.
    One invocation per texel; the view samples pass through shared memory in tiles, one sample
    loaded per invocation. Positions are subtracted before scaling, so a scene far from the
    origin keeps the precision of its float positions. */
+#include "common.glsl"
 #define TILE 256
 layout(local_size_x = 16, local_size_y = 16) in;
 
@@ -22,13 +23,6 @@ layout(location = 3) uniform float clamp2;           /* (clamp in scene scales)^
 
 shared vec3 tile_position[TILE];
 shared vec3 tile_normal[TILE];                       /* zero: the sample sees nothing */
-
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 v) {   /* exponent bits, not isinf/isnan, which fast-math may fold away */
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 void main() {
     uvec2 p = gl_GlobalInvocationID.xy;

@@ -1,4 +1,4 @@
-/* Paper 000 eq. 12, first level: the vertical (per-column) cumulative sums of the importance
+/* Bischoff 2017 eq. 12, first level: the vertical (per-column) cumulative sums of the importance
    map, inclusive, in double, inside blocks of block_rows rows; each block's total goes to
    block_total. One invocation per (column, block): O(width * height) adds in all, and
    width * ceil(height / block_rows) invocations in flight. Double, because a float sum of a

@@ -1,4 +1,4 @@
-/* Paper 000 eq. 12, last level: add each block's offset to its block-local column sums, so
+/* Bischoff 2017 eq. 12, last level: add each block's offset to its block-local column sums, so
    column[y * width + x] = sum of map(x, 0..y). One invocation per texel. */
 layout(local_size_x = 16, local_size_y = 16) in;
 

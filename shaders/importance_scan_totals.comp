@@ -1,4 +1,4 @@
-/* Paper 000 eq. 12, second level, in one work group: per column, the block totals become
+/* Bischoff 2017 eq. 12, second level, in one work group: per column, the block totals become
    exclusive block offsets (sequentially down the column, as the CPU sums); the column totals
    then give the horizontal cumulative sums row[x] = sum of column totals 0..x. Each invocation
    scans a contiguous run of columns, then the runs' sums are scanned in shared memory

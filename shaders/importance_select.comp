@@ -1,4 +1,4 @@
-/* Paper 000 sec. 4: select VALs with probability proportional to the importance map by binary
+/* Bischoff 2017 sec. 4: select VALs with probability proportional to the importance map by binary
    search in the cumulative sums of eq. 12, the twin of gim_importance_select. One invocation
    per selected VAL i: u = i / count and v = van der Corput(i), both rotated by the seed's
    Cranley-Patterson offsets (computed on the CPU, in double); the column comes from u in the

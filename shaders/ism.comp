@@ -6,6 +6,7 @@
    The float arithmetic is the twin's, in its order (see gim_ism_render in gimany.h). Each
    texel is stored in 16 bits, the upper half of its float's bits rounded to nearest
    (gim_ism_quantize), two to a uint: texel 2k in the low half, 2k + 1 in the high. */
+#include "common.glsl"
 #define GROUP 256
 #define MAX_SIZE 64
 #define PYRAMID 1365                  /* 32^2 + 16^2 + ... + 1 */
@@ -27,45 +28,8 @@ layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
 layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 
-const float EMPTY = 3.0e38;
-const float PI = 3.14159265358979323846;
-
 shared uint level0[MAX_SIZE * MAX_SIZE];
 shared float pyramid[PYRAMID];
-
-/* gim_basis (Duff et al. 2017) */
-void basis(vec3 n, out vec3 t, out vec3 b) {
-    float s = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + n.z);
-    float c = n.x * n.y * a;
-    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
-    b = vec3(c, s + n.y * n.y * a, -n.y);
-}
-
-/* the texel of direction d (length dist) as gim__ism_texel; -1 behind the plane */
-int texel_of(vec3 d, float dist, vec3 t, vec3 b, vec3 n) {
-    float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
-    if (!(wz > 0.0)) return -1;
-    float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
-    float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
-    float fs = float(size);
-    float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
-    float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
-    int ix = fx < 0.0 ? 0 : fx > float(size - 1u) ? int(size) - 1 : int(fx);
-    int iy = fy < 0.0 ? 0 : fy > float(size - 1u) ? int(size) - 1 : int(fy);
-    return iy * int(size) + ix;
-}
-
-/* texel tx's centre ray as gim__ism_texel_ray */
-vec3 texel_ray(int tx, vec3 t, vec3 b, vec3 n) {
-    float fs = float(size);
-    float u = (2.0 * float(tx % int(size)) + 1.0) / fs - 1.0;
-    float v = (2.0 * float(tx / int(size)) + 1.0) / fs - 1.0;
-    float r2 = u * u + v * v;
-    float k = 1.0 / (1.0 + r2);
-    vec3 w = vec3(2.0 * u * k, 2.0 * v * k, (1.0 - r2) * k);
-    return vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y, w.x * t.z + w.y * b.z + w.z * n.z);
-}
 
 void put(int tx, float s) { atomicMin(level0[tx], floatBitsToUint(s)); }
 
@@ -74,7 +38,7 @@ void splat_point(vec3 o, vec3 t, vec3 b, vec3 n, Point p, float area) {
     vec3 d = vec3(p.position_area.x - o.x, p.position_area.y - o.y, p.position_area.z - o.z);
     float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     if (!(dist > lift)) return;
-    int tx = texel_of(d, dist, t, b, n);
+    int tx = ism_texel_index(d, dist, size, t, b, n);
     if (tx < 0) return;
     int cx = tx % int(size), cy = tx / int(size);
     float rs = splat * sqrt(area / PI);
@@ -87,7 +51,7 @@ void splat_point(vec3 o, vec3 t, vec3 b, vec3 n, Point p, float area) {
     for (int y = cy - r; y <= cy + r; ++y)
         for (int x = cx - r; x <= cx + r; ++x) {
             if (x < 0 || y < 0 || x >= int(size) || y >= int(size)) continue;
-            vec3 dir = texel_ray(y * int(size) + x, t, b, n);
+            vec3 dir = ism_texel_ray(y * int(size) + x, size, t, b, n);
             float den = dir.x * pn.x + dir.y * pn.y + dir.z * pn.z;
             if (!(den >= 1e-3 || den <= -1e-3)) continue;
             float s = dn / den;
@@ -108,7 +72,7 @@ void main() {
     uint m = first_map + gl_WorkGroupID.x;
     uint local = gl_LocalInvocationIndex;
     uint texels = size * size;
-    for (uint q = local; q < texels; q += uint(GROUP)) level0[q] = floatBitsToUint(EMPTY);
+    for (uint q = local; q < texels; q += uint(GROUP)) level0[q] = floatBitsToUint(ISM_EMPTY);
     barrier();
     vec3 n = source[m * source_vec4s + 1u].xyz, t, b;
     basis(n, t, b);
@@ -131,9 +95,9 @@ void main() {
             float s = 0.0, cnt = 0.0;
             for (uint k = 0u; k < 4u; ++k) {
                 float v = fetch(l, prev_off, sz, 2u * x + (k & 1u), 2u * y + (k >> 1u));
-                if (v < EMPTY) { s = v > s ? v : s; cnt += 1.0; }
+                if (v < ISM_EMPTY) { s = v > s ? v : s; cnt += 1.0; }
             }
-            pyramid[off + q] = cnt > 0.0 ? s : EMPTY;
+            pyramid[off + q] = cnt > 0.0 ? s : ISM_EMPTY;
         }
         barrier();
         prev_off = off;
@@ -152,8 +116,8 @@ void main() {
             uint x = q % lsz, y = q / lsz;
             float parent = pyramid[poff + (y / 2u) * psz + x / 2u];
             if (l == 0u) {
-                if (!(uintBitsToFloat(level0[q]) < EMPTY)) level0[q] = floatBitsToUint(parent);
-            } else if (!(pyramid[loff + q] < EMPTY)) {
+                if (!(uintBitsToFloat(level0[q]) < ISM_EMPTY)) level0[q] = floatBitsToUint(parent);
+            } else if (!(pyramid[loff + q] < ISM_EMPTY)) {
                 pyramid[loff + q] = parent;
             }
         }
@@ -161,5 +125,5 @@ void main() {
     }
     uint half_texels = texels / 2u;
     for (uint q = local; q < half_texels; q += uint(GROUP))
-        map_out[m * half_texels + q] = ((level0[2u * q] + 0x8000u) >> 16) | (((level0[2u * q + 1u] + 0x8000u) >> 16) << 16);
+        map_out[m * half_texels + q] = ism_pack(level0[2u * q], level0[2u * q + 1u]);
 }

@@ -8,6 +8,7 @@
    in float where the normals are nearly parallel (acos loses ~3e-4 rad there), the common
    case on a wall. A VPL of zero normal (the unlit VPLs of rsm_vpls.comp may have one) is
    taken as perpendicular to every centre (n . n_c = 0); so is a centre of zero normal. */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 struct Vpl { vec4 position; vec4 normal; vec4 flux; };
@@ -23,7 +24,6 @@ layout(location = 3) uniform float wa;
 layout(location = 4) uniform uint ssvp;   /* 0: Dong's metric, 1: SSVP's */
 
 const uint NONE = 0xffffffffu;
-const float PI = 3.14159265358979;
 
 float dist(vec3 x, vec3 n, uint j) {
     vec3 c = centre[j].position.xyz, cn = centre[j].normal.xyz;

@@ -1,4 +1,4 @@
-/* LightSkin interpolation and shading per pixel (paper 000 "Interpolation using the Proxy
+/* LightSkin interpolation and shading per pixel (Bischoff 2017 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
    gim_lightskin_shade: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
    1. finds its n nearest caches whose normal is within the compatibility angle, within
@@ -16,6 +16,7 @@
    2. interpolates the diffuse (and glossy) proxy lights of those caches and shades the pixel
       with them, with the formulas, weights and guards of gim_lightskin_shade (read there).
    Sums in float (double in the twin). Writes rgb radiance, a = 1 where a surface is. */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define MAX_N 16
@@ -56,14 +57,6 @@ layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: ho
 layout(location = 12) uniform uint material_count;
 layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
 layout(location = 14) uniform uint list_limit;  /* caches a tile's list may hold, <= LIST_CAP (0: every tile per pixel) */
-
-const float PI = 3.14159265358979323846;
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */
     return (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
@@ -258,10 +251,7 @@ void main() {
         vec4 nw = texelFetch(gbuffer_normal, px, 0);
         receiver = depth < 1.0 && finite3(nw.xyz) && dot(nw.xyz, nw.xyz) > 0.0;
         if (receiver) {
-            vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-            vec4 v = inv_proj * ndc;
-            v /= v.w;
-            x = (inv_view * vec4(v.xyz, 1.0)).xyz;
+            x = unproject(px, depth, size, inv_proj, inv_view);
             nx = normalize(nw.xyz);
             view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
         }

@@ -7,6 +7,7 @@
    surface it meets). Depth d / (d + scene_scale), monotone in d, keeps the nearest hit.
    Outputs: distance d (the visibility pass); position (w = 1), the normal turned towards the
    origin, and the triangle's diffuse albedo (the attribute pass). */
+#include "common.glsl"
 flat in vec3 tri_v0;
 flat in vec3 tri_v1;
 flat in vec3 tri_v2;
@@ -27,14 +28,6 @@ layout(std430, binding = 2) readonly buffer Maps { Paraboloid map[]; };
 layout(location = 5) uniform uint size;
 layout(location = 6) uniform float scene_scale;
 layout(location = 7) uniform uint attribute_pass;   /* 1: skip attribute_near (flux.w), 0: near_distance */
-
-void basis(vec3 n, out vec3 t, out vec3 b) {
-    float s = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + n.z);
-    float c = n.x * n.y * a;
-    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
-    b = vec3(c, s + n.y * n.y * a, -n.y);
-}
 
 void main() {
     vec2 uv = (2.0 * floor(gl_FragCoord.xy) + 1.0) / float(size) - 1.0;

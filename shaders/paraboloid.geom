@@ -12,6 +12,7 @@
    samples per edge. The rasteriser draws the texels whose centres (the rays' texels) fall
    inside the quad, so margin only absorbs rounding (a quarter texel). A triangle through the
    origin covers the whole map. */
+#include "common.glsl"
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
 
@@ -39,15 +40,6 @@ flat out vec3 tri_albedo;
 flat out int tri_map;
 
 const int MAX_K = 16;
-
-/* gim_basis (Duff et al. 2017) */
-void basis(vec3 n, out vec3 t, out vec3 b) {
-    float s = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + n.z);
-    float c = n.x * n.y * a;
-    t = vec3(1.0 + s * n.x * n.x * a, s * c, -s * n.x);
-    b = vec3(c, s + n.y * n.y * a, -n.y);
-}
 
 void main() {
     int m = map_index[0];

@@ -1,9 +1,10 @@
-/* LightSkin proxy lights (paper 000 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
+/* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
    one invocation per cache looping over every VAL in a fixed order, the VAL list passed
    through shared memory in tiles of TILE (one VAL loaded per invocation). The formulas,
    guards and clamps are the twin's (see gim_proxy_lights in gimany.h); the sums are in float
    here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
+#include "common.glsl"
 #define TILE 64
 layout(local_size_x = TILE) in;
 
@@ -44,19 +45,6 @@ layout(location = 12) uniform uint ism_size;
 layout(location = 13) uniform float ism_bias;
 layout(location = 14) uniform float ism_texel;   /* slope 2 / size */
 layout(location = 15) uniform float ism_lift;
-const float ISM_EMPTY = 3.0e38;
-const float ISM_MAX_TAN = 8.0;
-
-vec3 ism_ray(int tx, vec3 t, vec3 b, vec3 n) {
-    float fs = float(ism_size);
-    float u = (2.0 * float(tx % int(ism_size)) + 1.0) / fs - 1.0;
-    float v = (2.0 * float(tx / int(ism_size)) + 1.0) / fs - 1.0;
-    float r2 = u * u + v * v;
-    float k = 1.0 / (1.0 + r2);
-    vec3 w = vec3(2.0 * u * k, 2.0 * v * k, (1.0 - r2) * k);
-    return vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y, w.x * t.z + w.y * b.z + w.z * n.z);
-}
-
 float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
     vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
     float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
@@ -72,10 +60,9 @@ float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
     int tx = iy * int(ism_size) + ix;
     uint zi = i * ism_size * ism_size + uint(tx);
-    uint zw = ism[zi >> 1u];
-    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
+    float z = ism_unpack(ism[zi >> 1u], zi);
     float dref = dist;
-    vec3 dir = ism_ray(tx, t, b, n);
+    vec3 dir = ism_texel_ray(tx, ism_size, t, b, n);
     float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
     if (den >= 1e-3 || den <= -1e-3) {   /* the VAL's plane along the texel's ray */
         float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
@@ -92,8 +79,6 @@ shared vec4 tile_pa[TILE];    /* position, area */
 shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
 shared vec3 tile_flux[TILE];
 shared uint any_work;   /* an invocation of the group has work in mode 1 or 3 */
-
-const float PI = 3.14159265358979323846;
 
 /* Near field of a VAL (gim__val_near, the same float steps): within d < 2 sqrt(A) the VAL is
    a regular octagon of area A in its plane (gim_basis(n_l) axes), clipped to the receiver's
@@ -148,7 +133,6 @@ float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_
     return e_n + w * (weight * (fv / (2.0 * PI) / area) - e_n);   /* E_n = w |Phi| / A */
 }
 
-const float FLT_MAX = 3.402823466e+38;
 const vec3 LUM = vec3(0.2126, 0.7152, 0.0722);
 
 /* S, sum W, and the W-weighted mean and sum of squared deviations of d = x_l - c, updated
@@ -303,11 +287,7 @@ void main() {
     }
     uint end = first + chunk;
     vec3 ism_o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z), ism_t = vec3(0.0), ism_b = vec3(0.0);
-    if (ism_size != 0u) {   /* gim_basis (Duff et al. 2017) */
-        float s = n.z >= 0.0 ? 1.0 : -1.0, a = -1.0 / (s + n.z), k = n.x * n.y * a;
-        ism_t = vec3(1.0 + s * n.x * n.x * a, s * k, -s * n.x);
-        ism_b = vec3(k, s + n.y * n.y * a, -n.y);
-    }
+    if (ism_size != 0u) basis(n, ism_t, ism_b);
     if (mode == 0u) {
         for (uint base = first; base < end; base += uint(TILE)) {
             load(base + local, local);

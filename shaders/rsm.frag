@@ -1,11 +1,12 @@
-/* Reflective shadow map of one light (paper 000 sec. 3; units in gimany.h @section twins):
+/* Reflective shadow map of one light (Bischoff 2017 sec. 3; units in gimany.h @section twins):
    every texel a VAL with world position (w = 1 where lit), normal towards the light with the
    footprint area A in w, and reflected flux Phi = albedo x the power arriving on the footprint.
      spot: w = s^2 / (1 + u^2 + v^2)^(3/2), the texel's solid angle at image-plane point (u, v);
-           Phi = albedo I w; A = w d^2 / cos (eq. 1 of paper 000, exact off the axis)
+           Phi = albedo I w; A = w d^2 / cos (eq. 1 of Bischoff 2017, exact off the axis)
      sun:  a = (2 extent / size)^2, the texel's area perpendicular to the light;
            Phi = albedo E a (E cos on a / cos); A = a / cos
    cos is clamped below at min_cos so A stays finite at grazing angles. */
+#include "common.glsl"
 in vec3 world_position;
 in vec3 world_normal;
 
@@ -24,8 +25,6 @@ layout(location = 6) uniform vec3 power;     /* spot: colour I; sun: colour E a 
 layout(location = 7) uniform vec4 axis_cos;  /* spot: unit axis, cos(cone half-angle) */
 layout(location = 8) uniform vec4 rsm;       /* size, tan(half fov) (spot), s^2 (spot) or a (sun) */
 layout(location = 9) uniform float min_cos;
-
-const float FLT_MAX = 3.402823466e+38;
 
 void main() {
     uint id = min(triangle_material[gl_PrimitiveID], material_count - 1u);

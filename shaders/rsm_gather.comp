@@ -3,6 +3,7 @@
    texels around its projection into one light's RSM (see gim_rsm_gather for the weights).
    One dispatch per light: the first starts the sum, the others add to it (an SSBO of one vec4
    a pixel), the last writes the indirect texture. Sums in float (double in the twin). */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
@@ -30,13 +31,6 @@ layout(location = 8) uniform uint flags;          /* 1: first light; 2: last lig
 layout(location = 9) uniform uint material_count;
 layout(location = 10) uniform float max_value;    /* the indirect format's largest finite value */
 
-const float PI = 3.14159265358979323846;
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
-
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (px.x >= int(size.x) || px.y >= int(size.y)) return;
@@ -46,10 +40,7 @@ void main() {
     vec4 nw = texelFetch(gbuffer_normal, px, 0);
     bool surface = depth < 1.0 && finite3(nw.xyz) && dot(nw.xyz, nw.xyz) > 0.0;
     if (surface) {
-        vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-        vec4 v = inv_proj * ndc;
-        v /= v.w;
-        vec3 x = (inv_view * vec4(v.xyz, 1.0)).xyz;
+        vec3 x = unproject(px, depth, size, inv_proj, inv_view);
         vec3 nx = normalize(nw.xyz);
         vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
         vec3 albedo = vec3(1.0), gcol = vec3(0.0);

@@ -12,6 +12,7 @@
      3: invocation i < count multiplies VPL i's flux by it.
    The same order of sums as the twin, in double. Lit: position.w > 0 and position, normal,
    flux finite with flux >= 0 (read as bits, so no fast-math folds the tests away). */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 layout(binding = 0, rgba32ui) readonly uniform uimage2D rsm_position;  /* xyz; w > 0: lit */
@@ -28,16 +29,9 @@ layout(location = 1) uniform uint count;   /* VPLs */
 layout(location = 2) uniform uint mode;
 layout(location = 3) uniform uint block;   /* VPLs per block sum of mode 1 (GIM_RSM_VPL_BLOCK) */
 
-const uint SIGN = 0x80000000u, EXPONENT = 0x7f800000u;
-
-bool finite3(uvec3 b) { return all(notEqual(b & EXPONENT, uvec3(EXPONENT))); }
-/* x >= 0 on a finite x: +x or -0 */
-bool nonneg3(uvec3 b) { return all(bvec3((b.x & SIGN) == 0u || b.x == SIGN, (b.y & SIGN) == 0u || b.y == SIGN,
-                                         (b.z & SIGN) == 0u || b.z == SIGN)); }
-
 /* The twin's lit texel: position.w > 0 (not NaN), position, normal, flux finite, flux >= 0. */
 bool lit(uvec4 x, uvec4 n, uvec4 f) {
-    return (x.w & SIGN) == 0u && x.w != 0u && x.w <= EXPONENT && finite3(x.xyz) && finite3(n.xyz) && finite3(f.rgb) &&
+    return positive(x.w) && finite3(x.xyz) && finite3(n.xyz) && finite3(f.rgb) &&
            nonneg3(f.rgb);
 }
 

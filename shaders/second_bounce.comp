@@ -4,6 +4,7 @@
    finite, albedo >= 0, centre inside the unit disk) carries
      Phi = albedo Phi_m w.z / (pi S_m pdf) = albedo Phi_m 4 (1 - r^2) / (S_m (1 + r^2)^3),
    r^2 = u^2 + v^2 of the texel centre; anything else is an unlit VPL (all zero). */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 struct Paraboloid { vec4 origin_near; vec4 normal_size; vec4 flux; };
@@ -29,62 +30,8 @@ layout(location = 3) uniform uint ism_size;
 layout(location = 4) uniform float ism_bias;
 layout(location = 5) uniform float ism_texel;   /* slope 2 / size */
 layout(location = 6) uniform float ism_lift;    /* GIM_ISM_LIFT scene_scale */
-const float ISM_EMPTY = 3.0e38;
-const float ISM_MAX_TAN = 8.0;
 
-float ism_visibility(uint m, vec3 c, vec3 nv, vec3 x, vec3 nl) {
-    precise vec3 n = nv;
-    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;          /* gim_basis (Duff et al. 2017) */
-    precise float a = -1.0 / (sg + n.z);
-    precise float k_ = n.x * n.y * a;
-    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * k_, -sg * n.x);
-    precise vec3 b = vec3(k_, sg + n.y * n.y * a, -n.y);
-    precise vec3 o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z);
-    precise vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
-    precise float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    if (!(dist > 0.0)) return 1.0;
-    precise float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
-    if (!(wz > 0.0)) return 1.0;
-    precise float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
-    precise float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
-    precise float fs = float(ism_size);
-    precise float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
-    precise float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
-    int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
-    int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
-    uint zi = m * ism_size * ism_size + uint(iy * int(ism_size) + ix);
-    uint zw = ism[zi >> 1u];
-    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
-    precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray */
-    precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
-    precise float r2 = u * u + v * v;
-    precise float q = 1.0 / (1.0 + r2);
-    precise vec3 w = vec3(2.0 * u * q, 2.0 * v * q, (1.0 - r2) * q);
-    precise vec3 dir = vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y,
-                            w.x * t.z + w.y * b.z + w.z * n.z);
-    precise float dref = dist;
-    precise float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
-    if (den >= 1e-3 || den <= -1e-3) {
-        precise float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
-        if (s > 0.0 && s < 2.0 * dist) dref = s;
-    }
-    precise float cl = -(nl.x * d.x + nl.y * d.y + nl.z * d.z) / dist;
-    cl = cl < 0.0 ? -cl : cl;
-    precise float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
-    precise float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
-    return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
-}
-
-const uint SIGN = 0x80000000u, EXPONENT = 0x7f800000u;
-const float FLT_MAX = 3.402823466e+38;
-
-bool finite3(vec3 x) { return all(notEqual(floatBitsToUint(x) & EXPONENT, uvec3(EXPONENT))); }
-/* x >= 0 on a finite x: +x or -0 */
-bool nonneg3(vec3 x) {
-    uvec3 b = floatBitsToUint(x);
-    return all(bvec3((b.x & SIGN) == 0u || b.x == SIGN, (b.y & SIGN) == 0u || b.y == SIGN,
-                     (b.z & SIGN) == 0u || b.z == SIGN));
-}
+#include "ism_lookup.glsl"
 
 void main() {
     uint i = gl_GlobalInvocationID.x;
@@ -99,8 +46,8 @@ void main() {
     o.position = vec4(0.0);
     o.normal = vec4(0.0);
     o.flux = vec4(0.0);
-    if ((pw & SIGN) == 0u && pw != 0u && pw <= EXPONENT && finite3(p.xyz) && finite3(n.xyz) && finite3(a.rgb) &&
-        nonneg3(a.rgb) && r2 <= 1.0) {
+    if (positive(pw) && finite3(floatBitsToUint(p.xyz)) && finite3(floatBitsToUint(n.xyz)) &&
+        finite3(floatBitsToUint(a.rgb)) && nonneg3(a.rgb) && r2 <= 1.0) {
         float q = 1.0 + r2;
         float scale = 4.0 * (1.0 - r2) / (float(s.w) * q * q * q);
         o.position = vec4(p.xyz, 1.0);

@@ -1,4 +1,4 @@
-/* The VAL list of one light (paper 000 sec. 3: every RSM texel is a virtual area light; sec. 4
+/* The VAL list of one light (Bischoff 2017 sec. 3: every RSM texel is a virtual area light; sec. 4
    eq. 13-15: a selected one weighs 1 / (N P)), the GPU twin of gim_vals_gather. One invocation
    per VAL i < count, written to val[first + i]:
      brsm == 0 (FULL): texel (i % size, i / size), row-major, row 0 first, weight 1;
@@ -10,6 +10,7 @@
    An invalid texel (lit flag position.w not > 0, a NaN/Inf, a negative area or flux) becomes
    an all-zero VAL, as in the twin. So does a selected entry outside the RSM or with a pdf
    that is not finite and > 0, which the twin reports as an error and a shader cannot. */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 layout(binding = 0, rgba32ui) readonly uniform uimage2D rsm_position;  /* xyz; w > 0: lit */
@@ -26,15 +27,12 @@ layout(location = 1) uniform uint count;   /* VALs to write: size^2 (FULL) or se
 layout(location = 2) uniform uint first;   /* index of the first one in val[] */
 layout(location = 3) uniform uint brsm;    /* 1: one VAL per selected entry */
 
-const uint SIGN = 0x80000000u, EXPONENT = 0x7f800000u;
 const uint FLT_MAX_BITS = 0x7f7fffffu;
 const uint FLT_MIN_BITS = 0x00800000u;
 
 bool finite(uint b) { return (b & EXPONENT) != EXPONENT; }
-bvec3 finite3(uvec3 b) { return notEqual(b & EXPONENT, uvec3(EXPONENT)); }
 /* the twin's x >= 0 on a finite x: +x, or -0 */
 bool nonneg(uint b) { return (b & SIGN) == 0u || b == SIGN; }
-bvec3 nonneg3(uvec3 b) { return bvec3(nonneg(b.x), nonneg(b.y), nonneg(b.z)); }
 
 /* The exact value of a finite float from its bits, denormals included. */
 double exact(uint b) {
@@ -72,9 +70,8 @@ void main() {
         ivec2 p = ivec2(t);
         uvec4 x = imageLoad(rsm_position, p), n = imageLoad(rsm_normal, p), f = imageLoad(rsm_flux, p);
         /* lit: position.w > 0 (sign clear, not 0, not NaN) */
-        bool lit = (x.w & SIGN) == 0u && x.w != 0u && x.w <= EXPONENT;
-        if (lit && all(finite3(x.xyz)) && all(finite3(n.xyz)) && all(finite3(f.rgb)) && finite(n.w) && nonneg(n.w) &&
-            all(nonneg3(f.rgb))) {
+        if (positive(x.w) && finite3(x.xyz) && finite3(n.xyz) && finite3(f.rgb) && finite(n.w) && nonneg(n.w) &&
+            nonneg3(f.rgb)) {
             v.position_area = uvec4(x.xyz, n.w);
             v.normal_weight = uvec4(n.xyz, weight);
             v.flux = uvec4(f.rgb, 0u);

@@ -1,7 +1,8 @@
-/* View samples (paper 000 sec. 4): the G-buffer at the Halton pixels the CPU computed
+/* View samples (Bischoff 2017 sec. 4): the G-buffer at the Halton pixels the CPU computed
    (gim_view_sample_pixels), unprojected to world space through the inverses of proj and view,
    written as {vec4 position; vec4 normal} for the importance pass. Where nothing was drawn
    (depth 1) or the normal is zero or not finite the sample is unusable: zero normal. */
+#include "common.glsl"
 layout(local_size_x = 64) in;
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
@@ -16,11 +17,6 @@ layout(location = 1) uniform uvec2 size;
 layout(location = 2) uniform mat4 inv_proj;
 layout(location = 3) uniform mat4 inv_view;
 
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
-
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= count) return;
@@ -31,10 +27,7 @@ void main() {
     s.position = vec4(0.0);
     s.normal = vec4(0.0);
     if (depth < 1.0 && finite3(n) && dot(n, n) > 0.0) {
-        vec4 ndc = vec4((vec2(p) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-        vec4 v = inv_proj * ndc;
-        v /= v.w;
-        s.position = vec4((inv_view * vec4(v.xyz, 1.0)).xyz, 1.0);
+        s.position = vec4(unproject(p, depth, size, inv_proj, inv_view), 1.0);
         s.normal = vec4(normalize(n), 0.0);
     }
     view_sample[i] = s;

@@ -8,6 +8,7 @@
    [first, last) of its members (llvmpipe stops an invocation's loops after 65535 iterations in
    all), the running float sums kept per pixel in `partial` between them. Writes rgb radiance,
    a = 1 where a surface is, at the last dispatch. */
+#include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define TAPS 16
@@ -51,11 +52,7 @@ layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;
 layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
 layout(location = 17) uniform float ism_lift;   /* GIM_ISM_LIFT scene_scale */
-const float ISM_MAX_TAN = 8.0;
 
-const float PI = 3.14159265358979323846;
-const float FLT_MAX = 3.402823466e+38;
-const float EMPTY = 3.0e38;                     /* GIM_PARABOLOID_EMPTY */
 const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(0.176776692, 0.0), vec2(-0.225772187, 0.206825823), vec2(0.0345580503, -0.393771172),
     vec2(0.28457123, 0.371172756), vec2(-0.522223175, -0.0923739299), vec2(0.494695395, -0.314684719),
@@ -63,11 +60,6 @@ const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(-0.712256074, 0.29400897), vec2(0.343354493, -0.733728647), vec2(0.253730237, 0.808932006),
     vec2(-0.764745891, -0.443185866), vec2(0.897134006, -0.197232395), vec2(-0.547506928, 0.778772235),
     vec2(-0.126486778, -0.976089716));
-
-bool finite3(vec3 v) {
-    uvec3 e = (floatBitsToUint(v) >> 23) & 0xffu;
-    return all(notEqual(e, uvec3(0xffu)));
-}
 
 /* gim__paraboloid_block: 1 where the texel under (u, v) holds a blocker nearer than the
    reference (the receiver's plane along the texel's centre ray when pl_on, else ref) */
@@ -99,12 +91,8 @@ float visibility(uint m, vec3 x, vec3 nx) {
     precise vec3 n = map[m].normal_size.xyz;
     precise vec3 o = map[m].origin_near.xyz;
     precise float delta = map[m].normal_size.w;
-    /* gim_basis (Duff et al. 2017), the same expression order */
-    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;
-    precise float a = -1.0 / (sg + n.z);
-    precise float c = n.x * n.y * a;
-    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * c, -sg * n.x);
-    precise vec3 b = vec3(c, sg + n.y * n.y * a, -n.y);
+    precise vec3 t, b;
+    basis_precise(n, t, b);
     precise float p0 = x.x - o.x, p1 = x.y - o.y, p2 = x.z - o.z;
     precise float lx = p0 * t.x + p1 * t.y + p2 * t.z;
     precise float ly = p0 * b.x + p1 * b.y + p2 * b.z;
@@ -145,50 +133,8 @@ float visibility(uint m, vec3 x, vec3 nx) {
     return float(open) / float(TAPS);
 }
 
-/* VPL i's ISM, seen from x (normal nx): 1 or 0 (gim__ism_visible) */
-float ism_visibility(uint i, vec3 c, vec3 nv, vec3 x, vec3 nl) {
-    precise vec3 n = nv;
-    precise float sg = n.z >= 0.0 ? 1.0 : -1.0;          /* gim_basis (Duff et al. 2017) */
-    precise float a = -1.0 / (sg + n.z);
-    precise float k_ = n.x * n.y * a;
-    precise vec3 t = vec3(1.0 + sg * n.x * n.x * a, sg * k_, -sg * n.x);
-    precise vec3 b = vec3(k_, sg + n.y * n.y * a, -n.y);
-    precise vec3 o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z);
-    precise vec3 d = vec3(x.x - o.x, x.y - o.y, x.z - o.z);
-    precise float dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
-    if (!(dist > 0.0)) return 1.0;
-    precise float wz = (d.x * n.x + d.y * n.y + d.z * n.z) / dist;
-    if (!(wz > 0.0)) return 1.0;
-    precise float wx = (d.x * t.x + d.y * t.y + d.z * t.z) / dist;
-    precise float wy = (d.x * b.x + d.y * b.y + d.z * b.z) / dist;
-    precise float fs = float(ism_size);
-    precise float fx = floor((wx / (1.0 + wz) + 1.0) * 0.5 * fs);
-    precise float fy = floor((wy / (1.0 + wz) + 1.0) * 0.5 * fs);
-    int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
-    int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
-    int tx = iy * int(ism_size) + ix;
-    uint zi = i * ism_size * ism_size + uint(tx);
-    uint zw = ism[zi >> 1u];
-    float z = uintBitsToFloat((zi & 1u) != 0u ? zw & 0xffff0000u : zw << 16u);
-    precise float u = (2.0 * float(ix) + 1.0) / fs - 1.0;   /* the texel's centre ray, gim__ism_texel_ray */
-    precise float v = (2.0 * float(iy) + 1.0) / fs - 1.0;
-    precise float r2 = u * u + v * v;
-    precise float q = 1.0 / (1.0 + r2);
-    precise vec3 w = vec3(2.0 * u * q, 2.0 * v * q, (1.0 - r2) * q);
-    precise vec3 dir = vec3(w.x * t.x + w.y * b.x + w.z * n.x, w.x * t.y + w.y * b.y + w.z * n.y,
-                            w.x * t.z + w.y * b.z + w.z * n.z);
-    precise float dref = dist;
-    precise float den = dir.x * nl.x + dir.y * nl.y + dir.z * nl.z;
-    if (den >= 1e-3 || den <= -1e-3) {                    /* the receiver's plane along the texel's ray */
-        precise float s = (d.x * nl.x + d.y * nl.y + d.z * nl.z) / den;
-        if (s > 0.0 && s < 2.0 * dist) dref = s;
-    }
-    precise float cl = -(nl.x * d.x + nl.y * d.y + nl.z * d.z) / dist;
-    cl = cl < 0.0 ? -cl : cl;
-    precise float sn = sqrt(1.0 - (cl < 1.0 ? cl * cl : 1.0));
-    precise float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
-    return z < EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
-}
+/* VPL i's ISM, seen from x (normal nx): 1 or 0 */
+#include "ism_lookup.glsl"
 
 /* gim__vpl_scramble: member j of an interleaved subset is this VPL (a bijection of [0, n));
    half_ (the Feistel halves' bits, scramble_bits(n)) is computed once per invocation */
@@ -227,10 +173,7 @@ void main() {
         if (last) imageStore(indirect, px, vec4(0.0));
         return;
     }
-    vec4 ndc = vec4((vec2(px) + 0.5) / vec2(size) * 2.0 - 1.0, depth * 2.0 - 1.0, 1.0);
-    vec4 vh = inv_proj * ndc;
-    vh /= vh.w;
-    vec3 x = (inv_view * vec4(vh.xyz, 1.0)).xyz;
+    vec3 x = unproject(px, depth, size, inv_proj, inv_view);
     vec3 nx = normalize(nw.xyz);
     vec3 view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
     vec3 albedo = vec3(1.0), gcol = vec3(0.0);

@@ -2,8 +2,8 @@
 # Plots and the README table from DIR/results.csv (written by build/bench/bench_frame; DIR is
 # bench for the CI-sized sweep of `make bench`, bench/full for `make bench-full`):
 #   DIR/pareto_SCENE.png  error against the ground truth vs frame time, one series per method (the trade)
-#   DIR/fig3.png          FULL : BRSM frame-time ratio vs RSM size, per VAL count (paper 000 Fig. 3; street)
-#   DIR/fig5.png          mean relative difference to FULL vs VAL count, per RSM size (paper 000 Fig. 5; street)
+#   DIR/fig3.png          FULL : BRSM frame-time ratio vs RSM size, per VAL count (Bischoff 2017 Fig. 3; street)
+#   DIR/fig5.png          mean relative difference to FULL vs VAL count, per RSM size (Bischoff 2017 Fig. 5; street)
 #   DIR/flicker.png       flicker (change beyond FULL's own) vs VAL count, per method (street)
 # and the table between the README's markers for the CSV's sweep: <!-- bench:ci --> (ci) or
 # <!-- bench:frame --> (full). Columns are found by their names in the CSV's header.
@@ -64,7 +64,7 @@ set terminal pngcairo size 720,480 font ",10" noenhanced
 set grid
 set key top left
 set output "$dir/fig3.png"
-set title "street, $street_size, $sweep sweep: FULL : BRSM frame-time ratio vs RSM size\n($min_vs view samples; paper 000 Fig. 3)"
+set title "street, $street_size, $sweep sweep: FULL : BRSM frame-time ratio vs RSM size\n($min_vs view samples; Bischoff 2017 Fig. 3)"
 set xlabel "RSM side (texels)"; set ylabel "FULL time / BRSM time"
 set logscale x 2
 plot for [v in "$vals"] "$tmp/fig3_".v.".dat" with linespoints title v." VALs"
@@ -72,7 +72,7 @@ unset logscale x
 set logscale x 2
 set key top right
 set output "$dir/fig5.png"
-set title "street, $street_size, $sweep sweep: mean relative difference to FULL vs VALs\n(paper 000 Fig. 5)"
+set title "street, $street_size, $sweep sweep: mean relative difference to FULL vs VALs\n(Bischoff 2017 Fig. 5)"
 set xlabel "VALs"; set ylabel "mean |BRSM - FULL| / mean FULL"
 plot for [r in "$rsms"] "$tmp/fig5_".r.".dat" with linespoints title "RSM ".r."^2"
 set output "$dir/flicker.png"
@@ -97,5 +97,5 @@ table="$tmp/table.md"
            ($c["flicker"] == "" ? "-" : sprintf("%.4f", $c["flicker"])), $c["gpu_mib"], passes }' "$csv"
 } > "$table"
 if [ "$sweep" = full ]; then marker=frame; else marker=$sweep; fi
-tools/readme-block.sh "$marker" "$table"
+tools/bench-table.sh "$marker" "$table"
 echo "bench-plots: $dir/pareto_*.png $dir/fig3.png $dir/fig5.png $dir/flicker.png, README table ($sweep sweep)"

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# The GPU frame-time estimate of README "Benchmarks > On a GPU" (issue #15), from the cost model
+# The GPU frame-time estimate of README "Benchmarks > On a GPU", from the cost model
 # and instruction counts, until a GPU has been lent: compiles the hot shaders as gimany.h builds
-# them ("#version 430 core\n" prepended, nothing else), with the uniforms that pick a branch for
-# the whole dispatch fixed to the default frame's values, optimises (spirv-opt -O), counts the
-# instructions per iteration of each hot loop (tools/gpu-estimate.py) and multiplies by the
-# iteration counts of `make bench-gpu`'s frame (bench/src/bench_gpu.c). Derivation: docs/gpu-estimate.md.
+# them (#include lines expanded, "#version 430 core\n" prepended, nothing else), with the
+# uniforms that pick a branch for the whole dispatch fixed to the default frame's values,
+# optimises (spirv-opt -O), counts the instructions per iteration of each hot loop
+# (tools/gpu-estimate.py) and multiplies by the iteration counts of `make bench-gpu`'s frame
+# (bench/src/bench_gpu.c). Derivation: docs/gpu-estimate.md.
 # Usage: tools/gpu-estimate.sh [--measure]   (--measure re-measures the shading pass's candidates
 # per pixel on this machine's GL with tools/gpu-estimate-candidates.sh, ~2 min on llvmpipe;
 # without it the figures that script printed on 2026-11-24 are used, listed below)
@@ -12,6 +13,7 @@ set -eu
 root=$(cd "$(dirname "$0")/.." && pwd)
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+(cd "$root" && make -s build/embed-shaders >/dev/null)
 
 # shader, variant, uniforms fixed as NAME=VALUE (a uniform branch costs a GPU one scalar branch)
 variants=(
@@ -30,7 +32,8 @@ for v in "${variants[@]}"; do
   shader=$1 name=$2; shift 2
   base=${shader%.*} stage=${shader##*.}
   src=$tmp/$base-$name.$stage
-  python3 - "$root/shaders/$shader" "$src" "$@" <<'PY'
+  "$root/build/embed-shaders" --expand "$root/shaders/$shader" > "$tmp/$base.glsl"   # its #include lines expanded
+  python3 - "$tmp/$base.glsl" "$src" "$@" <<'PY'
 import re, sys
 t = open(sys.argv[1]).read()
 for kv in sys.argv[3:]:

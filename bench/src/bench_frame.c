@@ -1,4 +1,4 @@
-/* The speed/accuracy trade of the many-light methods (issue 7; paper 000 Fig. 3 and 5): whole
+/* The speed/accuracy trade of the many-light methods (Bischoff 2017 Fig. 3 and 5): whole
    gim_update frames of every method in `methods` below against LightSkin FULL (every RSM texel
    a VAL, the paper's own reference) and against the Embree ground truth of the same view
    (build/gimany-reference), side by side in one run, on the procedural street (the paper's
@@ -56,7 +56,7 @@
      {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_clustered},
      {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_ssvp},
    with setup_clustered copying m->clusters (and setup_ssvp m->second_bounce_vpls, m->bounces)
-   into the gim_frame fields that issue 5 gives them. */
+   into their gim_frame fields. */
 typedef struct bench_method bench_method;
 struct bench_method {
     const char *name;             /* the CSV's method column */
@@ -76,7 +76,7 @@ static void setup_gather(gim_frame *f, const bench_method *m) {
     f->gather_samples = 256;   /* over gather_radius 0: 0.15 of the RSM */
 }
 
-/* the VPL methods (issue 5): clusters, second-bounce VPLs and bounces of the row, the rest at
+/* the VPL methods: clusters, second-bounce VPLs and bounces of the row, the rest at
    the library's defaults (1024 Halton VPLs for clustered, 256 Hammersley for SSVP; 256^2
    paraboloid maps; 8 x 8 interleaving) */
 static void setup_vpl(gim_frame *f, const bench_method *m) {
@@ -271,7 +271,7 @@ static double mean_rel_diff(const float *a, const float *b) {
     return m > 0.0 ? d / m : 0.0;
 }
 
-/* Temporal flicker (issue 7): sw->flicker_frames frames while the sun turns by STEP_DEG about
+/* Temporal flicker: sw->flicker_frames frames while the sun turns by STEP_DEG about
    the vertical per frame; the mean absolute frame-to-frame change of the image over its mean.
    FULL has no sampling noise, so its change is what the moving light itself causes; a method's
    flicker is its change minus FULL's. (The reference's own change would need far more paths

@@ -1,4 +1,4 @@
-/* The VAL gather (paper 000 sec. 3-4): GPU pass against its CPU twin gim_vals_gather, FULL
+/* The VAL gather (Bischoff 2017 sec. 3-4): GPU pass against its CPU twin gim_vals_gather, FULL
    (every texel of a 512^2 and a 1024^2 RSM) and BRSM (2048 and 65536 selected). Medians of
    wall time around glFinish; on llvmpipe only the ratios within one run mean anything. */
 #include "benchutil.h"

@@ -194,7 +194,7 @@ int main(void) {
         glDeleteBuffers(1, &br);
         glDeleteBuffers(1, &bo);
     }
-    /* LightSkin proxy lights (paper 000 eq. 3-7, 13-15): 5000 caches against BRSM's 2048 VALs
+    /* LightSkin proxy lights (Bischoff 2017 eq. 3-7, 13-15): 5000 caches against BRSM's 2048 VALs
        and against FULL LightSkin's 128^2 = 16384; the cost is caches x VALs, so ~8x */
     {
         enum { C = 5000, NV = 16384 };

@@ -1,4 +1,4 @@
-/* Many lights (issue 18) against the sum of per-light frames, side by side in one run: the
+/* Many lights against the sum of per-light frames, side by side in one run: the
    street of gltest_lights (ground, two facades, a canopy behind the camera) at night with 32
    spots -- 24 lamps, 4 into the sky (culled: no RSM), 4 onto the canopy (importance 0: no
    VALs). Rows: one frame with all 32 lights against 32 single-light frames summed, for FULL

@@ -1,4 +1,4 @@
-/* Deforming meshes (gim_mesh_desc.deforming, issue 18): a plate over the open room, bound once
+/* Deforming meshes (gim_mesh_desc.deforming): a plate over the open room, bound once
    and then bent or sheared, its vertices handed over by gim_update_mesh_vertices (gimany's copy)
    or written by the host into its own interleaved buffer (read by every gim_update on the GPU).
    - twin: caches_follow.comp's caches equal gim_caches_follow's (twin tolerance, float rounding).

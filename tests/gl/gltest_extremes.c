@@ -1,4 +1,4 @@
-/* The extremes suite (issue 8) for the LightSkin frame of gim_update (GPU, headless): the same
+/* The extremes suite for the LightSkin frame of gim_update (GPU, headless): the same
    room scaled from 1e-4 to 1e4 and moved far from the origin, grazing and parallel suns and
    a sun below the horizon, surfaces edge-on to the camera, a near plane cutting the scene,
    coincident caches, exponents 0 / 1 / 1e4, albedo 0 and 1, glossy without diffuse, RSMs of

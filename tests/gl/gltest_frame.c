@@ -1,4 +1,4 @@
-/* The whole LightSkin frame of gim_update on the Cornell box (paper 000 end to end): the GPU
+/* The whole LightSkin frame of gim_update on the Cornell box (Bischoff 2017 end to end): the GPU
    frame against the CPU frame (gim_lightskin_cpu on the frame's own VALs, caches and pixels),
    colour bleeding, BRSM converging to FULL as N_sVAL grows, glossy only when a
    material is glossy, what FULL frees, stats, no NaN, zero GL errors. Runs on the measured

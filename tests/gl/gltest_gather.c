@@ -1,4 +1,4 @@
-/* The GPU VAL gather (paper 000 sec. 3: every RSM texel a VAL; sec. 4 eq. 13-15: 1 / (N P)
+/* The GPU VAL gather (Bischoff 2017 sec. 3: every RSM texel a VAL; sec. 4 eq. 13-15: 1 / (N P)
    weights) against its CPU twin gim_vals_gather, element by element: FULL and BRSM, several
    lights laid end to end with `first`, every invalid-texel rule, the selected entries the
    twin rejects, zero GL errors and the GL state restored around every pass.

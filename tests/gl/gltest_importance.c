@@ -1,4 +1,4 @@
-/* The GPU importance-sampling passes (paper 000 eq. 10-12 and the selection) against their CPU
+/* The GPU importance-sampling passes (Bischoff 2017 eq. 10-12 and the selection) against their CPU
    twins gim_importance_map / gim_importance_cumsum / gim_importance_select, on small inputs,
    with zero GL errors and the GL state restored around every pass. */
 #define GIMANY_IMPLEMENTATION

@@ -1,4 +1,4 @@
-/* Many lights (issue 18): a street at night, 32 spots -- 24 lamps lighting the street, 4
+/* Many lights: a street at night, 32 spots -- 24 lamps lighting the street, 4
    pointing up into the empty sky (their frusta meet no instance: culled, no RSM) and 4 lighting
    a canopy above and behind the camera (an RSM, but its VALs face up, away from every view
    sample: importance 0, no VALs).

@@ -601,7 +601,7 @@ static void landing(const twin_soup *soup, const gim_paraboloid *m, const gim_vp
     *on_box = box;
 }
 
-/* The second bounce lands on the first surface its ray meets (issue 14): a strip of floor VPLs
+/* The second bounce lands on the first surface its ray meets: a strip of floor VPLs
    beside a low box (gim_cluster_paraboloids: Delta 1.008, near_distance 0.504, the box's face
    0.225 from the centre), S = 4096 second-bounce VPLs of its map, made by the GPU passes the
    SSVP frame runs (both kinds of map, two passes) and by the CPU twins at every texel. Checked

@@ -1,4 +1,4 @@
-/* The GPU proxy-light pass (paper 000 eq. 3-7, 13-15) against its CPU twin gim_proxy_lights,
+/* The GPU proxy-light pass (Bischoff 2017 eq. 3-7, 13-15) against its CPU twin gim_proxy_lights,
    element by element on random small configurations, with zero GL errors and the GL state
    restored around every pass. */
 #define GIMANY_IMPLEMENTATION

@@ -209,7 +209,7 @@ typedef struct method_row {
      SSVP + ISM        0.157                  0.996
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
    SSVP's second bounce lands on the first surface its ray meets since the attribute maps have
-   their own near skip (issue 14; before, they skipped the visibility's Delta / 2 and 0.175 of
+   their own near skip (before, they skipped the visibility's Delta / 2 and 0.175 of
    the second bounce's flux landed behind a nearer surface): SSVP with ISM went from 0.163 and
    0.890 of the energy (the ISM dropped the hits it saw behind a surface) to the figures above;
    SSVP with its paraboloid maps from 0.148 and 1.008 to 0.169 and 1.061, as its second-bounce

@@ -1,4 +1,4 @@
-/* The VPL methods of gim_update end to end on the Cornell box (papers 004 and 003): the GPU
+/* The VPL methods of gim_update end to end on the Cornell box (Dong 2009, Aranha et al.): the GPU
    clusters against their twin on the frame's own VPLs, the GPU frame against the CPU chain
    (gim_vpl_shade + gim_geometry_blur on the frame's own VPLs, clusters and paraboloid maps),
    indirect shadows (visibility on against off behind a block), the second bounce's energy,

@@ -1,4 +1,4 @@
-/* LightSkin cache generator (paper 000 sec. 3): coverage, area partition, density, invariance,
+/* LightSkin cache generator (Bischoff 2017 sec. 3): coverage, area partition, density, invariance,
    robustness, determinism. */
 #define GIMANY_IMPLEMENTATION
 #include "testutil.h"

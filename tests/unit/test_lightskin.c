@@ -1,4 +1,4 @@
-/* LightSkin cache lighting twins (paper 000 sec. 3-4): eq. 3/4 by hand, eq. 7's guard, BRSM
+/* LightSkin cache lighting twins (Bischoff 2017 sec. 3-4): eq. 3/4 by hand, eq. 7's guard, BRSM
    weights 1/(N P) converging to FULL like 1/sqrt(N), low variance with P ~ contribution,
    guards (grazing, coincident, zero flux, k = 0/1/1e4, coincident caches), interpolation at a
    cache, scale invariance, energy against an analytic form factor, errors, memory. */

@@ -188,7 +188,7 @@ struct tracer {
         return r.tfar < 0.0f; /* Embree sets tfar = -inf on a hit */
     }
 
-    /* f_r(wi, wo) * 1 per channel; wi, wo unit, away from the surface (paper 000 eq. 3-4). */
+    /* f_r(wi, wo) * 1 per channel; wi, wo unit, away from the surface (Bischoff 2017 eq. 3-4). */
     static void brdf(const surface &x, v3 wi, v3 wo, double f[3]) {
         const material &m = *x.m;
         double ce = 0;

@@ -7,7 +7,7 @@
      bounce 1:  lights -> x1 -> x0 -> camera   (next-event estimation at x1, shadow rays)
      bounce 2:  lights -> x2 -> x1 -> x0 -> camera  (with bounces = 2, added to bounce 1)
    Light that reaches x0 directly from a light is NOT included. Every vertex reflects with the
-   full BRDF of scene.h (rho_d / pi + normalised Phong, paper 000 eq. 3-4); directions are
+   full BRDF of scene.h (rho_d / pi + normalised Phong, Bischoff 2017 eq. 3-4); directions are
    sampled from a one-sample mixture of the cosine lobe and the Phong lobe (probabilities by
    mean albedo) and weighted by f cos / pdf of the mixture. Surfaces are two-sided. Rays that
    leave the scene carry nothing (no sky). Each pixel has its own random stream (seed, pixel
