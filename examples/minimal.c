@@ -104,6 +104,7 @@ static void log_gimany(gim_log_level level, const char *message, void *user) {
 
 int main(int argc, char **argv) {
     int width = 320, height = 240, frames = 0, frame, i, rc = 1;
+    size_t npx, k;   /* pixels; index */
     const char *pfm = NULL;
     GLFWwindow *win = NULL;
     gim_context *ctx = NULL;
@@ -133,6 +134,7 @@ int main(int argc, char **argv) {
     if (!(win = glfwCreateWindow(width, height, PROG, NULL, NULL))) FAIL("cannot open a GL 4.3 core window");
     glfwMakeContextCurrent(win);
     glfwGetFramebufferSize(win, &width, &height);
+    npx = (size_t)width * (size_t)height;
 
     /* The scene to gimany: caches (once, on the CPU), the mesh, materials, one instance, the spot. */
     build_scene();
@@ -211,34 +213,32 @@ int main(int argc, char **argv) {
         glDisable(GL_DEPTH_TEST);
         if (frame + 1 == frames) {   /* the last frame: what the window shows, before the swap */
             double sum = 0.0;
-            unsigned char *rgb = (unsigned char *)malloc((size_t)width * height * 3);
-            size_t k;
+            unsigned char *rgb = (unsigned char *)malloc(npx * 3);
             if (!rgb) FAIL("out of memory");
             glPixelStorei(GL_PACK_ALIGNMENT, 1);
             glReadPixels(0, 0, width, height, GL_RGB, GL_UNSIGNED_BYTE, rgb);
-            for (k = 0; k < (size_t)width * height * 3; ++k) sum += rgb[k];
+            for (k = 0; k < npx * 3; ++k) sum += rgb[k];
             free(rgb);
-            printf("window mean %.4f\n", sum / 255.0 / ((double)width * height * 3));
+            printf("window mean %.4f\n", sum / 255.0 / (double)(npx * 3));
         }
         glfwSwapBuffers(win);
     }
     {   /* the last frame's indirect light, read back once (PFM: rows bottom to top, as GL's) */
         double sum = 0.0;
-        size_t n = (size_t)width * height, k;
         FILE *fp;
-        if (!(rgba = (float *)malloc(n * 16))) FAIL("out of memory");
+        if (!(rgba = (float *)malloc(npx * 16))) FAIL("out of memory");
         glBindTexture(GL_TEXTURE_2D, gim_outputs(ctx).indirect);
         glGetTexImage(GL_TEXTURE_2D, 0, GL_RGBA, GL_FLOAT, rgba);
-        for (k = 0; k < n; ++k) {
+        for (k = 0; k < npx; ++k) {
             sum += (double)rgba[k * 4] + rgba[k * 4 + 1] + rgba[k * 4 + 2];
             memmove(rgba + k * 3, rgba + k * 4, 12);   /* rgba -> rgb in place */
         }
-        printf("indirect mean %.6g\n", sum / (double)(n * 3));
+        printf("indirect mean %.6g\n", sum / (double)(npx * 3));
         if (pfm) {
             if (!(fp = fopen(pfm, "wb"))) FAIL("cannot write %s", pfm);
             fprintf(fp, "PF\n%d %d\n-1.0\n", width, height);   /* -1: little-endian floats */
-            k = fwrite(rgba, 12, n, fp);
-            if (fclose(fp) != 0 || k != n) FAIL("cannot write %s", pfm);
+            k = fwrite(rgba, 12, npx, fp);
+            if (fclose(fp) != 0 || k != npx) FAIL("cannot write %s", pfm);
         }
     }
     if (glGetError() != GL_NO_ERROR) FAIL("a GL error");
