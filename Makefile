@@ -5,17 +5,20 @@
 CC      ?= cc
 WARN    := -Wall -Wextra -pedantic -Werror -Wshadow -Wstrict-prototypes -Wmissing-prototypes
 CSTD    := -std=c99
-INC     := -I. -Itests
+# scene/ (the scene layer: scene.h, scene_gimany.h, street.h, room.h, lamps.h) and tests/support
+# (gltest.h, testutil.h, framefix.h, ...). scene/ comes first: '#include "../tools/compare.c"'
+# (bench_frame.c, cli_compare.c, gltest_reference.c) resolves through it to tools/compare.c.
+INC     := -Iscene -Itests/support -I.
 SAN     := -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
 B       := build
 DEPS    := tools/install-deps.sh
 
-HDRS        := gimany.h shaders_embedded.h $(wildcard tests/*.h)
-CPU_TESTS   := $(basename $(notdir $(wildcard tests/test_*.c)))
-GL_TESTS    := $(basename $(notdir $(wildcard tests/gltest_*.c)))
-BENCHES     := $(filter-out bench_gpu,$(basename $(notdir $(wildcard tests/bench_*.c tests/bench_*.cpp))))
-FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz_*.c)))
-FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of examples/scene.cpp, rule in 'ground truth'
+HDRS        := gimany.h shaders_embedded.h $(wildcard tests/support/*.h) scene/street.h scene/room.h scene/lamps.h
+CPU_TESTS   := $(basename $(notdir $(wildcard tests/unit/test_*.c)))
+GL_TESTS    := $(basename $(notdir $(wildcard tests/gl/gltest_*.c)))
+BENCHES     := $(filter-out bench_gpu,$(basename $(notdir $(wildcard bench/src/bench_*.c bench/src/bench_*.cpp))))
+FUZZERS     := $(basename $(notdir $(wildcard tests/fuzz/fuzz_*.c)))
+FUZZERS     += fuzz_reference_gltf   # C++: the glTF loader of scene/scene.cpp, rule in 'ground truth'
 SHADERS     := $(sort $(wildcard shaders/*.comp shaders/*.vert shaders/*.frag shaders/*.geom))
 FUZZ_SECONDS ?= 300
 FUZZ_SHORT  ?= 15
@@ -41,66 +44,70 @@ check-shaders: $(B)/embed-shaders
 
 # --- tests --------------------------------------------------------------------------------
 # CPU tests: no GL at all, gcc with ASan+UBSan and clang -O2 with UBSan.
-$(B)/asan/%: tests/%.c $(HDRS) 
+$(B)/asan/%: tests/unit/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
-$(B)/clang/%: tests/%.c $(HDRS) 
+$(B)/clang/%: tests/unit/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	clang $(CSTD) $(WARN) $(INC) -O2 -g -fsanitize=undefined -fno-sanitize-recover=all -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
 # The same CPU tests without sanitizers, run under valgrind (no leaks, no invalid reads).
-$(B)/plain/%: tests/%.c $(HDRS)
+$(B)/plain/%: tests/unit/%.c $(HDRS)
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 -g -DGIMANY_NO_GL $< -o $@ -lcmocka -lm
 # GL tests: headless EGL on Mesa llvmpipe, ASan+UBSan.
-$(B)/gl/%: tests/%.c $(HDRS) 
+$(B)/gl/%: tests/gl/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) $< -o $@ -lcmocka -lEGL -lGL -lm
-# The whole-frame test loads its scenes through the scene layer of the examples (C++ inside).
-$(B)/gl/gltest_frame $(B)/gl/gltest_vplframe $(B)/gl/gltest_hoststate $(B)/gl/gltest_refuse $(B)/gl/gltest_queries $(B)/gl/gltest_temporal: $(B)/gl/%: tests/%.c $(B)/ref/asan/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+# The whole-frame test loads its scenes through the scene layer scene/ (C++ inside).
+$(B)/gl/gltest_frame $(B)/gl/gltest_vplframe $(B)/gl/gltest_hoststate $(B)/gl/gltest_refuse $(B)/gl/gltest_queries $(B)/gl/gltest_temporal: $(B)/gl/%: tests/gl/%.c $(B)/ref/asan/scene.o scene/scene.h scene/scene_gimany.h $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O1 -g $(SAN) $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lEGL -lGL -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -O1 -g $(SAN) $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lEGL -lGL -lm -lstdc++
 # Every method against the Embree reference, rendered in-process: the scene layer and the
 # renderer at -O2 without sanitizers (the reference's own ASan test is test_reference; here it
 # would triple the references' time in a clean build).
-$(B)/gl/gltest_reference: tests/gltest_reference.c $(B)/ref/asan/scene.o $(B)/ref/reference.o examples/scene.h examples/scene_gimany.h tools/reference/reference.h tools/compare.c tools/compare.h $(HDRS)
+$(B)/gl/gltest_reference: tests/gl/gltest_reference.c $(B)/ref/asan/scene.o $(B)/ref/reference.o scene/scene.h scene/scene_gimany.h tools/reference/reference.h tools/compare.c tools/compare.h $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -Itools/reference -O1 -g $(SAN) $< $(B)/ref/asan/scene.o $(B)/ref/reference.o -o $@ -lcmocka -lEGL -lGL -lembree3 -lm -lstdc++ -pthread
+	gcc $(CSTD) $(WARN) $(INC) -Itools -Itools/reference -O1 -g $(SAN) $< $(B)/ref/asan/scene.o $(B)/ref/reference.o -o $@ -lcmocka -lEGL -lGL -lembree3 -lm -lstdc++ -pthread
 # C++11 with g++ and clang++, and two translation units (implementation in one).
-$(B)/cxx/two_tu_gcc: tests/cxx_impl.cpp tests/cxx_user.cpp $(HDRS) 
+$(B)/cxx/two_tu_gcc: tests/compile/cxx_impl.cpp tests/compile/cxx_user.cpp $(HDRS) 
 	@mkdir -p $(@D)
-	g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $(SAN) tests/cxx_impl.cpp tests/cxx_user.cpp -o $@ -lEGL -lGL -lm
-$(B)/cxx/two_tu_clang: tests/cxx_impl.cpp tests/cxx_user.cpp $(HDRS) 
+	g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $(SAN) tests/compile/cxx_impl.cpp tests/compile/cxx_user.cpp -o $@ -lEGL -lGL -lm
+$(B)/cxx/two_tu_clang: tests/compile/cxx_impl.cpp tests/compile/cxx_user.cpp $(HDRS) 
 	@mkdir -p $(@D)
-	clang++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O2 tests/cxx_impl.cpp tests/cxx_user.cpp -o $@ -lEGL -lGL -lm
-$(B)/cxx/two_tu_c: tests/two_tu_a.c tests/two_tu_b.c $(HDRS) 
+	clang++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O2 tests/compile/cxx_impl.cpp tests/compile/cxx_user.cpp -o $@ -lEGL -lGL -lm
+$(B)/cxx/two_tu_c: tests/compile/two_tu_a.c tests/compile/two_tu_b.c $(HDRS) 
 	@mkdir -p $(@D)
-	clang $(CSTD) $(WARN) $(INC) -O1 -DGIMANY_NO_GL tests/two_tu_a.c tests/two_tu_b.c -o $@ -lm
+	clang $(CSTD) $(WARN) $(INC) -O1 -DGIMANY_NO_GL tests/compile/two_tu_a.c tests/compile/two_tu_b.c -o $@ -lm
 
 CPU_BINS := $(addprefix $(B)/asan/,$(CPU_TESTS)) $(addprefix $(B)/clang/,$(CPU_TESTS))
 # test_physics (FULL LightSkin on closed-form scenes: ~10^8 VAL-cache terms) runs under ASan and
 # UBSan only: valgrind would take it past ten minutes.
 VG_BINS  := $(addprefix $(B)/plain/,$(filter-out test_physics,$(CPU_TESTS)))
 GL_BINS  := $(addprefix $(B)/gl/,$(GL_TESTS))
-$(B)/cxx/static_c: tests/static_tu.c $(HDRS)
+$(B)/cxx/static_c: tests/compile/static_tu.c $(HDRS)
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O1 $< -o $@ -lm
-$(B)/cxx/static_cxx: tests/static_tu.c $(HDRS)
+$(B)/cxx/static_cxx: tests/compile/static_tu.c $(HDRS)
 	@mkdir -p $(@D)
 	clang++ -x c++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) $(INC) -O1 $< -o $@ -lm
 
-# Command-line tests of the examples: they run build/gimany-demo and build/gimany-viewer
-# (the viewer under Xvfb) and read back what they wrote.
-CLI_CC := gcc $(CSTD) $(WARN) -Iexamples -Itests -isystem /usr/include/stb -O1 -g $(SAN)
-$(B)/cli/cli_demo: tests/cli_demo.c tests/cliutil.h examples/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
+# Command-line tests of the examples: they run build/gimany-demo, build/gimany-viewer,
+# build/gimany-host-buffers and build/gimany-minimal
+# (the GLFW ones under Xvfb) and read back what they wrote.
+CLI_CC := gcc $(CSTD) $(WARN) -Iscene -Itests/support -isystem /usr/include/stb -O1 -g $(SAN)
+$(B)/cli/cli_demo: tests/cli/cli_demo.c tests/support/cliutil.h scene/scene.h $(B)/ref/asan/scene.o $(B)/gimany-demo
 	@mkdir -p $(@D)
 	$(CLI_CC) -DDEMO_BIN='"$(B)/gimany-demo"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
-$(B)/cli/cli_viewer: tests/cli_viewer.c tests/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
+$(B)/cli/cli_viewer: tests/cli/cli_viewer.c tests/support/cliutil.h $(B)/gimany-viewer $(B)/gimany-demo
 	@mkdir -p $(@D)
 	$(CLI_CC) -DVIEWER_BIN='"$(B)/gimany-viewer"' -DDEMO_BIN='"$(B)/gimany-demo"' $< -o $@ -lcmocka -lm
-$(B)/cli/cli_host_buffers: tests/cli_host_buffers.c tests/cliutil.h $(B)/gimany-host-buffers
+$(B)/cli/cli_host_buffers: tests/cli/cli_host_buffers.c tests/support/cliutil.h $(B)/gimany-host-buffers
 	@mkdir -p $(@D)
 	$(CLI_CC) -DHOST_BIN='"$(B)/gimany-host-buffers"' $< -o $@ -lcmocka -lm
-CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers
+$(B)/cli/cli_minimal: tests/cli/cli_minimal.c tests/support/cliutil.h $(B)/gimany-minimal
+	@mkdir -p $(@D)
+	$(CLI_CC) -DMINIMAL_BIN='"$(B)/gimany-minimal"' $< -o $@ -lcmocka -lm
+CLI_BINS := $(B)/cli/cli_demo $(B)/cli/cli_viewer $(B)/cli/cli_compare $(B)/cli/cli_host_buffers $(B)/cli/cli_minimal
 
 CXX_BINS := $(B)/cxx/two_tu_gcc $(B)/cxx/two_tu_clang $(B)/cxx/two_tu_c $(B)/cxx/static_c $(B)/cxx/static_cxx
 # the header's own compile checks also refuse implicit sign changes (tests and tools need not)
@@ -112,16 +119,16 @@ test: deps check-shaders
 	@$(MAKE) --no-print-directory fuzz-short
 	@VALGRIND="$(VG_BINS)" tools/run-tests.sh $(CPU_BINS) $(VG_BINS) $(GL_BINS) $(CXX_BINS) $(REF_BINS) $(CLI_BINS)
 
-# --- ground truth: tools/reference (Embree) on the shared scene layer examples/scene.* ----------
-REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iexamples -Itools/reference -Itests -isystem /usr/include/stb
-REF_HDRS := examples/scene.h tools/reference/reference.h tests/street.h
-$(B)/ref/%.o: examples/%.cpp examples/scene.h tests/street.h
+# --- ground truth: tools/reference (Embree) on the shared scene layer scene/scene.* ----------
+REF_CXX  := g++ -std=c++11 $(filter-out -Wstrict-prototypes -Wmissing-prototypes,$(WARN)) -Iscene -Itools/reference -isystem /usr/include/stb
+REF_HDRS := scene/scene.h tools/reference/reference.h scene/street.h
+$(B)/ref/%.o: scene/%.cpp scene/scene.h scene/street.h
 	@mkdir -p $(@D)
 	$(REF_CXX) -O2 -c $< -o $@
 $(B)/ref/%.o: tools/reference/%.cpp $(REF_HDRS)
 	@mkdir -p $(@D)
 	$(REF_CXX) -O2 -c $< -o $@
-$(B)/ref/asan/%.o: examples/%.cpp examples/scene.h tests/street.h
+$(B)/ref/asan/%.o: scene/%.cpp scene/scene.h scene/street.h
 	@mkdir -p $(@D)
 	$(REF_CXX) -O1 -g $(SAN) -c $< -o $@
 $(B)/ref/asan/%.o: tools/reference/%.cpp $(REF_HDRS)
@@ -131,53 +138,53 @@ $(B)/gimany-reference: $(B)/ref/scene.o $(B)/ref/reference.o $(B)/ref/main.o
 	$(REF_CXX) $^ -o $@ -lembree3 -pthread
 # Tests (ASan+UBSan) of the renderer against closed forms, of the loader and of the CLI; the
 # headers must also compile as C99.
-$(B)/ref/test_reference: tests/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o $(B)/gimany-reference $(REF_HDRS)
-	gcc $(CSTD) $(WARN) -fsyntax-only -Iexamples -x c examples/scene.h tools/reference/reference.h
+$(B)/ref/test_reference: tests/unit/test_reference.cpp $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o $(B)/gimany-reference $(REF_HDRS)
+	gcc $(CSTD) $(WARN) -fsyntax-only -Iscene -x c scene/scene.h tools/reference/reference.h
 	$(REF_CXX) -O1 -g $(SAN) -DREF_BIN='"$(B)/gimany-reference"' $< $(B)/ref/asan/scene.o $(B)/ref/asan/reference.o -o $@ -lcmocka -lembree3 -pthread
 
 # The glTF loader against hostile files (deep JSON, special files, image bombs, instancing).
-$(B)/ref/test_loader: tests/test_loader.cpp $(B)/ref/asan/scene.o examples/scene.h
+$(B)/ref/test_loader: tests/unit/test_loader.cpp $(B)/ref/asan/scene.o scene/scene.h
 	$(REF_CXX) -O1 -g $(SAN) $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lz
 
 # gimany-compare (tools/compare.c): error metrics of a method's image against a reference.
-$(B)/gimany-compare: tools/compare.c tools/compare.h $(B)/ref/scene.o examples/scene.h
-	gcc $(CSTD) $(WARN) -Iexamples -Itools -isystem /usr/include/stb -O2 $< $(B)/ref/scene.o -o $@ -lm -lstdc++
-$(B)/cli/cli_compare: tests/cli_compare.c tools/compare.c tools/compare.h $(B)/ref/asan/scene.o $(B)/gimany-compare
+$(B)/gimany-compare: tools/compare.c tools/compare.h $(B)/ref/scene.o scene/scene.h
+	gcc $(CSTD) $(WARN) -Iscene -Itools -isystem /usr/include/stb -O2 $< $(B)/ref/scene.o -o $@ -lm -lstdc++
+$(B)/cli/cli_compare: tests/cli/cli_compare.c tools/compare.c tools/compare.h $(B)/ref/asan/scene.o $(B)/gimany-compare
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O1 -g $(SAN) -DCOMPARE_BIN='"$(B)/gimany-compare"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -Itools -O1 -g $(SAN) -DCOMPARE_BIN='"$(B)/gimany-compare"' $< $(B)/ref/asan/scene.o -o $@ -lcmocka -lm -lstdc++
 
-$(B)/fuzz/fuzz_reference_gltf: tests/fuzz_reference_gltf.cpp examples/scene.cpp examples/scene.h tests/street.h
+$(B)/fuzz/fuzz_reference_gltf: tests/fuzz/fuzz_reference_gltf.cpp scene/scene.cpp scene/scene.h scene/street.h
 	@mkdir -p $(@D)
-	clang++ -std=c++11 -Iexamples -Itests -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< examples/scene.cpp -o $@
+	clang++ -std=c++11 -Iscene -isystem /usr/include/stb -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all $< scene/scene.cpp -o $@
 
 reference:
 	@$(DEPS) build examples reference
 	@$(MAKE) --no-print-directory $(B)/gimany-reference
 
 # --- benchmarks ---------------------------------------------------------------------------
-$(B)/bench/%: tests/%.c $(HDRS) 
+$(B)/bench/%: bench/src/%.c bench/src/benchutil.h $(HDRS) 
 	@mkdir -p $(@D)
 	gcc $(CSTD) $(WARN) $(INC) -O2 -march=native -DNDEBUG $< -o $@ -lEGL -lGL -lm
 
-$(B)/bench/%: tests/%.cpp $(HDRS) 
+$(B)/bench/%: bench/src/%.cpp bench/src/benchutil.h $(HDRS) 
 	@mkdir -p $(@D)
 	g++ -std=c++11 -O2 -march=native -DNDEBUG $(INC) -I/usr/include/stb $< -o $@ -lm
 
-# The frame benchmark loads the street through the scene layer of the examples.
-$(B)/bench/bench_frame: tests/bench_frame.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h tools/compare.c $(HDRS)
+# The frame benchmark loads the street through the scene layer (scene/).
+$(B)/bench/bench_frame: bench/src/bench_frame.c bench/src/benchutil.h $(B)/ref/scene.o scene/scene.h scene/scene_gimany.h tools/compare.c $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -Itools -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
 # Absolute times on a real GPU (1920x1080, RSM 2048^2, 8192 VALs): refuses to run without a
 # hardware EGL device; `make bench` runs it with --small on llvmpipe so the code path stays alive.
-$(B)/bench/bench_gpu: tests/bench_gpu.c $(B)/ref/scene.o examples/scene.h examples/scene_gimany.h $(HDRS)
+$(B)/bench/bench_gpu: bench/src/bench_gpu.c bench/src/benchutil.h $(B)/ref/scene.o scene/scene.h scene/scene_gimany.h $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 
 # The ISM benchmark loads the Cornell box through the scene layer (CPU twins only).
-$(B)/bench/bench_ism: tests/bench_ism.c $(B)/ref/scene.o examples/scene.h $(HDRS)
+$(B)/bench/bench_ism: bench/src/bench_ism.c $(B)/ref/scene.o scene/scene.h $(HDRS)
 	@mkdir -p $(@D)
-	gcc $(CSTD) $(WARN) $(INC) -Iexamples -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lm -lstdc++
+	gcc $(CSTD) $(WARN) $(INC) -O2 -march=native -DNDEBUG $< $(B)/ref/scene.o -o $@ -lm -lstdc++
 
 bench: deps
 	@$(DEPS) examples reference plots
@@ -201,11 +208,11 @@ bench-full: deps
 	@tools/bench-plots.sh bench/full
 
 # --- fuzzing (libFuzzer) ------------------------------------------------------------------
-$(B)/fuzz/%: tests/%.c $(HDRS) 
+$(B)/fuzz/%: tests/fuzz/%.c $(HDRS) 
 	@mkdir -p $(@D)
 	clang $(CSTD) $(INC) -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=all -DGIMANY_NO_GL $< -o $@ -lm
 
-# Each target replays its committed corpus (tests/corpus/NAME) and fuzzes for a bounded time.
+# Each target replays its committed corpus (tests/fuzz/corpus/NAME) and fuzzes for a bounded time.
 fuzz-short: $(addprefix $(B)/fuzz/,$(FUZZERS))
 	@for f in $(FUZZERS); do tools/run-fuzzer.sh $(B)/fuzz/$$f $(FUZZ_SHORT) || exit 1; done
 
@@ -214,8 +221,8 @@ fuzz: deps $(addprefix $(B)/fuzz/,$(FUZZERS))
 
 # --- main job -----------------------------------------------------------------------------
 # build/gimany-demo (headless, EGL) and build/gimany-viewer (GLFW window) on the scene layer.
-EX_HDRS := gimany.h shaders_embedded.h examples/scene.h examples/scene_gimany.h examples/display.h examples/options.h
-EX_CC   := gcc $(CSTD) $(WARN) -Iexamples -I. -isystem /usr/include/stb -O2
+EX_HDRS := gimany.h shaders_embedded.h scene/scene.h scene/scene_gimany.h examples/display.h examples/options.h
+EX_CC   := gcc $(CSTD) $(WARN) -Iexamples -Iscene -I. -isystem /usr/include/stb -O2
 $(B)/gimany-demo: examples/demo.c examples/egl_headless.h $(EX_HDRS) $(B)/ref/scene.o
 	$(EX_CC) $< $(B)/ref/scene.o -o $@ -lEGL -lGL -lm -lstdc++
 $(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
@@ -224,6 +231,10 @@ $(B)/gimany-viewer: examples/viewer.c $(EX_HDRS) $(B)/ref/scene.o
 $(B)/gimany-host-buffers: examples/host_buffers.c gimany.h shaders_embedded.h
 	@mkdir -p $(@D)
 	$(EX_CC) $< -o $@ -lglfw -lGL -lm
+# the smallest host: GLFW, a box built in code, gimany.h and shaders_embedded.h only
+$(B)/gimany-minimal: examples/minimal.c gimany.h shaders_embedded.h
+	@mkdir -p $(@D)
+	gcc $(CSTD) $(WARN) -I. -O2 $< -o $@ -lglfw -lGL -lm
 
 demo:
 	@$(DEPS) build gl examples

@@ -1,5 +1,5 @@
-/* gimany-demo - the main job, headless: loads a scene (examples/scene.h), hands it to gimany
-   (examples/scene_gimany.h), runs --frames frames of the chosen method on an EGL context with
+/* gimany-demo - the main job, headless: loads a scene (scene/scene.h), hands it to gimany
+   (scene/scene_gimany.h), runs --frames frames of the chosen method on an EGL context with
    no window (examples/egl_headless.h), adds the direct light and tone maps
    (examples/display.h), and writes into --out:
      final.png     direct + indirect, Reinhard tone mapped, sRGB

@@ -5,7 +5,7 @@
    Include after gimany.h and a GL 4.3 header with prototypes (<GL/glcorearb.h> with
    GL_GLEXT_PROTOTYPES, linked with libGL).
 
-   Direct light (the BRDF of examples/scene.h, Bischoff 2017 eq. 3-4, the same the reference uses)
+   Direct light (the BRDF of scene/scene.h, Bischoff 2017 eq. 3-4, the same the reference uses)
        L_direct(x -> eye) = sum over lights  f_r(l, v) E_l (n . l)+ V(x)
        f_r = rho_d / pi + rho_g (k + 2) / (2 pi) cos+^k(theta_e),  theta_e between v and l mirrored at n
        sun:   E_l = E colour, l the direction towards the sun

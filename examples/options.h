@@ -1,5 +1,5 @@
 /* options.h - the options of build/gimany-demo and build/gimany-viewer beyond the scene layer's
-   (examples/scene.h: --scene, --sun-dir, --sun-irradiance, --spot, --camera, --size, --out,
+   (scene/scene.h: --scene, --sun-dir, --sun-irradiance, --spot, --camera, --size, --out,
    --bounces): the method and its parameters. demo_parse takes them out of argv and leaves the
    rest for scene_parse_args, so scene.cpp's parser stays the one the reference uses.
    Everything here is static. */

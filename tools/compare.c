@@ -1,6 +1,6 @@
 /* gimany-compare A.pfm B.pfm [--diff OUT.png] [--json]
    Error of an image A (a method's indirect.pfm) against B (the reference, or LightSkin FULL),
-   both linear RGB PFMs of the same size (examples/scene.h reads them):
+   both linear RGB PFMs of the same size (scene/scene.h reads them):
      rel_mae = sum |a - b| / sum |b|          over covered pixels and channels
      rmse    = sqrt(mean (a - b)^2)           over covered pixels and channels
      p99     = 99th percentile of |a - b| per pixel (mean of its channels), covered pixels

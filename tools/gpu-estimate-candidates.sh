@@ -36,7 +36,7 @@ PY
   cp "$root/gimany.h" "$d/gimany.h"
   sed 's#scene_gimany_load(ctx, &r->s, 0.0f,#scene_gimany_load(ctx, \&r->s, 1.0f / 32.0f,#' "$root/examples/demo.c" > "$d/demo.c"
   grep -q '1.0f / 32.0f' "$d/demo.c"
-  gcc -std=c99 -I"$d" -I"$root/examples" -I"$root" -isystem /usr/include/stb -O2 "$d/demo.c" "$root/build/ref/scene.o" \
+  gcc -std=c99 -I"$d" -I"$root/examples" -I"$root/scene" -I"$root" -isystem /usr/include/stb -O2 "$d/demo.c" "$root/build/ref/scene.o" \
       -o "$d/gimany-demo" -lEGL -lGL -lm -lstdc++
 fi
 out=$d/out/$name

@@ -5,7 +5,7 @@
 # uniforms that pick a branch for the whole dispatch fixed to the default frame's values,
 # optimises (spirv-opt -O), counts the instructions per iteration of each hot loop
 # (tools/gpu-estimate.py) and multiplies by the iteration counts of `make bench-gpu`'s frame
-# (tests/bench_gpu.c). Derivation: docs/gpu-estimate.md.
+# (bench/src/bench_gpu.c). Derivation: docs/gpu-estimate.md.
 # Usage: tools/gpu-estimate.sh [--measure]   (--measure re-measures the shading pass's candidates
 # per pixel on this machine's GL with tools/gpu-estimate-candidates.sh, ~2 min on llvmpipe;
 # without it the figures that script printed on 2026-11-24 are used, listed below)

@@ -1,5 +1,5 @@
-/* Closed-form one-bounce scenes for the physics tests (tests/test_physics.c on the CPU twins,
-   tests/gltest_physics.c through gim_update): open scenes of a few grey quads under a sun or
+/* Closed-form one-bounce scenes for the physics tests (tests/unit/test_physics.c on the CPU twins,
+   tests/gl/gltest_physics.c through gim_update): open scenes of a few grey quads under a sun or
    a spot, where the exact indirect light has a closed form.
 
    Exact one bounce: each quad q is Lambertian (albedo rho_q, two-sided, lit on the side that

@@ -149,7 +149,7 @@ static const bench_scene scenes[] = {
 #define SCENE_COUNT (sizeof scenes / sizeof scenes[0])
 
 /* Scenes run only when named on the command line, in no whole sweep. The courtyard (the scene
-   layer's pillar between a sunlit floor and a wall; tests/gltest_reference.c checks its indirect
+   layer's pillar between a sunlit floor and a wall; tests/gl/gltest_reference.c checks its indirect
    shadow): `bench_frame ci courtyard` took 140 s on 2 cores with its references cached (FULL at
    256^2 19 s a frame), too much to add to `make bench`. */
 static const bench_scene named_scenes[] = {

@@ -16,7 +16,7 @@
 #define CLI_FN static
 #endif
 
-/* stb_image: the implementation comes from examples/scene.cpp (tinygltf) when the test links
+/* stb_image: the implementation comes from scene/scene.cpp (tinygltf) when the test links
    scene.o; a test without it defines CLI_STB_IMAGE_IMPLEMENTATION first. */
 #ifdef CLI_STB_IMAGE_IMPLEMENTATION
 #define STB_IMAGE_IMPLEMENTATION

@@ -1,4 +1,4 @@
-/* Physics of the CPU twins against closed forms (tests/physics.h): open scenes of grey quads
+/* Physics of the CPU twins against closed forms (tests/support/physics.h): open scenes of grey quads
    under a sun or a spot, at scales 1e-3, 1 and 1e3, and at scale 100 1.5e5 from the origin. Stage by stage:
      RSM      the texels' flux sums to the power the quads reflect (the RSM covers them all);
      caches   their areas sum to the mesh's area;

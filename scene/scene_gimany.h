@@ -1,4 +1,4 @@
-/* scene_gimany.h - hand a scene of examples/scene.h to a gimany context: one gimany mesh per
+/* scene_gimany.h - hand a scene of scene/scene.h to a gimany context: one gimany mesh per
    scene mesh (world space, identity instance), LightSkin caches at one spacing for all, the
    materials, the lights and the camera matrices. Shared by the frame tests, the benchmarks
    and the demo. Include after gimany.h and scene.h; everything here is static. */

@@ -1,4 +1,4 @@
-/* The lamp street of the many-light test and bench (tests/gltest_lights.c, bench_lights.c):
+/* The lamp street of the many-light test and bench (tests/gl/gltest_lights.c, bench_lights.c):
    ground (white) x in [-8, 8], z in [-2, 2]; facades at z = -2 (red, facing +z) and z = 2
    (green, facing -z), 3 high; a canopy (white, facing up) at y = 5, x in [-12, -9], behind
    the camera: four meshes. Lights 0-23 are lamps over the street pointing down, 24-27 point

@@ -1,4 +1,4 @@
-/* The glTF loader of the examples (examples/scene.cpp) against hostile files: deep JSON
+/* The glTF loader of the scene layer (scene/scene.cpp) against hostile files: deep JSON
    nesting, special files as the scene or as a buffer, a buffer's file far larger than its
    declared byteLength, a decompression-bomb PNG referenced 8 times, a node graph that
    expands exponentially. Each load runs in a child process with an alarm; the parent checks

@@ -1,6 +1,6 @@
 /* scene.h - the scenes, lights, camera and command line shared by the demo (build/gimany-demo)
    and the ground-truth renderer (build/gimany-reference). Plain C API (C99 and C++11); the
-   implementation, examples/scene.cpp, is C++ because the glTF loader (tinygltf) is.
+   implementation, scene/scene.cpp, is C++ because the glTF loader (tinygltf) is.
 
    A scene is what both programs render:
      meshes     triangles in WORLD space (node transforms applied), unit vertex normals,
@@ -141,7 +141,7 @@ int scene_load(const scene_options *opt, scene *out, char *err, size_t err_cap);
 /* Built-in scenes by name, with their default lights and camera (image 640x360):
      "cornell"  the measured Cornell box in metres, a spot 1 cm under the ceiling light pointing
                 down (60 deg half-angle, I = 0.3), the measured camera
-     "street"   tests/street.h's street (about 100k triangles, metres), its sun (E = 1), a
+     "street"   scene/street.h's street (about 100k triangles, metres), its sun (E = 1), a
                 camera at the start of the road looking down it
      "courtyard" a sunlit floor, a wall the sun shines along and a free-standing pillar
                 between them (14 triangles, metres), its sun (E = 1), a camera looking down

@@ -1,4 +1,4 @@
-/* libFuzzer target: the glTF loader of examples/scene.cpp (tinygltf behind the C API) on
+/* libFuzzer target: the glTF loader of scene/scene.cpp (tinygltf behind the C API) on
    arbitrary bytes, .gltf or .glb. A load either fails with one line or gives a scene that
    passes scene_validate; nothing may crash, leak or read out of bounds. External URIs resolve
    in a folder that does not exist. */

@@ -213,7 +213,7 @@ static void direct_closed_form(void **state) {
 
 /* The glossy lobe of the direct light: a grey plane (baseColor 0.5, metallic 0, roughness 0.5:
    rho_g = F0 = 0.04, rho_d = 0.5 (1 - F0) = 0.48 (the base gets what the specular layer leaves),
-   k = 2 / 0.25^2 - 2 = 30, examples/scene.cpp's mapping) under
+   k = 2 / 0.25^2 - 2 = 30, scene/scene.cpp's mapping) under
    a spot of I = 1 at height 1, seen from the spot: the mirror direction is the view direction, so
    L = (rho_d / pi + rho_g (k + 2) / (2 pi)) I / d^2; with --no-glossy only rho_d / pi I / d^2. */
 static const char glossy_plane[] = "{\"asset\":{\"version\":\"2.0\"},\"scene\":0,\"scenes\":[{\"nodes\":[0]}],\"nodes\":[{\"mesh\":0}],\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0},\"indices\":1,\"material\":0}]}],\"materials\":[{\"pbrMetallicRoughness\":{\"baseColorFactor\":[0.5,0.5,0.5,1],\"metallicFactor\":0,\"roughnessFactor\":0.5}}],\"buffers\":[{\"byteLength\":60,\"uri\":\"data:application/octet-stream;base64,AACAvwAAAAAAAIC/AACAvwAAAAAAAIA/AACAPwAAAAAAAIA/AACAPwAAAAAAAIC/AAABAAIAAAACAAMA\"}],\"bufferViews\":[{\"buffer\":0,\"byteOffset\":0,\"byteLength\":48},{\"buffer\":0,\"byteOffset\":48,\"byteLength\":12}],\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":4,\"type\":\"VEC3\",\"min\":[-1,0,-1],\"max\":[1,0,1]},{\"bufferView\":1,\"componentType\":5123,\"count\":6,\"type\":\"SCALAR\"}]}";
@@ -307,7 +307,7 @@ static void bad_input(void **state) {
         {"--timing gpu", "--timing"},
         {"--scene /nonexistent/x.gltf", "/nonexistent/x.gltf"},
         {"--scene nosuch", "nosuch"},
-        {"--scene tests/cli_demo.c", "tests/cli_demo.c"},
+        {"--scene tests/cli/cli_demo.c", "tests/cli/cli_demo.c"},
         {"--scene build/cli_demo/broken.gltf", "broken.gltf"},
     };
     size_t k;

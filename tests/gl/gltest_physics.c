@@ -1,5 +1,5 @@
 /* Physics of the whole GPU frame: every method through gim_update, at default settings (small
-   image and RSM), on the closed-form scenes of tests/physics.h, each pixel against the exact
+   image and RSM), on the closed-form scenes of tests/support/physics.h, each pixel against the exact
    one-bounce radiance of the surface it shows (the G-buffer twin gives the point, its normal
    towards the eye and its quad). Counted are the pixels whose exact radiance is above 1% of
    the image's largest; the statistics are the median of gimany / exact and the fractions of

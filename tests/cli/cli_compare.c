@@ -88,7 +88,7 @@ static void command_line(void **state) {
     assert_int_equal(run("build/cli_compare/a.pfm", out, sizeof out), 1);
     assert_int_equal(run("build/cli_compare/a.pfm build/cli_compare/b.pfm --bogus", out, sizeof out), 1);
     assert_non_null(strstr(out, "unknown option"));
-    assert_int_equal(run("tests/cli_compare.c build/cli_compare/b.pfm", out, sizeof out), 1);
+    assert_int_equal(run("tests/cli/cli_compare.c build/cli_compare/b.pfm", out, sizeof out), 1);
 }
 
 int main(void) {

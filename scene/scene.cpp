@@ -38,7 +38,7 @@
 #include <tiny_gltf.h>
 
 #include "scene.h"
-#include "street.h" /* tests/street.h: the procedural street, shared with the cache tests */
+#include "street.h" /* scene/street.h: the procedural street, shared with the cache tests */
 
 #include <algorithm>
 #include <cerrno>
@@ -343,7 +343,7 @@ void build_cornell(builder &b) {
 }
 
 /* ---- built-in: the street ---------------------------------------------------------------- */
-/* The open-world street after Bischoff 2017's urban scene (tests/street.h): a road along +x between
+/* The open-world street after Bischoff 2017's urban scene (scene/street.h): a road along +x between
    two rows of box buildings, red / green / blue panels beside the road, a sun from the +z side
    that lights the -z row's facades and the panels in front of them, which bleed their colour
    across the road onto the shadowed +z row. About 100,000 triangles, metres, diffuse. The

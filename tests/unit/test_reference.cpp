@@ -1,5 +1,5 @@
 /* Ground truth (tools/reference) against closed forms, and the shared scene layer
-   (examples/scene.*): glTF loading on real and hostile files, the command line, PFM files.
+   (scene/scene.*): glTF loading on real and hostile files, the command line, PFM files.
 
    The closed forms (each scene small enough that the image mean is tight in a second):
      lit plane   Lambertian plane of albedo rho under a sun of irradiance E at angle theta_s:
@@ -873,7 +873,7 @@ void hostile_files(void **) {
     }
 }
 
-/* the default scene: tests/street.h's street with its sun; a small render is finite and lit */
+/* the default scene: scene/street.h's street with its sun; a small render is finite and lit */
 void street_scene(void **) {
     scene s;
     char err[256];

@@ -1270,7 +1270,7 @@ static void light_unseen(void **state) {
 
 /* --- hostile arguments ------------------------------------------------------------------- */
 
-/* What tests/gltest_scene.c's argument_errors does not already try: Inf (not only NaN) in
+/* What tests/gl/gltest_scene.c's argument_errors does not already try: Inf (not only NaN) in
    every matrix, NaN/Inf in every float of a light, material, frame and cache, zero and
    over-the-limit heights, a NULL context or output for every entry point. Each is an error
    with exactly one log line (none for a NULL context: it has no logger), leaves the GL state

@@ -1,6 +1,6 @@
 /* Every method of gim_update against the ground truth, inside `make test`: whole frames at their
    defaults against tools/reference (Embree path tracing, rendered in-process, unbiased), with
-   the error metric and the conventions of tests/bench_frame.c (rel. MAE of tools/compare.c over
+   the error metric and the conventions of bench/src/bench_frame.c (rel. MAE of tools/compare.c over
    the pixels where either image has light; the scene layer's camera; the indirect texture's
    rows flipped to the reference's top-first order), at a size llvmpipe renders in seconds.
 
@@ -11,7 +11,7 @@
                       with imperfect shadow maps) and LightSkin BRSM with imperfect shadow
                       maps (Ritschel et al. 2008); each one's rel. MAE and its image mean
                       against the reference's (energy).
-     courtyard_pillar the built-in courtyard (examples/scene.cpp): a pillar between a sunlit
+     courtyard_pillar the built-in courtyard (scene/scene.cpp): a pillar between a sunlit
                       floor and a wall the sun does not reach. The wall behind the pillar gets
                       less of the floor's light; with visibility (ISM) LightSkin BRSM must
                       show that shadow and match the reference there, without it it cannot.
