@@ -1079,7 +1079,7 @@ GIMANY_API gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
    attribute_near = min(1e-2 scene_scale, near_distance): the second bounce's rays land on
    the first surface past the origin, however near (a wall beside the cluster, a box on its
    floor), or their flux lands behind it (with Delta / 2, 0.175 of the second bounce's flux on
-   the Cornell box, tests/gltest_reference.c); the 1e-2 only passes the surface under the
+   the Cornell box, tests/gl/gltest_reference.c); the 1e-2 only passes the surface under the
    origin where it curves away (on the Cornell box the same VPLs as the lift alone). A
    cluster without VPLs gets
    zero flux and size, its centre and normal kept. Sums in double in VPL order.
@@ -1117,7 +1117,7 @@ GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
    1 where x lies behind the VAL's plane (w.z <= 0: the map knows nothing there, Dong fig. 7).
    PCSS rather than Dong's CSSM: it needs only the one distance layer per cluster (CSSM keeps
    8-16 prefiltered basis textures per VAL), and its mean |V - exact from-area visibility|
-   behind random plates is 0.048 (tests/test_vpl_shade.c). normal: the receiver's unit normal,
+   behind random plates is 0.048 (tests/unit/test_vpl_shade.c). normal: the receiver's unit normal,
    whose plane is the depth a blocker must be in front of (no self-shadowing of planar
    receivers), or NULL: the receiver's distance less a slope bias. See the implementation
    for the kernel and the bias. */
@@ -1151,9 +1151,9 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
 #define GIM_ISM_VPL_BIAS 0.01f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
                                          wall of thickness t once the VPL is t / b away (0.15: 2 m of ground
-                                         lit through the 0.3 walls of tests/gltest_visibility.c; 0.01 there
+                                         lit through the 0.3 walls of tests/gl/gltest_visibility.c; 0.01 there
                                          leaves 0.4 % inside, and removes 0.3 % of an open corner's light,
-                                         tests/gltest_physics.c) */
+                                         tests/gl/gltest_physics.c) */
 #define GIM_ISM_VPL_SLOPE 0.05f
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
 #define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
@@ -1640,7 +1640,7 @@ typedef struct gim_frame {
    default depends on the scene: a zero visibility.ism_size is halved below 64 for LightSkin
    when the caches' maps would not fit one shader storage block (the 64 written here is then
    refused instead). With view, proj, width and height set, it renders what the zero frame of
-   the same method renders (tests/gltest_frame.c). */
+   the same method renders (tests/gl/gltest_frame.c). */
 GIMANY_API gim_frame gim_frame_defaults(gim_method method);
 
 /* Run the frame's passes (DESIGN.md sec. 5, Bischoff 2017): RSM per light whose frustum meets an
@@ -4662,7 +4662,7 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    pi d^2) treats it as a point seen from afar (exact only on the disk's axis), which near a
    contact edge, where a receiver sees a neighbouring surface's VALs at grazing angles from
    less than a texel away, loses light: the corner's floor 0.025 from the wall got 0.37 of the
-   wall's light at RSM 128^2, 0.76 at 0.067 (tests/test_physics.c; of the rest, 0.17 at 0.067
+   wall's light at RSM 128^2, 0.76 at 0.067 (tests/unit/test_physics.c; of the rest, 0.17 at 0.067
    lies in the wall's strip below its lowest texel centres, which the RSM gives to floor
    texels). Within d < GIM__VAL_NEAR sqrt(A) the VAL is a regular octagon of area A in its
    plane (gim_basis(n_l) axes), clipped to the receiver's hemisphere, and Lambert's contour
@@ -8069,7 +8069,7 @@ static gim_result gim__gl_sized_buffer(gim_context *ctx, gim__GLuint *b, uint64_
    use) -> bindings on the units/bindings of the state list only -> dispatch -> barrier for how
    the output is read next -> gim__gl_leave(ctx, gim__gl_check(ctx, where)). Every return after
    the enter goes through the leave. A new binding point or state item goes into the state list
-   first (and into tests/gltest_runtime.c's distinctive state). */
+   first (and into tests/gl/gltest_runtime.c's distinctive state). */
 
 #define GIM__SCAN_MAX_SIZE 16384u  /* largest RSM side the scan takes */
 
@@ -8260,7 +8260,7 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
    row[x] = sum of the column totals 0..x. block_rows: rows per block of the first level
    (0: chosen from the size). Three dispatches, O(width * height) adds, in double like the twin: a float
    table at 1024^2 of uniform random importance already gives 0.1% of the texels a selection
-   frequency more than 1% away from their P (tests/bench_gl.c), a bias the 1/P weights do not
+   frequency more than 1% away from their P (bench/src/bench_gl.c), a bias the 1/P weights do not
    undo. The cost is memory, not arithmetic: 8 bytes per texel (128 MB at 4096^2, checked
    against GL_MAX_SHADER_STORAGE_BLOCK_SIZE); consumer GPUs' slow fp64 is ~3 adds per texel.
    On llvmpipe (2 shared, loaded cores) the double scan took 0.8-3x the time of the same
@@ -8410,7 +8410,7 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    `exponent` for every cache where exponents is 0. scene_scale > 0 (the
    twin's default 0 would need the bounds on the CPU). Sums in float, not double: on the
    twin's inputs the results agree to ~1e-5 relative (more with large exponents, whose lobe
-   amplifies the float error of the reflected direction k-fold; tests/gltest_proxy.c). A VAL
+   amplifies the float error of the reflected direction k-fold; tests/gl/gltest_proxy.c). A VAL
    that is not finite or has negative area, weight or flux adds nothing (the twin rejects it),
    and a sum that overflows float gives the proxy x_p = c and zero flux, so every output is
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
@@ -8822,7 +8822,7 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
      of the update in double in the twin's VPL order, the centres stored as float between
      steps. So a VPL within float rounding of a tie (relative ~1e-6 of the distances, more
      far from the origin: the centres' float ulp over the scene scale) may choose the other
-     cluster (tests/gltest_vpls.c counts them).
+     cluster (tests/gl/gltest_vpls.c counts them).
    K steps from the same centres, with the assignment reset to none, give gim_kmeans with init
    WARM, max_iterations K (its convergence stop skips only an update that changes nothing).
    Cost: vpl_count * cluster_count distance terms and as many VPL reads in the update (a gather
@@ -8919,17 +8919,17 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
 /* Farthest a scene's world bounds may lie from the origin, in diagonals of those bounds.
    Float positions there are quantised to ~2^-23 of the distance; the vertex transforms round
    clip z and w separately by as much, and a spot inside the scene (near plane at 1e-4 of its
-   far plane) then loses its depth order: tests/gltest_extremes.c measured the room at 1e5
+   far plane) then loses its depth order: tests/gl/gltest_extremes.c measured the room at 1e5
    units intact up to ~960 diagonals (0.07% mean error) and broken (2-10%) from ~1400. */
 #define GIM__MAX_ORIGIN_DIAGONALS 1024.0
 /* Scene diagonals the float passes hold: squared lengths and 1/d^2 stay normal floats, and
-   tests/gltest_extremes.c gets the image of size 1 within 4e-5 from 1e-17 to 1e17 (1e-19
+   tests/gl/gltest_extremes.c gets the image of size 1 within 4e-5 from 1e-17 to 1e17 (1e-19
    breaks); a margin of 100 on each side. */
 #define GIM__MIN_SCENE_DIAGONAL 1e-15
 #define GIM__MAX_SCENE_DIAGONAL 1e15
 /* Largest power a light may bring into the scene (a sun's E times the diagonal squared, a
    spot's 4 pi I, times its brightest colour): the proxy lights' flux and second moments must
-   stay floats. tests/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
+   stay floats. tests/gl/gltest_extremes.c: linear up to 1e36, the image saturates at 1e38. */
 #define GIM__MAX_LIGHT_POWER 1e36
 /* An explicit scene_scale sets every unit-free threshold (clamps, epsilons, blur and cache
    distances); beyond these multiples of the scene's diagonal they all collapse or swallow the
