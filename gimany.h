@@ -546,7 +546,7 @@ GIMANY_API gim_result gim_importance_select_offsets(const double *column, const 
 /* LightSkin cache lighting, CPU twins of its GPU passes (Bischoff 2017 sec. 3 "Cache Lighting",
    "Proxy Lights Generation", "Interpolation using the Proxy Lights"; sec. 4 eq. 13-15).
    Each function has the structure of its pass: one independent invocation per cache
-   (gim_proxy_lights) or per receiver pixel (gim_lightskin_shade),
+   (gim_proxy_lights_twin) or per receiver pixel (gim_lightskin_shade_twin),
    each a loop in a fixed order, so the results are deterministic.
 
    Units (DESIGN.md sec. 4): a VAL is an RSM texel, a Lambertian disk of area A_l with
@@ -560,7 +560,7 @@ GIMANY_API gim_result gim_importance_select_offsets(const double *column, const 
    (eq. 4/15, the `+` printed in eq. 4 is a product). Summed with w_j = 1 over every texel
    (FULL) or with w_j = 1 / (N P_VAL) over N VALs drawn with probability P_VAL (BRSM), which
    is an unbiased estimate of the FULL sum wherever P_VAL > 0 on every texel that lights the
-   cache (eq. 14-15 print 1 / P without the 1 / N of the mean; gim_vals_gather applies it).
+   cache (eq. 14-15 print 1 / P without the 1 / N of the mean; gim_vals_gather_twin applies it).
 
    A proxy light is a point light (position x_p, flux Phi_p, isotropic) that gives the cache
    the same outgoing radiance (eq. 7): f_r(omega_p) Phi_p (n_c . omega_p)+ / (4 pi |x_p - c|^2)
@@ -583,7 +583,7 @@ typedef struct gim_proxy_light {
     float position[3];  /* x_p (eq. 5 / 13) */
     float radius;       /* extent of the light: 2 max(sigma) (the AABB of extent 2 sigma) */
     float flux[3];      /* Phi_p, rgb (eq. 7 with the guard below) */
-    float visibility;   /* in [0,1], scales the light where it is shaded; gim_proxy_lights writes 1 (visibility
+    float visibility;   /* in [0,1], scales the light where it is shaded; gim_proxy_lights_twin writes 1 (visibility
                            per VAL comes in through gim_proxy_desc.visibility) */
     float sigma[3];     /* weighted standard deviation of the VAL positions per world axis */
     float unused;       /* padding, 0 */
@@ -606,21 +606,21 @@ typedef struct gim_rsm_data {
    An invalid texel (valid <= 0, a NaN/Inf in its data, negative flux or area) becomes a VAL
    of weight 0 and zero flux: it lights nothing. A selected texel outside the RSM or a pdf that
    is not finite and > 0 is GIM_ERROR_INVALID_ARGUMENT (out partly written). */
-GIMANY_API gim_result gim_vals_gather(const gim_rsm_data *rsm, const gim_selected_val *selected,
+GIMANY_API gim_result gim_vals_gather_twin(const gim_rsm_data *rsm, const gim_selected_val *selected,
                                       uint32_t selected_count, gim_val *out, gim_env env);
 
-/* Input of gim_proxy_lights; zero means default. */
+/* Input of gim_proxy_lights_twin; zero means default. */
 typedef struct gim_proxy_desc {
     const gim_cache *caches;     /* world-space caches (unit normals) */
     uint32_t cache_count;        /* > 0 */
-    const gim_val *vals;         /* the frame's VALs (gim_vals_gather); val_count 0 is dark, not an error */
+    const gim_val *vals;         /* the frame's VALs (gim_vals_gather_twin); val_count 0 is dark, not an error */
     uint32_t val_count;
     gim_vec3 eye;                /* camera position: v_c of the glossy lobe at each cache */
     float glossy_exponent;       /* k >= 0 of every cache (<= 1e6) */
     const float *cache_glossy_exponent; /* cache_count values of k, or NULL: glossy_exponent */
     float scene_scale;           /* > 0; 0: diagonal of the bounds of caches and VALs */
     const float *visibility;     /* cache_count * val_count V(c, x_j) in [0,1], row per cache (e.g.
-                                    gim_ism_visibility), or NULL: every VAL seen */
+                                    gim_ism_visibility_twin), or NULL: every VAL seen */
     gim_env env;
 } gim_proxy_desc;
 
@@ -658,7 +658,7 @@ typedef struct gim_proxy_desc {
    weight 0 add nothing. Sums in double, per-VAL terms in float. Every output is finite
    (flux clamped at FLT_MAX). Errors: NULL, zero cache_count, a cache or VAL that is not finite
    or breaks the ranges above (the first offender is logged), k out of range. */
-GIMANY_API gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
+GIMANY_API gim_result gim_proxy_lights_twin(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
                                        gim_proxy_light *glossy_out);
 
 /* A receiver: a visible surface point (a G-buffer pixel) and its material. */
@@ -671,7 +671,7 @@ typedef struct gim_receiver {
     float exponent;     /* Phong k >= 0, <= 1e6 */
 } gim_receiver;
 
-/* Input of gim_lightskin_shade; zero means default. */
+/* Input of gim_lightskin_shade_twin; zero means default. */
 typedef struct gim_shade_desc {
     const gim_cache *caches;
     uint32_t cache_count;
@@ -709,13 +709,13 @@ typedef struct gim_shade_desc {
    shading: L = rho_d / pi E + rho_g G.
    Receivers with no neighbour get 0. Errors: NULL arrays, zero counts, an index >= cache_count
    (other than the UINT32_MAX pad), NaN/Inf or out-of-range inputs (the first is logged). */
-GIMANY_API gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *radiance_out);
+GIMANY_API gim_result gim_lightskin_shade_twin(const gim_shade_desc *desc, float *radiance_out);
 
-/* Input of gim_lightskin_cpu: one LightSkin frame, everything of the two descs above. */
+/* Input of gim_lightskin_frame_twin: one LightSkin frame, everything of the two descs above. */
 typedef struct gim_lightskin_desc {
     const gim_cache *caches;
     uint32_t cache_count;
-    const gim_val *vals;              /* FULL or BRSM, from gim_vals_gather */
+    const gim_val *vals;              /* FULL or BRSM, from gim_vals_gather_twin */
     uint32_t val_count;
     gim_vec3 eye;
     int glossy;                       /* 1: glossy proxy lights and the glossy term; 0: diffuse only */
@@ -733,10 +733,10 @@ typedef struct gim_lightskin_desc {
 } gim_lightskin_desc;
 
 /* The whole CPU LightSkin frame, the twin of the GPU frame after the RSM (and selection):
-   gim_proxy_lights -> gim_lightskin_shade. Allocates the
+   gim_proxy_lights_twin -> gim_lightskin_shade_twin. Allocates the
    proxy lights (cache_count, twice with glossy) through env and frees them before returning.
    radiance_out[receiver_count * 3]. */
-GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out);
+GIMANY_API gim_result gim_lightskin_frame_twin(const gim_lightskin_desc *desc, float *radiance_out);
 
 /* RSM gather (Dachsbacher and Stamminger 2005), the baseline method: each receiver gathers a
    fixed pattern of RSM texels around its own projection into the RSM, no caches, no
@@ -751,7 +751,7 @@ GIMANY_API gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
    eye (w <= 0) on its centre (the Cornell box's ceiling, behind its spot, got nothing
    before), so with a radius of the whole RSM every receiver gets the FULL sum's estimate. A
    texel outside the RSM or unlit adds nothing.
-     L = rho_d / pi sum e_j + rho_g (k+2) / (2 pi) sum g_j e_j, e_j as in gim_proxy_lights with
+     L = rho_d / pi sum e_j + rho_g (k+2) / (2 pi) sum g_j e_j, e_j as in gim_proxy_lights_twin with
      x for c, g_j = ((r_j . view)+)^k, r_j the direction to the VAL mirrored at the normal. */
 typedef struct gim_gather_desc {
     const gim_rsm_data *rsm;          /* one light's RSM (valid: the lit flag) */
@@ -767,12 +767,20 @@ typedef struct gim_gather_desc {
 
 /* The gathered radiance of one light, rgb into radiance_out[receiver_count * 3] (one light:
    sum the calls of several). Errors: NULL arrays, zero counts, a radius or scale that is not
-   finite and > 0, a receiver as gim_lightskin_shade rejects it. */
-GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radiance_out);
+   finite and > 0, a receiver as gim_lightskin_shade_twin rejects it. */
+GIMANY_API gim_result gim_rsm_gather_twin(const gim_gather_desc *desc, float *radiance_out);
 
-/* VPLs from an RSM (Dong et al. sec. 4, clustered visibility): count VPLs at the 2D Halton
-   points 1..count (gim_halton_points, bases 2 and 3; point 0 is the corner), Cranley-Patterson
-   rotated by offsets (2 values in [0,1), or NULL). Point (u, v) takes the texel
+/* Which low-discrepancy points pick the first-bounce VPLs' texels. */
+typedef enum gim_vpl_sequence {
+    GIM_VPL_SEQUENCE_DEFAULT = 0,   /* = HALTON */
+    GIM_VPL_SEQUENCE_HALTON,        /* Halton points 1..count, bases 2, 3 (Dong sec. 6) */
+    GIM_VPL_SEQUENCE_HAMMERSLEY     /* Hammersley points (i + 0.5) / count, radical inverse base 2 of i (SSVP eq. 1) */
+} gim_vpl_sequence;
+
+/* VPLs from an RSM, the twin of the runtime's VPL pass (Dong et al. 2009 sec. 4): count VPLs at the
+   points of sequence: HALTON, the 2D Halton points 1..count (gim_halton_points, bases 2 and 3;
+   point 0 is the corner); HAMMERSLEY, point i is ((i + 0.5) / count, gim_van_der_corput(i)).
+   Both are Cranley-Patterson rotated by offsets (2 values in [0,1), or NULL). Point (u, v) takes the texel
    (min(floor(u width), width - 1), min(floor(v height), height - 1)); a texel may be taken
    twice. Each VPL gets its texel's position and normal, and flux such that the VPLs' flux sums
    to the RSM's total reflected flux over the lit texels, per channel c:
@@ -780,7 +788,7 @@ GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radianc
                                          S_c = sum of Phi_t(i),c over the VPLs (repeats counted);
    where S_c = 0 (every sampled texel dark in c) the VPLs carry nothing in c. A texel is lit
    where valid is NULL or > 0 and its position, normal and flux are finite with flux >= 0
-   (gim_vals_gather's rules but the area's, which a VPL does not take); an unlit one gives a
+   (gim_vals_gather_twin's rules but the area's, which a VPL does not take); an unlit one gives a
    VPL of zero flux (weight 0 in gim_kmeans' means), its position and normal copied when
    finite, zero otherwise (gim_kmeans refuses a zero normal: leave those VPLs out). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
    order, then the rows), S in blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks.
@@ -788,8 +796,9 @@ GIMANY_API gim_result gim_rsm_gather(const gim_gather_desc *desc, float *radianc
    arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
    GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
 #define GIM_RSM_VPL_BLOCK 1024u
-GIMANY_API gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
-                                   float *normals, float *flux, gim_env env);
+GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
+                                        const float *offsets, float *positions, float *normals, float *flux,
+                                        gim_env env);
 
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
@@ -803,7 +812,7 @@ GIMANY_API gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, g
 /* Caches on a deforming (skinned, morphing) mesh follow its surface: each is bound once to the
    triangle it lies on, and each frame its position, normal and area are made again from the
    deformed vertices (the GL runtime does this per frame in caches_follow.comp for meshes
-   added with gim_mesh_desc.deforming; gim_caches_follow is its twin). */
+   added with gim_mesh_desc.deforming; gim_caches_follow_twin is its twin). */
 typedef struct gim_cache_binding {
     uint32_t vertex[3];  /* the triangle's vertex indices (a, b, c) */
     float u, v;          /* barycentrics of b and c of the cache's foot point on the triangle */
@@ -834,7 +843,7 @@ GIMANY_API gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
    collapsed to zero area keeps the rest normal with area 0. positions: vertex_count float3
    (model space). out may not alias rest. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL arrays, a
    binding's vertex >= vertex_count, a result that is not finite (out partly written then). */
-GIMANY_API gim_result gim_caches_follow(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
+GIMANY_API gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
                                         const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env);
 
 
@@ -1016,9 +1025,9 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
    for bias; the energy it removes is measured by make bench) and V_i the visibility of the
    VPL's cluster (1 without visibility). A receiver leaves
      L = rho_d / pi sum E_i + rho_g (k + 2) / (2 pi) sum ((r_i . view)+)^k E_i,
-   r_i = -omega mirrored at n_x, the same lobe as gim_lightskin_shade. SSVP's eq. 6 divides by
+   r_i = -omega mirrored at n_x, the same lobe as gim_lightskin_shade_twin. SSVP's eq. 6 divides by
    the total VPL count N; here each VPL's flux already carries its share (first bounce: the
-   RSM's total over the VPLs, gim_rsm_vpls; second bounce: 1 / (S pdf), gim_second_bounce_vpls),
+   RSM's total over the VPLs, gim_rsm_vpls_twin; second bounce: 1 / (S pdf), gim_second_bounce_vpls_twin),
    which is the same estimator with each bounce normalised by its own sample count.
 
    Paraboloid maps (Brabec et al. 2002; Dong sec. 4.2; SSVP sec. 3.C): a hemisphere around a
@@ -1053,19 +1062,7 @@ typedef struct gim_paraboloid {
                                must land on the first surface it meets, not behind it) */
 } gim_paraboloid;
 
-/* Which low-discrepancy points pick the first-bounce VPLs' texels. */
-typedef enum gim_vpl_sequence {
-    GIM_VPL_SEQUENCE_DEFAULT = 0,   /* = HALTON */
-    GIM_VPL_SEQUENCE_HALTON,        /* Halton points 1..count, bases 2, 3 (Dong sec. 6) */
-    GIM_VPL_SEQUENCE_HAMMERSLEY     /* Hammersley points (i + 0.5) / count, radical inverse base 2 of i (SSVP eq. 1) */
-} gim_vpl_sequence;
 
-/* gim_rsm_vpls with a choice of sequence (gim_rsm_vpls is HALTON); the same rules otherwise.
-   HAMMERSLEY point i of count: (u, v) = ((i + 0.5) / count, gim_van_der_corput(i)), rotated
-   by offsets like the Halton points. */
-GIMANY_API gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                            const float *offsets, float *positions, float *normals, float *flux,
-                                            gim_env env);
 
 /* The paraboloid maps of clustered VPLs (Dong sec. 5-6), the twin of the runtime's cluster
    pass. Per cluster m with centre c_m and normal n_m (gim_kmeans' centres and normals, or the
@@ -1084,7 +1081,7 @@ GIMANY_API gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t co
    cluster without VPLs gets
    zero flux and size, its centre and normal kept. Sums in double in VPL order.
    cluster[vpl_count] < cluster_count; centres, normals: cluster_count * 3 (normals unit). */
-GIMANY_API gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
+GIMANY_API gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
                                               const float *centres, const float *normals, uint32_t cluster_count,
                                               float scene_scale, gim_paraboloid *out, gim_env env);
 
@@ -1121,7 +1118,7 @@ GIMANY_API gim_result gim_paraboloid_texel_twin(const gim_twin_scene *scene, con
    whose plane is the depth a blocker must be in front of (no self-shadowing of planar
    receivers), or NULL: the receiver's distance less a slope bias. See the implementation
    for the kernel and the bias. */
-GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
+GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint32_t size, const gim_paraboloid *map,
                                                 gim_vec3 receiver, const gim_vec3 *normal, float *out);
 
 /* Imperfect shadow maps (Ritschel et al. 2008): the scene as points, one small paraboloid
@@ -1169,7 +1166,7 @@ GIMANY_API gim_result gim_paraboloid_visibility(const float *distance, uint32_t 
    GIM_ERROR_INVALID_ARGUMENT. */
 GIMANY_API gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count, float *out);
 
-/* Input of gim_ism_render and gim_ism_visibility; zero means default. */
+/* Input of gim_ism_render_twin and gim_ism_visibility_twin; zero means default. */
 typedef struct gim_ism_desc {
     const gim_cache *caches;        /* one map per cache: origin c + GIM_ISM_LIFT scene_scale n */
     uint32_t cache_count;
@@ -1203,7 +1200,7 @@ typedef struct gim_ism_desc {
    mantissa bits, relative error at most 2^-8, far below the bias); distance_out holds those
    values as floats, bit for bit what the GPU's maps decode to. An empty texel stays
    >= GIM_PARABOLOID_EMPTY. */
-GIMANY_API gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out);
+GIMANY_API gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *distance_out);
 
 /* The 16-bit depth of an ISM texel: (bits of d + 0x8000) >> 16 for d >= 0 (ism.comp's
    rounding); gim_ism_dequantize gives it back as a float (the bits shifted up). */
@@ -1220,10 +1217,10 @@ GIMANY_API float gim_ism_dequantize(uint16_t q);
    the surfels, a VAL on the surface its texel holds compares equal whatever the angle it is
    seen at; the slope term absorbs the surfels' own tilt. (proxy_lights.comp's lookup, in
    float.) The matrix gim_proxy_desc.visibility takes. */
-GIMANY_API gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+GIMANY_API gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
                                          uint32_t val_count, float *out);
 
-/* Input of gim_second_bounce_vpls; zero means default. */
+/* Input of gim_second_bounce_vpls_twin; zero means default. */
 typedef struct gim_second_bounce_desc {
     const gim_paraboloid *maps;     /* map_count clusters (origin, normal, flux used) */
     uint32_t map_count;
@@ -1233,8 +1230,8 @@ typedef struct gim_second_bounce_desc {
     const float *albedo;            /* map_count * size^2 * 4: diffuse rgb */
     uint32_t vpl_count;             /* S: map m takes S / map_count VPLs, one more for m < S mod map_count */
     const float *ism;               /* map_count * ism_size^2: each cluster's imperfect shadow map
-                                       (gim_ism_render with map m's origin and normal as a cache), or NULL.
-                                       A hit the map's own lookup does not see (gim_ism_visibility's, the
+                                       (gim_ism_render_twin with map m's origin and normal as a cache), or NULL.
+                                       A hit the map's own lookup does not see (gim_ism_visibility_twin's, the
                                        hit as the VAL) is an unlit VPL: the maps' hits lie past
                                        attribute_near, so one behind a nearer surface within that skip
                                        (maps made with a larger one) is dropped; the ISM has no skip */
@@ -1252,9 +1249,9 @@ typedef struct gim_second_bounce_desc {
    the solid angle 1 / (S_m pdf) of each sample, and the hit's own distance and cosine
    cancelling between the irradiance and the area the sample stands for. A texel with no hit
    gives an unlit VPL. out[vpl_count], in map order. */
-GIMANY_API gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out);
+GIMANY_API gim_result gim_second_bounce_vpls_twin(const gim_second_bounce_desc *desc, gim_vpl *out);
 
-/* Input of gim_vpl_shade; zero means default. */
+/* Input of gim_vpl_shade_twin; zero means default. */
 typedef struct gim_vpl_shade_desc {
     const gim_vpl *vpls;
     uint32_t vpl_count;
@@ -1274,9 +1271,9 @@ typedef struct gim_vpl_shade_desc {
     float clamp_distance;           /* d_c (lengths), >= 0; 0: no clamping */
     float scene_scale;              /* > 0 */
     const float *ism;               /* vpl_count * ism_size^2: one imperfect shadow map per VPL (Keller's instant
-                                       radiosity with Ritschel et al. 2008's maps): map i is gim_ism_render's for
+                                       radiosity with Ritschel et al. 2008's maps): map i is gim_ism_render_twin's for
                                        VPL i taken as a cache (its position and normal), and V_i its hard
-                                       visibility by gim_ism_visibility's lookup with the receiver as the VAL;
+                                       visibility by gim_ism_visibility_twin's lookup with the receiver as the VAL;
                                        NULL: none. Not with cluster (one visibility per VPL) */
     uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
     float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
@@ -1285,12 +1282,12 @@ typedef struct gim_vpl_shade_desc {
 
 /* Indirect radiance of every receiver from the VPLs (units above), rgb into
    radiance_out[width * height * 3]; one independent invocation per pixel, VPLs in index order. */
-GIMANY_API gim_result gim_vpl_shade(const gim_vpl_shade_desc *desc, float *radiance_out);
+GIMANY_API gim_result gim_vpl_shade_twin(const gim_vpl_shade_desc *desc, float *radiance_out);
 
-/* Input of gim_geometry_blur; zero means default. */
+/* Input of gim_geometry_blur_twin; zero means default. */
 typedef struct gim_blur_desc {
-    const float *radiance;          /* width * height * 3 (gim_vpl_shade's) */
-    const gim_receiver *receivers;  /* width * height, as gim_vpl_shade's */
+    const float *radiance;          /* width * height * 3 (gim_vpl_shade_twin's) */
+    const gim_receiver *receivers;  /* width * height, as gim_vpl_shade_twin's */
     uint32_t width, height;
     uint32_t window;                /* k: the k x k window [x - k/2, x + k/2 - 1]^2 holds every interleaved
                                        subset once; 0 or 1: a copy */
@@ -1307,7 +1304,7 @@ typedef struct gim_blur_desc {
    smeared a bright material's light onto a dark neighbour: the Cornell box's ceiling panel
    came out 2.29x too bright); a glossy pixel averages radiance (its lobe is in it). Pixels
    without a surface get 0. out[width * height * 3], not the input. */
-GIMANY_API gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out);
+GIMANY_API gim_result gim_geometry_blur_twin(const gim_blur_desc *desc, float *out);
 
 #ifdef __cplusplus
 }
@@ -1416,7 +1413,7 @@ typedef struct gim_mesh_desc {
     gim_mesh_buffers buffers;   /* the host's GL buffers instead of data's arrays (zero: none) */
     int deforming;              /* 1: the vertices move every frame (skinning, morphing): the caches are
                                    bound to their triangles (gim_cache_bind) and follow them on the
-                                   GPU each frame (gim_caches_follow's pass). With buffers: gimany
+                                   GPU each frame (gim_caches_follow_twin's pass). With buffers: gimany
                                    draws from the host's buffers, so they may change at any time, and
                                    every gim_update re-reads the positions on the GPU (bounds,
                                    caches); indices, vertex and index counts must stay. Without
@@ -1501,7 +1498,7 @@ typedef enum gim_method {
     GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (Bischoff 2017 sec. 4) */
     GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
     GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
-                                       gim_rsm_gather): the baseline, no caches, no visibility */
+                                       gim_rsm_gather_twin): the baseline, no caches, no visibility */
     GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric) into
                                        cluster_count VALs, one paraboloid soft shadow map each; every VPL
                                        shades with its VAL's visibility */
@@ -1652,23 +1649,23 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
    light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
    the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
-   world triangles, read back from the meshes, pool 4 P; gim_ism_render) -> diffuse proxy lights
-   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility), glossy ones too when a material has a glossy colour (one lobe
+   world triangles, read back from the meshes, pool 4 P; gim_ism_render_twin) -> diffuse proxy lights
+   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility_twin), glossy ones too when a material has a glossy colour (one lobe
    exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
-   texture (gim_lightskin_shade is the twin). A scene without caches gets no LightSkin passes
+   texture (gim_lightskin_shade_twin is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
-   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_sequence) -> k-means
+   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
-   (gim_cluster_paraboloids) -> layered passes of paraboloid maps (distance for visibility,
+   (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
    past near_distance; position, normal and albedo at two bounces, past attribute_near: with
-   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls)
+   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls_twin)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
-   (gim_vpl_shade) -> the geometry-aware blur (gim_geometry_blur) into the indirect texture.
+   (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
    With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
-   per VPL of both bounces (gim_ism_render with the VPLs as caches; SSVP's second-bounce hits
+   per VPL of both bounces (gim_ism_render_twin with the VPLs as caches; SSVP's second-bounce hits
    first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
    its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
@@ -1762,7 +1759,7 @@ typedef struct gim_debug_outputs {
     uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
     uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
     /* visibility ISM (0 otherwise) */
-    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render), ism_size^2 16-bit depths,
+    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render_twin), ism_size^2 16-bit depths,
                                    two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
                                    methods: map i of VPL i of vpls */
     uint32_t ism_size;
@@ -4518,9 +4515,9 @@ static float gim__lobe(float cos_e, float k) {
 }
 static float gim__clamp_flt(double x) { return x < (double)FLT_MAX ? (float)x : FLT_MAX; }
 
-GIMANY_DEF gim_result gim_vals_gather(const gim_rsm_data *rsm, const gim_selected_val *selected,
+GIMANY_DEF gim_result gim_vals_gather_twin(const gim_rsm_data *rsm, const gim_selected_val *selected,
                                       uint32_t selected_count, gim_val *out, gim_env env) {
-    static const char fn[] = "gim_vals_gather";
+    static const char fn[] = "gim_vals_gather_twin";
     size_t n, i;
     if (!rsm) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm is NULL");
     if (!out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
@@ -4554,7 +4551,7 @@ GIMANY_DEF gim_result gim_vals_gather(const gim_rsm_data *rsm, const gim_selecte
         if ((rsm->valid && !(rsm->valid[t] > 0.0f)) || !gim__all_finite(v->position, 3) ||
             !gim__all_finite(v->normal, 3) || !gim__all_finite(v->flux, 3) || !gim__isfinitef(v->area) ||
             !(v->area >= 0.0f) || !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f)) {
-            memset(v, 0, sizeof *v);   /* lights nothing, passes gim_proxy_lights' checks */
+            memset(v, 0, sizeof *v);   /* lights nothing, passes gim_proxy_lights_twin' checks */
         }
     }
     return GIM_OK;
@@ -4825,9 +4822,9 @@ static void gim__proxy_cache(const gim_cache *c, const gim_val *vals, uint32_t v
     }
 }
 
-GIMANY_DEF gim_result gim_proxy_lights(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
+GIMANY_DEF gim_result gim_proxy_lights_twin(const gim_proxy_desc *desc, gim_proxy_light *diffuse_out,
                                        gim_proxy_light *glossy_out) {
-    static const char fn[] = "gim_proxy_lights";
+    static const char fn[] = "gim_proxy_lights_twin";
     const gim_env *env;
     gim_result r;
     float scale, coincident2;
@@ -4944,7 +4941,7 @@ static void gim__interp_light(const gim_shade_desc *d, const gim_proxy_light *li
     for (a = 0; a < 3; ++a) e_out[a] = se[use][a] / sw[use];
 }
 
-/* The arguments of the shading pass; lights 0 leaves out the proxy lights (gim_lightskin_cpu
+/* The arguments of the shading pass; lights 0 leaves out the proxy lights (gim_lightskin_frame_twin
    checks the rest before it spends the proxy pass). */
 static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn, int lights) {
     const gim_env *env = &d->env;
@@ -4990,8 +4987,8 @@ static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn, int 
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *radiance_out) {
-    static const char fn[] = "gim_lightskin_shade";
+GIMANY_DEF gim_result gim_lightskin_shade_twin(const gim_shade_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_lightskin_shade_twin";
     gim_result r;
     uint32_t i;
     float near_;
@@ -5016,8 +5013,8 @@ GIMANY_DEF gim_result gim_lightskin_shade(const gim_shade_desc *desc, float *rad
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *radiance_out) {
-    static const char fn[] = "gim_lightskin_cpu";
+GIMANY_DEF gim_result gim_lightskin_frame_twin(const gim_lightskin_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_lightskin_frame_twin";
     const gim_env *env;
     gim_proxy_desc pd;
     gim_shade_desc sd;
@@ -5053,8 +5050,8 @@ GIMANY_DEF gim_result gim_lightskin_cpu(const gim_lightskin_desc *desc, float *r
     if (!lights) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%zu proxy lights", n);
     sd.diffuse = lights;
     sd.glossy = desc->glossy ? lights + desc->cache_count : NULL;
-    r = gim_proxy_lights(&pd, lights, desc->glossy ? lights + desc->cache_count : NULL);
-    if (r == GIM_OK) r = gim_lightskin_shade(&sd, radiance_out);
+    r = gim_proxy_lights_twin(&pd, lights, desc->glossy ? lights + desc->cache_count : NULL);
+    if (r == GIM_OK) r = gim_lightskin_shade_twin(&sd, radiance_out);
     gim__free(env, lights);
     return r;
 }
@@ -5070,8 +5067,8 @@ static void gim__gather_offset(const float uv[2], float radius, uint32_t n, floa
     out[2] = (float)(2.0 * GIM__PI * r * radius / n);
 }
 
-GIMANY_DEF gim_result gim_rsm_gather(const gim_gather_desc *d, float *radiance_out) {
-    static const char fn[] = "gim_rsm_gather";
+GIMANY_DEF gim_result gim_rsm_gather_twin(const gim_gather_desc *d, float *radiance_out) {
+    static const char fn[] = "gim_rsm_gather_twin";
     const gim_rsm_data *m;
     uint32_t i, j;
     double near2;
@@ -5172,7 +5169,7 @@ static void gim__rsm_vpl_texel(uint32_t i, uint32_t count, gim_vpl_sequence sequ
     *y = fy < (double)height ? (uint32_t)fy : height - 1u;
 }
 
-/* Lit texel t of the RSM (the rules of gim_vals_gather without area, which a VPL does not take). */
+/* Lit texel t of the RSM (the rules of gim_vals_gather_twin without area, which a VPL does not take). */
 static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     const float *f = m->flux + t * 3;
     if (m->valid && !(m->valid[t] > 0.0f)) return 0;
@@ -5181,15 +5178,10 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
 }
 
-GIMANY_DEF gim_result gim_rsm_vpls(const gim_rsm_data *rsm, uint32_t count, const float *offsets, float *positions,
-                                   float *normals, float *flux, gim_env env) {
-    return gim_rsm_vpls_sequence(rsm, count, GIM_VPL_SEQUENCE_HALTON, offsets, positions, normals, flux, env);
-}
-
-GIMANY_DEF gim_result gim_rsm_vpls_sequence(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                            const float *offsets, float *positions, float *normals, float *flux,
-                                            gim_env env) {
-    static const char fn[] = "gim_rsm_vpls";
+GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
+                                        const float *offsets, float *positions, float *normals, float *flux,
+                                        gim_env env) {
+    static const char fn[] = "gim_rsm_vpls_twin";
     double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
     uint32_t i, x, y;
     int a;
@@ -5519,9 +5511,9 @@ done:
 
 /* In float, operation for operation as caches_follow.comp, so the twin and the pass agree to
    rounding. */
-GIMANY_DEF gim_result gim_caches_follow(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
+GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
                                         const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env) {
-    static const char fn[] = "gim_caches_follow";
+    static const char fn[] = "gim_caches_follow_twin";
     uint32_t i;
     if (count && (!rest || !bind || !positions || !out))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rest, bind, positions and out are required");
@@ -5564,10 +5556,10 @@ GIMANY_DEF gim_result gim_caches_follow(const gim_cache *rest, const gim_cache_b
 
 /* The clusters' VALs and paraboloid maps (see the declaration): one independent loop per
    cluster over the VPLs in index order, as the GPU pass (clusters.comp) runs it. */
-GIMANY_DEF gim_result gim_cluster_paraboloids(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
+GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
                                               const float *centres, const float *normals, uint32_t cluster_count,
                                               float scene_scale, gim_paraboloid *out, gim_env env) {
-    static const char fn[] = "gim_cluster_paraboloids";
+    static const char fn[] = "gim_cluster_paraboloids_twin";
     uint32_t i, m;
     if (!vpls || !cluster || !centres || !normals || !out)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpls, cluster, centres, normals and out are required");
@@ -6259,8 +6251,8 @@ static void gim__ism_frame(const float *c, const float *normal, float lift, floa
 static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
                               const float *x, const float *nl, float bias, float texel);
 
-GIMANY_DEF gim_result gim_second_bounce_vpls(const gim_second_bounce_desc *desc, gim_vpl *out) {
-    static const char where[] = "gim_second_bounce_vpls";
+GIMANY_DEF gim_result gim_second_bounce_vpls_twin(const gim_second_bounce_desc *desc, gim_vpl *out) {
+    static const char where[] = "gim_second_bounce_vpls_twin";
     const gim_env *env = desc ? &desc->env : NULL;
     uint32_t m, j, isz = 0;
     size_t texels;
@@ -6465,9 +6457,9 @@ static int gim__paraboloid_ok(const gim_paraboloid *m) {
            m->size >= 0.0f;
 }
 
-GIMANY_DEF gim_result gim_paraboloid_visibility(const float *distance, uint32_t size, const gim_paraboloid *map,
+GIMANY_DEF gim_result gim_paraboloid_visibility_twin(const float *distance, uint32_t size, const gim_paraboloid *map,
                                                 gim_vec3 receiver, const gim_vec3 *normal, float *out) {
-    static const char fn[] = "gim_paraboloid_visibility";
+    static const char fn[] = "gim_paraboloid_visibility_twin";
     gim_env env;
     float x[3];
     memset(&env, 0, sizeof env);
@@ -6648,7 +6640,7 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
     dir[2] = w[0] * t.z + w[1] * b.z + w[2] * n.z;
 }
 
-/* One surfel into a map (see gim_ism_render), in float as ism.comp. */
+/* One surfel into a map (see gim_ism_render_twin), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
                            const float *p, float area) {
     float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
@@ -6698,8 +6690,8 @@ GIMANY_DEF float gim_ism_dequantize(uint16_t q) {
     return d;
 }
 
-GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_out) {
-    static const char fn[] = "gim_ism_render";
+GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *distance_out) {
+    static const char fn[] = "gim_ism_render_twin";
     uint32_t size, per, m, k, stride, n_take;
     float bias, slope, lift, *scratch;
     gim_result r;
@@ -6729,8 +6721,8 @@ GIMANY_DEF gim_result gim_ism_render(const gim_ism_desc *desc, float *distance_o
     return GIM_OK;
 }
 
-/* The lookup of gim_ism_visibility: 1 or 0, receiver x with normal nl through one map of frame
-   (o, t, b, n); texel = slope 2 / size. Also each VPL's own map in gim_vpl_shade. */
+/* The lookup of gim_ism_visibility_twin: 1 or 0, receiver x with normal nl through one map of frame
+   (o, t, b, n); texel = slope 2 / size. Also each VPL's own map in gim_vpl_shade_twin. */
 static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
                               const float *x, const float *nl, float bias, float texel) {
     float d[3], dist, z, cl, tn;
@@ -6756,9 +6748,9 @@ static float gim__ism_visible(const float *map, uint32_t size, const float o[3],
     return 1.0f;
 }
 
-GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
+GIMANY_DEF gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
                                          uint32_t val_count, float *out) {
-    static const char fn[] = "gim_ism_visibility";
+    static const char fn[] = "gim_ism_visibility_twin";
     uint32_t size, per, m, j;
     float bias, slope, lift, texel;
     gim_result r;
@@ -6780,7 +6772,7 @@ GIMANY_DEF gim_result gim_ism_visibility(const gim_ism_desc *desc, const float *
     return GIM_OK;
 }
 
-/* A receiver of gim_vpl_shade / gim_geometry_blur: a surface (unit normal) or none (zero). */
+/* A receiver of gim_vpl_shade_twin / gim_geometry_blur_twin: a surface (unit normal) or none (zero). */
 static int gim__receiver_ok(const gim_receiver *rc) {
     if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->normal, 3) || !gim__unit_or_zero(rc->normal, 1))
         return 0;
@@ -6875,7 +6867,7 @@ static uint32_t gim__vpl_scramble(uint32_t i, uint32_t n) {
     return i;
 }
 
-/* One pixel of gim_vpl_shade (see vpl_shade.comp, the same steps): the members s, s + k^2, ...
+/* One pixel of gim_vpl_shade_twin (see vpl_shade.comp, the same steps): the members s, s + k^2, ...
    of its subset (each the VPL gim__vpl_scramble gives) summed in member order in float; vis
    caches the visibility per map (< 0: not yet). */
 static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, uint32_t s, uint32_t step, float *vis,
@@ -6900,7 +6892,7 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
         cl = v->normal[0] * ox + v->normal[1] * oy + v->normal[2] * oz;
         cx = -(rc->normal[0] * ox + rc->normal[1] * oy + rc->normal[2] * oz);
         if (!(cl > 0.0f) || !(cx > 0.0f)) continue;
-        if (d->ism) {   /* VPL i's own map, hard visibility (gim_ism_visibility's lookup) */
+        if (d->ism) {   /* VPL i's own map, hard visibility (gim_ism_visibility_twin's lookup) */
             uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
             float o[3], bias = d->ism_bias > 0.0f ? d->ism_bias : GIM_ISM_BIAS;
             float texel = (d->ism_slope > 0.0f ? d->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)size;
@@ -6938,8 +6930,8 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
     }
 }
 
-GIMANY_DEF gim_result gim_vpl_shade(const gim_vpl_shade_desc *desc, float *radiance_out) {
-    static const char fn[] = "gim_vpl_shade";
+GIMANY_DEF gim_result gim_vpl_shade_twin(const gim_vpl_shade_desc *desc, float *radiance_out) {
+    static const char fn[] = "gim_vpl_shade_twin";
     gim_result r;
     float *vis = NULL;
     uint32_t x, y, k, m;
@@ -6966,8 +6958,8 @@ GIMANY_DEF gim_result gim_vpl_shade(const gim_vpl_shade_desc *desc, float *radia
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_geometry_blur(const gim_blur_desc *desc, float *out) {
-    static const char fn[] = "gim_geometry_blur";
+GIMANY_DEF gim_result gim_geometry_blur_twin(const gim_blur_desc *desc, float *out) {
+    static const char fn[] = "gim_geometry_blur_twin";
     const gim_env *env;
     uint32_t x, y, k, i, w, h;
     float tol2, ncos;
@@ -8400,7 +8392,7 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    and short enough for a desktop GPU's watchdog */
 #define GIM__PROXY_CHUNK 32768u
 
-/* Proxy lights on the GPU, the twin of gim_proxy_lights (same formulas, guards and clamps;
+/* Proxy lights on the GPU, the twin of gim_proxy_lights_twin (same formulas, guards and clamps;
    see there). caches: SSBO of cache_count gim_cache (32 bytes: vec4 position + area, vec4
    normal + reflectance; world space, unit normals). vals: SSBO of val_count gim_val (48 bytes;
    val_count 0 is dark, not an error, and vals may then be 0). diffuse_out: SSBO of cache_count
@@ -8438,7 +8430,7 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
 }
 
 /* gim__gl_proxy_lights with each VAL's contribution to a cache times its visibility through
-   the cache's imperfect shadow map (gim_ism_visibility's lookup; ism NULL or ism->maps 0: none). */
+   the cache's imperfect shadow map (gim_ism_visibility_twin's lookup; ism NULL or ism->maps 0: none). */
 static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
                                            uint32_t val_count, gim_vec3 eye, float exponent, gim__GLuint exponents,
                                            float scene_scale, gim__GLuint diffuse_out, gim__GLuint glossy_out,
@@ -8536,7 +8528,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
 /* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
 #define GIM__ISM_CHUNK 4096u
 
-/* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render (same subsets,
+/* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render_twin (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
    pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
    point_count gim_ism_points (32 bytes each); maps_out: SSBO of cache_count size^2 16-bit
@@ -8556,7 +8548,7 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
 
 /* ... with the maps' origins in any buffer of source_vec4s vec4 per map, the position in the
    first, the normal in the second: 2 for gim_cache, 3 for gim_vpl (one map per VPL, Keller's
-   instant radiosity with Ritschel et al.'s maps; gim_ism_render on the VPLs taken as caches). */
+   instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches). */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
                                         gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
                                         float scene_scale, gim__GLuint maps_out) {
@@ -8634,7 +8626,7 @@ static gim_result gim__gl_check_rsm(gim_context *ctx, const char *where, const g
 
 #define GIM__GATHER_GROUP 64u   /* local_size_x of vals_gather.comp */
 
-/* The VAL list on the GPU, the twin of gim_vals_gather (Bischoff 2017 sec. 3, eq. 13-15).
+/* The VAL list on the GPU, the twin of gim_vals_gather_twin (Bischoff 2017 sec. 3, eq. 13-15).
    rsm_position, rsm_normal, rsm_flux: RGBA32F 2D textures of size x size as gim__gl_rsm writes
    them (position.w > 0 where lit: the twin's valid; normal.w = area A; flux.rgb), read on image
    units 0-2 as rgba32ui, so every value reaches the VAL bit for bit (texelFetch would also need
@@ -8707,8 +8699,8 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
-/* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls (see there):
-   count VPLs at the texels of sequence (gim_rsm_vpls_sequence; rotated by offsets, 2 values in [0,1), or NULL) of
+/* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls_twin (see there):
+   count VPLs at the texels of sequence (gim_rsm_vpls_twin; rotated by offsets, 2 values in [0,1), or NULL) of
    the size x size RSM textures (RGBA32F as gim__gl_rsm writes them: position.w > 0 where lit,
    normal.w area, flux.rgb; read as rgba32ui images like gim__gl_vals_gather, complete by
    their own state), into vpls_out: an SSBO of at least count {vec4 position (w: 1 lit, 0
@@ -10466,7 +10458,7 @@ typedef struct gim__shade_args {
 
 /* Per pixel neighbours (the n nearest compatible caches within GIM__NEIGHBOUR_RINGS h),
    interpolation (eq. 8-9) and shading: the twin is gim_cache_neighbours (max_distance =
-   rings h) then gim_lightskin_shade, on receivers unprojected from the G-buffer (see
+   rings h) then gim_lightskin_shade_twin, on receivers unprojected from the G-buffer (see
    lightskin_shade.comp). One work group per 8 x 8 tile gathers the caches its pixels could take
    into shared memory once, then each pixel picks its n nearest from that list (the same choice
    as a search per pixel, which a tile whose list overflows does instead). Cost: tiles x cells
@@ -10887,7 +10879,7 @@ typedef struct gim__vpl_shade_args {
     gim__GLenum format;            /* RGBA16F or RGBA32F */
 } gim__vpl_shade_args;
 
-/* VPL shading per pixel into a->output (twin: gim_vpl_shade on the receivers unprojected from
+/* VPL shading per pixel into a->output (twin: gim_vpl_shade_twin on the receivers unprojected from
    the G-buffer, as in lightskin_shade.comp); in dispatches of ctx->vpl_chunk members of each
    pixel's interleaved subset, the running sums in ctx->vpl_partial between them. */
 static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl_shade_args *a) {
@@ -10998,7 +10990,7 @@ typedef struct gim__blur_args {
     gim__GLenum format;            /* RGBA16F or RGBA32F */
 } gim__blur_args;
 
-/* Geometry-aware blur of a->input into a->output (twin: gim_geometry_blur). */
+/* Geometry-aware blur of a->input into a->output (twin: gim_geometry_blur_twin). */
 static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim__blur_args *a) {
     static const char where[] = "geometry-aware blur (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -11056,7 +11048,7 @@ static gim_result gim__gather_pattern(const gim_env *env, uint32_t n, float **ou
     return gim_hammersley_points(*out, n, 2u, NULL);
 }
 
-/* RSM gather of every light into the indirect texture (twin: gim_rsm_gather per light, summed). */
+/* RSM gather of every light into the indirect texture (twin: gim_rsm_gather_twin per light, summed). */
 static gim_result gim__gl_rsm_gather(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
                                      float scale, gim__GLenum format) {
     static const char where[] = "RSM gather (GL)";
@@ -11311,7 +11303,7 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
-/* Second-bounce VPLs on the GPU, the twin of gim_second_bounce_vpls on the maps of the last
+/* Second-bounce VPLs on the GPU, the twin of gim_second_bounce_vpls_twin on the maps of the last
    gim__gl_paraboloids (made with attributes, map_count <= its count, the same size): VPL
    first + i of vpls_out (gim_vpl, 48 bytes) for i < vpl_count, map m's share in map order.
    The texels are the twin's own (gim__second_bounce_texel), computed on the CPU and kept in
@@ -11575,7 +11567,7 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
 
 /* The k-means seeds (mode 1), the repair of empty clusters (mode 2: one dispatch per cluster,
    each a single invocation that does nothing unless its cluster is empty) or the clusters' VALs
-   and paraboloid parameters (mode 0, the twin of gim_cluster_paraboloids): clusters.comp on
+   and paraboloid parameters (mode 0, the twin of gim_cluster_paraboloids_twin): clusters.comp on
    ctx->vpl's buffers. */
 static gim_result gim__gl_clusters(gim_context *ctx, uint32_t vpl_count, uint32_t cluster_count, float scale, uint32_t mode) {
     static const char where[] = "clusters (GL)";

@@ -1,4 +1,4 @@
-/* Caches of a deforming mesh follow its triangles (twin: gim_caches_follow). Each cache was
+/* Caches of a deforming mesh follow its triangles (twin: gim_caches_follow_twin). Each cache was
    bound once (gim_cache_bind) to a triangle: its foot point in barycentrics, its height along
    the face normal, its normal in the triangle's frame. Here the deformed vertices, read where
    the mesh's positions live (gimany's copy, or the host's buffer with its offset and stride),

@@ -1,4 +1,4 @@
-/* The clusters' VALs and paraboloid maps, the twin of gim_cluster_paraboloids: one invocation
+/* The clusters' VALs and paraboloid maps, the twin of gim_cluster_paraboloids_twin: one invocation
    per cluster looping over the VPLs in index order (<= 32768: under llvmpipe's 65535
    iterations), sums in double. Per cluster: the summed flux, the flux-weighted (plain when the
    cluster has no flux) covariance C of its VPLs projected on the plane of its normal, the VAL
@@ -99,6 +99,6 @@ void main() {
     float near_distance = max(0.5 * size, lift);
     map[m].origin_near = vec4(centre[m].position.xyz + lift * n, near_distance);
     map[m].normal_size = vec4(n, size);
-    /* w: attribute_near, the second bounce's own skip (gim_cluster_paraboloids) */
+    /* w: attribute_near, the second bounce's own skip (gim_cluster_paraboloids_twin) */
     map[m].flux = vec4(vec3(min(f, dvec3(3.4028234663852886e38LF))), min(1e-2 * scene_scale, near_distance));
 }

@@ -1,4 +1,4 @@
-/* Geometry-aware blur (Dong sec. 6 after Laine et al.), the GPU twin of gim_geometry_blur: each
+/* Geometry-aware blur (Dong sec. 6 after Laine et al.), the GPU twin of gim_geometry_blur_twin: each
    pixel with a surface becomes the mean of the pixels with a surface in its k x k window
    [x - k/2, x - k/2 + k - 1]^2 (clipped to the image) that lie within position_tolerance of it
    and whose normal has n . n_x >= normal_cos (the pixel itself always counts), and that are,
@@ -93,7 +93,7 @@ void main() {
     precise vec3 o;
     for (int c = 0; c < 3; ++c) {
         precise float m = cnt[c] > 0.0 ? sum[c] / cnt[c] : 0.0;
-        o[c] = gx ? m : (ax[c] > 0.0 ? ax[c] * m : 0.0);   /* no albedo: no light (gim_geometry_blur) */
+        o[c] = gx ? m : (ax[c] > 0.0 ? ax[c] * m : 0.0);   /* no albedo: no light (gim_geometry_blur_twin) */
     }
     imageStore(blurred, px, vec4(clamp(o, vec3(-max_value), vec3(max_value)), 1.0));
 }

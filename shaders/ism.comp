@@ -1,9 +1,9 @@
-/* Imperfect shadow maps (Ritschel et al. 2008), the GPU twin of gim_ism_render: one work group
+/* Imperfect shadow maps (Ritschel et al. 2008), the GPU twin of gim_ism_render_twin: one work group
    per map (a cache's, or a VPL's), the map and its pull-push pyramid in shared memory. Each invocation splats
    the points k = local, local + GROUP, ... of the map's subset (offset + k stride) as surfels
    (atomicMin on the distance's bits: a positive float orders as its bits), then the pyramid
    is pulled (farthest non-empty child) and pushed (holes take the parent), level by level.
-   The float arithmetic is the twin's, in its order (see gim_ism_render in gimany.h). Each
+   The float arithmetic is the twin's, in its order (see gim_ism_render_twin in gimany.h). Each
    texel is stored in 16 bits, the upper half of its float's bits rounded to nearest
    (gim_ism_quantize), two to a uint: texel 2k in the low half, 2k + 1 in the high. */
 #include "common.glsl"

@@ -1,6 +1,6 @@
 /* The imperfect shadow map lookup (Ritschel et al. 2008) of point x, normal nl, in map m of
    centre c and normal nv: 1 where the map sees x, 0 where it is hidden (gim__ism_visible, the
-   lookup of gim_ism_visibility: its float steps in its order, `precise` so that the compiler
+   lookup of gim_ism_visibility_twin: its float steps in its order, `precise` so that the compiler
    fuses none of them into a multiply-add). tools/embed_shaders.c puts this file in place of
    a shader's line `#include "ism_lookup.glsl"`, which must come after common.glsl's and after
    the shader's declarations of the maps, `uint ism[]` (ism_pack's format), and the uniforms

@@ -1,6 +1,6 @@
 /* LightSkin interpolation and shading per pixel (Bischoff 2017 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
-   gim_lightskin_shade: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
+   gim_lightskin_shade_twin: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
    1. finds its n nearest caches whose normal is within the compatibility angle, within
       `radius`, ties by cache index, as the twin. The tile searches together: the work group
       gathers once into shared memory every cache that any of its pixels could take (within
@@ -14,7 +14,7 @@
       around the pixel's cell, nearest first, until the n-th found is nearer than any
       unvisited cell;
    2. interpolates the diffuse (and glossy) proxy lights of those caches and shades the pixel
-      with them, with the formulas, weights and guards of gim_lightskin_shade (read there).
+      with them, with the formulas, weights and guards of gim_lightskin_shade_twin (read there).
    Sums in float (double in the twin). Writes rgb radiance, a = 1 where a surface is. */
 #include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;

@@ -1,7 +1,7 @@
-/* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights:
+/* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights_twin:
    one invocation per cache looping over every VAL in a fixed order, the VAL list passed
    through shared memory in tiles of TILE (one VAL loaded per invocation). The formulas,
-   guards and clamps are the twin's (see gim_proxy_lights in gimany.h); the sums are in float
+   guards and clamps are the twin's (see gim_proxy_lights_twin in gimany.h); the sums are in float
    here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
 #include "common.glsl"
@@ -37,7 +37,7 @@ layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 star
    length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
 layout(std430, binding = 4) buffer State { vec4 state[]; };
 
-/* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility's lookup,
+/* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility_twin's lookup,
    its float arithmetic in its order); ism_size 0: every VAL seen. Texels in 16 bits, two to a
    uint (ism.comp): texel 2k in the low half; a texel's float is its bits shifted up. */
 layout(std430, binding = 7) readonly buffer IsmMaps { uint ism[]; };

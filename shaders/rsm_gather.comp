@@ -1,6 +1,6 @@
 /* RSM gather (Dachsbacher and Stamminger 2005), the baseline method, the GPU twin of
-   gim_rsm_gather: one invocation per G-buffer pixel gathers the fixed sample pattern of RSM
-   texels around its projection into one light's RSM (see gim_rsm_gather for the weights).
+   gim_rsm_gather_twin: one invocation per G-buffer pixel gathers the fixed sample pattern of RSM
+   texels around its projection into one light's RSM (see gim_rsm_gather_twin for the weights).
    One dispatch per light: the first starts the sum, the others add to it (an SSBO of one vec4
    a pixel), the last writes the indirect texture. Sums in float (double in the twin). */
 #include "common.glsl"
@@ -56,7 +56,7 @@ void main() {
         ivec2 rsize = textureSize(rsm_position, 0);
         vec3 sd = vec3(0.0), sg = vec3(0.0);
         {
-            /* off the map: its nearest point; behind the light's eye: its centre (gim_rsm_gather) */
+            /* off the map: its nearest point; behind the light's eye: its centre (gim_rsm_gather_twin) */
             vec2 p = clip.w > 0.0 ? clamp((clip.xy / clip.w * 0.5 + 0.5) * vec2(rsize), vec2(0.0), vec2(rsize))
                                   : 0.5 * vec2(rsize);
             for (uint j = 0u; j < sample_count; ++j) {

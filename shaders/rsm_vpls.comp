@@ -1,4 +1,4 @@
-/* VPLs from an RSM (Dong et al. sec. 4), the GPU twin of gim_rsm_vpls: VPL i on the texel
+/* VPLs from an RSM (Dong et al. sec. 4), the GPU twin of gim_rsm_vpls_twin: VPL i on the texel
    texel[i] (the Halton texels, computed on the CPU by the twin's own function), with its
    position and normal and the texel's flux times T / S per channel: T the RSM's total over
    the lit texels, S the sum over the VPLs' texels. Four modes, one dispatch each (the sums

@@ -1,4 +1,4 @@
-/* Second-bounce VPLs (SSVP sec. 3.C), the GPU twin of gim_second_bounce_vpls: VPL i is map
+/* Second-bounce VPLs (SSVP sec. 3.C), the GPU twin of gim_second_bounce_vpls_twin: VPL i is map
    sample[i].x's texel (sample[i].y, sample[i].z), one of its S_m = sample[i].w samples (the
    texels are computed on the CPU by the twin's own function). A hit (position.w > 0, data
    finite, albedo >= 0, centre inside the unit disk) carries
@@ -22,7 +22,7 @@ layout(location = 1) uniform uint first;   /* index of the first VPL written */
 layout(location = 2) uniform uint size;
 
 /* ism_size > 0: each hit is looked up in its cluster's imperfect shadow map (Ritschel et al.
-   2008; gim_ism_visibility's lookup, the hit as the VAL, in its float steps) and dropped where
+   2008; gim_ism_visibility_twin's lookup, the hit as the VAL, in its float steps) and dropped where
    the map does not see it: the paraboloid map skips what lies within near_distance of its
    origin (gim_second_bounce_desc.ism) */
 layout(std430, binding = 3) readonly buffer IsmMaps { uint ism[]; };   /* 16-bit depths, two to a uint (gim_ism_dequantize) */

@@ -1,5 +1,5 @@
 /* The VAL list of one light (Bischoff 2017 sec. 3: every RSM texel is a virtual area light; sec. 4
-   eq. 13-15: a selected one weighs 1 / (N P)), the GPU twin of gim_vals_gather. One invocation
+   eq. 13-15: a selected one weighs 1 / (N P)), the GPU twin of gim_vals_gather_twin. One invocation
    per VAL i < count, written to val[first + i]:
      brsm == 0 (FULL): texel (i % size, i / size), row-major, row 0 first, weight 1;
      brsm == 1 (BRSM): texel selected[i], weight 1 / (count * pdf), in double like the twin.

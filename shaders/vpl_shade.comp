@@ -1,8 +1,8 @@
 /* VPL shading per pixel (Dong sec. 6, SSVP eq. 6; units in gimany.h "twins of the VPL
-   methods"), the GPU twin of gim_vpl_shade: one invocation per G-buffer pixel sums the VPLs
+   methods"), the GPU twin of gim_vpl_shade_twin: one invocation per G-buffer pixel sums the VPLs
    of its interleaved subset (members j = s, s + k^2, ...; s = x mod k + k (y mod k); member j
    is VPL scramble(j), a bijection that spreads each subset over the list) in member order,
-   each with its cluster's soft visibility from the paraboloid maps (gim_paraboloid_visibility,
+   each with its cluster's soft visibility from the paraboloid maps (gim_paraboloid_visibility_twin,
    the same float steps; `precise` keeps the compiler from fusing them into multiply-adds),
    clamped at d_c (Krivanek), diffuse + Phong lobe. The subset is split into dispatches of
    [first, last) of its members (llvmpipe stops an invocation's loops after 65535 iterations in
@@ -45,8 +45,8 @@ layout(location = 12) uniform float max_value;  /* largest value of the output f
 layout(location = 13) uniform uint map_count;   /* a cluster index beyond it is unshadowed */
 
 /* flags & 16: each VPL's own imperfect shadow map (Ritschel et al. 2008) instead of its
-   cluster's, map i of VPL i, hard visibility: gim_ism_visibility's lookup with the receiver as
-   the VAL, its float steps in its order (the twin: gim_vpl_shade's ism) */
+   cluster's, map i of VPL i, hard visibility: gim_ism_visibility_twin's lookup with the receiver as
+   the VAL, its float steps in its order (the twin: gim_vpl_shade_twin's ism) */
 layout(std430, binding = 5) readonly buffer IsmMaps { uint ism[]; };   /* 16-bit depths, two to a uint (gim_ism_dequantize) */
 layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;

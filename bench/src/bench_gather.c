@@ -1,4 +1,4 @@
-/* The VAL gather (Bischoff 2017 sec. 3-4): GPU pass against its CPU twin gim_vals_gather, FULL
+/* The VAL gather (Bischoff 2017 sec. 3-4): GPU pass against its CPU twin gim_vals_gather_twin, FULL
    (every texel of a 512^2 and a 1024^2 RSM) and BRSM (2048 and 65536 selected). Medians of
    wall time around glFinish; on llvmpipe only the ratios within one run mean anything. */
 #include "benchutil.h"
@@ -77,7 +77,7 @@ int main(void) {
         gpu_full = median(t, RUNS);
         for (r = 0; r < RUNS; ++r) {
             double t0 = now_ms();
-            gim_vals_gather(&d, NULL, 0, cpu, desc.env);
+            gim_vals_gather_twin(&d, NULL, 0, cpu, desc.env);
             t[r] = now_ms() - t0;
         }
         cpu_full = median(t, RUNS);
@@ -94,7 +94,7 @@ int main(void) {
             gpu_sel = median(t, RUNS);
             for (r = 0; r < RUNS; ++r) {
                 double t0 = now_ms();
-                gim_vals_gather(&d, sel, selected[k], cpu, desc.env);
+                gim_vals_gather_twin(&d, sel, selected[k], cpu, desc.env);
                 t[r] = now_ms() - t0;
             }
             cpu_sel = median(t, RUNS);

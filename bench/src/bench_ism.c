@@ -1,6 +1,6 @@
 /* Imperfect shadow maps against exact visibility, CPU twins only (no GL): the LightSkin frame
-   (gim_lightskin_cpu, FULL: every RSM texel a VAL) with no visibility, with the ISM
-   (gim_ism_render + gim_ism_visibility) and with exact per-VAL visibility (every cache-VAL
+   (gim_lightskin_frame_twin, FULL: every RSM texel a VAL) with no visibility, with the ISM
+   (gim_ism_render_twin + gim_ism_visibility_twin) and with exact per-VAL visibility (every cache-VAL
    segment ray-cast against every triangle), on
      closed  a sealed box with 0.3-thick walls, floor and roof on a sunlit ground, camera
              inside: the exact indirect light inside is 0; reported as the mean inside over
@@ -221,7 +221,7 @@ static int make_frame(const scene *s, const soup *sp, frame *f) {
     rsm.width = rsm.height = RSM;
     f->val_count = RSM * RSM;
     f->vals = (gim_val *)malloc(f->val_count * sizeof(gim_val));
-    if (gim_vals_gather(&rsm, NULL, 0, f->vals, f->caches.env) != GIM_OK) return 1;
+    if (gim_vals_gather_twin(&rsm, NULL, 0, f->vals, f->caches.env) != GIM_OK) return 1;
     free(rp); free(rn); free(rf); free(ra); free(rv);
     /* receivers: the camera's G-buffer */
     scene_camera_matrices(&s->camera, 0.01f * s->scale, 4.0f * s->scale, view, proj);
@@ -272,7 +272,7 @@ static int shade(const frame *f, const float *vis, float *out) {
     d.d_cmax = f->dcmax;
     d.scene_scale = f->scale;
     d.visibility = vis;
-    return gim_lightskin_cpu(&d, out) != GIM_OK;
+    return gim_lightskin_frame_twin(&d, out) != GIM_OK;
 }
 
 static double rel_mae(const float *a, const float *b, size_t n) {
@@ -318,10 +318,10 @@ static int run(const char *name, const scene *s, uint32_t size, uint32_t per_map
     id.bias = getenv("ISM_BIAS") ? (float)atof(getenv("ISM_BIAS")) : 0.0f;
     id.slope = getenv("ISM_SLOPE") ? (float)atof(getenv("ISM_SLOPE")) : 0.0f;
     t0 = now_s();
-    if (gim_ism_render(&id, maps) != GIM_OK) return 1;
+    if (gim_ism_render_twin(&id, maps) != GIM_OK) return 1;
     t_maps = now_s() - t0;
     t0 = now_s();
-    if (gim_ism_visibility(&id, maps, f.vals, f.val_count, vis_i) != GIM_OK) return 1;
+    if (gim_ism_visibility_twin(&id, maps, f.vals, f.val_count, vis_i) != GIM_OK) return 1;
     t_look = now_s() - t0;
     /* exact: the segment from the map's origin to the VAL lifted 1e-4 scales off its surface */
     t0 = now_s();

@@ -56,12 +56,12 @@ static void time_pair(gim_proxy_desc *d, const gim_val *full, uint32_t nfull, co
         double c0, w0;
         d->vals = full; d->val_count = nfull;
         c0 = cpu_s(); w0 = now_s();
-        if (gim_proxy_lights(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights failed\n"); exit(1); }
+        if (gim_proxy_lights_twin(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights_twin failed\n"); exit(1); }
         tf[r] = cpu_s() - c0; wf[r] = now_s() - w0;
         d->vals = sel; d->val_count = nsel;
         for (b = 0; b < BRSM_PER_FULL; ++b) {
             c0 = cpu_s(); w0 = now_s();
-            if (gim_proxy_lights(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights failed\n"); exit(1); }
+            if (gim_proxy_lights_twin(d, pd, pg) != GIM_OK) { fprintf(stderr, "gim_proxy_lights_twin failed\n"); exit(1); }
             tb[r * BRSM_PER_FULL + b] = cpu_s() - c0; wb[r * BRSM_PER_FULL + b] = now_s() - w0;
         }
     }
@@ -126,7 +126,7 @@ int main(void) {
         rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.width = RSM; rsm.height = RSM;
         if (gim_importance_map(&id, map) != GIM_OK || gim_importance_cumsum(map, RSM, RSM, col, row, env) != GIM_OK ||
             gim_importance_select(col, row, RSM, RSM, NSEL, 1, pick, env) != GIM_OK ||
-            gim_vals_gather(&rsm, pick, NSEL, sel, env) != GIM_OK) return 1;
+            gim_vals_gather_twin(&rsm, pick, NSEL, sel, env) != GIM_OK) return 1;
         free(pos); free(nrm); free(flux); free(area); free(map); free(col); free(row); free(pick);
     }
     memset(&d, 0, sizeof d);
@@ -155,7 +155,7 @@ int main(void) {
     sd.neighbour_index = idx; sd.neighbour_stride = NB; sd.d_cmax = dcm; sd.scene_scale = 150;
     for (r = 0; r < 7; ++r) {
         double t0 = cpu_s();
-        if (gim_lightskin_shade(&sd, L) != GIM_OK) return 1;
+        if (gim_lightskin_shade_twin(&sd, L) != GIM_OK) return 1;
         t[r] = cpu_s() - t0;
     }
     ts = median(t, 7) * 1e3;

@@ -1,8 +1,8 @@
 /* VPL shading twins (clustered visibility, Dong et al. sec. 6), medians of thread CPU time,
-   one thread: gim_vpl_shade on 128^2 receivers in a unit box (floor and left wall) from 1024
+   one thread: gim_vpl_shade_twin on 128^2 receivers in a unit box (floor and left wall) from 1024
    VPLs on the box's other walls in 32 clusters with 128^2 paraboloid maps (synthetic plates),
    every VPL per pixel (k = 1) against interleaved sampling (k = 4: 64 per pixel), with and
-   without visibility; gim_geometry_blur with a 4 x 4 window. And what clamping costs in
+   without visibility; gim_geometry_blur_twin with a 4 x 4 window. And what clamping costs in
    energy (Krivanek): the share of the unclamped light that d_c = 1 %, 5 %, 10 % of the scene
    diagonal removes from the same receivers. */
 #include "benchutil.h"
@@ -34,7 +34,7 @@ static double time_shade(gim_vpl_shade_desc *d, float *out) {
     int r;
     for (r = 0; r < REPS; ++r) {
         double c0 = cpu_s();
-        if (gim_vpl_shade(d, out) != GIM_OK) { fprintf(stderr, "gim_vpl_shade failed\n"); exit(1); }
+        if (gim_vpl_shade_twin(d, out) != GIM_OK) { fprintf(stderr, "gim_vpl_shade_twin failed\n"); exit(1); }
         t[r] = (cpu_s() - c0) * 1e3;
     }
     return median(t, REPS);
@@ -103,27 +103,27 @@ int main(void) {
     ms_k4_vis = time_shade(&d, out);
     d.interleave = 1;
     ms_k1_vis = time_shade(&d, out);
-    printf("gim_vpl_shade %dx%d, %d VPLs: k=1 %.1f ms, k=4 %.1f ms (%.1fx); with visibility (%d maps %d^2): k=1 %.1f ms, "
+    printf("gim_vpl_shade_twin %dx%d, %d VPLs: k=1 %.1f ms, k=4 %.1f ms (%.1fx); with visibility (%d maps %d^2): k=1 %.1f ms, "
            "k=4 %.1f ms (%.1fx) (medians of %d, thread CPU)\n", W, H, N, ms_k1, ms_k4, ms_k1 / ms_k4, M, S, ms_k1_vis, ms_k4_vis,
            ms_k1_vis / ms_k4_vis, REPS);
     memset(&b, 0, sizeof b);
     b.radiance = out; b.receivers = rec; b.width = W; b.height = H; b.window = 4; b.position_tolerance = 0.1f * diag;
     for (r = 0; r < REPS; ++r) {
         double c0 = cpu_s();
-        if (gim_geometry_blur(&b, ref) != GIM_OK) { fprintf(stderr, "gim_geometry_blur failed\n"); return 1; }
+        if (gim_geometry_blur_twin(&b, ref) != GIM_OK) { fprintf(stderr, "gim_geometry_blur_twin failed\n"); return 1; }
         tb[r] = (cpu_s() - c0) * 1e3;
     }
-    printf("gim_geometry_blur %dx%d, window 4: %.2f ms (median of %d)\n", W, H, median(tb, REPS), REPS);
+    printf("gim_geometry_blur_twin %dx%d, window 4: %.2f ms (median of %d)\n", W, H, median(tb, REPS), REPS);
     /* clamping's energy: no visibility, every VPL */
     d.cluster = NULL;
     d.clamp_distance = 0.0f;
-    if (gim_vpl_shade(&d, ref) != GIM_OK) return 1;
+    if (gim_vpl_shade_twin(&d, ref) != GIM_OK) return 1;
     {
         static const float frac[3] = {0.01f, 0.05f, 0.1f};
         double all = total(ref, (size_t)W * H * 3);
         for (i = 0; i < 3; ++i) {
             d.clamp_distance = frac[i] * diag;
-            if (gim_vpl_shade(&d, out) != GIM_OK) return 1;
+            if (gim_vpl_shade_twin(&d, out) != GIM_OK) return 1;
             printf("clamping at d_c = %.0f %% of the diagonal removes %.2f %% of the indirect light\n", 100.0 * frac[i],
                    100.0 * (1.0 - total(out, (size_t)W * H * 3) / all));
         }

@@ -2,7 +2,7 @@
    denormal) or small integer grids (duplicates, degenerates, thin walls), 16/32-bit indices,
    out-of-range indices and materials, strides, normals. On success the caches must be sane,
    partition the surface, come out the same twice, and bind to the mesh and follow it at rest
-   (gim_cache_bind, gim_caches_follow) to finite caches or a clear refusal; nothing may leak. */
+   (gim_cache_bind, gim_caches_follow_twin) to finite caches or a clear refusal; nothing may leak. */
 #define GIMANY_IMPLEMENTATION
 #ifndef GIMANY_NO_GL
 #define GIMANY_NO_GL
@@ -135,7 +135,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
                     FZ_CHECK(bd[i].u >= 0.0f && bd[i].v >= 0.0f && bd[i].u + bd[i].v <= 1.0f + 1e-6f);
                     FZ_CHECK(gim__isfinitef(bd[i].h) && gim__all_finite(bd[i].frame, 3) && bd[i].area2 >= 0.0f);
                 }
-                r = gim_caches_follow(s.caches, bd, s.count, tight, nv, fl, d.env);
+                r = gim_caches_follow_twin(s.caches, bd, s.count, tight, nv, fl, d.env);
                 FZ_CHECK(r == GIM_OK || r == GIM_ERROR_INVALID_ARGUMENT);   /* float overflow of huge vertices */
                 for (i = 0; r == GIM_OK && i < s.count; ++i) {
                     const gim_cache *c = &fl[i];

@@ -98,7 +98,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     scale = take_pos(&r, raw);
     d.scene_scale = (mode & 16u) ? scale : 0.0f;
     d.env = env;
-    res = gim_lightskin_cpu(&d, L);
+    res = gim_lightskin_frame_twin(&d, L);
     if ((unsigned)res >= (unsigned)GIM_RESULT_COUNT) abort();
     if (res == GIM_OK)
         for (i = 0; i < nr * 3; ++i) if (!gim__isfinitef(L[i]) || !(L[i] >= 0.0f)) abort();
@@ -106,7 +106,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     memset(&pdsc, 0, sizeof pdsc);
     pdsc.caches = c; pdsc.cache_count = nc; pdsc.vals = nv ? v : NULL; pdsc.val_count = nv;
     pdsc.eye = d.eye; pdsc.glossy_exponent = d.glossy_exponent; pdsc.scene_scale = d.scene_scale; pdsc.env = env;
-    res = gim_proxy_lights(&pdsc, pd, pg);
+    res = gim_proxy_lights_twin(&pdsc, pd, pg);
     if (res == GIM_OK) { check_lights(pd, nc); check_lights(pg, nc); }
     return 0;
 }

@@ -1,5 +1,5 @@
-/* libFuzzer: hostile and extreme input through the VPL shading twins (gim_paraboloid_visibility,
-   gim_vpl_shade, gim_geometry_blur). Values are read as floats; unless the mode says raw they
+/* libFuzzer: hostile and extreme input through the VPL shading twins (gim_paraboloid_visibility_twin,
+   gim_vpl_shade_twin, gim_geometry_blur_twin). Values are read as floats; unless the mode says raw they
    are made valid (finite, unit normals, non-negative colours), so the fuzzer reaches the maths
    with extreme magnitudes; the distance maps stay raw (NaN, negative, Inf texels included).
    Whatever the bytes, a call returns a code; on GIM_OK every visibility is in [0, 1] and every
@@ -84,10 +84,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         for (m = 0; m < nm; ++m) {
             float vis = -1.0f;
             gim_vec3 nrm = gim_v3(rc[i].normal[0], rc[i].normal[1], rc[i].normal[2]);
-            res = gim_paraboloid_visibility(dist + (size_t)m * ms * ms, ms, &maps[m],
+            res = gim_paraboloid_visibility_twin(dist + (size_t)m * ms * ms, ms, &maps[m],
                                             gim_v3(rc[i].position[0], rc[i].position[1], rc[i].position[2]), NULL, &vis);
             if (res == GIM_OK && !(vis >= 0.0f && vis <= 1.0f)) abort();
-            res = gim_paraboloid_visibility(dist + (size_t)m * ms * ms, ms, &maps[m],
+            res = gim_paraboloid_visibility_twin(dist + (size_t)m * ms * ms, ms, &maps[m],
                                             gim_v3(rc[i].position[0], rc[i].position[1], rc[i].position[2]), &nrm, &vis);
             if (res == GIM_OK && !(vis >= 0.0f && vis <= 1.0f)) abort();
         }
@@ -100,7 +100,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     d.clamp_distance = take_pos(&r, raw);
     d.scene_scale = take_pos(&r, raw);
     if (!raw && !(d.scene_scale > 0.0f)) d.scene_scale = 1.0f;
-    res = gim_vpl_shade(&d, out);
+    res = gim_vpl_shade_twin(&d, out);
     if (res != GIM_OK) return 0;
     for (i = 0; i < w * h * 3; ++i)
         if (!(out[i] == out[i] && out[i] - out[i] == 0.0f) || (!raw && !(out[i] >= 0.0f))) abort();
@@ -110,7 +110,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     b.position_tolerance = take_pos(&r, raw);
     b.normal_tolerance = raw ? take_f(&r, 1) : 0.0f;
     if (!raw && !(b.position_tolerance > 0.0f)) b.position_tolerance = 1.0f;
-    res = gim_geometry_blur(&b, blurred);
+    res = gim_geometry_blur_twin(&b, blurred);
     if (res != GIM_OK) return 0;
     for (i = 0; i < w * h * 3; ++i)
         if (!(blurred[i] == blurred[i] && blurred[i] - blurred[i] == 0.0f) || !(blurred[i] >= 0.0f)) abort();

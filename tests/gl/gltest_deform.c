@@ -1,7 +1,7 @@
 /* Deforming meshes (gim_mesh_desc.deforming): a plate over the open room, bound once
    and then bent or sheared, its vertices handed over by gim_update_mesh_vertices (gimany's copy)
    or written by the host into its own interleaved buffer (read by every gim_update on the GPU).
-   - twin: caches_follow.comp's caches equal gim_caches_follow's (twin tolerance, float rounding).
+   - twin: caches_follow.comp's caches equal gim_caches_follow_twin's (twin tolerance, float rounding).
    - affine: under an affine map A that is no rigid motion, the followed caches are A applied to
      the rest caches (gim_caches_to_world with A: position A p, normal A^-T n, area |det A||A^-T n|),
      and their areas sum to the sheared plate's closed-form area; the rest caches, i.e. the pass
@@ -250,7 +250,7 @@ static void twin(void **state) {
         read_followed(&h, gpu);
         d = plate_data(h.rest);
         assert_int_equal(gim_cache_bind(&d, h.plate_set.caches, h.plate_set.count, bind, h.f.env), GIM_OK);
-        assert_int_equal(gim_caches_follow(h.plate_set.caches, bind, h.plate_set.count, bent, NV, cpu, h.f.env), GIM_OK);
+        assert_int_equal(gim_caches_follow_twin(h.plate_set.caches, bind, h.plate_set.count, bent, NV, cpu, h.f.env), GIM_OK);
         cache_diff(gpu, cpu, h.plate_set.count, &dp, &dn, &da);
         print_message("path %d: %u caches, GPU vs twin: position %.2e, normal %.2e, area %.2e (relative)\n", path,
                       (unsigned)h.plate_set.count, dp, dn, da);
@@ -372,7 +372,7 @@ static void same_as_static(void (*deform)(const float *, float *), gim_visibilit
     bind = (gim_cache_binding *)malloc(h.plate_set.count * sizeof(gim_cache_binding));
     d = plate_data(h.rest);
     assert_int_equal(gim_cache_bind(&d, h.plate_set.caches, h.plate_set.count, bind, h.f.env), GIM_OK);
-    assert_int_equal(gim_caches_follow(h.plate_set.caches, bind, h.plate_set.count, p, NV, moved.caches, h.f.env), GIM_OK);
+    assert_int_equal(gim_caches_follow_twin(h.plate_set.caches, bind, h.plate_set.count, p, NV, moved.caches, h.f.env), GIM_OK);
     teardown(&h);
     image(0, p, &moved, vis, stat);
     image(1, p, NULL, vis, def);

@@ -714,7 +714,7 @@ static void val_on_cache(void **state) {
     memset(&pd, 0, sizeof pd);
     pd.caches = c; pd.cache_count = NC; pd.vals = v; pd.val_count = NV;
     pd.eye = gim_v3(0.0f, 2.0f, 3.0f); pd.glossy_exponent = 20.0f; pd.scene_scale = s; pd.env = f.env;
-    assert_int_equal(gim_proxy_lights(&pd, cd, cg), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&pd, cd, cg), GIM_OK);
     bc = gltest_ssbo(sizeof c, c);
     bv = gltest_ssbo(sizeof v, v);
     bd = gltest_ssbo(sizeof gd, NULL);

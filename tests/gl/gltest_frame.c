@@ -1,5 +1,5 @@
 /* The whole LightSkin frame of gim_update on the Cornell box (Bischoff 2017 end to end): the GPU
-   frame against the CPU frame (gim_lightskin_cpu on the frame's own VALs, caches and pixels),
+   frame against the CPU frame (gim_lightskin_frame_twin on the frame's own VALs, caches and pixels),
    colour bleeding, BRSM converging to FULL as N_sVAL grows, glossy only when a
    material is glossy, what FULL frees, stats, no NaN, zero GL errors. Runs on the measured
    Cornell box of ../shared/scenes when present and always on the built-in one. */
@@ -69,7 +69,7 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, doub
     ld.neighbour_index = nb_idx; ld.neighbour_count = nb_cnt; ld.neighbour_stride = n; ld.d_cmax = dcmax;
     ld.scene_scale = o.scene_scale;
     ld.env = ff->f.env;
-    assert_int_equal(gim_lightskin_cpu(&ld, cpu), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&ld, cpu), GIM_OK);
     bad = compare_pixels(gpu, cpu, map, nrec, tol, max_rel);
     free(pos_nrm); free(rec); free(caches); free(vals); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
     free(kc);
@@ -165,7 +165,7 @@ static void cornell_frame(const char *gltf) {
     free(full); free(brsm); free(nrm);
 }
 
-/* RSM gather (GIM_METHOD_RSM_GATHER) against its twin gim_rsm_gather on the frame's own RSM and
+/* RSM gather (GIM_METHOD_RSM_GATHER) against its twin gim_rsm_gather_twin on the frame's own RSM and
    pixels; a wider pattern gathers more of the RSM. */
 static void rsm_gather_matches_twin(void **state) {
     frame_fixture ff;
@@ -210,7 +210,7 @@ static void rsm_gather_matches_twin(void **state) {
     gd.rsm = &rsm; gd.light_view_proj = gim_mat4_mul(o.lights[0].proj, o.lights[0].view);
     gd.samples = pattern; gd.sample_count = 64; gd.radius = 0.15f * (float)n;
     gd.receivers = rec; gd.receiver_count = nrec; gd.scene_scale = o.scene_scale; gd.env = ff.f.env;
-    assert_int_equal(gim_rsm_gather(&gd, cpu), GIM_OK);
+    assert_int_equal(gim_rsm_gather_twin(&gd, cpu), GIM_OK);
     /* a sample whose texel index floor(p + offset) falls on the other side of a texel edge with
        the GPU's float unprojection than with the twin's double one reads a neighbouring texel:
        one sample of 64 differs there, which near a contact (a texel at a few texels' distance,

@@ -1,5 +1,5 @@
 /* The GPU VAL gather (Bischoff 2017 sec. 3: every RSM texel a VAL; sec. 4 eq. 13-15: 1 / (N P)
-   weights) against its CPU twin gim_vals_gather, element by element: FULL and BRSM, several
+   weights) against its CPU twin gim_vals_gather_twin, element by element: FULL and BRSM, several
    lights laid end to end with `first`, every invalid-texel rule, the selected entries the
    twin rejects, zero GL errors and the GL state restored around every pass.
 
@@ -223,7 +223,7 @@ static void gather_one(gltest_fixture *f, const rsm *r, const gim_selected_val *
     size_t n = sel ? count : (size_t)r->size * r->size, total = first + n + 5;
     gim_val *cpu = (gim_val *)calloc(n, sizeof *cpu), *gpu = (gim_val *)calloc(total, sizeof *gpu);
     GLuint out = sentinel_buffer(total), bsel = 0;
-    assert_int_equal(gim_vals_gather(&d, sel, count, cpu, f->env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, sel, count, cpu, f->env), GIM_OK);
     if (sel) bsel = gltest_ssbo(count * sizeof(gim_selected_val), sel);
     assert_int_equal(gim__gl_vals_gather(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, bsel, sel ? count : 0u, out,
                                          first),
@@ -293,7 +293,7 @@ static void validity_rules(void **state) {
     rsm_make(&r, 16, zero, 1.0f);
     rsm_upload(&r);
     d = rsm_data(&r);
-    assert_int_equal(gim_vals_gather(&d, NULL, 0, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, NULL, 0, cpu, f.env), GIM_OK);
     for (t = 0; t < T_SPECIAL_COUNT; ++t) {
         static const gim_val none = {{0, 0, 0}, 0, {0, 0, 0}, 0, {0, 0, 0}, 0};
         if (valid[t]) {
@@ -342,7 +342,7 @@ static void extreme_pdfs(void **state) {
     sel[6].pdf = 0.125f;                      /* weight exactly 1 */
     sel[7].pdf = 3.0f;
     d = rsm_data(&r);
-    assert_int_equal(gim_vals_gather(&d, sel, 8, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, sel, 8, cpu, f.env), GIM_OK);
     assert_true(cpu[0].weight == FLT_MAX);
     assert_true(cpu[1].weight < FLT_MAX && cpu[1].weight > 1e37f);
     assert_true(cpu[2].weight > 0.0f && cpu[2].weight < FLT_MIN);
@@ -393,12 +393,12 @@ static void bad_selections(void **state) {
         /* the twin refuses each alone */
         one = *s;
         f.log.errors = 0;
-        assert_int_equal(gim_vals_gather(&d, &one, 1, &dummy, f.env), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_vals_gather_twin(&d, &one, 1, &dummy, f.env), GIM_ERROR_INVALID_ARGUMENT);
         assert_int_equal(f.log.errors, 1);
         ref[bad[i]].x = T_UNLIT; ref[bad[i]].y = 0; ref[bad[i]].pdf = 0.5f;
     }
     f.log.errors = 0;
-    assert_int_equal(gim_vals_gather(&d, ref, count, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, ref, count, cpu, f.env), GIM_OK);
     bsel = gltest_ssbo(count * sizeof *sel, sel);
     out = sentinel_buffer(count);
     assert_int_equal(gim__gl_vals_gather(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, bsel, count, out, 0), GIM_OK);
@@ -441,9 +441,9 @@ static void lights_end_to_end(void **state) {
     sa = random_selection(64, nc);
     cpu = (gim_val *)calloc(total, sizeof *cpu);
     gpu = (gim_val *)calloc(total, sizeof *gpu);
-    assert_int_equal(gim_vals_gather(&da, NULL, 0, cpu, f.env), GIM_OK);
-    assert_int_equal(gim_vals_gather(&db, sb, nb, cpu + na, f.env), GIM_OK);
-    assert_int_equal(gim_vals_gather(&da, sa, nc, cpu + na + nb, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&da, NULL, 0, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&db, sb, nb, cpu + na, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&da, sa, nc, cpu + na + nb, f.env), GIM_OK);
     out = sentinel_buffer(total);
     bsb = gltest_ssbo(nb * sizeof *sb, sb);
     bsa = gltest_ssbo(nc * sizeof *sa, sa);
@@ -547,9 +547,9 @@ static void runtime_rsm_and_selection(void **state) {
                                          o.lights[0].selected, VALS, out, N * N), GIM_OK);
     gltest_state_unchanged(&f);
     gltest_read_buffer(out, (N * N + VALS) * sizeof(gim_val), gpu);
-    assert_int_equal(gim_vals_gather(&d, NULL, 0, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, NULL, 0, cpu, f.env), GIM_OK);
     compare(cpu, gpu, N * N, &st);
-    assert_int_equal(gim_vals_gather(&d, sel, VALS, cpu, f.env), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&d, sel, VALS, cpu, f.env), GIM_OK);
     compare(cpu, gpu + N * N, VALS, &st);
     for (i = 0; i < VALS; ++i) assert_true(cpu[i].weight > 0.0f);   /* the selection picks lit texels only */
     print_message("runtime RSM %dx%d (%d lit) and %d selected: largest relative weight error %.3g\n", N, N, lit, VALS,
@@ -603,7 +603,7 @@ static void two_dispatch_rows(void **state) {
             sel[i].y = (h >> 4) & 15u;
             sel[i].pdf = (float)((h >> 8) + 1u) * (1.0f / 16777216.0f);
         }
-        assert_int_equal(gim_vals_gather(&d, sel, count, cpu, f.env), GIM_OK);
+        assert_int_equal(gim_vals_gather_twin(&d, sel, count, cpu, f.env), GIM_OK);
         bsel = gltest_ssbo(count * sizeof *sel, sel);
         out = gltest_ssbo(count * sizeof(gim_val), NULL);
         assert_int_equal(gim__gl_vals_gather(f.ctx, r.tex[0], r.tex[1], r.tex[2], 16, bsel, count, out, 0), GIM_OK);

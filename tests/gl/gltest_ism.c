@@ -1,6 +1,6 @@
-/* The GPU imperfect shadow maps (ism.comp, Ritschel et al. 2008) against gim_ism_render, and
-   the proxy-light pass with the maps' visibility per VAL against gim_proxy_lights with
-   gim_ism_visibility's matrix; bad settings refused before any GL work; GL state restored. */
+/* The GPU imperfect shadow maps (ism.comp, Ritschel et al. 2008) against gim_ism_render_twin, and
+   the proxy-light pass with the maps' visibility per VAL against gim_proxy_lights_twin with
+   gim_ism_visibility_twin's matrix; bad settings refused before any GL work; GL state restored. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 
@@ -86,7 +86,7 @@ static void maps_match(void **state) {
         memset(&d, 0, sizeof d);
         d.caches = s.caches; d.cache_count = NC; d.points = s.points; d.point_count = NP;
         d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
-        assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+        assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
         bm = gltest_ssbo(texels * 2, NULL);
         assert_int_equal(gim__gl_ism_render(f.ctx, bc, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
         gltest_state_unchanged(&f);
@@ -110,7 +110,7 @@ static void maps_match(void **state) {
 }
 
 /* One map per VPL (the VPL methods' visibility): ism.comp reads its origins from a gim_vpl
-   buffer (3 vec4 apart) as from the caches; the maps are gim_ism_render's on the VPLs taken
+   buffer (3 vec4 apart) as from the caches; the maps are gim_ism_render_twin's on the VPLs taken
    as caches. */
 static void maps_of_vpls_match(void **state) {
     gltest_fixture f;
@@ -138,7 +138,7 @@ static void maps_of_vpls_match(void **state) {
     memset(&d, 0, sizeof d);
     d.caches = s.caches; d.cache_count = NC; d.points = s.points; d.point_count = NP;
     d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
-    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
     /* a buffer too small for NC VPLs of 48 bytes is refused */
@@ -157,7 +157,7 @@ static void maps_of_vpls_match(void **state) {
     GLTEST_END();
 }
 
-/* Proxy lights with the maps' visibility: the GPU pass against gim_proxy_lights with the twin's
+/* Proxy lights with the maps' visibility: the GPU pass against gim_proxy_lights_twin with the twin's
    lookups of the same (GPU) maps; flux within 2e-4 of the largest, positions within 1e-4 of the
    scene, for all but 1 cache of 40 (a lookup on a texel border); and the plate must shadow:
    caches whose light changes by over 10% against no visibility. */
@@ -186,12 +186,12 @@ static void proxy_with_ism(void **state) {
     read_maps(bm, (size_t)NC * n * n, maps);
     memset(&d, 0, sizeof d);
     d.caches = s.caches; d.cache_count = NC; d.size = n; d.scene_scale = 6.0f; d.env = f.env;
-    assert_int_equal(gim_ism_visibility(&d, maps, s.vals, NV, vis), GIM_OK);
+    assert_int_equal(gim_ism_visibility_twin(&d, maps, s.vals, NV, vis), GIM_OK);
     memset(&pd, 0, sizeof pd);
     pd.caches = s.caches; pd.cache_count = NC; pd.vals = s.vals; pd.val_count = NV; pd.scene_scale = 6.0f; pd.env = f.env;
-    assert_int_equal(gim_proxy_lights(&pd, none, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&pd, none, NULL), GIM_OK);
     pd.visibility = vis;
-    assert_int_equal(gim_proxy_lights(&pd, cpu, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&pd, cpu, NULL), GIM_OK);
     memset(&gi, 0, sizeof gi);
     gi.maps = bm; gi.size = n;
     assert_int_equal(gim__gl_proxy_lights_ism(f.ctx, bc, NC, bv, NV, gim_v3(0, 0, 0), 0.0f, 0u, 6.0f, bd, 0, &gi), GIM_OK);

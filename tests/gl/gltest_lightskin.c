@@ -1,6 +1,6 @@
 /* The LightSkin shading pass (per pixel neighbours, interpolation eq. 8-9, shading) on a real
    G-buffer against its twin: gim_cache_neighbours on the unprojected pixels, truncated at the
-   pass's search radius, then gim_lightskin_shade. And gim_caches_to_world and the hash grid
+   pass's search radius, then gim_lightskin_shade_twin. And gim_caches_to_world and the hash grid
    the pass searches. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -245,7 +245,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     pdesc.vals = vals; pdesc.val_count = NV;
     pdesc.eye = eye; pdesc.glossy_exponent = 12.0f;
     pdesc.scene_scale = L * 1.7320508f;
-    assert_int_equal(gim_proxy_lights(&pdesc, pd, pg), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&pdesc, pd, pg), GIM_OK);
     b_caches = gltest_ssbo(set.count * 32u, sorted);
     b_cells = gltest_ssbo(set.count * 16u, cells);
     b_buckets = gltest_ssbo((g.bucket_count + 1u) * 4u, buckets);
@@ -345,7 +345,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
         sdesc.receivers = rec; sdesc.receiver_count = nrec;
         sdesc.neighbour_index = nb_idx; sdesc.neighbour_count = nb_cnt; sdesc.neighbour_stride = sc->n;
         sdesc.d_cmax = dcmax; sdesc.scene_scale = pdesc.scene_scale; sdesc.env = f.env;
-        assert_int_equal(gim_lightskin_shade(&sdesc, cpu), GIM_OK);
+        assert_int_equal(gim_lightskin_shade_twin(&sdesc, cpu), GIM_OK);
         for (i = 0; i < nrec * 3; ++i) if (cpu[i] > ref_max) ref_max = cpu[i];
         assert_true(ref_max > 0.0);
         /* per pixel and channel: relative to itself, floored at 1e-3 of the image's largest

@@ -7,7 +7,7 @@
    a panel of 512 small triangles with shared edges; a perturbed map shows the comparison
    fails (and a bound of each triangle from its projected vertices alone, tried in the
    geometry shader, loses ~15% of the hit texels here: the test catches it). Then the second-bounce VPLs (SSVP sec. 3.C) of
-   the GPU maps against gim_second_bounce_vpls on the same maps read back. Zero GL errors, the
+   the GPU maps against gim_second_bounce_vpls_twin on the same maps read back. Zero GL errors, the
    GL state restored, every allocation freed.
 
    Tolerances: hit/miss may differ only where a texel's ray grazes a triangle's edge (float
@@ -451,7 +451,7 @@ static void second_bounce_matches_twin(void **state) {
         memset(&d, 0, sizeof d);
         d.maps = s.maps; d.map_count = NMAPS; d.size = SIZE; d.position = pos; d.normal = nrm; d.albedo = alb;
         d.vpl_count = n; d.env = s.f.env;
-        assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_OK);
+        assert_int_equal(gim_second_bounce_vpls_twin(&d, cpu), GIM_OK);
         for (i = 0; i < total * 12; ++i)
             if (i < first * 12 || i >= (first + n) * 12) assert_true(((float *)gpu)[i] == -7.0f);
         for (i = 0; i < n; ++i) {
@@ -515,7 +515,7 @@ static void second_bounce_ism_matches_twin(void **state) {
     memset(&id, 0, sizeof id);
     id.caches = caches; id.cache_count = NMAPS; id.points = pts; id.point_count = NPT; id.size = IS;
     id.points_per_map = NPT / 4; id.scene_scale = 2.0f; id.env = s.f.env;
-    assert_int_equal(gim_ism_render(&id, ism), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&id, ism), GIM_OK);
     bism = gltest_ism_ssbo(ism, (size_t)NMAPS * IS * IS);
     out = gltest_ssbo(N * sizeof(gim_vpl), NULL);
     memset(&gi, 0, sizeof gi);
@@ -528,9 +528,9 @@ static void second_bounce_ism_matches_twin(void **state) {
     memset(&d, 0, sizeof d);
     d.maps = s.maps; d.map_count = NMAPS; d.size = SIZE; d.position = pos; d.normal = nrm; d.albedo = alb;
     d.vpl_count = N; d.env = s.f.env;
-    assert_int_equal(gim_second_bounce_vpls(&d, plain), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, plain), GIM_OK);
     d.ism = ism; d.ism_size = IS; d.ism_bias = GIM_ISM_VPL_BIAS; d.ism_slope = GIM_ISM_VPL_SLOPE; d.scene_scale = 2.0f;
-    assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, cpu), GIM_OK);
     for (i = 0; i < N; ++i) {
         if (memcmp(&gpu[i], &cpu[i], 8 * sizeof(float)) != 0 || gpu[i].lit != cpu[i].lit)
             fail_msg("VPL %u differs: lit %g/%g", i, (double)gpu[i].lit, (double)cpu[i].lit);
@@ -540,7 +540,7 @@ static void second_bounce_ism_matches_twin(void **state) {
     print_message("second bounce with the clusters' ISMs: %u lit VPLs of %u, %u without\n", lit, N, lit_plain);
     assert_true(lit < lit_plain && lit > lit_plain / 2);
     d.scene_scale = 0.0f;   /* refused: the maps' lift needs it */
-    assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, cpu), GIM_ERROR_INVALID_ARGUMENT);
     s.f.log.errors = 0;
     glDeleteBuffers(1, &ssbo); glDeleteBuffers(1, &out); glDeleteBuffers(1, &bism);
     free(gpu); free(cpu); free(plain); free(pts); free(ism); free(pos); free(nrm); free(alb);
@@ -602,7 +602,7 @@ static void landing(const twin_soup *soup, const gim_paraboloid *m, const gim_vp
 }
 
 /* The second bounce lands on the first surface its ray meets: a strip of floor VPLs
-   beside a low box (gim_cluster_paraboloids: Delta 1.008, near_distance 0.504, the box's face
+   beside a low box (gim_cluster_paraboloids_twin: Delta 1.008, near_distance 0.504, the box's face
    0.225 from the centre), S = 4096 second-bounce VPLs of its map, made by the GPU passes the
    SSVP frame runs (both kinds of map, two passes) and by the CPU twins at every texel. Checked
    against the test's own ray cast: the flux landing behind a nearer surface (seen: 0; before
@@ -663,7 +663,7 @@ static void second_bounce_lands_first(void **state) {
         centre[0] += vpls[i].position[0] / (NX * NZ);
         cl[i] = 0;
     }
-    assert_int_equal(gim_cluster_paraboloids(vpls, NX * NZ, cl, centre, up, 1, 4.0f, &map, f.env), GIM_OK);
+    assert_int_equal(gim_cluster_paraboloids_twin(vpls, NX * NZ, cl, centre, up, 1, 4.0f, &map, f.env), GIM_OK);
     print_message("the cluster: Delta %.3f, near_distance %.3f, attribute_near %.2g, the box's face %.3f away\n",
                   (double)map.size, (double)map.near_distance, (double)map.attribute_near, 0.1 - map.origin[0]);
     assert_true(map.near_distance > 0.45f && map.near_distance > 2.0f * (0.1f - map.origin[0]));
@@ -698,7 +698,7 @@ static void second_bounce_lands_first(void **state) {
         memset(&d, 0, sizeof d);
         d.maps = &m; d.map_count = 1; d.size = MS; d.position = pos; d.normal = nrm; d.albedo = alb;
         d.vpl_count = S; d.env = f.env;
-        assert_int_equal(gim_second_bounce_vpls(&d, cpu), GIM_OK);
+        assert_int_equal(gim_second_bounce_vpls_twin(&d, cpu), GIM_OK);
         landing(soup, &m, gpu, S, box_first, materials[3].diffuse, &behind, &on_box);
         landing(soup, &m, cpu, S, box_first, materials[3].diffuse, &behind_cpu, &on_box_cpu);
         print_message("%s: flux behind a nearer surface %.4f (twin %.4f); the box's share %.4f (twin %.4f), "

@@ -1,4 +1,4 @@
-/* The GPU proxy-light pass (Bischoff 2017 eq. 3-7, 13-15) against its CPU twin gim_proxy_lights,
+/* The GPU proxy-light pass (Bischoff 2017 eq. 3-7, 13-15) against its CPU twin gim_proxy_lights_twin,
    element by element on random small configurations, with zero GL errors and the GL state
    restored around every pass. */
 #define GIMANY_IMPLEMENTATION
@@ -168,7 +168,7 @@ static void run_both_k(gltest_fixture *f, const config *c, gim_vec3 eye, float k
     d.cache_glossy_exponent = kc;
     d.scene_scale = c->scale;
     d.env = f->env;
-    assert_int_equal(gim_proxy_lights(&d, cd, k >= 0.0f ? cg : NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, cd, k >= 0.0f ? cg : NULL), GIM_OK);
     bc = gltest_ssbo(n * sizeof(gim_cache), c->caches);
     bv = gltest_ssbo((size_t)c->val_count * sizeof(gim_val), c->vals);
     bd = gltest_ssbo(n * sizeof(gim_proxy_light), NULL);
@@ -373,7 +373,7 @@ static void crowded_near_field(void **state) {
         d.val_count = c.val_count;
         d.scene_scale = c.scale;
         d.env = f.env;
-        assert_int_equal(gim_proxy_lights(&d, twin, NULL), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, twin, NULL), GIM_OK);
         bc = gltest_ssbo(c.cache_count * sizeof(gim_cache), c.caches);
         bv = gltest_ssbo((size_t)c.val_count * sizeof(gim_val), c.vals);
         bd = gltest_ssbo(c.cache_count * sizeof(gim_proxy_light), NULL);
@@ -477,7 +477,7 @@ static void broken_vals_add_nothing(void **state) {
     memset(c.vals + 10, 0, 3 * sizeof(gim_val));
     memset(&d, 0, sizeof d);
     d.caches = c.caches; d.cache_count = 64; d.vals = c.vals; d.val_count = 128; d.scene_scale = c.scale; d.env = f.env;
-    assert_int_equal(gim_proxy_lights(&d, cpu, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, cpu, NULL), GIM_OK);
     compare(&c, cpu, gpu, c.scale, &e);
     assert_true(e.lit > 40 && e.position < TOL_POS && e.flux < TOL_FLUX_D);
     glDeleteBuffers(1, &bc); glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bd);

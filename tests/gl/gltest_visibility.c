@@ -3,11 +3,11 @@
    without visibility LightSkin lets the sunlit ground through the walls (12% of the ground's
    radiance on the CPU twin, bench_ism). With the caches' imperfect shadow maps the mean inside
    must stay under 1% of the ground's radiance (the target) while it is over 5% without. Also: the maps
-   gim_update made are gim_ism_render's on the same caches and points; they are made once and
+   gim_update made are gim_ism_render_twin's on the same caches and points; they are made once and
    again only when an instance moves; bad settings are refused before any GL work; off keeps
    no ISM buffer. The VPL methods with one ISM per VPL (clustered, SSVP with its second bounce)
    meet the same target where their own per-cluster paraboloid maps leak 2-7%, and their maps
-   are gim_ism_render's on the frame's VPLs. */
+   are gim_ism_render_twin's on the frame's VPLs. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "room.h"
@@ -217,7 +217,7 @@ static void vpl_methods_no_light_through_walls(void **state) {
     GLTEST_END();
 }
 
-/* The frame's maps are gim_ism_render's on the frame's caches (o.caches, grid order) and the
+/* The frame's maps are gim_ism_render_twin's on the frame's caches (o.caches, grid order) and the
    points of the world triangles; made once while nothing moves, again when an instance moves. */
 static void maps_are_the_twins(void **state) {
     scene_fx s;
@@ -257,7 +257,7 @@ static void maps_are_the_twins(void **state) {
     d.size = 16; d.points_per_map = 2048; d.scene_scale = o.scene_scale; d.env = s.f.env;
     cpu = (float *)malloc((size_t)n * 256 * 4);
     gpu = (float *)malloc((size_t)n * 256 * 4);
-    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gltest_read_ism(od.ism_maps, (size_t)n * 256, gpu);   /* 16 bits a texel, two to a uint */
     for (k = 0; k < n * 256; ++k) off += memcmp(gpu + k, cpu + k, 4) != 0;
     print_message("%u caches: %u of %u texels differ from the twin\n", n, off, n * 256);
@@ -277,7 +277,7 @@ static void maps_are_the_twins(void **state) {
     GLTEST_END();
 }
 
-/* The VPL frame's maps are gim_ism_render's on the frame's VPLs (taken as caches, map i of VPL
+/* The VPL frame's maps are gim_ism_render_twin's on the frame's VPLs (taken as caches, map i of VPL
    i of o.vpls) and the points of the world triangles, pool 4 P; SSVP keeps one map per VPL of
    both bounces. */
 static void vpl_maps_are_the_twins(void **state) {
@@ -328,7 +328,7 @@ static void vpl_maps_are_the_twins(void **state) {
     d.size = 8; d.points_per_map = 512; d.scene_scale = o.scene_scale; d.env = s.f.env;
     cpu = (float *)malloc((size_t)n * 64 * 4);
     gpu = (float *)malloc((size_t)n * 64 * 4);
-    assert_int_equal(gim_ism_render(&d, cpu), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gltest_read_ism(od.ism_maps, (size_t)n * 64, gpu);   /* 16 bits a texel, two to a uint */
     for (i = 0; i < n; ++i) {
         if (!(v[i].lit > 0.0f)) continue;

@@ -1,6 +1,6 @@
 /* The VPL shading pass (vpl_shade.comp: soft visibility from paraboloid maps, clamping,
    interleaved sampling) and the geometry-aware blur (geometry_blur.comp) on a real G-buffer
-   against their twins gim_vpl_shade and gim_geometry_blur, on receivers unprojected from the
+   against their twins gim_vpl_shade_twin and gim_geometry_blur_twin, on receivers unprojected from the
    read-back G-buffer; the distance maps are synthetic plates written into the R32F array. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -143,7 +143,7 @@ static void run_case(const shade_case *sc) {
             cluster[i] = i % 4u < 3u ? mm : UINT32_MAX;
         }
     }
-    if (sc->visibility == 2) {   /* one ISM per VPL (gim_ism_render on the VPLs as caches) of the room's points */
+    if (sc->visibility == 2) {   /* one ISM per VPL (gim_ism_render_twin on the VPLs as caches) of the room's points */
         gim_twin_scene ts;
         gim_cache vc[NV];
         gim_ism_desc idd;
@@ -167,7 +167,7 @@ static void run_case(const shade_case *sc) {
         idd.caches = vc; idd.cache_count = NV; idd.points = pts; idd.point_count = NP;
         idd.size = IS; idd.points_per_map = NP / 4; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
         ism = (float *)malloc((size_t)NV * IS * IS * 4);
-        assert_int_equal(gim_ism_render(&idd, ism), GIM_OK);
+        assert_int_equal(gim_ism_render_twin(&idd, ism), GIM_OK);
         b_ism = gltest_ism_ssbo(ism, (size_t)NV * IS * IS);
         free(pos); free(alb3); free(pts);
     }
@@ -235,7 +235,7 @@ static void run_case(const shade_case *sc) {
     sd.ism = ism; sd.ism_size = IS; sd.map_count = M; sd.distance = dist; sd.map_size = S;
     sd.receivers = rec; sd.width = W; sd.height = H; sd.interleave = sc->interleave;
     sd.clamp_distance = a.clamp_distance; sd.scene_scale = a.scene_scale; sd.env = f.env;
-    assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
+    assert_int_equal(gim_vpl_shade_twin(&sd, cpu), GIM_OK);
     for (i = 0; i < pix_count; ++i) {
         assert_true(gpu[i * 4 + 3] == (surface[i] ? 1.0f : 0.0f));
         assert_true(isfinite(gpu[i * 4]) && gpu[i * 4] >= 0.0f);
@@ -247,7 +247,7 @@ static void run_case(const shade_case *sc) {
     memset(&bd, 0, sizeof bd);
     bd.radiance = cpu3; bd.receivers = rec; bd.width = W; bd.height = H; bd.window = ba.window;
     bd.position_tolerance = ba.position_tolerance; bd.env = f.env;
-    assert_int_equal(gim_geometry_blur(&bd, cpu_blur), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&bd, cpu_blur), GIM_OK);
     cb = compare(gpu_blur, cpu_blur, surface, pix_count, 1e-3);
     if (ba.window > 1u) {   /* the blur did something: the input and its blur differ */
         compare_stats moved = compare(gpu_blur, cpu3, surface, pix_count, 1e-3);
@@ -256,7 +256,7 @@ static void run_case(const shade_case *sc) {
     /* the test can fail: the twin without visibility (or with the other interleave) is far */
     sd.cluster = sc->visibility ? NULL : cluster;
     sd.ism = NULL;
-    assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
+    assert_int_equal(gim_vpl_shade_twin(&sd, cpu), GIM_OK);
     cfail = compare(gpu, cpu, surface, pix_count, 1e-3);
     print_message("L %g k %u clamp %g chunk %u vis %d host %d fmt %s: %u pixels; shade max rel %.2e mean %.2e, %u (%.2f %%) "
                   "above 1e-3, %u above 1e-5; blur max %.2e mean %.2e, %u above; against the wrong twin %u (%.1f %%) above\n",
@@ -277,7 +277,7 @@ static void run_case(const shade_case *sc) {
     assert_true(cfail.above > cfail.count / 20);
 
     /* the visibility itself: one VPL of cluster m at a time, V_gpu = the GPU's radiance over
-       the twin's unshadowed one (both scale by V), against gim_paraboloid_visibility on the
+       the twin's unshadowed one (both scale by V), against gim_paraboloid_visibility_twin on the
        twin's receiver; a mismatch is a tap that read another texel */
     if (sc->probe) {
         uint32_t m, lit = 0, mismatch = 0, partial = 0;
@@ -298,14 +298,14 @@ static void run_case(const shade_case *sc) {
             assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
             gltest_read_texture(t_out, GL_RGBA, gpu);
             sd.vpls = &one; sd.vpl_count = 1; sd.interleave = 1; sd.cluster = NULL;
-            assert_int_equal(gim_vpl_shade(&sd, cpu), GIM_OK);
+            assert_int_equal(gim_vpl_shade_twin(&sd, cpu), GIM_OK);
             for (i = 0; i < pix_count; ++i) if (cpu[i * 3] > ref_max) ref_max = cpu[i * 3];
             for (i = 0; i < pix_count; ++i) {
                 float vc;
                 gim_vec3 rn;
                 if (!surface[i] || !(cpu[i * 3] > 1e-3 * ref_max)) continue;
                 rn = gim_v3(rec[i].normal[0], rec[i].normal[1], rec[i].normal[2]);
-                assert_int_equal(gim_paraboloid_visibility(dist + (size_t)m * S * S, S, &maps[m],
+                assert_int_equal(gim_paraboloid_visibility_twin(dist + (size_t)m * S * S, S, &maps[m],
                                                            gim_v3(rec[i].position[0], rec[i].position[1], rec[i].position[2]),
                                                            &rn, &vc),
                                  GIM_OK);
@@ -354,7 +354,7 @@ static void vpl_shade_matches_twin(void **state) {
 }
 
 /* One imperfect shadow map per VPL (Ritschel et al. 2008): hard visibility through the VPL's
-   own map, the GPU against gim_vpl_shade's ism on the room's points. */
+   own map, the GPU against gim_vpl_shade_twin's ism on the room's points. */
 static void vpl_shade_ism_matches_twin(void **state) {
     shade_case sc;
     (void)state;

@@ -1,6 +1,6 @@
 /* The VPL methods of gim_update end to end on the Cornell box (Dong 2009, Aranha et al.): the GPU
    clusters against their twin on the frame's own VPLs, the GPU frame against the CPU chain
-   (gim_vpl_shade + gim_geometry_blur on the frame's own VPLs, clusters and paraboloid maps),
+   (gim_vpl_shade_twin + gim_geometry_blur_twin on the frame's own VPLs, clusters and paraboloid maps),
    indirect shadows (visibility on against off behind a block), the second bounce's energy,
    temporal coherence of the clusters while the light moves, and that only what a frame
    enables is allocated. */
@@ -34,7 +34,7 @@ static void vpl_frame_begin(frame_fixture *ff, gim_method m) {
     ff->fr.vpl.interleave = 4;
 }
 
-/* The GPU's clusters against gim_cluster_paraboloids on the GPU's own VPLs, assignment and
+/* The GPU's clusters against gim_cluster_paraboloids_twin on the GPU's own VPLs, assignment and
    k-means centres. */
 static void clusters_match_twin(frame_fixture *ff) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
@@ -55,7 +55,7 @@ static void clusters_match_twin(frame_fixture *ff) {
         memcpy(n3 + 3 * i, centres4 + 8 * i + 4, 12);
         assert_true(centres4[8 * i + 3] >= 1.0f);   /* no cluster lost */
     }
-    assert_int_equal(gim_cluster_paraboloids(v, n, asg, c3, n3, m, o.scene_scale, cpu, ff->f.env), GIM_OK);
+    assert_int_equal(gim_cluster_paraboloids_twin(v, n, asg, c3, n3, m, o.scene_scale, cpu, ff->f.env), GIM_OK);
     for (i = 0; i < m; ++i) {
         int k;
         double e = 0.0;
@@ -104,8 +104,8 @@ static void grid_receivers(frame_fixture *ff, gim_receiver *grid) {
     free(map);
 }
 
-/* The GPU frame against the CPU chain on its own VPLs, clusters and maps: gim_vpl_shade with
-   the frame's interleave and clamp, then gim_geometry_blur. Returns the pixels whose largest
+/* The GPU frame against the CPU chain on its own VPLs, clusters and maps: gim_vpl_shade_twin with
+   the frame's interleave and clamp, then gim_geometry_blur_twin. Returns the pixels whose largest
    channel differs by more than tol relative (floored at 1e-3 of the image's maximum). */
 static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
@@ -139,13 +139,13 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
                         o.scene_scale;
     sd.scene_scale = o.scene_scale;
     sd.env = ff->f.env;
-    assert_int_equal(gim_vpl_shade(&sd, shade), GIM_OK);
+    assert_int_equal(gim_vpl_shade_twin(&sd, shade), GIM_OK);
     memset(&bd, 0, sizeof bd);
     bd.radiance = shade; bd.receivers = grid; bd.width = W; bd.height = H; bd.window = k;
     bd.position_tolerance = (ff->fr.vpl.blur_distance > 0.0f ? ff->fr.vpl.blur_distance : 0.1f) * o.scene_scale;
     bd.normal_tolerance = 0.8f;
     bd.env = ff->f.env;
-    if (k > 1) assert_int_equal(gim_geometry_blur(&bd, blur), GIM_OK);
+    if (k > 1) assert_int_equal(gim_geometry_blur_twin(&bd, blur), GIM_OK);
     else memcpy(blur, shade, W * H * 12);
     for (i = 0; i < W * H; ++i) map[i] = i;
     bad = compare_pixels(gpu, blur, map, W * H, tol, max_rel);

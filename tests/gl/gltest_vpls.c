@@ -1,4 +1,4 @@
-/* The GPU VPLs of an RSM (Dong et al. sec. 4) against their CPU twin gim_rsm_vpls, on uploaded
+/* The GPU VPLs of an RSM (Dong et al. sec. 4) against their CPU twin gim_rsm_vpls_twin, on uploaded
    random RSM textures (some texels unlit, some broken: NaN position, Inf normal, negative or
    NaN flux), with and without Cranley-Patterson offsets, at sizes with partial work groups,
    more VPLs than texels, and several blocks of GIM_RSM_VPL_BLOCK VPLs; zero GL errors and
@@ -109,7 +109,7 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
     GLuint out;
     for (i = 0; i < (count + 3) * 12; ++i) gpu[i] = -7.0f;
     out = gltest_ssbo((count + 3) * 48, gpu);
-    assert_int_equal(gim_rsm_vpls_sequence(&d, count, seq, offsets, p, n, fl, f->env), GIM_OK);
+    assert_int_equal(gim_rsm_vpls_twin(&d, count, seq, offsets, p, n, fl, f->env), GIM_OK);
     assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, seq, offsets, out), GIM_OK);
     gltest_state_unchanged(f);
     gltest_read_buffer(out, (count + 3) * 48, gpu);
@@ -469,7 +469,7 @@ static void kmeans_empty_cluster(void **state) {
 }
 
 /* The pipeline of clustered visibility's first passes: the GPU VPLs of an RSM straight into
-   GPU k-means steps (the 48-byte layout both take), against gim_rsm_vpls -> gim_kmeans. The
+   GPU k-means steps (the 48-byte layout both take), against gim_rsm_vpls_twin -> gim_kmeans. The
    RSM has unlit texels (zero-flux VPLs: weight 0 in the means) but no broken ones (the twin's
    k-means refuses a zero normal). */
 static void vpls_into_kmeans(void **state) {
@@ -503,7 +503,7 @@ static void vpls_into_kmeans(void **state) {
     r.tex[1] = texture_rgba(size, r.normal4);
     r.tex[2] = texture_rgba(size, r.flux4);
     d = rsm_data(&r);
-    assert_int_equal(gim_rsm_vpls(&d, n, off, p, nn, fl, f.env), GIM_OK);
+    assert_int_equal(gim_rsm_vpls_twin(&d, n, GIM_VPL_SEQUENCE_HALTON, off, p, nn, fl, f.env), GIM_OK);
     bv = gltest_ssbo(n * 48, NULL);
     assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, GIM_VPL_SEQUENCE_HALTON, off, bv), GIM_OK);
     for (k = 1; k <= 8; k *= 2) kmeans_compare(&f, bv, p, nn, fl, n, 30, k, GIM_KMEANS_METRIC_DONG, origin, 10.0f, &st);

@@ -120,8 +120,8 @@ static double plate_error(float s, uint32_t size, uint32_t *wrong_out) {
     d.size = size;
     maps = (float *)malloc(3 * 64 * 64 * sizeof(float));
     vis = (float *)malloc(3 * 400 * sizeof(float));
-    assert_int_equal(gim_ism_render(&d, maps), GIM_OK);
-    assert_int_equal(gim_ism_visibility(&d, maps, vals, 400, vis), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, maps), GIM_OK);
+    assert_int_equal(gim_ism_visibility_twin(&d, maps, vals, 400, vis), GIM_OK);
     for (i = 0; i < 3; ++i)
         for (j = 0; j < 400; ++j) {
             float x[3] = {vals[j].position[0], 1e-4f * s, vals[j].position[2]};
@@ -199,8 +199,8 @@ static void closed_box(void **state) {
     d.scene_scale = 5.5f;
     maps = (float *)malloc(6 * GIM_ISM_DEFAULT_SIZE * GIM_ISM_DEFAULT_SIZE * sizeof(float));
     vis = (float *)malloc(6 * 96 * sizeof(float));
-    assert_int_equal(gim_ism_render(&d, maps), GIM_OK);
-    assert_int_equal(gim_ism_visibility(&d, maps, vals, 96, vis), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, maps), GIM_OK);
+    assert_int_equal(gim_ism_visibility_twin(&d, maps, vals, 96, vis), GIM_OK);
     for (i = 0; i < 6; ++i)
         for (j = 0; j < 96; ++j) {
             const float *x = vals[j].position, *c = caches[i].position, *nn = caches[i].normal;
@@ -258,8 +258,8 @@ static void pillar_shadow(void **state) {
     assert_int_equal(gim_ism_points(&sc, n, pts), GIM_OK);
     memset(&d, 0, sizeof d);
     d.caches = caches; d.cache_count = 60; d.points = pts; d.point_count = n; d.scene_scale = 7.0f;
-    assert_int_equal(gim_ism_render(&d, maps), GIM_OK);
-    assert_int_equal(gim_ism_visibility(&d, maps, vals, 900, vis), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&d, maps), GIM_OK);
+    assert_int_equal(gim_ism_visibility_twin(&d, maps, vals, 900, vis), GIM_OK);
     for (i = 0; i < 60; ++i) {
         double e_none = 0.0, e_ism = 0.0, e_ex = 0.0;
         for (j = 0; j < 900; ++j) {
@@ -306,20 +306,20 @@ static void proxy_visibility(void **state) {
     }
     memset(&d, 0, sizeof d);
     d.caches = c; d.cache_count = 2; d.vals = v; d.val_count = 3; d.scene_scale = 3.0f;
-    assert_int_equal(gim_proxy_lights(&d, a, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, a, NULL), GIM_OK);
     d.visibility = ones;
-    assert_int_equal(gim_proxy_lights(&d, b, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, b, NULL), GIM_OK);
     assert_memory_equal(a, b, sizeof a);
     d.visibility = zeros;
-    assert_int_equal(gim_proxy_lights(&d, b, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, b, NULL), GIM_OK);
     for (i = 0; i < 2; ++i) assert_true(b[i].flux[0] == 0.0f && b[i].flux[1] == 0.0f && b[i].flux[2] == 0.0f);
     /* hiding the middle VAL: the flux drops and the proxy moves away from it */
     d.visibility = half;
-    assert_int_equal(gim_proxy_lights(&d, b, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, b, NULL), GIM_OK);
     assert_true(b[0].flux[1] < a[0].flux[1] && b[0].flux[1] > 0.0f);
     assert_true(fabsf(b[0].position[2] - 0.3f) > fabsf(a[0].position[2] - 0.3f) || b[0].position[0] != a[0].position[0]);
     d.visibility = bad;
-    assert_int_equal(gim_proxy_lights(&d, b, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_proxy_lights_twin(&d, b, NULL), GIM_ERROR_INVALID_ARGUMENT);
 }
 
 /* The 16-bit texels: rounded to nearest (relative error at most 2^-8, order kept), exact on
@@ -361,22 +361,22 @@ static void bad_settings(void **state) {
     memset(&d, 0, sizeof d);
     d.caches = &c; d.cache_count = 1; d.points = pts; d.point_count = 64; d.scene_scale = 1.0f;
     d.size = 64;
-    assert_int_equal(gim_ism_render(&d, maps), GIM_OK);
-    d.size = 3;  assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
-    d.size = 48; assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);   /* not a power of two */
-    d.size = 128; assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_ism_render_twin(&d, maps), GIM_OK);
+    d.size = 3;  assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
+    d.size = 48; assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);   /* not a power of two */
+    d.size = 128; assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
     d.size = 0;
     d.points_per_map = GIM_ISM_MAX_POINTS + 1u;
-    assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
     d.points_per_map = 0;
-    d.point_count = 0; assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
+    d.point_count = 0; assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
     d.point_count = 64;
-    d.scene_scale = 0.0f; assert_int_equal(gim_ism_render(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
+    d.scene_scale = 0.0f; assert_int_equal(gim_ism_render_twin(&d, maps), GIM_ERROR_INVALID_ARGUMENT);
     d.scene_scale = 1.0f;
-    d.bias = -1.0f; assert_int_equal(gim_ism_visibility(&d, maps, &v, 1, vis), GIM_ERROR_INVALID_ARGUMENT);
+    d.bias = -1.0f; assert_int_equal(gim_ism_visibility_twin(&d, maps, &v, 1, vis), GIM_ERROR_INVALID_ARGUMENT);
     d.bias = 0.0f;
-    assert_int_equal(gim_ism_visibility(&d, NULL, &v, 1, vis), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_ism_visibility(&d, maps, &v, 1, vis), GIM_OK);
+    assert_int_equal(gim_ism_visibility_twin(&d, NULL, &v, 1, vis), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_ism_visibility_twin(&d, maps, &v, 1, vis), GIM_OK);
 }
 
 int main(void) {

@@ -63,7 +63,7 @@ static void radiance_at_caches(const gim_cache *c, uint32_t nc, const gim_proxy_
     sd.caches = c; sd.cache_count = nc; sd.diffuse = d; sd.glossy = g;
     sd.receivers = recv; sd.receiver_count = nc;
     sd.neighbour_index = idx; sd.neighbour_stride = 1; sd.d_cmax = dc; sd.scene_scale = scale;
-    assert_int_equal(gim_lightskin_shade(&sd, out), GIM_OK);
+    assert_int_equal(gim_lightskin_shade_twin(&sd, out), GIM_OK);
     free(idx); free(dc);
 }
 
@@ -81,7 +81,7 @@ static void eq3_hand_computed(void **state) {
     double F = 0.5 / (0.5 + PI_D * 4.0), ex;
     int a;
     (void)state;
-    assert_int_equal(gim_proxy_lights(&d, &pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, &pd, NULL), GIM_OK);
     assert_float_equal(pd.position[2], 2.0f, 1e-6f);
     assert_float_equal(pd.radius, 0.0f, 1e-6f);
     assert_float_equal(pd.visibility, 1.0f, 0.0f);
@@ -96,7 +96,7 @@ static void eq3_hand_computed(void **state) {
     }
     /* off axis: VAL at (3,0,4) facing down: d = 5, cos_x = cos_l = 0.8 */
     v = mk_val(3, 0, 4, 0, 0, -1, 0.25f, 2, 2, 2);
-    assert_int_equal(gim_proxy_lights(&d, &pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, &pd, NULL), GIM_OK);
     radiance_at_caches(&c, 1, &pd, NULL, &r, 10.0f, L);
     ex = 0.6 / PI_D * 2.0 * 0.64 / (0.25 + PI_D * 25.0);
     assert_true(fabs(L[0] - ex) <= 1e-5 * ex);
@@ -123,7 +123,7 @@ static void eq4_hand_computed(void **state) {
         double ex = 0.7 * (ks[i] + 2.0) / (2.0 * PI_D) * pow(re, ks[i]) * e;
         float L[3];
         d.glossy_exponent = ks[i];
-        assert_int_equal(gim_proxy_lights(&d, &pd, &pg), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, &pd, &pg), GIM_OK);
         radiance_at_caches(&c, 1, &pd, &pg, &r, 10.0f, L);
         assert_true(fabs(L[1] - ex) <= 2e-5 * ex);
         assert_true(ex > 1e-6);
@@ -165,7 +165,7 @@ static void cache_radiance(const gim_cache *c, uint32_t nc, const gim_val *v, ui
     uint32_t i;
     assert_true(nc <= 16);
     d.scene_scale = 10.0f;
-    assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
     for (i = 0; i < nc; ++i) r[i] = mk_recv(c + i, 0, 0, 1, 1.0f, 0.0f, 1.0f);
     radiance_at_caches(c, nc, pd, NULL, r, 10.0f, L);
     for (i = 0; i < nc; ++i) out[i] = L[i * 3 + 1];
@@ -268,7 +268,7 @@ static void flux_guard_bound(void **state) {
         double en = 0.0, dp2 = 0.0;
         int j, a;
         d.glossy_exponent = ks[i];
-        assert_int_equal(gim_proxy_lights(&d, &pd, &pg), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, &pd, &pg), GIM_OK);
         assert_true(all_ok_light(&pd) && all_ok_light(&pg));
         for (j = 0; j < 2; ++j) {
             double dx = v[j].position[0], dz = v[j].position[2], d2 = dx * dx + dz * dz, dl = sqrt(d2);
@@ -284,7 +284,7 @@ static void flux_guard_bound(void **state) {
     }
     /* k = 1e4 straight at VAL 1: the glossy proxy sits on VAL 1, flux of VAL 1 alone */
     d.glossy_exponent = 1e4f;
-    assert_int_equal(gim_proxy_lights(&d, &pd, &pg), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, &pd, &pg), GIM_OK);
     assert_float_equal(pg.position[0], 4.0f, 1e-3f);
     assert_true(pg.flux[0] > 0.0f && isfinite(pg.flux[0]));
 }
@@ -319,7 +319,7 @@ static void guard_bias(void **state) {
         double ge = 0.0, gx = 0.0;
         int bites = 0;
         d.eye = eye; d.glossy_exponent = ks[ki];
-        assert_int_equal(gim_proxy_lights(&d, pd, pg), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, pd, pg), GIM_OK);
         for (i = 0; i < NC; ++i) {
             gim_vec3 vv = gim_v3_normalize(gim_v3(eye.x - c[i].position[0], eye.y - c[i].position[1], eye.z - c[i].position[2]));
             rd[i] = mk_recv(c + i, vv.x, vv.y, vv.z, 1.0f, 0.0f, ks[ki]);
@@ -383,7 +383,7 @@ static void guards_finite(void **state) {
             if (nv == 6) { first = 0; cnt = 6; }
             d = proxy_desc(c, 3, v + first, cnt, test_env(NULL, NULL));
             d.eye = gim_v3(0, 3, 3); d.glossy_exponent = ks[k]; d.scene_scale = 4.0f;
-            assert_int_equal(gim_proxy_lights(&d, pd, pg), GIM_OK);
+            assert_int_equal(gim_proxy_lights_twin(&d, pd, pg), GIM_OK);
             for (i = 0; i < 3; ++i) assert_true(all_ok_light(pd + i) && all_ok_light(pg + i));
             if (nv <= 3) for (i = 0; i < 2; ++i) assert_true(pd[i].flux[0] == 0.0f);   /* caches 0, 1: dark */
             for (i = 0; i < 3; ++i) {
@@ -396,7 +396,7 @@ static void guards_finite(void **state) {
             sd.caches = c; sd.cache_count = 3; sd.diffuse = pd; sd.glossy = pg;
             sd.receivers = r; sd.receiver_count = 3; sd.neighbour_index = idx; sd.neighbour_stride = 3;
             sd.d_cmax = dc; sd.scene_scale = 4.0f;
-            assert_int_equal(gim_lightskin_shade(&sd, L), GIM_OK);
+            assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);
             for (i = 0; i < 9; ++i) assert_true(isfinite(L[i]) && L[i] >= 0.0f);
         }
     }
@@ -405,22 +405,22 @@ static void guards_finite(void **state) {
         uint32_t which[] = {0, 1, 2};
         d = proxy_desc(c, 1, v + which[i], 1, test_env(NULL, NULL));
         d.scene_scale = 4.0f;
-        assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
         assert_true(pd[0].flux[0] == 0.0f && all_ok_light(pd));
     }
     d = proxy_desc(c, 1, v + 5, 1, test_env(NULL, NULL));
-    assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
     assert_true(pd[0].flux[0] == 0.0f && all_ok_light(pd));
     assert_float_equal(pd[0].position[1], 1.0f, 1e-5f);        /* placed by the form factor alone */
     /* the zero-area VAL at 1e-3: irradiance Phi / (pi d^2), finite */
     d = proxy_desc(c, 1, v + 4, 1, test_env(NULL, NULL));
     d.scene_scale = 4.0f;
-    assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
     assert_true(all_ok_light(pd));
     assert_true(fabs(pd[0].flux[0] / (4.0 * PI_D * 1e-6) - 5.0 / (PI_D * 1e-6)) <= 1e-3 * 5.0 / (PI_D * 1e-6));
     /* no VAL at all: dark, not an error */
     d = proxy_desc(c, 3, NULL, 0, test_env(NULL, NULL));
-    assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
     for (i = 0; i < 3; ++i) assert_true(pd[i].flux[0] == 0.0f && pd[i].position[0] == c[i].position[0]);
 }
 
@@ -448,13 +448,13 @@ static void extreme_values(void **state) {
     for (si = 0; si < 3; ++si) {
         d = proxy_desc(c, 2, v, 4, test_env(NULL, NULL));
         d.eye = gim_v3(0, 0, 3e38f); d.glossy_exponent = 1e6f; d.scene_scale = scales[si];
-        assert_int_equal(gim_proxy_lights(&d, pd, pg), GIM_OK);
+        assert_int_equal(gim_proxy_lights_twin(&d, pd, pg), GIM_OK);
         for (i = 0; i < 2; ++i) assert_true(all_ok_light(pd + i) && all_ok_light(pg + i));
         for (i = 0; i < 2; ++i) r[i] = mk_recv(c + i, 0, 0, 1, 1e30f, 1e30f, 1e6f);
         memset(&sd, 0, sizeof sd);
         sd.caches = c; sd.cache_count = 2; sd.diffuse = pd; sd.glossy = pg; sd.receivers = r; sd.receiver_count = 2;
         sd.neighbour_index = idx; sd.neighbour_stride = 2; sd.d_cmax = dc; sd.scene_scale = scales[si] > 0 ? scales[si] : 1e-30f;
-        assert_int_equal(gim_lightskin_shade(&sd, L), GIM_OK);
+        assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);
         for (i = 0; i < 6; ++i) assert_true(isfinite(L[i]) && L[i] >= 0.0f);
     }
 }
@@ -479,7 +479,7 @@ static void interpolation_at_cache(void **state) {
     v[0] = mk_val(0, 0, 2, 0, 0, -1, 0.5f, 1, 1, 1);
     v[1] = mk_val(2, 1, 3, 0, 0, -1, 0.5f, 0, 3, 0);
     d = proxy_desc(c, 3, v, 2, test_env(NULL, NULL));
-    assert_int_equal(gim_proxy_lights(&d, pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
     r[0] = mk_recv(c + 0, 0, 0, 1, 0.8f, 0, 1);
     r[1] = mk_recv(c + 1, 0, 0, 1, 0.8f, 0, 1);
     r[2] = mk_recv(c + 0, 0, 0, 1, 0.8f, 0, 1);
@@ -489,7 +489,7 @@ static void interpolation_at_cache(void **state) {
     sd.caches = c; sd.cache_count = 3; sd.diffuse = pd;
     sd.receivers = r; sd.receiver_count = 3; sd.neighbour_index = idx; sd.neighbour_count = cnt;
     sd.neighbour_stride = 3; sd.d_cmax = dc; sd.scene_scale = 5.0f;
-    assert_int_equal(gim_lightskin_shade(&sd, L), GIM_OK);
+    assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);
     radiance_at_caches(c, 2, pd, NULL, r, 5.0f, own);
     for (a = 0; a < 3; ++a) {
         assert_float_equal(L[a], own[a], 1e-6f * own[a] + 1e-12f);
@@ -539,7 +539,7 @@ static void run_scene(float s, float *L, int visibility) {
     for (i = 0; i < NC * NV; ++i) vis[i] = i / NV == NC - 1 || i % 3 == 0 ? 0.0f : 1.0f;
     d.visibility = visibility ? vis : NULL;
     d.receivers = r; d.receiver_count = NR; d.neighbour_index = idx; d.neighbour_stride = 4; d.d_cmax = dc;
-    assert_int_equal(gim_lightskin_cpu(&d, L), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L), GIM_OK);
 }
 static void scale_invariance(void **state) {
     float a[18], b[18], c[18], o[18];
@@ -587,7 +587,7 @@ static void energy_wall(void **state) {
             v[i * G + j] = mk_val(-W / 2 + (i + 0.5f) * cell, -W / 2 + (j + 0.5f) * cell, h, 0, 0, -1, cell * cell,
                                   M * cell * cell, M * cell * cell, M * cell * cell);
     d = proxy_desc(&c, 1, v, G * G, test_env(NULL, NULL));
-    assert_int_equal(gim_proxy_lights(&d, &pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, &pd, NULL), GIM_OK);
     radiance_at_caches(&c, 1, &pd, NULL, &r, W, L);
     print_message("wall: L = %.5f, rho/pi M F = %.5f (F = %.4f)\n", L[0], ex, F);
     assert_true(fabs(L[0] - ex) <= 0.02 * ex);
@@ -620,95 +620,95 @@ static void argument_errors(void **state) {
         assert_int_equal(lg.errors, ++errors); \
         assert_non_null(strstr(lg.last, name)); \
     } while (0)
-    assert_int_equal(gim_proxy_lights(NULL, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_proxy_lights_twin(NULL, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT);
     d = proxy_desc(&c, 1, &v, 1, env);
-    EXPECT_ERR(gim_proxy_lights(&d, NULL, NULL), GIM_ERROR_INVALID_ARGUMENT, "gim_proxy_lights: diffuse_out is NULL");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, NULL, NULL), GIM_ERROR_INVALID_ARGUMENT, "gim_proxy_lights_twin: diffuse_out is NULL");
     d.cache_count = 0;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "no caches");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "no caches");
     d = proxy_desc(&c, 1, NULL, 1, env);
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "vals is NULL");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "vals is NULL");
     d = proxy_desc(&c, 1, &v, 1, env); d.scene_scale = -1.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "scene_scale");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "scene_scale");
     d = proxy_desc(&c, 1, &v, 1, env); d.glossy_exponent = -1.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
     d.glossy_exponent = NAN;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
     d.glossy_exponent = 2e6f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "glossy_exponent");
     d.glossy_exponent = 1.0f; d.eye.x = INFINITY;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "eye");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, &pg), GIM_ERROR_INVALID_ARGUMENT, "eye");
     d = proxy_desc(&c, 1, &v, 1, env);
     v.position[1] = NAN;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
     v = mk_val(0, 0, 1, 0, 0, -1, 1, 1, -1, 1);
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
     v = mk_val(0, 0, 1, 0, 0, -1, 1, 1, 1, 1); v.normal[2] = -2.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
     v = mk_val(0, 0, 1, 0, 0, -1, 1, 1, 1, 1); v.weight = -1.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "VAL 0");
     v = mk_val(0, 0, 1, 0, 0, -1, 1, 1, 1, 1); c.normal[2] = 0.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "cache 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "cache 0");
     c = mk_cache(0, 0, 0, 0, 0, 1, 1); c.area = -1.0f;
-    EXPECT_ERR(gim_proxy_lights(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "cache 0");
+    EXPECT_ERR(gim_proxy_lights_twin(&d, &pd, NULL), GIM_ERROR_INVALID_ARGUMENT, "cache 0");
     c = mk_cache(0, 0, 0, 0, 0, 1, 1);
-    assert_int_equal(gim_proxy_lights(&d, &pd, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&d, &pd, NULL), GIM_OK);
     /* shading */
-    assert_int_equal(gim_lightskin_shade(NULL, L), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_lightskin_shade_twin(NULL, L), GIM_ERROR_INVALID_ARGUMENT);
     memset(&sd, 0, sizeof sd);
     sd.caches = &c; sd.cache_count = 1; sd.diffuse = &pd; sd.receivers = &r; sd.receiver_count = 1;
     sd.neighbour_index = &idx; sd.neighbour_stride = 1; sd.d_cmax = &dc; sd.scene_scale = 1.0f; sd.env = env;
-    assert_int_equal(gim_lightskin_shade(&sd, L), GIM_OK);
-    EXPECT_ERR(gim_lightskin_shade(&sd, NULL), GIM_ERROR_INVALID_ARGUMENT, "radiance_out is NULL");
+    assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, NULL), GIM_ERROR_INVALID_ARGUMENT, "radiance_out is NULL");
     sd.neighbour_stride = 17;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "neighbour_stride");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "neighbour_stride");
     sd.neighbour_stride = 1; idx = 5;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "cache 5 of 1");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "cache 5 of 1");
     idx = UINT32_MAX;
-    assert_int_equal(gim_lightskin_shade(&sd, L), GIM_OK);          /* a pad: no neighbour, dark */
+    assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);          /* a pad: no neighbour, dark */
     assert_true(L[0] == 0.0f && L[1] == 0.0f && L[2] == 0.0f);
     idx = 0; dc = NAN;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "d_cmax[0]");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "d_cmax[0]");
     dc = 1.0f; r.exponent = -2.0f;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "receiver 0");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "receiver 0");
     r.exponent = 1.0f; r.view[0] = 1.0f;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "receiver 0");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "receiver 0");
     r = mk_recv(&c, 0, 0, 1, 1, 0, 1);
     sd.diffuse = NULL;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "diffuse proxy lights");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "diffuse proxy lights");
     sd.diffuse = &pd; pg = pd; pg.flux[0] = -1.0f; sd.glossy = &pg;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "proxy light 0");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "proxy light 0");
     sd.glossy = NULL; sd.receiver_count = 0;
-    EXPECT_ERR(gim_lightskin_shade(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "no receivers");
+    EXPECT_ERR(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT, "no receivers");
     /* the whole frame */
-    assert_int_equal(gim_lightskin_cpu(NULL, L), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_lightskin_frame_twin(NULL, L), GIM_ERROR_INVALID_ARGUMENT);
     memset(&ld, 0, sizeof ld);
     ld.caches = &c; ld.cache_count = 1; ld.vals = &v; ld.val_count = 1; ld.receivers = &r; ld.receiver_count = 1;
     ld.neighbour_index = &idx; ld.neighbour_stride = 1; ld.d_cmax = &dc; ld.env = env;
-    EXPECT_ERR(gim_lightskin_cpu(&ld, NULL), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_cpu: radiance_out is NULL");
+    EXPECT_ERR(gim_lightskin_frame_twin(&ld, NULL), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_frame_twin: radiance_out is NULL");
     ld.scene_scale = INFINITY;
-    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "scene_scale");
+    EXPECT_ERR(gim_lightskin_frame_twin(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "scene_scale");
     ld.scene_scale = 0.0f; ld.receivers = NULL;
-    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_cpu: no receivers");
+    EXPECT_ERR(gim_lightskin_frame_twin(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_frame_twin: no receivers");
     assert_int_equal(as.allocs, 0);                 /* refused before the proxy pass */
     ld.receivers = &r; ld.d_cmax = NULL;
-    EXPECT_ERR(gim_lightskin_cpu(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_cpu: neighbour_index and d_cmax");
+    EXPECT_ERR(gim_lightskin_frame_twin(&ld, L), GIM_ERROR_INVALID_ARGUMENT, "gim_lightskin_frame_twin: neighbour_index and d_cmax");
     /* gather */
     memset(&rsm, 0, sizeof rsm);
     rsm.position = fv; rsm.normal = nv; rsm.flux = fv; rsm.area = av; rsm.width = 2; rsm.height = 2;
-    EXPECT_ERR(gim_vals_gather(NULL, NULL, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "gim_vals_gather: rsm is NULL");
-    EXPECT_ERR(gim_vals_gather(&rsm, NULL, 0, NULL, env), GIM_ERROR_INVALID_ARGUMENT, "out is NULL");
+    EXPECT_ERR(gim_vals_gather_twin(NULL, NULL, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "gim_vals_gather_twin: rsm is NULL");
+    EXPECT_ERR(gim_vals_gather_twin(&rsm, NULL, 0, NULL, env), GIM_ERROR_INVALID_ARGUMENT, "out is NULL");
     sel.x = 2; sel.y = 0; sel.pdf = 0.25f;
-    EXPECT_ERR(gim_vals_gather(&rsm, &sel, 1, out, env), GIM_ERROR_INVALID_ARGUMENT, "outside");
+    EXPECT_ERR(gim_vals_gather_twin(&rsm, &sel, 1, out, env), GIM_ERROR_INVALID_ARGUMENT, "outside");
     sel.x = 1; sel.pdf = 0.0f;
-    EXPECT_ERR(gim_vals_gather(&rsm, &sel, 1, out, env), GIM_ERROR_INVALID_ARGUMENT, "pdf");
-    EXPECT_ERR(gim_vals_gather(&rsm, &sel, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "selected_count");
+    EXPECT_ERR(gim_vals_gather_twin(&rsm, &sel, 1, out, env), GIM_ERROR_INVALID_ARGUMENT, "pdf");
+    EXPECT_ERR(gim_vals_gather_twin(&rsm, &sel, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "selected_count");
     rsm.area = NULL;
-    EXPECT_ERR(gim_vals_gather(&rsm, NULL, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "required");
+    EXPECT_ERR(gim_vals_gather_twin(&rsm, NULL, 0, out, env), GIM_ERROR_INVALID_ARGUMENT, "required");
 #undef EXPECT_ERR
     assert_int_equal(as.live, 0);
 }
 
-/* gim_vals_gather: FULL weights 1, BRSM weights 1/(N pdf), invalid texels weigh 0. */
+/* gim_vals_gather_twin: FULL weights 1, BRSM weights 1/(N pdf), invalid texels weigh 0. */
 static void gather(void **state) {
     float pos[12] = {0, 0, 1, 1, 0, 1, 0, 1, 1, 1, 1, 1}, nrm[12] = {0, 0, -1, 0, 0, -1, 0, 0, -1, 0, 0, -1};
     float flux[12] = {1, 1, 1, 2, 2, 2, 3, 3, 3, 4, NAN, 4}, area[4] = {0.1f, 0.2f, 0.3f, 0.4f}, valid[4] = {1, 0, 1, 1};
@@ -718,7 +718,7 @@ static void gather(void **state) {
     (void)state;
     memset(&rsm, 0, sizeof rsm);
     rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.valid = valid; rsm.width = 2; rsm.height = 2;
-    assert_int_equal(gim_vals_gather(&rsm, NULL, 0, out, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&rsm, NULL, 0, out, test_env(NULL, NULL)), GIM_OK);
     assert_float_equal(out[0].weight, 1.0f, 0.0f);
     assert_float_equal(out[0].area, 0.1f, 0.0f);
     assert_float_equal(out[1].weight, 0.0f, 0.0f);     /* valid = 0 */
@@ -729,7 +729,7 @@ static void gather(void **state) {
     sel[0].x = 0; sel[0].y = 1; sel[0].pdf = 0.25f;
     sel[1].x = 1; sel[1].y = 0; sel[1].pdf = 0.5f;
     rsm.valid = NULL;
-    assert_int_equal(gim_vals_gather(&rsm, sel, 2, out, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&rsm, sel, 2, out, test_env(NULL, NULL)), GIM_OK);
     assert_float_equal(out[0].weight, 2.0f, 0.0f);     /* 1 / (2 * 0.25) */
     assert_float_equal(out[0].flux[0], 3.0f, 0.0f);
     assert_float_equal(out[1].weight, 1.0f, 0.0f);
@@ -770,11 +770,11 @@ static void brsm_pipeline(void **state) {
     id.view_samples = vs; id.view_sample_count = 4; id.scene_scale = 8.0f;
     assert_int_equal(gim_importance_map(&id, map), GIM_OK);
     assert_int_equal(gim_importance_cumsum(map, W, W, col, row, test_env(NULL, NULL)), GIM_OK);
-    assert_int_equal(gim_vals_gather(&rsm, NULL, 0, full, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&rsm, NULL, 0, full, test_env(NULL, NULL)), GIM_OK);
     cache_radiance(c, 4, full, W * W, Lf);
     for (seed = 0; seed < 8; ++seed) {
         assert_int_equal(gim_importance_select(col, row, W, W, NSEL, seed, sel, test_env(NULL, NULL)), GIM_OK);
-        assert_int_equal(gim_vals_gather(&rsm, sel, NSEL, brsm, test_env(NULL, NULL)), GIM_OK);
+        assert_int_equal(gim_vals_gather_twin(&rsm, sel, NSEL, brsm, test_env(NULL, NULL)), GIM_OK);
         cache_radiance(c, 4, brsm, NSEL, Lb);
         for (i = 0; i < 4; ++i) err += fabs(Lb[i] / Lf[i] - 1.0) / 32.0;
     }
@@ -783,7 +783,7 @@ static void brsm_pipeline(void **state) {
     free(pos); free(nrm); free(flux); free(area); free(map); free(col); free(sel); free(full); free(brsm);
 }
 
-/* gim_lightskin_cpu: one allocation, freed; out of memory reported without leaks; deterministic;
+/* gim_lightskin_frame_twin: one allocation, freed; out of memory reported without leaks; deterministic;
    the diffuse-only frame equals the diffuse part of the glossy one. */
 static void frame_memory_determinism(void **state) {
     test_alloc_stats as; test_log lg;
@@ -806,21 +806,21 @@ static void frame_memory_determinism(void **state) {
     d.caches = c; d.cache_count = 2; d.vals = v; d.val_count = 3; d.eye = gim_v3(0, 1, 4);
     d.glossy = 1; d.glossy_exponent = 8;
     d.receivers = r; d.receiver_count = 2; d.neighbour_index = idx; d.neighbour_stride = 2; d.d_cmax = dc; d.env = env;
-    assert_int_equal(gim_lightskin_cpu(&d, L1), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L1), GIM_OK);
     assert_int_equal(as.allocs, 1);
     assert_int_equal(as.live, 0);
-    assert_int_equal(gim_lightskin_cpu(&d, L2), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L2), GIM_OK);
     assert_memory_equal(L1, L2, sizeof L1);
     d.glossy = 0;
-    assert_int_equal(gim_lightskin_cpu(&d, L3), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L3), GIM_OK);
     for (i = 0; i < 6; ++i) assert_float_equal(L3[i], L1[i], 1e-7f * L1[i]);   /* glossy colour 0 */
     r[0].glossy[1] = 1.0f; d.glossy = 1;
-    assert_int_equal(gim_lightskin_cpu(&d, L2), GIM_OK);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L2), GIM_OK);
     assert_true(L2[1] > L1[1]);                                             /* the glossy term adds */
     as.fail_after = as.allocs;
-    assert_int_equal(gim_lightskin_cpu(&d, L2), GIM_ERROR_OUT_OF_MEMORY);
+    assert_int_equal(gim_lightskin_frame_twin(&d, L2), GIM_ERROR_OUT_OF_MEMORY);
     assert_int_equal(lg.errors, 1);
-    assert_non_null(strstr(lg.last, "gim_lightskin_cpu"));
+    assert_non_null(strstr(lg.last, "gim_lightskin_frame_twin"));
     assert_int_equal(as.live, 0);
 }
 

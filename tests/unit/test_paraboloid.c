@@ -365,7 +365,7 @@ static void energy(void **state) {
             gim_second_bounce_desc d = bounce_desc(&b, maps, counts[c], env);
             double sum[2][3] = {{0, 0, 0}, {0, 0, 0}}, tol = c == 0 ? 0.04 : 0.015;
             uint32_t first1 = half ? counts[c] : (counts[c] + 1) / 2, lit = 0;
-            assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_OK);
+            assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_OK);
             for (i = 0; i < counts[c]; ++i) {
                 uint32_t m = i < first1 ? 0 : 1;
                 if (v[i].lit == 0.0f) {
@@ -430,7 +430,7 @@ static void split_and_texels(void **state) {
                 for (j = 0; j < 3; ++j) b.albedo[((m * size + y) * size + x) * 4 + j] = 1.0f;
             }
     d = bounce_desc(&b, maps, S, test_env(&st, &lg));
-    assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_OK);
     for (m = 0; m < M; ++m)
         for (j = 0; j < share[m]; ++j, ++i) {
             gim_vec2 p = gim_square_to_disk((float)((j + 0.5) / share[m]), (float)gim_van_der_corput(j));
@@ -446,7 +446,7 @@ static void split_and_texels(void **state) {
             assert_true(fabs(v[i].flux[1] - want * maps[m].flux[1]) <= 1e-6 * want * maps[m].flux[1]);
         }
     assert_int_equal(i, S);
-    assert_int_equal(gim_second_bounce_vpls(&d, v2), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, v2), GIM_OK);
     assert_memory_equal(v, v2, sizeof v);
     /* broken data at every texel of map 1: its VPLs are unlit, the others unchanged */
     for (y = 0; y < size * size; ++y) {
@@ -458,7 +458,7 @@ static void split_and_texels(void **state) {
         default: b.position[t + 3] = 0.0f; break;
         }
     }
-    assert_int_equal(gim_second_bounce_vpls(&d, v2), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, v2), GIM_OK);
     for (i = 0; i < S; ++i) {
         if (i >= 4 && i < 7) {
             assert_true(v2[i].lit == 0.0f && v2[i].flux[0] == 0.0f && v2[i].flux[1] == 0.0f && v2[i].position[0] == 0.0f);
@@ -468,7 +468,7 @@ static void split_and_texels(void **state) {
     }
     /* more maps than VPLs: the first S maps take one each */
     d.vpl_count = 2;
-    assert_int_equal(gim_second_bounce_vpls(&d, v2), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, v2), GIM_OK);
     assert_true(v2[0].lit == 1.0f && v2[0].position[0] == 0.0f);
     assert_true(v2[1].lit == 0.0f);  /* map 1's one VPL: map 1 is broken now */
     assert_int_equal(st.live, 0);
@@ -489,22 +489,22 @@ static void bounce_bad_input(void **state) {
     memset(&d, 0, sizeof d);
     d.maps = maps; d.map_count = 2; d.size = 4; d.position = buf; d.normal = buf; d.albedo = buf; d.vpl_count = 4;
     d.env = test_env(&st, &lg);
-    assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_OK);
-    assert_int_equal(gim_second_bounce_vpls(NULL, v), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_second_bounce_vpls(&d, NULL), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.maps = NULL; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.position = NULL; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.normal = NULL; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.albedo = NULL; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.map_count = 0; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.size = 0; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.vpl_count = 0; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_INVALID_ARGUMENT);
-    e = d; e.size = 70000; assert_int_equal(gim_second_bounce_vpls(&e, v), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_OK);
+    assert_int_equal(gim_second_bounce_vpls_twin(NULL, v), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_second_bounce_vpls_twin(&d, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.maps = NULL; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.position = NULL; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.normal = NULL; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.albedo = NULL; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.map_count = 0; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.size = 0; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.vpl_count = 0; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_INVALID_ARGUMENT);
+    e = d; e.size = 70000; assert_int_equal(gim_second_bounce_vpls_twin(&e, v), GIM_ERROR_OUT_OF_RANGE);
     keep = maps[1];
-    maps[1].flux[1] = NAN; assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
-    maps[1].flux[2] = -1.0f; assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
-    maps[1].normal[0] = 1.0f; assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
-    maps[1].origin[0] = INFINITY; assert_int_equal(gim_second_bounce_vpls(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
+    maps[1].flux[1] = NAN; assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
+    maps[1].flux[2] = -1.0f; assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
+    maps[1].normal[0] = 1.0f; assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
+    maps[1].origin[0] = INFINITY; assert_int_equal(gim_second_bounce_vpls_twin(&d, v), GIM_ERROR_INVALID_ARGUMENT); maps[1] = keep;
     assert_int_equal(lg.errors, 13);  /* all but the NULL desc, which has no env */
     assert_true(strstr(lg.last, "map 1") != NULL);
     assert_int_equal(st.live, 0);

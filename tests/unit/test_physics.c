@@ -180,12 +180,12 @@ static void lightskin_stages(phys_which which, double scale, const double *offse
     /* proxies from every texel (FULL) */
     vals = (gim_val *)malloc(RSM * RSM * sizeof *vals);
     pl = (gim_proxy_light *)malloc(r->caches.count * sizeof *pl);
-    assert_int_equal(gim_vals_gather(&r->rsm, NULL, 0, vals, (gim_env){0}), GIM_OK);
+    assert_int_equal(gim_vals_gather_twin(&r->rsm, NULL, 0, vals, (gim_env){0}), GIM_OK);
     memset(&pd, 0, sizeof pd);
     pd.caches = r->caches.caches; pd.cache_count = r->caches.count;
     pd.vals = vals; pd.val_count = RSM * RSM;
     pd.scene_scale = (float)r->scale;
-    assert_int_equal(gim_proxy_lights(&pd, pl, NULL), GIM_OK);
+    assert_int_equal(gim_proxy_lights_twin(&pd, pl, NULL), GIM_OK);
     cr = (double *)malloc(r->caches.count * sizeof(double));
     edge = (double *)malloc(r->caches.count * sizeof(double));
     {
@@ -238,7 +238,7 @@ static void lightskin_stages(phys_which which, double scale, const double *offse
     sd.d_cmax = nr.d_cmax;
     sd.scene_scale = (float)r->scale;
     radiance = (float *)malloc(r->nrec * 3 * sizeof(float));
-    assert_int_equal(gim_lightskin_shade(&sd, radiance), GIM_OK);
+    assert_int_equal(gim_lightskin_shade_twin(&sd, radiance), GIM_OK);
     st = ratio_stats(r, radiance);
     {
         double cmed = phys_median(cr, ncr);
@@ -257,7 +257,7 @@ static void lightskin_stages(phys_which which, double scale, const double *offse
             double emed = phys_median(edge, nedge);
             printf("  %-13s caches within 0.1 of the contact edge: proxy / exact median %.3f, lowest %.3f (%u caches)\n", "",
                    emed, edge[0], nedge);
-            /* the near field (gim_proxy_lights): 0.791 / 0.743 (sun / spot) before, lowest 0.694 / 0.551 */
+            /* the near field (gim_proxy_lights_twin): 0.791 / 0.743 (sun / spot) before, lowest 0.694 / 0.551 */
             assert_true(emed >= 0.85);
             assert_true(edge[0] >= 0.70);
         }

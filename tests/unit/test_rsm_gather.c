@@ -1,4 +1,4 @@
-/* gim_rsm_gather, the CPU RSM gather (Dachsbacher 2005): with a pattern that covers the RSM it
+/* gim_rsm_gather_twin, the CPU RSM gather (Dachsbacher 2005): with a pattern that covers the RSM it
    is an unbiased estimate of the sum over every texel (checked against that sum), its own
    texel weighs nothing, glossy follows the lobe, bad arguments fail. */
 #define GIMANY_IMPLEMENTATION
@@ -71,7 +71,7 @@ static void unbiased_against_the_full_sum(void **state) {
     d.rsm = &f.rsm; d.light_view_proj = f.vp; d.samples = pattern; d.sample_count = N;
     d.radius = 2.0f * S;   /* covers the RSM from anywhere on it */
     d.receivers = rc; d.receiver_count = 3; d.scene_scale = 6.0f;
-    assert_int_equal(gim_rsm_gather(&d, out), GIM_OK);
+    assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_OK);
     for (i = 0; i < 3; ++i) {
         double ref[3];
         full_sum(&f, &rc[i], ref);
@@ -84,7 +84,7 @@ static void unbiased_against_the_full_sum(void **state) {
     }
     /* a small radius sees a part: less light, never more than the whole */
     d.radius = 4.0f;
-    assert_int_equal(gim_rsm_gather(&d, out), GIM_OK);
+    assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_OK);
     for (i = 0; i < 3; ++i) {
         double ref[3];
         full_sum(&f, &rc[i], ref);
@@ -92,17 +92,17 @@ static void unbiased_against_the_full_sum(void **state) {
     }
     /* glossy: a mirror-like lobe towards the viewer adds light, one away from it adds none */
     d.radius = 2.0f * S;
-    assert_int_equal(gim_rsm_gather(&d, out), GIM_OK);   /* diffuse only */
+    assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_OK);   /* diffuse only */
     rc[2].glossy[0] = rc[2].glossy[1] = rc[2].glossy[2] = 0.5f;
     rc[2].exponent = 50.0f;
     rc[2].view[0] = 0.0f; rc[2].view[1] = -1.0f; rc[2].view[2] = 0.0f;   /* looking up at the floor's mirror: lobe lit */
     {
         float with[9], lit;
-        assert_int_equal(gim_rsm_gather(&d, with), GIM_OK);
+        assert_int_equal(gim_rsm_gather_twin(&d, with), GIM_OK);
         lit = with[6];
         assert_true(lit > out[6] * 1.01f);
         rc[2].view[0] = 0.0f; rc[2].view[1] = 0.0f; rc[2].view[2] = 1.0f;   /* a grazing view: the lobe misses the floor */
-        assert_int_equal(gim_rsm_gather(&d, with), GIM_OK);
+        assert_int_equal(gim_rsm_gather_twin(&d, with), GIM_OK);
         assert_true(with[6] >= out[6] && with[6] - out[6] < 0.05f * (lit - out[6]));
     }
     free(pattern);
@@ -122,16 +122,16 @@ static void bad_arguments(void **state) {
     memset(&d, 0, sizeof d);
     d.rsm = &f.rsm; d.light_view_proj = f.vp; d.samples = pattern; d.sample_count = 4; d.radius = 3.0f;
     d.receivers = &rc; d.receiver_count = 1; d.scene_scale = 1.0f; d.env = test_env(&st, &lg);
-    assert_int_equal(gim_rsm_gather(&d, out), GIM_OK);
-    assert_int_equal(gim_rsm_gather(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_gather(&d, NULL), GIM_ERROR_INVALID_ARGUMENT);
-    d.radius = 0.0f; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.radius = 3.0f;
-    d.radius = NAN; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.radius = 3.0f;
-    d.sample_count = 0; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.sample_count = 4;
-    d.scene_scale = -1.0f; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.scene_scale = 1.0f;
-    pattern[3] = INFINITY; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); pattern[3] = 0.4f;
-    rc.normal[1] = 2.0f; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT); rc.normal[1] = 1.0f;
-    d.light_view_proj.m[3] = NAN; assert_int_equal(gim_rsm_gather(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_OK);
+    assert_int_equal(gim_rsm_gather_twin(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_gather_twin(&d, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    d.radius = 0.0f; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.radius = 3.0f;
+    d.radius = NAN; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.radius = 3.0f;
+    d.sample_count = 0; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.sample_count = 4;
+    d.scene_scale = -1.0f; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); d.scene_scale = 1.0f;
+    pattern[3] = INFINITY; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); pattern[3] = 0.4f;
+    rc.normal[1] = 2.0f; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT); rc.normal[1] = 1.0f;
+    d.light_view_proj.m[3] = NAN; assert_int_equal(gim_rsm_gather_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(lg.errors, 8);
     assert_int_equal(st.live, 0);
 }

@@ -1,7 +1,7 @@
 /* VPL shading of the clustered-visibility and SSVP methods (Dong et al. sec. 4-6; Krivanek's
-   clamping): gim_paraboloid_visibility (PCSS on a paraboloid map), gim_vpl_shade (a VPL
+   clamping): gim_paraboloid_visibility_twin (PCSS on a paraboloid map), gim_vpl_shade_twin (a VPL
    against the closed form, clamping, interleaved sampling, visibility per cluster) and
-   gim_geometry_blur; bad input, leaks and out-of-memory. */
+   gim_geometry_blur_twin; bad input, leaks and out-of-memory. */
 #define GIMANY_IMPLEMENTATION
 #include "testutil.h"
 #include "vplshade_util.h"
@@ -73,8 +73,8 @@ static void single_vpl_closed_form(void **state) {
     {
         gim_vpl_shade_desc d = shade_desc(&v, 1, r, 4, 2, env), dk = shade_desc(&vk, 1, rk, 4, 2, env);
         dk.scene_scale = 1e3f;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
-        assert_int_equal(gim_vpl_shade(&dk, outk), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&dk, outk), GIM_OK);
     }
     for (i = 0; i < 8; ++i) {
         double ref[3];
@@ -90,11 +90,11 @@ static void single_vpl_closed_form(void **state) {
     r[1] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, 1), gim_v3(0, 0, 1));        /* faces away */
     {
         gim_vpl_shade_desc d = shade_desc(&v, 1, r, 2, 1, env);
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
         for (a = 0; a < 6; ++a) assert_true(out[a] == 0.0f);
         v.lit = 0.0f;
         r[0] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, 1));
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
         for (a = 0; a < 6; ++a) assert_true(out[a] == 0.0f);
     }
     assert_int_equal(lg.errors, 0);
@@ -115,9 +115,9 @@ static void clamping_bites_below_dc(void **state) {
     for (i = 0; i < 16; ++i) r[i] = rec(gim_v3(0.0f, 0.0f, 0.05f + 0.06f * (float)i), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     {
         gim_vpl_shade_desc d = shade_desc(&v, 1, r, 16, 1, env);
-        assert_int_equal(gim_vpl_shade(&d, un), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, un), GIM_OK);
         d.clamp_distance = dc;
-        assert_int_equal(gim_vpl_shade(&d, cl), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, cl), GIM_OK);
     }
     for (i = 0; i < 16; ++i) {
         double z = r[i].position[2];
@@ -149,11 +149,11 @@ static void interleave_block_mean_is_full_sum(void **state) {
     for (i = 0; i < W * H; ++i) r[i] = rec(gim_v3(0.2f, 0.1f, 1.5f), gim_v3(0.1f, 0, -1), gim_v3(0.3f, 0.2f, -1));
     {
         gim_vpl_shade_desc d = shade_desc(v, N, r, W, H, env);
-        assert_int_equal(gim_vpl_shade(&d, full), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, full), GIM_OK);
         d.interleave = 1;
-        assert_int_equal(gim_vpl_shade(&d, k1), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, k1), GIM_OK);
         d.interleave = 2;
-        assert_int_equal(gim_vpl_shade(&d, k2), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, k2), GIM_OK);
     }
     assert_memory_equal(full, k1, sizeof full);
     for (by = 0; by < H; by += 2)
@@ -192,17 +192,17 @@ static void visibility_umbra_penumbra(void **state) {
     (void)state;
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 10.0f);
     for (i = 0; i < S * S; ++i) dist[i] = GIM_PARABOLOID_EMPTY;
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), NULL, &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, 0.3f, 0.2f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* a plate at height 1, 2 x 2: under its centre at height 2 every tap is blocked */
     vs_plate_map(dist, S, 1.0f, 0.0f, 0.0f, 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), NULL, &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, 0.0f, 0.0f, 2.0f), NULL, &v), GIM_OK);
     assert_true(v == 0.0f);
     /* between the VAL and the plate: lit */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), NULL, &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, 0.1f, 0.0f, 0.7f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* behind the VAL's plane: 1 whatever the map */
-    assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), NULL, &v), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, 0.0f, 0.0f, -2.0f), NULL, &v), GIM_OK);
     assert_true(v == 1.0f);
     /* out of the shadow along t at height 2: the shadow of the plate's edge (x = 1 at h = 1)
        from the VAL's centre is at x = 2, the exact penumbra [2 - Delta / 2, 2 + Delta / 2]
@@ -211,8 +211,8 @@ static void visibility_umbra_penumbra(void **state) {
     for (i = 0; i <= 60; ++i) {
         float x = 1.0f + 3.5f * (float)i / 60.0f, vb;
         gim_paraboloid big = test_map(1.2f);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), NULL, &v), GIM_OK);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), NULL, &vb), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, x, 0.05f, 2.0f), NULL, &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &big, vs_local(&big, x, 0.05f, 2.0f), NULL, &vb), GIM_OK);
         if (v > 0.0f && v < 1.0f) ++frac;
         if (vb > 0.0f && vb < 1.0f) ++frac_big;
         if (v < prev) ++drops;
@@ -260,7 +260,7 @@ static void visibility_near_exact(void **state) {
         m.size = (float)D;
         vs_plate_map(dist, S, (float)h, (float)cx, (float)cy, (float)half);
         ex = exact_visibility(D, h, cx, cy, half, a, b, c);
-        assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), NULL, &v), GIM_OK);
+        assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, (float)a, (float)b, (float)c), NULL, &v), GIM_OK);
         assert_true(v >= 0.0f && v <= 1.0f);
         if (ex > 0.999 && v > 0.999f) continue;   /* far from any shadow */
         ++n;
@@ -292,8 +292,8 @@ static void visibility_unit_free(void **state) {
         for (i = 0; i < S * S; ++i) dist_s[i] = dist[i] < GIM_PARABOLOID_EMPTY ? dist[i] * k : dist[i];
         for (i = 0; i < 200; ++i) {
             float a = test_rnd(-3, 3), b = test_rnd(-3, 3), c = test_rnd(0.2f, 3.0f), v, vs;
-            assert_int_equal(gim_paraboloid_visibility(dist, S, &m, vs_local(&m, a, b, c), NULL, &v), GIM_OK);
-            assert_int_equal(gim_paraboloid_visibility(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), NULL, &vs), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility_twin(dist, S, &m, vs_local(&m, a, b, c), NULL, &v), GIM_OK);
+            assert_int_equal(gim_paraboloid_visibility_twin(dist_s, S, &ms, vs_local(&ms, a * k, b * k, c * k), NULL, &vs), GIM_OK);
             if (fabsf(v - vs) > 1.0f / 16.0f + 1e-6f) fail_msg("scale %g: V %g against %g", (double)k, (double)v, (double)vs);
             differ += v != vs;
             ++total;
@@ -343,10 +343,10 @@ static void shade_uses_cluster_visibility(void **state) {
     {
         gim_vpl_shade_desc d = shade_desc(v, 3, r, 2, 1, env);
         d.cluster = cl; d.maps = maps; d.map_count = 2; d.distance = dist; d.map_size = S;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
         d.cluster = NULL;
         d.vpl_count = 1;
-        assert_int_equal(gim_vpl_shade(&d, ref), GIM_OK);   /* one unshadowed VPL */
+        assert_int_equal(gim_vpl_shade_twin(&d, ref), GIM_OK);   /* one unshadowed VPL */
         for (i = 0; i < 3; ++i) {
             assert_true(fabs(out[i] - ref[i]) <= 1e-6 * ref[i]);              /* under the plate: only v[2] */
             assert_true(fabs(out[3 + i] - 3.0f * ref[3 + i]) <= 1e-5 * ref[3 + i]); /* out of it: all three */
@@ -354,11 +354,11 @@ static void shade_uses_cluster_visibility(void **state) {
         /* cluster 0 (the empty map) for all: unshadowed */
         cl[0] = cl[1] = 0;
         d.cluster = cl; d.vpl_count = 3;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
         for (i = 0; i < 3; ++i) assert_true(fabs(out[i] - 3.0f * ref[i]) <= 1e-5 * ref[i]);
         /* out of memory for the per-map cache: an error, nothing leaked */
         st.fail_after = st.allocs;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_OUT_OF_MEMORY);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_ERROR_OUT_OF_MEMORY);
         st.fail_after = -1;
     }
     assert_int_equal(lg.errors, 1);
@@ -368,7 +368,7 @@ static void shade_uses_cluster_visibility(void **state) {
 /* One imperfect shadow map per VPL (gim_vpl_shade_desc.ism): a plate z = 1 over [-1, 1]^2
    under a ceiling z = 2 hides the ceiling straight above a VPL at the origin and leaves it lit
    beside the plate, exactly as much as without visibility; the VPL's map of the points of both
-   by gim_ism_render. (Without the ceiling the map's pull-push fills the sky with the plate's
+   by gim_ism_render_twin. (Without the ceiling the map's pull-push fills the sky with the plate's
    depth: a receiver must lie on the scene the points sample.) */
 static void shade_uses_vpl_ism(void **state) {
     enum { NPT = 4096, IS = 32 };
@@ -394,30 +394,30 @@ static void shade_uses_vpl_ism(void **state) {
     memset(&id, 0, sizeof id);
     id.caches = &c; id.cache_count = 1; id.points = pts; id.point_count = NPT; id.size = IS; id.scene_scale = 4.0f;
     id.env = env;
-    assert_int_equal(gim_ism_render(&id, ism), GIM_OK);
+    assert_int_equal(gim_ism_render_twin(&id, ism), GIM_OK);
     r[0] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     r[1] = rec(gim_v3(3, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     {
         gim_vpl_shade_desc d = shade_desc(&v, 1, r, 2, 1, env);
         d.scene_scale = 4.0f;
-        assert_int_equal(gim_vpl_shade(&d, ref), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, ref), GIM_OK);
         d.ism = ism; d.ism_size = IS; d.ism_bias = GIM_ISM_VPL_BIAS; d.ism_slope = GIM_ISM_VPL_SLOPE;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
         for (i = 0; i < 3; ++i) {
             assert_true(ref[i] > 0.0f && out[i] == 0.0f);   /* above the plate: shadowed */
             assert_true(ref[3 + i] > 0.0f && out[3 + i] == ref[3 + i]);
         }
         d.ism_size = 24;   /* refused: not a power of two */
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
         d.ism_size = IS; d.ism_bias = 2.0f;
-        assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
         d.ism_bias = 0.0f;
         {   /* one visibility per VPL: the cluster's or its own map's, not both */
             uint32_t cl = 0;
             gim_paraboloid m = test_map(0.2f);
             float dist[4] = {1, 1, 1, 1};
             d.cluster = &cl; d.maps = &m; d.map_count = 1; d.distance = dist; d.map_size = 2;
-            assert_int_equal(gim_vpl_shade(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+            assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
         }
     }
     assert_int_equal(lg.errors, 3);
@@ -448,7 +448,7 @@ static void blur_keeps_edges(void **state) {
         }
     memset(r[0].normal, 0, sizeof r[0].normal);   /* no surface */
     d.radiance = in; d.receivers = r; d.width = W; d.height = H; d.window = 4; d.position_tolerance = 0.5f; d.env = env;
-    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&d, out), GIM_OK);
     for (x = 0; x < W * H * 3; ++x) {
         if (x < 3) assert_true(out[x] == 0.0f);
         else assert_true(fabs(out[x] - in[x]) <= 1e-6f * in[x]);
@@ -460,7 +460,7 @@ static void blur_keeps_edges(void **state) {
             float base = x < 6 ? 1.0f : (y < 4 ? 10.0f : 100.0f);
             for (a = 0; a < 3; ++a) in[i * 3 + a] = base * (1.0f + 0.05f * (float)((x + y) % 3));
         }
-    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&d, out), GIM_OK);
     for (y = 0; y < H; ++y)
         for (x = 0; x < W; ++x) {
             int i = y * W + x;
@@ -470,7 +470,7 @@ static void blur_keeps_edges(void **state) {
         }
     /* window 0: a copy */
     d.window = 0;
-    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&d, out), GIM_OK);
     assert_memory_equal(out + 3, in + 3, (W * H - 1) * 3 * sizeof(float));
     assert_int_equal(lg.errors, 0);
     assert_int_equal(st.live, 0);
@@ -503,7 +503,7 @@ static void blur_light_not_albedo(void **state) {
     in[(3 * W + 4) * 3] = in[(3 * W + 4) * 3 + 1] = in[(3 * W + 4) * 3 + 2] = 5.0f;
     memset(&d, 0, sizeof d);
     d.radiance = in; d.receivers = r; d.width = W; d.height = H; d.window = 8; d.position_tolerance = 10.0f; d.env = env;
-    assert_int_equal(gim_geometry_blur(&d, out), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&d, out), GIM_OK);
     for (x = 0; x < W * H * 3; ++x) assert_true(fabs(out[x] - in[x]) <= 1e-5f);
     assert_int_equal(lg.errors, 0);
     assert_int_equal(st.live, 0);
@@ -531,15 +531,15 @@ static void blur_undoes_interleaving(void **state) {
             r[y * W + x] = rec(gim_v3(0.2f + 0.6f * (x + 0.5f) / W, 0.0f, (y + 0.5f) / H), gim_v3(0, 1, 0), gim_v3(0, 1, 1));
     {
         gim_vpl_shade_desc d = shade_desc(v, N, r, W, H, env);
-        assert_int_equal(gim_vpl_shade(&d, full), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, full), GIM_OK);
         d.interleave = 4;
-        assert_int_equal(gim_vpl_shade(&d, k4), GIM_OK);
+        assert_int_equal(gim_vpl_shade_twin(&d, k4), GIM_OK);
     }
     memset(&b, 0, sizeof b);
     b.radiance = k4; b.receivers = r; b.width = W; b.height = H; b.window = 4; b.position_tolerance = 0.2f; b.env = env;
-    assert_int_equal(gim_geometry_blur(&b, blurred), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&b, blurred), GIM_OK);
     b.window = 2;
-    assert_int_equal(gim_geometry_blur(&b, blurred2), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(&b, blurred2), GIM_OK);
     /* interior pixels (the window is whole there) */
     for (y = 2; y < H - 2; ++y)
         for (x = 2; x < W - 2; ++x) {
@@ -570,75 +570,75 @@ static void bad_input(void **state) {
     gim_blur_desc b;
     int errors = 0;
     (void)state;
-    assert_int_equal(gim_vpl_shade(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_vpl_shade_twin(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
 #define BAD(expr) do { assert_int_equal(expr, GIM_ERROR_INVALID_ARGUMENT); assert_int_equal(lg.errors, ++errors); } while (0)
 #define RESET() (d = shade_desc(&v, 1, &r, 1, 1, env))
-    RESET(); BAD(gim_vpl_shade(&d, NULL));
-    RESET(); d.receivers = NULL; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.width = 0; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.vpls = NULL; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.scene_scale = 0.0f; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.clamp_distance = -1.0f; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.clamp_distance = NAN; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.interleave = 65; BAD(gim_vpl_shade(&d, out));
-    RESET(); d.cluster = &cl; BAD(gim_vpl_shade(&d, out));                       /* no maps */
+    RESET(); BAD(gim_vpl_shade_twin(&d, NULL));
+    RESET(); d.receivers = NULL; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.width = 0; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.vpls = NULL; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.scene_scale = 0.0f; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.clamp_distance = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.clamp_distance = NAN; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.interleave = 65; BAD(gim_vpl_shade_twin(&d, out));
+    RESET(); d.cluster = &cl; BAD(gim_vpl_shade_twin(&d, out));                       /* no maps */
     RESET(); d.cluster = &cl; d.maps = &m; d.map_count = 1; d.distance = dist; d.map_size = 2;
-    BAD(gim_vpl_shade(&d, out));                                                /* cluster 3 of 1 */
-    cl = 0; m.normal[0] = 5.0f; BAD(gim_vpl_shade(&d, out));                    /* map normal not unit */
-    m = test_map(0.2f); m.size = -1.0f; BAD(gim_vpl_shade(&d, out));
+    BAD(gim_vpl_shade_twin(&d, out));                                                /* cluster 3 of 1 */
+    cl = 0; m.normal[0] = 5.0f; BAD(gim_vpl_shade_twin(&d, out));                    /* map normal not unit */
+    m = test_map(0.2f); m.size = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
     m = test_map(0.2f);
-    assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
-    RESET(); v.position[1] = INFINITY; BAD(gim_vpl_shade(&d, out));
-    v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1); v.flux[2] = -1.0f; BAD(gim_vpl_shade(&d, out));
+    assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
+    RESET(); v.position[1] = INFINITY; BAD(gim_vpl_shade_twin(&d, out));
+    v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1); v.flux[2] = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
-    r.normal[0] = 0.5f; BAD(gim_vpl_shade(&d, out));
-    r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.exponent = -1.0f; BAD(gim_vpl_shade(&d, out));
-    r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.albedo[1] = NAN; BAD(gim_vpl_shade(&d, out));
+    r.normal[0] = 0.5f; BAD(gim_vpl_shade_twin(&d, out));
+    r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.exponent = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
+    r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.albedo[1] = NAN; BAD(gim_vpl_shade_twin(&d, out));
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     RESET(); d.vpl_count = 0; d.vpls = NULL;
-    assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);                            /* no VPLs: dark */
+    assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);                            /* no VPLs: dark */
     assert_true(out[0] == 0.0f && out[1] == 0.0f && out[2] == 0.0f);
     /* huge flux at a tiny distance: finite, clamped at FLT_MAX */
     RESET(); v.flux[0] = 3e38f; r.position[2] = 1e-5f;
-    assert_int_equal(gim_vpl_shade(&d, out), GIM_OK);
+    assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
     assert_true(isfinite(out[0]) && out[0] > 0.0f && isfinite(out[1]));
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     /* visibility (it has no env: errors are results only) */
-    assert_int_equal(gim_paraboloid_visibility(NULL, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 0, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, NULL, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(NAN, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(NULL, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 0, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, NULL, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(NAN, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(0, 0, 1), NULL, NULL), GIM_ERROR_INVALID_ARGUMENT);
     {
         gim_vec3 bad = gim_v3(0, 0, 2), nan_ = gim_v3(NAN, 0, 1);
-        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &bad, &v0), GIM_ERROR_INVALID_ARGUMENT);
-        assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), &nan_, &v0), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(0, 0, 1), &bad, &v0), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(0, 0, 1), &nan_, &v0), GIM_ERROR_INVALID_ARGUMENT);
     }
     m.origin[0] = INFINITY;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(0, 0, 1), NULL, &v0), GIM_ERROR_INVALID_ARGUMENT);
     m = test_map(0.2f);
     /* NaN and negative texels block nothing; a receiver at the origin or far away is lit */
     dist[0] = NAN; dist[1] = -1.0f; dist[2] = 0.0f; dist[3] = NAN;
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), NULL, &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, vs_local(&m, 0.1f, 0.1f, 1.0f), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, vs_local(&m, 0, 0, 0), NULL, &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, vs_local(&m, 0, 0, 0), NULL, &v0), GIM_OK);
     assert_true(v0 == 1.0f);
-    assert_int_equal(gim_paraboloid_visibility(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), NULL, &v0), GIM_OK);
+    assert_int_equal(gim_paraboloid_visibility_twin(dist, 2, &m, gim_v3(3e38f, -3e38f, 3e38f), NULL, &v0), GIM_OK);
     assert_true(v0 >= 0.0f && v0 <= 1.0f);
     /* blur */
     memset(&b, 0, sizeof b);
     b.radiance = out; b.receivers = &r; b.width = 1; b.height = 1; b.position_tolerance = 1.0f; b.env = env;
     out[0] = out[1] = out[2] = 1.0f;
-    assert_int_equal(gim_geometry_blur(&b, dist), GIM_OK);
-    assert_int_equal(gim_geometry_blur(NULL, dist), GIM_ERROR_INVALID_ARGUMENT);
-    BAD(gim_geometry_blur(&b, NULL));
-    BAD(gim_geometry_blur(&b, out));                      /* in place */
-    b.position_tolerance = 0.0f; BAD(gim_geometry_blur(&b, dist));
-    b.position_tolerance = 1.0f; b.normal_tolerance = 2.0f; BAD(gim_geometry_blur(&b, dist));
-    b.normal_tolerance = 0.0f; b.window = 100; BAD(gim_geometry_blur(&b, dist));
-    b.window = 2; out[1] = NAN; BAD(gim_geometry_blur(&b, dist));
-    out[1] = 1.0f; b.height = 0; BAD(gim_geometry_blur(&b, dist));
+    assert_int_equal(gim_geometry_blur_twin(&b, dist), GIM_OK);
+    assert_int_equal(gim_geometry_blur_twin(NULL, dist), GIM_ERROR_INVALID_ARGUMENT);
+    BAD(gim_geometry_blur_twin(&b, NULL));
+    BAD(gim_geometry_blur_twin(&b, out));                      /* in place */
+    b.position_tolerance = 0.0f; BAD(gim_geometry_blur_twin(&b, dist));
+    b.position_tolerance = 1.0f; b.normal_tolerance = 2.0f; BAD(gim_geometry_blur_twin(&b, dist));
+    b.normal_tolerance = 0.0f; b.window = 100; BAD(gim_geometry_blur_twin(&b, dist));
+    b.window = 2; out[1] = NAN; BAD(gim_geometry_blur_twin(&b, dist));
+    out[1] = 1.0f; b.height = 0; BAD(gim_geometry_blur_twin(&b, dist));
 #undef BAD
 #undef RESET
 }
