@@ -1,18 +1,70 @@
-/* gimany.h - real-time global illumination with many-light methods, single header, OpenGL 4.3
+/* gimany.h - real-time global illumination with many-light methods, OpenGL 4.3
    version 0.1.0, MIT licence (see the end of this file)
 
    WHAT IT IS
-     One and two bounces of indirect light (diffuse and glossy) for hobby engines, from
-     reflective shadow maps (RSM), LightSkin light caches, bidirectional importance sampling of
-     the RSM, clustered visibility and screen-space VPL propagation. Every GPU pass has a CPU
-     twin in this header that computes the same numbers; the twins are what the tests compare
-     the GPU against, and they serve hosts without GL 4.3.
+     One and two bounces of indirect light (diffuse and glossy) for hobby engines. The host
+     hands over meshes, materials, instances, lights and its camera and calls gim_update once
+     a frame; gimany renders reflective shadow maps (RSMs), picks or clusters virtual lights,
+     lights its caches and hands back a texture of indirect radiance to add to the host's
+     direct light. Five many-light methods are settings of the same runtime, so a host trades
+     speed for accuracy with parameters. Every GPU pass has a CPU twin in this header that
+     computes the same numbers: the tests compare the GPU against them, and hosts without
+     GL 4.3 can use them.
 
-   USE
+   THE TWO FILES
+     gimany.h              this header: declarations, and the implementation under
+                           GIMANY_IMPLEMENTATION
+     shaders_embedded.h    the GLSL of every pass as C strings (generated from shaders/ by
+                           `make shaders`); gimany.h includes it in the implementation unless
+                           GIMANY_NO_GL. Keep both next to each other.
      In exactly one C or C++ file:
          #define GIMANY_IMPLEMENTATION
          #include "gimany.h"
-     Everywhere else just #include "gimany.h".
+     Everywhere else just #include "gimany.h". The library needs libc, libm and the host's GL.
+
+   QUICK START (a GL 4.3 context current on this thread; zero means default everywhere)
+         gim_desc d = {0};
+         d.get_proc_address = (gim_gl_proc (*)(const char *))glfwGetProcAddress;
+         d.env.logger.func = gim_log_stderr;                      errors: one line each
+         gim_context *ctx;
+      1  gim_create(&d, &ctx);                                    GIM_ERROR_UNSUPPORTED below GL 4.3
+         gim_mesh_desc md = {0};                                  model space
+         md.data.positions = p; md.data.vertex_count = nv;
+         md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U32;
+         gim_cache_desc cd = {0}; cd.mesh = md.data;              LightSkin's light caches, once
+         gim_cache_scene_desc sd = {0}; sd.meshes = &cd; sd.count = 1;  (all meshes, one spacing)
+         gim_cache_set caches;                                    (CPU; or a blob saved earlier)
+      2  gim_cache_generate_scene(&sd, &caches);
+         md.caches = &caches;                                     copied: gim_cache_set_free after
+         gim_mesh mesh;
+      3  gim_add_mesh(ctx, &md, &mesh);                           once per mesh
+      4  gim_set_materials(ctx, mats, nmats);                     diffuse, glossy, exponent
+         gim_instance in = {mesh, model};
+      5  gim_set_instances(ctx, &in, 1);                          again when an object moves
+         gim_light sun = {0}; sun.type = GIM_LIGHT_DIRECTIONAL;
+         sun.direction = towards_sun; sun.irradiance = 3.0f;
+      6  gim_set_lights(ctx, &sun, 1);                            again when a light changes
+         every frame:
+         gim_frame f = gim_frame_defaults(GIM_METHOD_LIGHTSKIN_BRSM);  or {0}: the same
+         f.view = view; f.proj = proj; f.width = w; f.height = h; f.frame_index = n;
+      7  gim_update(ctx, &f);                                     every pass of the frame
+      8  gim_frame_outputs o = gim_outputs(ctx);
+         ... in the host's shading: colour = direct + texture(o.indirect, uv).rgb
+      9  gim_frame_stats(ctx, &stats);                            optional: per-pass times
+     10  gim_destroy(ctx);                                        once; not twice (as free())
+     A complete program of about 200 lines: examples/minimal.c.
+
+   UNITS
+     Lengths are in the host's unit. Every length threshold is relative to a scene scale (the
+     diagonal of the instances' bounds unless gim_frame.scene_scale), so the same scene in
+     millimetres or kilometres gives the same image. Radiometry is linear and in float: a sun's
+     irradiance E (power per area facing it), a spot's or point light's intensity I (power per
+     steradian), a material's albedo rho in [0, 1]. gim_frame_outputs.indirect holds radiance
+     leaving each pixel's surface towards the eye, the albedo already applied (with the host's
+     own G-buffer, albedo 1: the host multiplies by its albedo). It adds to direct light in the
+     same units: a Lambertian surface lit directly by E at angle theta has radiance
+     rho / pi x E cos(theta). A host whose direct term is rho x E cos(theta) (no 1 / pi, common
+     in games) multiplies indirect by pi.
 
    CONFIG MACROS (define before the include that has GIMANY_IMPLEMENTATION)
      GIMANY_NO_GL          drop the GL runtime: only the CPU parts, no GL header needed
@@ -30,52 +82,62 @@
      Every function that can fail returns a gim_result (GIM_OK == 0) and writes one line
      through the log callback of the gim_env it was given ("gimany: <function>: <what>").
      Nothing in gimany calls exit() or abort(); outputs are left untouched on error unless a
-     function says otherwise.
+     function says otherwise. Every GL call leaves the host's GL state as it found it.
 
-   UNITS
-     Linear radiometry in float. Lengths are in the host's unit; every length threshold is
-     relative to a scene scale (the diagonal of the scene bounds unless given), so the same
-     scene in millimetres or kilometres gives the same numbers.
+   METHODS (gim_frame.method; each one setting of the same runtime)
+     LIGHTSKIN_BRSM (default)  LightSkin light caches fed by val_count VALs drawn from the RSM
+                           by bidirectional importance [1]; f.lightskin
+     LIGHTSKIN_FULL        every RSM texel a VAL of weight 1: LightSkin's own reference [1]
+     RSM_GATHER            each pixel gathers a fixed pattern of RSM texels [2]; the baseline,
+                           no caches, no visibility; f.gather
+     CLUSTERED             VPLs clustered by k-means into VALs with paraboloid soft shadow maps
+                           [3]; f.vpl
+     SSVP                  two bounces from one paraboloid map per cluster [4]; f.vpl
+     Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
+     cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
+     off by default, and off costs nothing. f.lightskin.temporal_steps keeps the VALs
+     coherent from frame to frame (the aim of incremental instant radiosity [7]).
+     Measured speed and error of each: README.md, docs/methods.md.
 
-   EXAMPLE (CPU parts)
-         float pts[2 * 256];
-         gim_halton_points(pts, 256, 2, 0, NULL);            first 256 2D Halton points
-
-         gim_kmeans_desc kd = {0};                           zero means default
-         kd.positions = vpl_pos; kd.normals = vpl_nrm; kd.flux = vpl_flux;
-         kd.vpl_count = 1024; kd.cluster_count = 30; kd.scene_scale = 10.0f;
-         gim_kmeans_result kr;                                caller-owned arrays, sized by counts
-         ...
-         if (gim_kmeans(&kd, &kr) != GIM_OK) { ... }
-
-   EXAMPLE (GL runtime; a GL 4.3 context current on this thread)
-         gim_desc d = {0};
-         d.get_proc_address = (gim_gl_proc (*)(const char *))glfwGetProcAddress;
-         d.env.logger.func = gim_log_stderr;
-         gim_context *ctx;
-         if (gim_create(&d, &ctx) != GIM_OK) { ... }         too old a context: GIM_ERROR_UNSUPPORTED
-         ...
-         gim_destroy(ctx);
-
-   METHODS (each one setting of the same runtime)
-     RSM gather          fixed RSM samples per pixel, no visibility (Dachsbacher 2005; baseline)
-     LightSkin full      every RSM texel is a VAL accumulated into per-cache proxy lights
-     LightSkin + BRSM    importance map -> cumulative sums -> N selected VALs weighted by 1/P
-     Clustered           k-means of VPLs into VALs with paraboloid soft shadow maps (Dong)
-     SSVP                two bounces from paraboloid maps per cluster (Aranha et al.)
+   BIBLIOGRAPHY
+     [1] T. Bischoff, A. Schwandt, W. Broll. A Real-time Global Illumination Approach for High
+         Resolution Reflective Shadow Maps in Open World Scenes. VISIGRAPP (GRAPP) 2017.
+         Equation numbers in comments ("eq. 12") are this paper's.
+     [2] C. Dachsbacher, M. Stamminger. Reflective Shadow Maps. I3D 2005.
+     [3] Z. Dong, T. Grosch, T. Ritschel, J. Kautz, H.-P. Seidel. Real-time Indirect
+         Illumination with Clustered Visibility. VMV 2009.
+     [4] V. M. Aranha, M. C. F. Macedo, A. L. Apolinario Jr. Screen-space VPL propagation for
+         real-time indirect lighting. SIBGRAPI 2020.
+     [5] T. Ritschel, T. Grosch, M. H. Kim, H.-P. Seidel, C. Dachsbacher, J. Kautz. Imperfect
+         Shadow Maps for Efficient Computation of Indirect Illumination. SIGGRAPH Asia 2008.
+     [6] A. Keller. Instant Radiosity. SIGGRAPH 1997.
+     [7] S. Laine, H. Saransaari, J. Kontkanen, J. Lehtinen, T. Aila. Incremental Instant
+         Radiosity for Real-Time Indirect Illumination. EGSR 2007.
+     [8] J. Krivanek et al. Global illumination with many-light methods (course slides):
+         clamping, interleaved sampling, paraboloid maps.
 
    TABLE OF CONTENTS (search for the tag)
-     @section config       config macros, version, linkage
+   Declarations, in the order a host meets them:
+     @section config       version, linkage (GIMANY_API, GIMANY_STATIC)
      @section common       result codes, allocator, log, environment
-     @section math         vectors, matrices, colour helpers
+     @section scene        what a host hands over: vector and matrix types, mesh data, lights,
+                           materials, normal encodings of a host's G-buffer
+     @section gl           the host API, the GL 4.3 runtime (absent with GIMANY_NO_GL): context,
+                           meshes, materials, instances, lights, gim_frame (common settings,
+                           then one sub-struct per method family) and gim_frame_defaults,
+                           gim_update, gim_prepare, outputs, stats, gim_debug
+   The CPU layer a host may use without GL:
+     @section math         vector and matrix helpers
      @section samplers     radical inverse, Halton, Hammersley, disk, hemisphere, rotation
-     @section kmeans       k-means of VPLs into clusters (Dong metric, SSVP metric)
-     @section caches       LightSkin light-cache generator, neighbour caches, blobs
+     @section kmeans       k-means of VPLs into clusters (Dong's metric, SSVP's metric)
+     @section caches       LightSkin's light-cache generator, neighbour caches, blobs
      @section importance   importance map (eq. 10-11), cumulative sums (eq. 12), selection
-     @section twins        CPU twins of the GPU passes
-     @section gl           the GL 4.3 runtime (absent with GIMANY_NO_GL)
-   The implementation follows under GIMANY_IMPLEMENTATION in the same order, each part tagged
-   @impl <name>.
+   The reference layer:
+     @section twins        the CPU twin of every GPU pass (gim_<pass>_twin; building blocks
+                           the runtime itself runs on the CPU keep plain names)
+   The implementation follows under GIMANY_IMPLEMENTATION, each part tagged @impl <name>: the
+   CPU parts first (common, math, samplers, kmeans, caches, importance, twins), then gl, which
+   uses them. Where each part is tested: tests/README.md; the design: docs/design.md.
 */
 
 /* @section config ========================================================================= */
@@ -146,13 +208,584 @@ GIMANY_API const char *gim_result_string(gim_result r);
 /* A ready-made logger body that prints to stderr; use as gim_logger.func. */
 GIMANY_API void gim_log_stderr(gim_log_level level, const char *message, void *user_data);
 
-/* @section math =========================================================================== */
+/* @section scene ========================================================================== */
+/* What a host hands over, shared by the GL runtime (@section gl) and the CPU layer: meshes,
+   lights, materials, and how a host's own G-buffer holds its normals. */
 
 /* Plain vector and matrix types; matrices are column-major like OpenGL. */
 typedef struct gim_vec2 { float x, y; } gim_vec2;
 typedef struct gim_vec3 { float x, y, z; } gim_vec3;
 typedef struct gim_vec4 { float x, y, z, w; } gim_vec4;
 typedef struct gim_mat4 { float m[16]; } gim_mat4;  /* m[col * 4 + row] */
+
+/* Index width of a mesh. */
+typedef enum gim_index_type {
+    GIM_INDEX_DEFAULT = 0,   /* = U32 */
+    GIM_INDEX_U32,
+    GIM_INDEX_U16
+} gim_index_type;
+
+/* A triangle mesh in model space; shared by the cache generator and the neighbour search. */
+typedef struct gim_mesh_data {
+    const float *positions;           /* vertex_count * 3 (or position_stride bytes apart) */
+    uint32_t vertex_count;
+    uint32_t position_stride;         /* bytes between vertices; 0 = 12 */
+    const float *normals;             /* vertex_count * 3, or NULL (face normals are used) */
+    uint32_t normal_stride;           /* bytes; 0 = 12 */
+    const void *indices;              /* index_count indices, 3 per triangle */
+    uint32_t index_count;
+    gim_index_type index_type;
+    const uint32_t *triangle_material; /* index_count / 3 material ids, or NULL (all material 0) */
+    const float *material_reflectance; /* material_count reflection coefficients in [0,1], or NULL (all 1) */
+    uint32_t material_count;
+} gim_mesh_data;
+
+/* LightSkin light caches of a mesh (@section caches: gim_cache_generate_scene, blobs). */
+typedef struct gim_cache_set gim_cache_set;
+
+/* Kind of light. */
+typedef enum gim_light_type {
+    GIM_LIGHT_DEFAULT = 0,     /* = DIRECTIONAL */
+    GIM_LIGHT_DIRECTIONAL,     /* the sun: parallel light, orthographic RSM */
+    GIM_LIGHT_SPOT,            /* a point light in a cone, perspective RSM */
+    GIM_LIGHT_POINT            /* a point light in every direction: six square spots, the faces of
+                                  a cube around it (gim_point_light_faces), each its own RSM */
+} gim_light_type;
+
+#define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.lightskin.temporal_steps */
+#define GIM_MAX_LIGHTS 4096           /* RSMs per context (a point light takes six, others one): a bound
+                                         on the arrays, not on memory; each RSM the frame renders has
+                                         its own textures (52 bytes a texel), one it culls has none */
+#define GIM_RSM_MIN_COS (1.0f / 64.0f) /* floor of the cosine in a VAL's area A = ... / cos */
+
+/* A light; zero means default. */
+typedef struct gim_light {
+    gim_light_type type;
+    float color[3];         /* rgb factor of the power, >= 0; all zero: (1, 1, 1) */
+    float irradiance;       /* DIRECTIONAL: E, per unit area perpendicular to direction, >= 0 */
+    float intensity;        /* SPOT, POINT: I, per steradian inside the cone (in every direction), >= 0 */
+    gim_vec3 position;      /* SPOT, POINT: where the light is */
+    gim_vec3 direction;     /* DIRECTIONAL: towards the light; SPOT: the cone's axis, away from
+                               the light; non-zero (normalised internally); POINT: ignored */
+    float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
+    int square_cone;        /* SPOT: 1: every direction of its square RSM frustum (half-angle
+                               cone_angle to the sides' middles) is lit, as on a cube face; 0: a
+                               round cone. POINT: ignored */
+    float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
+                               0: the radius of the scene bounds' sphere, so it covers the scene */
+    uint32_t rsm_size;      /* RSM side in texels (POINT: of each cube face); 0: 512; below 16 a
+                               warning (few VALs) */
+    int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
+                               (gim_light_fit_view), the open-world case: its texels go where the
+                               view is, not over the whole world; 0: the scene bounds */
+} gim_light;
+
+/* One material; zero is black. Diffuse and glossy albedo rgb, Phong-like exponent k. */
+typedef struct gim_material {
+    float diffuse[3];       /* >= 0 */
+    float glossy[3];        /* >= 0 */
+    float exponent;         /* k >= 0 */
+} gim_material;
+
+/* How a host's G-buffer texture holds its normals (gim_frame.gbuffer.normal_encoding). */
+typedef enum gim_normal_encoding {
+    GIM_NORMAL_XYZ = 0,          /* signed xyz (float or snorm formats): gimany's own layout */
+    GIM_NORMAL_XYZ_UNORM,        /* xyz * 0.5 + 0.5 (GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
+    GIM_NORMAL_OCTAHEDRAL,       /* the octahedral map (Cigolle et al. 2014) in [-1, 1] in .xy
+                                    (GL_RG16_SNORM, GL_RG16F, GL_RG32F, GL_RG8_SNORM) */
+    GIM_NORMAL_OCTAHEDRAL_UNORM  /* the octahedral map * 0.5 + 0.5 in .xy (GL_RG16, GL_RG8, or the
+                                    first two channels of GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
+} gim_normal_encoding;
+
+#ifdef __cplusplus
+}
+#endif
+
+/* @section gl ============================================================================= */
+/* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
+   host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
+   the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
+   every call below. Every call that touches GL leaves the GL state as it found it.
+
+   The calls in a frame's order: the QUICK START at the top of this file. Caches come from
+   gim_cache_generate_scene over all the meshes (or a blob) once, handed over per mesh in
+   gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only.
+   gim_frame.method picks the method; each method family's settings are one sub-struct of
+   gim_frame (lightskin, gather, vpl), and gim_frame_defaults shows every default. */
+#ifndef GIMANY_NO_GL
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
+typedef void (*gim_gl_proc)(void);
+
+/* Input of gim_create; zero means default. */
+typedef struct gim_desc {
+    gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
+    gim_env env;                                        /* allocator and log of the context */
+} gim_desc;
+
+/* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
+typedef struct gim_context gim_context;
+
+/* Create a context for the current GL context: loads the GL functions, checks for GL 4.3
+   (GIM_ERROR_UNSUPPORTED, with what is missing logged), logs the renderer. Shaders are
+   compiled lazily on first use. *out is written only on GIM_OK. */
+GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
+/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine.
+   ctx is freed: destroying it again, or any later call with it, is the caller's error (as a
+   double free() is; sokol's rule too). gimany keeps no global state to catch it, so the second
+   call reads freed memory; set your pointer to NULL after the call. */
+GIMANY_API void gim_destroy(gim_context *ctx);
+
+/* --- the scene the host hands over --------------------------------------
+   Meshes are uploaded once; materials, instances and lights are set whenever they change
+   (instances every frame for moving objects; a skinned or morphing mesh is added with
+   gim_mesh_desc.deforming and its vertices change through gim_update_mesh_vertices or the
+   host's own buffers, its caches following its triangles on the GPU); sizes may change between frames without
+   recreating the context. Every call validates all its input before touching anything: on an
+   error the scene is as it was before the call. */
+
+/* A mesh handle; id 0 is never a mesh. */
+typedef struct gim_mesh { uint32_t id; } gim_mesh;
+
+/* Input of gim_add_mesh; zero means default. */
+/* A mesh in the host's own GL buffers, drawn from directly: no copy on the GPU. Positions and
+   normals are float3 at offset + i * stride (interleaved layouts name the same buffer twice),
+   indices of gim_mesh_data.index_type at index_offset. gim_add_mesh reads positions and
+   indices back once (bounds, index checks, the caches' materials, ISM points); after that the
+   host may change the buffers' contents only through gim_remove_mesh / gim_add_mesh again (a
+   mesh flagged gim_mesh_desc.deforming: positions and normals at any time), and
+   must keep them alive while the mesh exists (gimany never deletes them). */
+typedef struct gim_mesh_buffers {
+    uint32_t positions;         /* GL buffer name; 0: the mesh is uploaded from gim_mesh_data */
+    uint32_t position_offset;   /* bytes, a multiple of 4 */
+    uint32_t position_stride;   /* bytes, a multiple of 4; 0 = 12 */
+    uint32_t normals;           /* GL buffer name (non-zero, unit normals; not checked) */
+    uint32_t normal_offset, normal_stride;
+    uint32_t indices;           /* GL buffer name */
+    uint32_t index_offset;      /* bytes, a multiple of the index size */
+} gim_mesh_buffers;
+
+typedef struct gim_mesh_desc {
+    gim_mesh_data data;         /* model space: positions (finite), normals (non-zero, finite; NULL:
+                                   area-weighted vertex normals are computed), 16/32-bit indices
+                                   (< vertex_count), triangle_material (ids into gim_set_materials'
+                                   array, checked at gim_update; NULL: all 0); material_reflectance
+                                   and material_count are not used here. With buffers: only
+                                   vertex_count, index_count, index_type and triangle_material */
+    const gim_cache_set *caches; /* model-space LightSkin caches of the mesh, or NULL; copied */
+    gim_mesh_buffers buffers;   /* the host's GL buffers instead of data's arrays (zero: none) */
+    int deforming;              /* 1: the vertices move every frame (skinning, morphing): the caches are
+                                   bound to their triangles (gim_cache_bind) and follow them on the
+                                   GPU each frame (gim_caches_follow_twin's pass). With buffers: gimany
+                                   draws from the host's buffers, so they may change at any time, and
+                                   every gim_update re-reads the positions on the GPU (bounds,
+                                   caches); indices, vertex and index counts must stay. Without
+                                   buffers: gim_update_mesh_vertices uploads new positions. Cost of
+                                   a frame after a change: one dispatch per mesh, then the followed
+                                   caches (32 bytes each) are read back (a sync point) because the
+                                   caches' hash grid is built on the CPU; with GIM_VISIBILITY_ISM
+                                   the scene's ISM points are remade from a read-back of the
+                                   vertices and every cache's map is drawn again. A static mesh (0)
+                                   pays nothing of this. */
+} gim_mesh_desc;
+
+/* Upload a mesh (vertex, index and per-triangle material buffers; with desc->buffers only the
+   materials). *out written on GIM_OK. */
+GIMANY_API gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out);
+/* Delete a mesh; instances still naming it make gim_update fail until they are replaced. */
+GIMANY_API gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh);
+/* New model-space vertices of a mesh added with deforming = 1 and no buffers: vertex_count
+   (as at gim_add_mesh) float3 positions, finite, in the mesh's units; normals vertex_count
+   float3 (non-zero, finite) or NULL (area-weighted vertex normals, as gim_add_mesh computes
+   them). Uploaded into gimany's copy, which the RSM, G-buffer and ISM points are drawn from;
+   the bounds are made again, and the next gim_update moves the caches with their triangles
+   (GPU) and remakes the imperfect shadow maps. A mesh not flagged deforming, one drawn from
+   the host's buffers (change those instead), a wrong vertex_count or a non-finite value is
+   GIM_ERROR_INVALID_ARGUMENT, the mesh unchanged. */
+GIMANY_API gim_result gim_update_mesh_vertices(gim_context *ctx, gim_mesh mesh, const float *positions,
+                                               const float *normals, uint32_t vertex_count);
+
+/* Materials by index (gim_material: diffuse rgb, glossy rgb, exponent k; see @section scene);
+   count 0 clears them. Replaces the previous set. */
+GIMANY_API gim_result gim_set_materials(gim_context *ctx, const gim_material *materials, uint32_t count);
+
+/* One placed mesh. */
+typedef struct gim_instance {
+    gim_mesh mesh;
+    gim_mat4 model;             /* model to world; finite and invertible */
+} gim_instance;
+
+/* The instances of the frame (copied); count 0 clears them. */
+GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *instances, uint32_t count);
+
+/* The lights (gim_light, see @section twins; copied); count 0 clears them. Each light is one
+   RSM, a POINT light six (its cube faces, gim_point_light_faces), at most GIM_MAX_LIGHTS RSMs;
+   gim_frame_outputs.lights counts RSMs. A frame renders only the RSMs whose light frustum
+   meets the bounds of an instance (the others would be empty: no pass, no texture, no VAL or
+   VPL; gim_stats.rsm_count; when all would be, the last renders so the frame has its
+   outputs); val_count and vpl_count are shared by the rendered RSMs (see
+   gim_frame.per_light_budget). rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS.
+   Replaces a gim_set_lights_buffer. */
+GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
+
+/* One light in a host's GL buffer (gim_set_lights_buffer): std430, 64 bytes, the fields of
+   gim_light as four vec4s. GLSL:
+     struct GimLight {
+         vec4  color_power;       // rgb: color; a: irradiance (DIRECTIONAL) or intensity (SPOT, POINT)
+         vec4  position_cone;     // xyz: position; w: cone_angle (radians)
+         vec4  direction_extent;  // xyz: direction; w: extent
+         uvec4 type_square_size_fit; // x: gim_light_type, y: square_cone, z: rsm_size, w: fit_view
+     };
+     layout(std430) buffer Lights { GimLight lights[]; };
+   The same units and ranges as gim_light. */
+typedef struct gim_light_std430 {
+    float color_power[4];
+    float position_cone[4];
+    float direction_extent[4];
+    uint32_t type_square_size_fit[4];
+} gim_light_std430;
+
+/* The lights from a host's GL buffer of count gim_light_std430 (from offset 0), instead of a
+   CPU array: for a host that keeps its lights on the GPU. The RSMs need each light's camera on
+   the CPU, so every gim_update reads the buffer back (glGetBufferSubData of count x 64 bytes:
+   a wait for the GPU work that writes it) and checks and uses the lights as gim_set_lights
+   does; an invalid light fails that gim_update. buffer stays the host's (not deleted; it must
+   live while set); buffer 0 or count 0 clears the lights. Replaced by gim_set_lights. */
+GIMANY_API gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, uint32_t count);
+
+/* --- the frame ------------------------------------------------------------------------------ */
+
+/* Which method lights the frame (docs/design.md sec. 3); each is one setting of the same runtime. */
+typedef enum gim_method {
+    GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
+    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (Bischoff 2017 sec. 4) */
+    GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
+    GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
+                                       gim_rsm_gather_twin): the baseline, no caches, no visibility */
+    GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric) into
+                                       cluster_count VALs, one paraboloid soft shadow map each; every VPL
+                                       shades with its VAL's visibility */
+    GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric) into
+                                       cluster_count clusters, a paraboloid map per cluster with
+                                       position, normal and albedo whose unit-disk samples are the
+                                       second-bounce VPLs; both bounces shade (bounces = 2 by default) */
+} gim_method;
+
+/* Visibility of the indirect light (docs/design.md sec. 8). The VPL methods (CLUSTERED, SSVP) have
+   their own exact visibility: DEFAULT and OFF keep it (one paraboloid depth map per cluster,
+   rendered from the triangles, soft PCSS lookups; gim_frame.vpl.no_visibility turns it off); ISM
+   replaces it with one imperfect shadow map per VPL. */
+typedef enum gim_visibility {
+    GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
+    GIM_VISIBILITY_OFF,             /* no pass, no memory */
+    GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
+                                       looked up per VAL in the proxy-light sum; made once per scene
+                                       change (mesh, instance, a deforming mesh's vertices), not per frame. CLUSTERED, SSVP: one
+                                       per VPL, both bounces (Keller's instant radiosity with Ritschel's
+                                       maps), made every frame, hard visibility per VPL in the shading
+                                       instead of the clusters' paraboloid maps */
+} gim_visibility;
+
+/* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
+typedef struct gim_frame_gbuffer {
+    uint32_t depth;             /* a 2D depth texture of the frame's view (window depth in [0, 1], 1 =
+                                   nothing) ... */
+    uint32_t normal;            /* ... and a 2D float texture with the world normal in .xyz; both
+                                   >= width x height, or both 0 */
+    gim_normal_encoding normal_encoding; /* how normal holds it; not XYZ (or the two below set): one
+                                   decode pass (gim_gbuffer_decode_twin) */
+    int view_space;             /* 1: the host's normals are in view space */
+    int depth_view_z;           /* 1: depth is a float texture (GL_R32F, GL_R16F) holding the positive
+                                   view-space distance along -z (0: nothing drawn) */
+} gim_frame_gbuffer;
+
+/* Visibility of the indirect light (gim_frame.visibility). */
+typedef struct gim_frame_visibility {
+    gim_visibility mode;        /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
+                                   their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
+                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
+    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
+                                   halves it until every cache's map fits one shader storage block (at 128
+                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64
+                                   (GIM_ISM_DEFAULT_VPL_SIZE, 32, is not what their frame uses) */
+    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
+                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
+} gim_frame_visibility;
+
+/* LightSkin, LIGHTSKIN_BRSM and LIGHTSKIN_FULL (gim_frame.lightskin). */
+typedef struct gim_frame_lightskin {
+    uint32_t val_count;         /* VALs selected (Bischoff 2017 sec. 4), in all, shared by the rendered RSMs
+                                   by importance (per_light_budget: per RSM); 0: 2048 */
+    uint32_t temporal_steps;    /* L > 1: the random offsets of the BRSM selection (and, with
+                                   rotate_view_samples, of the view samples) drift by 1/L of their points'
+                                   spacing a frame (gim_drift_offsets) instead of being drawn anew, so each
+                                   VAL moves to a nearby texel or stays (the aim of Laine et al. 2007); each
+                                   frame is still unbiased and as stratified. 0 or 1: new offsets every
+                                   frame; at most GIM_MAX_TEMPORAL_STEPS */
+    uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
+                                   importance-map invocation loops over them all; llvmpipe stops
+                                   a loop after 65535 iterations) */
+    int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
+    float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
+    uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
+} gim_frame_lightskin;
+
+/* RSM_GATHER (gim_frame.gather). */
+typedef struct gim_frame_gather {
+    uint32_t samples;           /* texels per pixel and light; 0: 256; at most 16384 */
+    float radius;               /* pattern radius as a fraction of the RSM side; 0: 1.5, the whole RSM from
+                                   any point of it (Dachsbacher's 0.15 misses much of an open corner's light) */
+} gim_frame_gather;
+
+/* The VPL methods, CLUSTERED and SSVP (gim_frame.vpl; see their twins in @section twins). */
+typedef struct gim_frame_vpl {
+    uint32_t count;             /* first-bounce VPLs in all, split evenly over the rendered RSMs
+                                   (per_light_budget: per RSM); 0: 4096 (64 per pixel with the default
+                                   interleave of 8; 1024 is visibly noisier); <= 32768 in all */
+    uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
+                                   <= 256 and <= the VPLs */
+    uint32_t kmeans_iterations; /* k-means steps per frame; 0: 3 from the last frame's centres, 8 from seeds */
+    int kmeans_restart;         /* 1: k-means restarts from the same seeds every frame (Dong sec. 5.2); 0: warm
+                                   from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded;
+                                   warm keeps the clusters from jumping between frames */
+    uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
+    int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
+                                   still renders its attribute maps) */
+    uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs from the maps */
+    uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
+    uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
+                                   k x k; 0: 8 (Dong sec. 6); 1: every VPL at every pixel, no blur */
+    float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
+    float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
+} gim_frame_vpl;
+
+/* Input of gim_update: the settings every method shares, then one sub-struct per method family
+   (a method reads only its own). Zero means default everywhere; gim_frame_defaults writes every
+   default out. */
+typedef struct gim_frame {
+    gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
+    uint32_t width, height;     /* G-buffer size in pixels (the host's viewport), > 0 */
+    gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
+    uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
+    float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
+                                   bounds of the instances; else within 1e-3..1e3 of it */
+    float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
+    int per_light_budget;       /* 0: lightskin.val_count and vpl.count are totals for the frame: BRSM splits
+                                   val_count over the rendered RSMs in proportion to their importance totals
+                                   (each one's power reaching the view samples; one read-back), at least one
+                                   VAL to each whose total is > 0, none to one whose total is 0; each light's
+                                   VALs weigh 1 / (N_l P), so the image's expectation does not depend on the
+                                   split. The VPL methods split vpl.count evenly. 1: every rendered RSM gets
+                                   val_count VALs, vpl.count VPLs */
+    int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
+    int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
+                                   2: glFinish after every pass, then the CPU's clock (see
+                                   gim_stats.cpu_clock): a driver that runs queued work at a later
+                                   flush (llvmpipe, even between timestamps) still charges it to
+                                   its pass; it serialises the frame, for profiling only;
+                                   other values: GIM_ERROR_OUT_OF_RANGE */
+    gim_frame_gbuffer gbuffer;       /* the host's G-buffer (all 0: gimany draws one) */
+    gim_frame_visibility visibility; /* indirect visibility: OFF or ISM */
+    gim_frame_lightskin lightskin;   /* LIGHTSKIN_BRSM, LIGHTSKIN_FULL */
+    gim_frame_gather gather;         /* RSM_GATHER */
+    gim_frame_vpl vpl;               /* CLUSTERED, SSVP */
+} gim_frame;
+
+/* A frame with every default of `method` written out: the value each zero field stands for,
+   the method-dependent ones (vpl.cluster_count, vpl.bounces, the ISM sizes and points) for
+   this method (GIM_METHOD_DEFAULT: LIGHTSKIN_BRSM). Left 0: what only the host knows (view,
+   proj, width, height, the G-buffer), what is measured every frame (scene_scale: the bounds'
+   diagonal; view_distance: the far plane), the off switches, and vpl.kmeans_iterations, whose
+   default depends on the frame (3 from the last frame's centres, 8 from seeds). One more
+   default depends on the scene: a zero visibility.ism_size is halved below 64 for LightSkin
+   when the caches' maps would not fit one shader storage block (the 64 written here is then
+   refused instead). With view, proj, width and height set, it renders what the zero frame of
+   the same method renders (tests/gl/gltest_frame.c). */
+GIMANY_API gim_frame gim_frame_defaults(gim_method method);
+
+/* Run the frame's passes (docs/design.md sec. 3, Bischoff 2017): RSM per light whose frustum meets an
+   instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
+   rendered light (BRSM only): importance map (eq. 10-11) -> cumulative sums (eq. 12) -> its
+   share of val_count (gim_frame.per_light_budget; one read-back of the totals) -> selection of
+   that many VALs (none where its total is 0, unless it is the only one rendered; when no
+   light has any, one zero VAL, so the image is made, black); then, when an instanced mesh has caches:
+   caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
+   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
+   the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
+   world triangles, read back from the meshes, pool 4 P; gim_ism_render_twin) -> diffuse proxy lights
+   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility_twin), glossy ones too when a material has a glossy colour (one lobe
+   exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
+   degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
+   caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
+   texture (gim_lightskin_shade_twin is the twin). A scene without caches gets no LightSkin passes
+   and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
+   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin) -> k-means
+   steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
+   same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
+   (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
+   past near_distance; position, normal and albedo at two bounces, past attribute_near: with
+   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls_twin)
+   -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
+   (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
+   With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
+   per VPL of both bounces (gim_ism_render_twin with the VPLs as caches; SSVP's second-bounce hits
+   first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
+   its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
+   Needs at least one instance; every material id of an instanced
+   mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
+   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
+   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
+   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
+   A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
+   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
+   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
+   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
+   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
+GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
+
+/* Builds every GL program a frame like `frame` needs (its method and settings; sizes do not
+   matter), so the first gim_update does not stall compiling and linking shaders (LightSkin +
+   BRSM's 11 programs: 132 ms on llvmpipe with Mesa's shader cache off, `gimany-demo` prints
+   it): call it behind a loading screen, after the scene is set. A driver that compiles more at
+   the first dispatch still does that there. The frame is checked as gim_update checks it;
+   programs of other methods are built when first used. The host's GL state is saved and restored. */
+GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
+
+/* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
+typedef struct gim_light_outputs {
+    gim_light light;            /* the light of this RSM: the host's, or one face of its POINT light */
+    uint32_t rsm_size;
+    uint32_t rsm_position;      /* RGBA32F: world xyz; w = 1 where the texel is a VAL (lit) */
+    uint32_t rsm_normal;        /* RGBA32F: unit normal towards the light; w = footprint area A */
+    uint32_t rsm_flux;          /* RGBA32F: reflected flux Phi rgb (units in @section twins) */
+    uint32_t rsm_depth;         /* DEPTH_COMPONENT32F */
+    gim_mat4 view, proj;        /* the light's camera (gim_light_camera) */
+    uint32_t importance;        /* SSBO: rsm_size^2 floats, eq. 10-11, row-major, row 0 first */
+    uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's) */
+    uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
+    uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
+    int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
+                                   instance's bounds): every GL name above is 0 */
+    double importance_total;    /* BRSM, shared budget, more than one rendered RSM: the sum of its importance
+                                   map (0: no VALs); 0 otherwise (not read back) */
+} gim_light_outputs;
+
+/* What the last successful gim_update left for the host. */
+typedef struct gim_frame_outputs {
+    int valid;                  /* 0 before the first successful gim_update, or after a failed one */
+    uint32_t width, height;
+    uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
+                                   surface towards the eye (diffuse + glossy, albedo applied; with the
+                                   host's G-buffer albedo 1 and no glossy term), a = 1 where a surface is;
+                                   0 when there is nothing to light (LightSkin: a scene without caches) */
+    uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
+    uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
+    uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
+    uint32_t gbuffer_material;  /* R32F material id (0 with the host's G-buffer) */
+    float scene_scale;
+    float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
+    uint32_t light_count;
+    const gim_light_outputs *lights; /* light_count, one per RSM; the context's, valid as the rest */
+} gim_frame_outputs;
+
+/* The outputs of the last gim_update (all zero for NULL). */
+GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
+
+/* The internal buffers of the last successful gim_update, for tests and tools that compare
+   the passes with their twins (a host needs none of them; GL names, valid until the next
+   gim_update; zero when the frame's method has no such buffer). */
+typedef struct gim_debug_outputs {
+    uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} (BRSM) */
+    uint32_t view_sample_count;
+    /* LightSkin (0 when the scene has no caches) */
+    uint32_t caches;            /* SSBO: cache_count world-space gim_cache, in hash-grid order */
+    uint32_t cache_count;
+    uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
+    uint32_t val_count;
+    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light */
+    uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
+    float glossy_exponent;      /* the widest lobe of the glossy materials */
+    uint32_t cache_exponents;   /* SSBO: float per cache, its material's k (the glossy proxy lights' lobes); 0 when
+                                   no material is glossy */
+    uint32_t neighbour_count;   /* n of the interpolation */
+    float neighbour_cos;        /* cosine of the normal compatibility angle */
+    float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
+    /* VPL methods (0 otherwise) */
+    uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
+    uint32_t vpl_count;
+    uint32_t first_bounce_count; /* VPLs [0, first_bounce_count) are the first bounce */
+    uint32_t vpl_clusters;      /* SSBO: vpl_count uint, each VPL's cluster (0xffffffff: none, unshadowed) */
+    uint32_t clusters;          /* SSBO: cluster_count gim_paraboloid */
+    uint32_t cluster_count;
+    uint32_t kmeans_centres;    /* SSBO: cluster_count {vec4 centre (w: VPLs), vec4 normal} */
+    uint32_t paraboloid_size;
+    uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
+    uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
+    /* visibility ISM (0 otherwise) */
+    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render_twin), ism_size^2 16-bit depths,
+                                   two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
+                                   methods: map i of VPL i of vpls */
+    uint32_t ism_size;
+} gim_debug_outputs;
+
+/* The internal buffers of the last successful gim_update (all zero for NULL, or before one). */
+GIMANY_API gim_debug_outputs gim_debug(const gim_context *ctx);
+
+/* The passes a frame may run, for the timings of gim_frame_stats. */
+typedef enum gim_pass {
+    GIM_PASS_RSM = 0,
+    GIM_PASS_GBUFFER,
+    GIM_PASS_VIEW_SAMPLES,
+    GIM_PASS_IMPORTANCE_MAP,    /* eq. 10-11 */
+    GIM_PASS_CUMSUM,            /* eq. 12 */
+    GIM_PASS_SELECT,
+    GIM_PASS_CACHES,            /* caches to world space and the hash grid (CPU work + upload) */
+    GIM_PASS_VALS,
+    GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
+    GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading; the VPL methods' shading */
+    GIM_PASS_VPLS,              /* VPLs from the RSMs */
+    GIM_PASS_KMEANS,            /* k-means steps and the clusters' VALs */
+    GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
+    GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
+    GIM_PASS_BLUR,              /* geometry-aware blur */
+    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps, in the frames that make them (a scene
+                                   change or a setting); their lookups are GIM_PASS_PROXY_LIGHTS' */
+    GIM_PASS_COUNT
+} gim_pass;
+
+/* What the last gim_update did and cost. */
+typedef struct gim_stats {
+    int timed;                  /* 1: the frame ran with gim_frame.timing, pass_ms is measured */
+    int cpu_clock;              /* the clock of pass_ms: 0 GL timestamps (timing 1); timing 2: 1 the
+                                   CPU's monotonic clock (clock_gettime, where <time.h> declares
+                                   CLOCK_MONOTONIC), 2 the GL's clock read now (glGetInteger64v
+                                   GL_TIMESTAMP) where it does not; both after a glFinish */
+    double pass_ms[GIM_PASS_COUNT]; /* time per pass (between the stamps after passes), summed over lights */
+    double frame_ms;            /* time from the first stamp (frame start) to the last */
+    uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
+    uint32_t vpl_count, cluster_count;   /* the VPL methods: VPLs of both bounces, clusters */
+    uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
+    uint32_t rsm_count;         /* RSMs rendered (light_count less the culled) */
+    uint32_t val_light_count;   /* BRSM: RSMs given VALs (importance total > 0) */
+} gim_stats;
+
+/* Stats of the last successful gim_update; waits for the GPU when it was timed. */
+GIMANY_API gim_result gim_frame_stats(gim_context *ctx, gim_stats *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* GIMANY_NO_GL */
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* @section math =========================================================================== */
+/* Vector and matrix helpers of the CPU layer and the examples (the types are in @section scene). */
 
 GIMANY_API gim_vec3 gim_v3(float x, float y, float z);             /* constructor */
 GIMANY_API gim_vec3 gim_v3_add(gim_vec3 a, gim_vec3 b);            /* a + b */
@@ -302,28 +935,6 @@ GIMANY_API gim_result gim_kmeans(const gim_kmeans_desc *desc, gim_kmeans_result 
    per mesh in model space. d_eps bounds the cache-to-surface distance (voxels of edge d_eps/2),
    theta_eps the normal deviation a cache may represent. */
 
-/* Index width of a mesh. */
-typedef enum gim_index_type {
-    GIM_INDEX_DEFAULT = 0,   /* = U32 */
-    GIM_INDEX_U32,
-    GIM_INDEX_U16
-} gim_index_type;
-
-/* A triangle mesh in model space; shared by the cache generator and the neighbour search. */
-typedef struct gim_mesh_data {
-    const float *positions;           /* vertex_count * 3 (or position_stride bytes apart) */
-    uint32_t vertex_count;
-    uint32_t position_stride;         /* bytes between vertices; 0 = 12 */
-    const float *normals;             /* vertex_count * 3, or NULL (face normals are used) */
-    uint32_t normal_stride;           /* bytes; 0 = 12 */
-    const void *indices;              /* index_count indices, 3 per triangle */
-    uint32_t index_count;
-    gim_index_type index_type;
-    const uint32_t *triangle_material; /* index_count / 3 material ids, or NULL (all material 0) */
-    const float *material_reflectance; /* material_count reflection coefficients in [0,1], or NULL (all 1) */
-    uint32_t material_count;
-} gim_mesh_data;
-
 /* One light cache: two RGBA32F texels in the paper's layout (position + area, normal + rho). */
 typedef struct gim_cache {
     float position[3];
@@ -358,13 +969,13 @@ typedef struct gim_cache_desc {
 } gim_cache_desc;
 
 /* A generated (or loaded) set of caches; owns its array (free with gim_cache_set_free). */
-typedef struct gim_cache_set {
+struct gim_cache_set {
     gim_cache *caches;
     uint32_t count;
     float d_eps, theta_eps;  /* the values used (after defaults) */
     gim_cache_report report;
     gim_env env;             /* allocator that owns caches */
-} gim_cache_set;
+};
 
 /* Generate caches for one mesh; out is written only on GIM_OK. Every surface point lies within
    d_eps of a cache whose normal is within theta_eps of its own; the cache areas partition the
@@ -549,7 +1160,7 @@ GIMANY_API gim_result gim_importance_select_offsets(const double *column, const 
    (gim_proxy_lights_twin) or per receiver pixel (gim_lightskin_shade_twin),
    each a loop in a fixed order, so the results are deterministic.
 
-   Units (DESIGN.md sec. 4): a VAL is an RSM texel, a Lambertian disk of area A_l with
+   Units (docs/design.md sec. 5): a VAL is an RSM texel, a Lambertian disk of area A_l with
    reflected flux Phi_l (rgb), so its radiance is Phi_l / (pi A_l). Per cache c (normal n_c)
    and VAL j, with w_j the VAL's estimator weight, d_j = |x_l,j - c|, omega_j = (x_l,j - c) / d_j:
      e_j = w_j Phi_j cos+theta_l cos+theta_x / (A_j + pi d_j^2)       irradiance at c (eq. 3
@@ -849,11 +1460,11 @@ GIMANY_API gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_ca
 
 /* twins of the scene passes: RSM texel, G-buffer, view samples ------------------------------
    The scene description the GL runtime takes (gim_set_materials, gim_set_lights) and the CPU
-   twins of the shared passes of the frame (DESIGN.md sec. 5): each casts the ray through one
+   twins of the shared passes of the frame (docs/design.md sec. 3): each casts the ray through one
    texel centre against a world-space triangle soup (brute force: for tests and small scenes)
    and computes what the GPU pass writes at that texel.
 
-   Units (DESIGN.md sec. 4). Lengths in the host's unit L; a directional light's irradiance E
+   Units (docs/design.md sec. 5). Lengths in the host's unit L; a directional light's irradiance E
    is power per unit area perpendicular to its direction (W / L^2); a spot's intensity I is
    power per steradian (W / sr) inside its cone and 0 outside. An RSM texel is a VAL:
      footprint area A (L^2): for the spot the texel's solid angle w at the light times d^2
@@ -870,50 +1481,6 @@ GIMANY_API gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_ca
        within the cone) for the spot.
    Normals face the light (the RSM) or the eye (the G-buffer): a surface seen from its back
    is lit and seen on that side (two-sided). */
-
-/* Kind of light. */
-typedef enum gim_light_type {
-    GIM_LIGHT_DEFAULT = 0,     /* = DIRECTIONAL */
-    GIM_LIGHT_DIRECTIONAL,     /* the sun: parallel light, orthographic RSM */
-    GIM_LIGHT_SPOT,            /* a point light in a cone, perspective RSM */
-    GIM_LIGHT_POINT            /* a point light in every direction: six square spots, the faces of
-                                  a cube around it (gim_point_light_faces), each its own RSM */
-} gim_light_type;
-
-#define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.lightskin.temporal_steps */
-#define GIM_MAX_LIGHTS 4096           /* RSMs per context (a point light takes six, others one): a bound
-                                         on the arrays, not on memory; each RSM the frame renders has
-                                         its own textures (52 bytes a texel), one it culls has none */
-#define GIM_RSM_MIN_COS (1.0f / 64.0f) /* floor of the cosine in a VAL's area A = ... / cos */
-
-/* A light; zero means default. */
-typedef struct gim_light {
-    gim_light_type type;
-    float color[3];         /* rgb factor of the power, >= 0; all zero: (1, 1, 1) */
-    float irradiance;       /* DIRECTIONAL: E, per unit area perpendicular to direction, >= 0 */
-    float intensity;        /* SPOT, POINT: I, per steradian inside the cone (in every direction), >= 0 */
-    gim_vec3 position;      /* SPOT, POINT: where the light is */
-    gim_vec3 direction;     /* DIRECTIONAL: towards the light; SPOT: the cone's axis, away from
-                               the light; non-zero (normalised internally); POINT: ignored */
-    float cone_angle;       /* SPOT: half-angle in radians, in (0, 1.5] (below 90 degrees) */
-    int square_cone;        /* SPOT: 1: every direction of its square RSM frustum (half-angle
-                               cone_angle to the sides' middles) is lit, as on a cube face; 0: a
-                               round cone. POINT: ignored */
-    float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
-                               0: the radius of the scene bounds' sphere, so it covers the scene */
-    uint32_t rsm_size;      /* RSM side in texels (POINT: of each cube face); 0: 512; below 16 a
-                               warning (few VALs) */
-    int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
-                               (gim_light_fit_view), the open-world case: its texels go where the
-                               view is, not over the whole world; 0: the scene bounds */
-} gim_light;
-
-/* One material; zero is black. Diffuse and glossy albedo rgb, Phong-like exponent k. */
-typedef struct gim_material {
-    float diffuse[3];       /* >= 0 */
-    float glossy[3];        /* >= 0 */
-    float exponent;         /* k >= 0 */
-} gim_material;
 
 /* The light's camera: a look-at view and a projection fitted to the scene bounds (bmin, bmax:
    the world bounds of everything that casts or receives). SPOT: perspective of field of view
@@ -975,17 +1542,6 @@ typedef struct gim_gbuffer_texel {
     uint32_t triangle;       /* UINT32_MAX: none */
 } gim_gbuffer_texel;
 
-/* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
-/* How a host's G-buffer texture holds its normals (gim_frame.gbuffer.normal_encoding). */
-typedef enum gim_normal_encoding {
-    GIM_NORMAL_XYZ = 0,          /* signed xyz (float or snorm formats): gimany's own layout */
-    GIM_NORMAL_XYZ_UNORM,        /* xyz * 0.5 + 0.5 (GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
-    GIM_NORMAL_OCTAHEDRAL,       /* the octahedral map (Cigolle et al. 2014) in [-1, 1] in .xy
-                                    (GL_RG16_SNORM, GL_RG16F, GL_RG32F, GL_RG8_SNORM) */
-    GIM_NORMAL_OCTAHEDRAL_UNORM  /* the octahedral map * 0.5 + 0.5 in .xy (GL_RG16, GL_RG8, or the
-                                    first two channels of GL_RGB10_A2, GL_RGBA8, GL_RGBA16) */
-} gim_normal_encoding;
-
 /* Twin of the G-buffer decode pass at one pixel: the host's stored normal (its texel's rgba as
    the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth (window depth, or with
    depth_view_z the positive view-space distance along -z) to a unit world normal (out_normal,
@@ -995,6 +1551,7 @@ GIMANY_API gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int 
                                               gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
                                               float out_normal[4], float *out_depth);
 
+/* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
 GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
                                              uint32_t width, uint32_t height, uint32_t x, uint32_t y,
                                              gim_gbuffer_texel *out);
@@ -1309,510 +1866,6 @@ GIMANY_API gim_result gim_geometry_blur_twin(const gim_blur_desc *desc, float *o
 #ifdef __cplusplus
 }
 #endif
-
-/* @section gl ============================================================================= */
-/* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
-   host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
-   the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
-   every call below. Every call that touches GL leaves the GL state as it found it.
-
-   A frame, step by step (zero means default everywhere):
-         gim_context *ctx;
-         gim_desc d = {0}; d.get_proc_address = glfwGetProcAddress;
-         gim_create(&d, &ctx);
-         gim_mesh_desc md = {0};                      once per mesh, model space
-         md.data.positions = p; md.data.vertex_count = nv;
-         md.data.indices = idx; md.data.index_count = ni; md.data.index_type = GIM_INDEX_U16;
-         md.data.triangle_material = mat_ids;         NULL: material 0
-         md.caches = &caches;                         from gim_cache_generate_scene (one spacing for
-                                                      the whole scene), model space
-         gim_mesh mesh; gim_add_mesh(ctx, &md, &mesh);
-         gim_set_materials(ctx, mats, nmats);         diffuse, glossy, k
-         gim_instance in = {mesh, model};
-         gim_set_instances(ctx, &in, 1);              every frame for moving objects
-         gim_light sun = {0}; sun.irradiance = 3.0f; sun.direction = towards_sun; sun.rsm_size = 1024;
-         gim_set_lights(ctx, &sun, 1);
-         gim_frame f = {0}; f.view = v; f.proj = p; f.width = w; f.height = h;
-         gim_update(ctx, &f);                         RSM, G-buffer, importance, VALs, proxy lights, shading
-         gim_frame_outputs o = gim_outputs(ctx);      GL names of what the passes wrote
-         ... sample o.indirect in the host's shading: add it to the direct light, then tone-map
-         gim_destroy(ctx);
-   Caches come from gim_cache_generate_scene over all the meshes (or gim_cache_generate with the
-   scene's scale, or a blob) once, handed over per mesh in
-   gim_mesh_desc.caches; without caches a LightSkin frame runs the shared passes only. f.method
-   picks LightSkin + BRSM (default) or FULL, the RSM gather, or the VPL methods CLUSTERED and
-   SSVP (no caches; f.vpl_count, f.cluster_count, f.bounces, f.interleave, ...); f.val_count, f.view_sample_count, the lights' rsm_size,
-   and f.neighbour_count trade speed for accuracy at run time. f.visibility =
-   GIM_VISIBILITY_ISM stops LightSkin's light going through walls (imperfect shadow maps per
-   cache; off by default, and off costs nothing); for CLUSTERED and SSVP it replaces their
-   per-cluster paraboloid maps with one imperfect shadow map per VPL. */
-#ifndef GIMANY_NO_GL
-#ifdef __cplusplus
-extern "C" {
-#endif
-
-/* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
-typedef void (*gim_gl_proc)(void);
-
-/* Input of gim_create; zero means default. */
-typedef struct gim_desc {
-    gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
-    gim_env env;                                        /* allocator and log of the context */
-} gim_desc;
-
-/* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
-typedef struct gim_context gim_context;
-
-/* Create a context for the current GL context: loads the GL functions, checks for GL 4.3
-   (GIM_ERROR_UNSUPPORTED, with what is missing logged), logs the renderer. Shaders are
-   compiled lazily on first use. *out is written only on GIM_OK. */
-GIMANY_API gim_result gim_create(const gim_desc *desc, gim_context **out);
-/* Delete every GL object and allocation of ctx (its GL context must be current); NULL is fine.
-   ctx is freed: destroying it again, or any later call with it, is the caller's error (as a
-   double free() is; sokol's rule too). gimany keeps no global state to catch it, so the second
-   call reads freed memory; set your pointer to NULL after the call. */
-GIMANY_API void gim_destroy(gim_context *ctx);
-
-/* --- the scene the host hands over (DESIGN.md sec. 2) --------------------------------------
-   Meshes are uploaded once; materials, instances and lights are set whenever they change
-   (instances every frame for moving objects; a skinned or morphing mesh is added with
-   gim_mesh_desc.deforming and its vertices change through gim_update_mesh_vertices or the
-   host's own buffers, its caches following its triangles on the GPU); sizes may change between frames without
-   recreating the context. Every call validates all its input before touching anything: on an
-   error the scene is as it was before the call. */
-
-/* A mesh handle; id 0 is never a mesh. */
-typedef struct gim_mesh { uint32_t id; } gim_mesh;
-
-/* Input of gim_add_mesh; zero means default. */
-/* A mesh in the host's own GL buffers, drawn from directly: no copy on the GPU. Positions and
-   normals are float3 at offset + i * stride (interleaved layouts name the same buffer twice),
-   indices of gim_mesh_data.index_type at index_offset. gim_add_mesh reads positions and
-   indices back once (bounds, index checks, the caches' materials, ISM points); after that the
-   host may change the buffers' contents only through gim_remove_mesh / gim_add_mesh again (a
-   mesh flagged gim_mesh_desc.deforming: positions and normals at any time), and
-   must keep them alive while the mesh exists (gimany never deletes them). */
-typedef struct gim_mesh_buffers {
-    uint32_t positions;         /* GL buffer name; 0: the mesh is uploaded from gim_mesh_data */
-    uint32_t position_offset;   /* bytes, a multiple of 4 */
-    uint32_t position_stride;   /* bytes, a multiple of 4; 0 = 12 */
-    uint32_t normals;           /* GL buffer name (non-zero, unit normals; not checked) */
-    uint32_t normal_offset, normal_stride;
-    uint32_t indices;           /* GL buffer name */
-    uint32_t index_offset;      /* bytes, a multiple of the index size */
-} gim_mesh_buffers;
-
-typedef struct gim_mesh_desc {
-    gim_mesh_data data;         /* model space: positions (finite), normals (non-zero, finite; NULL:
-                                   area-weighted vertex normals are computed), 16/32-bit indices
-                                   (< vertex_count), triangle_material (ids into gim_set_materials'
-                                   array, checked at gim_update; NULL: all 0); material_reflectance
-                                   and material_count are not used here. With buffers: only
-                                   vertex_count, index_count, index_type and triangle_material */
-    const gim_cache_set *caches; /* model-space LightSkin caches of the mesh, or NULL; copied */
-    gim_mesh_buffers buffers;   /* the host's GL buffers instead of data's arrays (zero: none) */
-    int deforming;              /* 1: the vertices move every frame (skinning, morphing): the caches are
-                                   bound to their triangles (gim_cache_bind) and follow them on the
-                                   GPU each frame (gim_caches_follow_twin's pass). With buffers: gimany
-                                   draws from the host's buffers, so they may change at any time, and
-                                   every gim_update re-reads the positions on the GPU (bounds,
-                                   caches); indices, vertex and index counts must stay. Without
-                                   buffers: gim_update_mesh_vertices uploads new positions. Cost of
-                                   a frame after a change: one dispatch per mesh, then the followed
-                                   caches (32 bytes each) are read back (a sync point) because the
-                                   caches' hash grid is built on the CPU; with GIM_VISIBILITY_ISM
-                                   the scene's ISM points are remade from a read-back of the
-                                   vertices and every cache's map is drawn again. A static mesh (0)
-                                   pays nothing of this. */
-} gim_mesh_desc;
-
-/* Upload a mesh (vertex, index and per-triangle material buffers; with desc->buffers only the
-   materials). *out written on GIM_OK. */
-GIMANY_API gim_result gim_add_mesh(gim_context *ctx, const gim_mesh_desc *desc, gim_mesh *out);
-/* Delete a mesh; instances still naming it make gim_update fail until they are replaced. */
-GIMANY_API gim_result gim_remove_mesh(gim_context *ctx, gim_mesh mesh);
-/* New model-space vertices of a mesh added with deforming = 1 and no buffers: vertex_count
-   (as at gim_add_mesh) float3 positions, finite, in the mesh's units; normals vertex_count
-   float3 (non-zero, finite) or NULL (area-weighted vertex normals, as gim_add_mesh computes
-   them). Uploaded into gimany's copy, which the RSM, G-buffer and ISM points are drawn from;
-   the bounds are made again, and the next gim_update moves the caches with their triangles
-   (GPU) and remakes the imperfect shadow maps. A mesh not flagged deforming, one drawn from
-   the host's buffers (change those instead), a wrong vertex_count or a non-finite value is
-   GIM_ERROR_INVALID_ARGUMENT, the mesh unchanged. */
-GIMANY_API gim_result gim_update_mesh_vertices(gim_context *ctx, gim_mesh mesh, const float *positions,
-                                               const float *normals, uint32_t vertex_count);
-
-/* Materials by index (gim_material: diffuse rgb, glossy rgb, exponent k; see @section twins);
-   count 0 clears them. Replaces the previous set. */
-GIMANY_API gim_result gim_set_materials(gim_context *ctx, const gim_material *materials, uint32_t count);
-
-/* One placed mesh. */
-typedef struct gim_instance {
-    gim_mesh mesh;
-    gim_mat4 model;             /* model to world; finite and invertible */
-} gim_instance;
-
-/* The instances of the frame (copied); count 0 clears them. */
-GIMANY_API gim_result gim_set_instances(gim_context *ctx, const gim_instance *instances, uint32_t count);
-
-/* The lights (gim_light, see @section twins; copied); count 0 clears them. Each light is one
-   RSM, a POINT light six (its cube faces, gim_point_light_faces), at most GIM_MAX_LIGHTS RSMs;
-   gim_frame_outputs.lights counts RSMs. A frame renders only the RSMs whose light frustum
-   meets the bounds of an instance (the others would be empty: no pass, no texture, no VAL or
-   VPL; gim_stats.rsm_count; when all would be, the last renders so the frame has its
-   outputs); val_count and vpl_count are shared by the rendered RSMs (see
-   gim_frame.per_light_budget). rsm_size must fit GL_MAX_TEXTURE_SIZE and GL_MAX_VIEWPORT_DIMS.
-   Replaces a gim_set_lights_buffer. */
-GIMANY_API gim_result gim_set_lights(gim_context *ctx, const gim_light *lights, uint32_t count);
-
-/* One light in a host's GL buffer (gim_set_lights_buffer): std430, 64 bytes, the fields of
-   gim_light as four vec4s. GLSL:
-     struct GimLight {
-         vec4  color_power;       // rgb: color; a: irradiance (DIRECTIONAL) or intensity (SPOT, POINT)
-         vec4  position_cone;     // xyz: position; w: cone_angle (radians)
-         vec4  direction_extent;  // xyz: direction; w: extent
-         uvec4 type_square_size_fit; // x: gim_light_type, y: square_cone, z: rsm_size, w: fit_view
-     };
-     layout(std430) buffer Lights { GimLight lights[]; };
-   The same units and ranges as gim_light. */
-typedef struct gim_light_std430 {
-    float color_power[4];
-    float position_cone[4];
-    float direction_extent[4];
-    uint32_t type_square_size_fit[4];
-} gim_light_std430;
-
-/* The lights from a host's GL buffer of count gim_light_std430 (from offset 0), instead of a
-   CPU array: for a host that keeps its lights on the GPU. The RSMs need each light's camera on
-   the CPU, so every gim_update reads the buffer back (glGetBufferSubData of count x 64 bytes:
-   a wait for the GPU work that writes it) and checks and uses the lights as gim_set_lights
-   does; an invalid light fails that gim_update. buffer stays the host's (not deleted; it must
-   live while set); buffer 0 or count 0 clears the lights. Replaced by gim_set_lights. */
-GIMANY_API gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, uint32_t count);
-
-/* --- the frame ------------------------------------------------------------------------------ */
-
-/* Which method lights the frame (DESIGN.md sec. 5); each is one setting of the same runtime. */
-typedef enum gim_method {
-    GIM_METHOD_DEFAULT = 0,         /* = LIGHTSKIN_BRSM */
-    GIM_METHOD_LIGHTSKIN_BRSM,      /* val_count VALs drawn by importance, shared by the lights (Bischoff 2017 sec. 4) */
-    GIM_METHOD_LIGHTSKIN_FULL,      /* every RSM texel a VAL of weight 1: LightSkin, the paper's reference */
-    GIM_METHOD_RSM_GATHER,          /* each pixel gathers a fixed pattern of RSM texels (Dachsbacher 2005;
-                                       gim_rsm_gather_twin): the baseline, no caches, no visibility */
-    GIM_METHOD_CLUSTERED,           /* Dong et al.: vpl_count Halton VPLs, k-means (Dong's metric) into
-                                       cluster_count VALs, one paraboloid soft shadow map each; every VPL
-                                       shades with its VAL's visibility */
-    GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric) into
-                                       cluster_count clusters, a paraboloid map per cluster with
-                                       position, normal and albedo whose unit-disk samples are the
-                                       second-bounce VPLs; both bounces shade (bounces = 2 by default) */
-} gim_method;
-
-/* Visibility of the indirect light (DESIGN.md sec. 6c). The VPL methods (CLUSTERED, SSVP) have
-   their own exact visibility: DEFAULT and OFF keep it (one paraboloid depth map per cluster,
-   rendered from the triangles, soft PCSS lookups; gim_frame.vpl.no_visibility turns it off); ISM
-   replaces it with one imperfect shadow map per VPL. */
-typedef enum gim_visibility {
-    GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
-    GIM_VISIBILITY_OFF,             /* no pass, no memory */
-    GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
-                                       looked up per VAL in the proxy-light sum; made once per scene
-                                       change (mesh, instance, a deforming mesh's vertices), not per frame. CLUSTERED, SSVP: one
-                                       per VPL, both bounces (Keller's instant radiosity with Ritschel's
-                                       maps), made every frame, hard visibility per VPL in the shading
-                                       instead of the clusters' paraboloid maps */
-} gim_visibility;
-
-/* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
-typedef struct gim_frame_gbuffer {
-    uint32_t depth;             /* a 2D depth texture of the frame's view (window depth in [0, 1], 1 =
-                                   nothing) ... */
-    uint32_t normal;            /* ... and a 2D float texture with the world normal in .xyz; both
-                                   >= width x height, or both 0 */
-    gim_normal_encoding normal_encoding; /* how normal holds it; not XYZ (or the two below set): one
-                                   decode pass (gim_gbuffer_decode_twin) */
-    int view_space;             /* 1: the host's normals are in view space */
-    int depth_view_z;           /* 1: depth is a float texture (GL_R32F, GL_R16F) holding the positive
-                                   view-space distance along -z (0: nothing drawn) */
-} gim_frame_gbuffer;
-
-/* Visibility of the indirect light (gim_frame.visibility). */
-typedef struct gim_frame_visibility {
-    gim_visibility mode;        /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
-                                   their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
-                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
-    uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
-                                   halves it until every cache's map fits one shader storage block (at 128
-                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64
-                                   (GIM_ISM_DEFAULT_VPL_SIZE, 32, is not what their frame uses) */
-    uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
-                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
-} gim_frame_visibility;
-
-/* LightSkin, LIGHTSKIN_BRSM and LIGHTSKIN_FULL (gim_frame.lightskin). */
-typedef struct gim_frame_lightskin {
-    uint32_t val_count;         /* VALs selected (Bischoff 2017 sec. 4), in all, shared by the rendered RSMs
-                                   by importance (per_light_budget: per RSM); 0: 2048 */
-    uint32_t temporal_steps;    /* L > 1: the random offsets of the BRSM selection (and, with
-                                   rotate_view_samples, of the view samples) drift by 1/L of their points'
-                                   spacing a frame (gim_drift_offsets) instead of being drawn anew, so each
-                                   VAL moves to a nearby texel or stays (the aim of Laine et al. 2007); each
-                                   frame is still unbiased and as stratified. 0 or 1: new offsets every
-                                   frame; at most GIM_MAX_TEMPORAL_STEPS */
-    uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
-                                   importance-map invocation loops over them all; llvmpipe stops
-                                   a loop after 65535 iterations) */
-    int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
-    float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
-    uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
-} gim_frame_lightskin;
-
-/* RSM_GATHER (gim_frame.gather). */
-typedef struct gim_frame_gather {
-    uint32_t samples;           /* texels per pixel and light; 0: 256; at most 16384 */
-    float radius;               /* pattern radius as a fraction of the RSM side; 0: 1.5, the whole RSM from
-                                   any point of it (Dachsbacher's 0.15 misses much of an open corner's light) */
-} gim_frame_gather;
-
-/* The VPL methods, CLUSTERED and SSVP (gim_frame.vpl; see their twins in @section twins). */
-typedef struct gim_frame_vpl {
-    uint32_t count;             /* first-bounce VPLs in all, split evenly over the rendered RSMs
-                                   (per_light_budget: per RSM); 0: 4096 (64 per pixel with the default
-                                   interleave of 8; 1024 is visibly noisier); <= 32768 in all */
-    uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
-                                   <= 256 and <= the VPLs */
-    uint32_t kmeans_iterations; /* k-means steps per frame; 0: 3 from the last frame's centres, 8 from seeds */
-    int kmeans_restart;         /* 1: k-means restarts from the same seeds every frame (Dong sec. 5.2); 0: warm
-                                   from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded;
-                                   warm keeps the clusters from jumping between frames */
-    uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
-    int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
-                                   still renders its attribute maps) */
-    uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs from the maps */
-    uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
-    uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
-                                   k x k; 0: 8 (Dong sec. 6); 1: every VPL at every pixel, no blur */
-    float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
-    float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
-} gim_frame_vpl;
-
-/* Input of gim_update: the settings every method shares, then one sub-struct per method family
-   (a method reads only its own). Zero means default everywhere; gim_frame_defaults writes every
-   default out. */
-typedef struct gim_frame {
-    gim_mat4 view, proj;        /* the host's camera; finite, invertible; depth range [0, 1] */
-    uint32_t width, height;     /* G-buffer size in pixels (the host's viewport), > 0 */
-    gim_method method;          /* LightSkin with BRSM (default) or FULL, RSM gather, CLUSTERED, SSVP */
-    uint32_t frame_index;       /* seeds the rotation of the view samples and the selection */
-    float scene_scale;          /* length of the unit-free thresholds; 0: diagonal of the world
-                                   bounds of the instances; else within 1e-3..1e3 of it */
-    float view_distance;        /* fit_view suns: how far from the eye the RSM must cover; 0: the far plane */
-    int per_light_budget;       /* 0: lightskin.val_count and vpl.count are totals for the frame: BRSM splits
-                                   val_count over the rendered RSMs in proportion to their importance totals
-                                   (each one's power reaching the view samples; one read-back), at least one
-                                   VAL to each whose total is > 0, none to one whose total is 0; each light's
-                                   VALs weigh 1 / (N_l P), so the image's expectation does not depend on the
-                                   split. The VPL methods split vpl.count evenly. 1: every rendered RSM gets
-                                   val_count VALs, vpl.count VPLs */
-    int indirect_float32;       /* 1: the indirect texture is RGBA32F; 0: RGBA16F */
-    int timing;                 /* 1: a GL timestamp after every pass, read by gim_frame_stats;
-                                   2: glFinish after every pass, then the CPU's clock (see
-                                   gim_stats.cpu_clock): a driver that runs queued work at a later
-                                   flush (llvmpipe, even between timestamps) still charges it to
-                                   its pass; it serialises the frame, for profiling only;
-                                   other values: GIM_ERROR_OUT_OF_RANGE */
-    gim_frame_gbuffer gbuffer;       /* the host's G-buffer (all 0: gimany draws one) */
-    gim_frame_visibility visibility; /* indirect visibility: OFF or ISM */
-    gim_frame_lightskin lightskin;   /* LIGHTSKIN_BRSM, LIGHTSKIN_FULL */
-    gim_frame_gather gather;         /* RSM_GATHER */
-    gim_frame_vpl vpl;               /* CLUSTERED, SSVP */
-} gim_frame;
-
-/* A frame with every default of `method` written out: the value each zero field stands for,
-   the method-dependent ones (vpl.cluster_count, vpl.bounces, the ISM sizes and points) for
-   this method (GIM_METHOD_DEFAULT: LIGHTSKIN_BRSM). Left 0: what only the host knows (view,
-   proj, width, height, the G-buffer), what is measured every frame (scene_scale: the bounds'
-   diagonal; view_distance: the far plane), the off switches, and vpl.kmeans_iterations, whose
-   default depends on the frame (3 from the last frame's centres, 8 from seeds). One more
-   default depends on the scene: a zero visibility.ism_size is halved below 64 for LightSkin
-   when the caches' maps would not fit one shader storage block (the 64 written here is then
-   refused instead). With view, proj, width and height set, it renders what the zero frame of
-   the same method renders (tests/gl/gltest_frame.c). */
-GIMANY_API gim_frame gim_frame_defaults(gim_method method);
-
-/* Run the frame's passes (DESIGN.md sec. 5, Bischoff 2017): RSM per light whose frustum meets an
-   instance's bounds (the others are culled) -> G-buffer (or the host's) -> view samples -> per
-   rendered light (BRSM only): importance map (eq. 10-11) -> cumulative sums (eq. 12) -> its
-   share of val_count (gim_frame.per_light_budget; one read-back of the totals) -> selection of
-   that many VALs (none where its total is 0, unless it is the only one rendered; when no
-   light has any, one zero VAL, so the image is made, black); then, when an instanced mesh has caches:
-   caches to world space (gim_caches_to_world; a hash grid over them) -> the VALs of every
-   light (FULL: every texel, weight 1; BRSM: the selected, 1 / (N P)) -> with visibility ISM,
-   the caches' imperfect shadow maps when the scene changed (gim_ism_points of the instances'
-   world triangles, read back from the meshes, pool 4 P; gim_ism_render_twin) -> diffuse proxy lights
-   per cache (eq. 3-7, 13-15; with ISM each VAL times its visibility, gim_ism_visibility_twin), glossy ones too when a material has a glossy colour (one lobe
-   exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
-   degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
-   caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
-   texture (gim_lightskin_shade_twin is the twin). A scene without caches gets no LightSkin passes
-   and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
-   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin) -> k-means
-   steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
-   same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
-   (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
-   past near_distance; position, normal and albedo at two bounces, past attribute_near: with
-   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls_twin)
-   -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
-   (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
-   With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
-   per VPL of both bounces (gim_ism_render_twin with the VPLs as caches; SSVP's second-bounce hits
-   first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
-   its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
-   Needs at least one instance; every material id of an instanced
-   mesh must be below the material count. Range (GIM_ERROR_OUT_OF_RANGE outside; README
-   "Supported ranges"): the world bounds' diagonal within 1e-15..1e15 length units, the
-   bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
-   each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
-   A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
-   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
-   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
-   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
-   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
-GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
-
-/* Builds every GL program a frame like `frame` needs (its method and settings; sizes do not
-   matter), so the first gim_update does not stall compiling and linking shaders (LightSkin +
-   BRSM's 11 programs: 132 ms on llvmpipe with Mesa's shader cache off, `gimany-demo` prints
-   it): call it behind a loading screen, after the scene is set. A driver that compiles more at
-   the first dispatch still does that there. The frame is checked as gim_update checks it;
-   programs of other methods are built when first used. The host's GL state is saved and restored. */
-GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
-
-/* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
-typedef struct gim_light_outputs {
-    gim_light light;            /* the light of this RSM: the host's, or one face of its POINT light */
-    uint32_t rsm_size;
-    uint32_t rsm_position;      /* RGBA32F: world xyz; w = 1 where the texel is a VAL (lit) */
-    uint32_t rsm_normal;        /* RGBA32F: unit normal towards the light; w = footprint area A */
-    uint32_t rsm_flux;          /* RGBA32F: reflected flux Phi rgb (units in @section twins) */
-    uint32_t rsm_depth;         /* DEPTH_COMPONENT32F */
-    gim_mat4 view, proj;        /* the light's camera (gim_light_camera) */
-    uint32_t importance;        /* SSBO: rsm_size^2 floats, eq. 10-11, row-major, row 0 first */
-    uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's) */
-    uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
-    uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
-    int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
-                                   instance's bounds): every GL name above is 0 */
-    double importance_total;    /* BRSM, shared budget, more than one rendered RSM: the sum of its importance
-                                   map (0: no VALs); 0 otherwise (not read back) */
-} gim_light_outputs;
-
-/* What the last successful gim_update left for the host. */
-typedef struct gim_frame_outputs {
-    int valid;                  /* 0 before the first successful gim_update, or after a failed one */
-    uint32_t width, height;
-    uint32_t indirect;          /* RGBA16F/32F, width x height: rgb indirect radiance leaving each pixel's
-                                   surface towards the eye (diffuse + glossy, albedo applied; with the
-                                   host's G-buffer albedo 1 and no glossy term), a = 1 where a surface is;
-                                   0 when there is nothing to light (LightSkin: a scene without caches) */
-    uint32_t gbuffer_depth;     /* DEPTH_COMPONENT32F (or the host's) */
-    uint32_t gbuffer_normal;    /* RGBA16F world normal towards the eye, w = 1 where drawn (or the host's) */
-    uint32_t gbuffer_albedo;    /* RGBA8 diffuse albedo, clamped to [0, 1] (0 with the host's G-buffer) */
-    uint32_t gbuffer_material;  /* R32F material id (0 with the host's G-buffer) */
-    float scene_scale;
-    float bounds_min[3], bounds_max[3]; /* world bounds of the instances */
-    uint32_t light_count;
-    const gim_light_outputs *lights; /* light_count, one per RSM; the context's, valid as the rest */
-} gim_frame_outputs;
-
-/* The outputs of the last gim_update (all zero for NULL). */
-GIMANY_API gim_frame_outputs gim_outputs(const gim_context *ctx);
-
-/* The internal buffers of the last successful gim_update, for tests and tools that compare
-   the passes with their twins (a host needs none of them; GL names, valid until the next
-   gim_update; zero when the frame's method has no such buffer). */
-typedef struct gim_debug_outputs {
-    uint32_t view_samples;      /* SSBO: view_sample_count {vec4 position; vec4 normal} (BRSM) */
-    uint32_t view_sample_count;
-    /* LightSkin (0 when the scene has no caches) */
-    uint32_t caches;            /* SSBO: cache_count world-space gim_cache, in hash-grid order */
-    uint32_t cache_count;
-    uint32_t vals;              /* SSBO: val_count gim_val, the lights' VALs one after the other */
-    uint32_t val_count;
-    uint32_t proxy_diffuse;     /* SSBO: cache_count gim_proxy_light */
-    uint32_t proxy_glossy;      /* SSBO, or 0 when no material is glossy */
-    float glossy_exponent;      /* the widest lobe of the glossy materials */
-    uint32_t cache_exponents;   /* SSBO: float per cache, its material's k (the glossy proxy lights' lobes); 0 when
-                                   no material is glossy */
-    uint32_t neighbour_count;   /* n of the interpolation */
-    float neighbour_cos;        /* cosine of the normal compatibility angle */
-    float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
-    /* VPL methods (0 otherwise) */
-    uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
-    uint32_t vpl_count;
-    uint32_t first_bounce_count; /* VPLs [0, first_bounce_count) are the first bounce */
-    uint32_t vpl_clusters;      /* SSBO: vpl_count uint, each VPL's cluster (0xffffffff: none, unshadowed) */
-    uint32_t clusters;          /* SSBO: cluster_count gim_paraboloid */
-    uint32_t cluster_count;
-    uint32_t kmeans_centres;    /* SSBO: cluster_count {vec4 centre (w: VPLs), vec4 normal} */
-    uint32_t paraboloid_size;
-    uint32_t paraboloid_distance; /* R32F 2D array, one layer per cluster (0 without visibility or maps) */
-    uint32_t paraboloid_position, paraboloid_normal, paraboloid_albedo; /* RGBA32F arrays, bounces = 2 only */
-    /* visibility ISM (0 otherwise) */
-    uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render_twin), ism_size^2 16-bit depths,
-                                   two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
-                                   methods: map i of VPL i of vpls */
-    uint32_t ism_size;
-} gim_debug_outputs;
-
-/* The internal buffers of the last successful gim_update (all zero for NULL, or before one). */
-GIMANY_API gim_debug_outputs gim_debug(const gim_context *ctx);
-
-/* The passes a frame may run, for the timings of gim_frame_stats. */
-typedef enum gim_pass {
-    GIM_PASS_RSM = 0,
-    GIM_PASS_GBUFFER,
-    GIM_PASS_VIEW_SAMPLES,
-    GIM_PASS_IMPORTANCE_MAP,    /* eq. 10-11 */
-    GIM_PASS_CUMSUM,            /* eq. 12 */
-    GIM_PASS_SELECT,
-    GIM_PASS_CACHES,            /* caches to world space and the hash grid (CPU work + upload) */
-    GIM_PASS_VALS,
-    GIM_PASS_PROXY_LIGHTS,      /* eq. 3-7, 13-15 */
-    GIM_PASS_SHADE,             /* neighbours, eq. 8-9, shading; the VPL methods' shading */
-    GIM_PASS_VPLS,              /* VPLs from the RSMs */
-    GIM_PASS_KMEANS,            /* k-means steps and the clusters' VALs */
-    GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
-    GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
-    GIM_PASS_BLUR,              /* geometry-aware blur */
-    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps, in the frames that make them (a scene
-                                   change or a setting); their lookups are GIM_PASS_PROXY_LIGHTS' */
-    GIM_PASS_COUNT
-} gim_pass;
-
-/* What the last gim_update did and cost. */
-typedef struct gim_stats {
-    int timed;                  /* 1: the frame ran with gim_frame.timing, pass_ms is measured */
-    int cpu_clock;              /* the clock of pass_ms: 0 GL timestamps (timing 1); timing 2: 1 the
-                                   CPU's monotonic clock (clock_gettime, where <time.h> declares
-                                   CLOCK_MONOTONIC), 2 the GL's clock read now (glGetInteger64v
-                                   GL_TIMESTAMP) where it does not; both after a glFinish */
-    double pass_ms[GIM_PASS_COUNT]; /* time per pass (between the stamps after passes), summed over lights */
-    double frame_ms;            /* time from the first stamp (frame start) to the last */
-    uint32_t light_count, view_sample_count, cache_count, val_count, pixel_count;
-    uint32_t vpl_count, cluster_count;   /* the VPL methods: VPLs of both bounces, clusters */
-    uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
-    uint32_t rsm_count;         /* RSMs rendered (light_count less the culled) */
-    uint32_t val_light_count;   /* BRSM: RSMs given VALs (importance total > 0) */
-} gim_stats;
-
-/* Stats of the last successful gim_update; waits for the GPU when it was timed. */
-GIMANY_API gim_result gim_frame_stats(gim_context *ctx, gim_stats *out);
-
-#ifdef __cplusplus
-}
-#endif
-#endif /* GIMANY_NO_GL */
 
 #endif /* GIMANY_H */
 
@@ -6150,7 +6203,7 @@ static int gim__paraboloid_frame(const gim_paraboloid *m, gim_vec3 *t, gim_vec3 
     return 1;
 }
 
-/* Texel (x, y)'s centre (u, v) on the map and its local direction w (see @section twins);
+/* Texel (x, y)'s centre (u, v) on the map and its local direction w (see @section scene);
    0 outside the unit disk. */
 static int gim__paraboloid_texel_dir(uint32_t size, uint32_t x, uint32_t y, double uv[2], double w[3]) {
     double r2, k;
@@ -8899,7 +8952,7 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
 }
 
 
-/* --- the scene (DESIGN.md sec. 2) ----------------------------------------------------------
+/* --- the scene ----------------------------------------------------------
    Meshes live in GL buffers (one VAO each); instances, lights and materials are small CPU
    copies (materials also an SSBO). Every setter checks all of its input first, so an error
    leaves the scene as it was. */
@@ -9929,7 +9982,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     if (ctx->view_samples) gl->DeleteBuffers(1, &ctx->view_samples);
 }
 
-/* --- the shared passes of the frame (DESIGN.md sec. 5) ------------------------------------- */
+/* --- the shared passes of the frame (docs/design.md sec. 3) ------------------------------------- */
 
 /* A width x height single-level texture of format, nearest, clamped (replaces *tex). */
 static void gim__gl_texture(gim_context *ctx, gim__GLuint *tex, gim__GLenum format, uint32_t w, uint32_t h) {

@@ -175,7 +175,7 @@ DEMO_OPTIONS_FN gim_method demo_method(const demo_options *d) {
                                              : GIM_METHOD_LIGHTSKIN_BRSM;
 }
 
-/* A frame's work from the cost model (DESIGN.md sec. 7), in terms (one VAL or VPL or texel
+/* A frame's work from the cost model, in terms (one VAL or VPL or texel
    evaluated for one cache, pixel or view sample) and bytes of GL and CPU memory:
      brsm      importance rsm^2 x view samples + accumulation caches x VALs, per light
      full      caches x rsm^2 per light

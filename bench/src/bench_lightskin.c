@@ -3,7 +3,7 @@
    diffuse only and diffuse + glossy; then the shading pass (interpolation, 16 neighbours).
    The BRSM VALs come from the library's own importance
    map, cumulative sums, selection and gather, in the order the selection makes them. The FULL / BRSM ratio is the cost model's
-   texels / selected VALs (DESIGN.md sec. 7): 16384 / 2048 = 8. */
+   texels / selected VALs: 16384 / 2048 = 8. */
 #define _POSIX_C_SOURCE 199309L
 #ifndef GIMANY_NO_GL
 #define GIMANY_NO_GL

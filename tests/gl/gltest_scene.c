@@ -1,4 +1,4 @@
-/* The scene API and the shared passes of the frame (DESIGN.md sec. 2, 5): RSM per light,
+/* The scene API and the shared passes of the frame (docs/design.md sec. 3): RSM per light,
    G-buffer, view samples, chained into the importance passes, against their CPU twins
    (gim_rsm_texel_twin, gim_gbuffer_texel_twin, gim_view_samples_twin), the flux totals the
    physics fixes exactly, argument errors, allocation failures, zero GL errors throughout. */
