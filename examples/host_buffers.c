@@ -70,8 +70,8 @@ static void quad(geometry *g, uint32_t mat, const float o[3], const float u[3], 
 /* A 2 x 2 x 2 box open at +z, walls facing in, and a 0.6 x 1.2 x 0.6 block facing out. */
 static void build_scene(geometry *g) {
     static const float box[5][9] = {  /* origin, u, w: floor, ceiling, back (white), left (red), right (green) */
-        {-1, 0, 1, 0, 0, -2, 2, 0, 0}, {-1, 2, -1, 0, 0, 2, 2, 0, 0}, {-1, 0, -1, 2, 0, 0, 0, 2, 0},
-        {-1, 0, 1, 0, 2, 0, 0, 0, -2}, {1, 0, -1, 0, 2, 0, 0, 0, 2}};
+        {-1, 0, 1, 2, 0, 0, 0, 0, -2}, {-1, 2, -1, 2, 0, 0, 0, 0, 2}, {-1, 0, -1, 2, 0, 0, 0, 2, 0},
+        {-1, 0, 1, 0, 0, -2, 0, 2, 0}, {1, 0, -1, 0, 0, 2, 0, 2, 0}};
     static const float blk[5][9] = {  /* block at x [-0.65, -0.05], z [-0.6, 0]: +z, -z, -x, +x, top */
         {-0.65f, 0, 0, 0.6f, 0, 0, 0, 1.2f, 0}, {-0.05f, 0, -0.6f, -0.6f, 0, 0, 0, 1.2f, 0},
         {-0.65f, 0, -0.6f, 0, 0, 0.6f, 0, 1.2f, 0}, {-0.05f, 0, 0, 0, 0, -0.6f, 0, 1.2f, 0},
