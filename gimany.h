@@ -785,33 +785,19 @@ extern "C" {
 #endif
 
 /* @section math =========================================================================== */
-/* Vector and matrix helpers of the CPU layer and the examples (the types are in @section scene). */
+/* The vector and matrix helpers a host needs for cameras and placements (the types are in
+   @section scene; the others the implementation uses are private, gim__v3_dot and the like). */
 
 GIMANY_API gim_vec3 gim_v3(float x, float y, float z);             /* constructor */
-GIMANY_API gim_vec3 gim_v3_add(gim_vec3 a, gim_vec3 b);            /* a + b */
-GIMANY_API gim_vec3 gim_v3_sub(gim_vec3 a, gim_vec3 b);            /* a - b */
-GIMANY_API gim_vec3 gim_v3_scale(gim_vec3 a, float s);             /* a * s */
-GIMANY_API gim_vec3 gim_v3_mul(gim_vec3 a, gim_vec3 b);            /* component-wise a * b */
-GIMANY_API float gim_v3_dot(gim_vec3 a, gim_vec3 b);               /* a . b */
-GIMANY_API gim_vec3 gim_v3_cross(gim_vec3 a, gim_vec3 b);          /* a x b */
-GIMANY_API float gim_v3_length(gim_vec3 a);                        /* |a| */
 GIMANY_API gim_vec3 gim_v3_normalize(gim_vec3 a);                  /* a / |a|; (0,0,0) stays zero */
-GIMANY_API float gim_v3_luminance(gim_vec3 rgb);                   /* Rec. 709 luminance */
-GIMANY_API int gim_v3_isfinite(gim_vec3 a);                        /* 1 when no NaN/Inf */
-GIMANY_API void gim_basis(gim_vec3 n, gim_vec3 *t, gim_vec3 *b);   /* orthonormal t, b around unit n */
 
 GIMANY_API gim_mat4 gim_mat4_identity(void);                                  /* I */
 GIMANY_API gim_mat4 gim_mat4_mul(gim_mat4 a, gim_mat4 b);                     /* a * b */
 GIMANY_API gim_vec3 gim_mat4_point(gim_mat4 m, gim_vec3 p);                   /* m * (p,1), divided by w */
-GIMANY_API gim_vec3 gim_mat4_dir(gim_mat4 m, gim_vec3 d);                     /* m * (d,0) */
-GIMANY_API gim_vec4 gim_mat4_vec4(gim_mat4 m, gim_vec4 v);                    /* m * v */
 GIMANY_API int gim_mat4_invert(gim_mat4 m, gim_mat4 *out);                    /* 0 when singular */
-GIMANY_API gim_mat4 gim_mat4_transpose(gim_mat4 m);                           /* m^T */
-GIMANY_API gim_mat4 gim_mat4_normal(gim_mat4 model);                          /* inverse transpose of the 3x3 */
 GIMANY_API gim_mat4 gim_mat4_look_at(gim_vec3 eye, gim_vec3 target, gim_vec3 up);     /* gluLookAt */
 GIMANY_API gim_mat4 gim_mat4_perspective(float fovy_rad, float aspect, float znear, float zfar); /* gluPerspective */
 GIMANY_API gim_mat4 gim_mat4_ortho(float l, float r, float b, float t, float n, float f); /* glOrtho */
-GIMANY_API int gim_mat4_isfinite(gim_mat4 m);                                 /* 1 when no NaN/Inf */
 
 /* @section samplers ======================================================================= */
 /* Low-discrepancy points. Radical inverses are computed with integer digit reversal and one
@@ -1588,7 +1574,7 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
    which is the same estimator with each bounce normalised by its own sample count.
 
    Paraboloid maps (Brabec et al. 2002; Dong sec. 4.2; SSVP sec. 3.C): a hemisphere around a
-   cluster's normal n, seen from origin o. With t, b = gim_basis(n), a point p has local
+   cluster's normal n, seen from origin o. With t, b = gim__basis(n), a point p has local
    l = ((p - o) . t, (p - o) . b, (p - o) . n), direction w = l / |l| and, for w.z >= 0, map
    point (u, v) = (w.x, w.y) / (1 + w.z) in the unit disk (the stereographic projection: solid
    angle d omega = 4 du dv / (1 + u^2 + v^2)^2; an angle alpha near w spans alpha / (1 + w.z)).
@@ -1997,24 +1983,24 @@ static GIM__UNUSED int gim__all_finite(const float *v, size_t n) {
 /* @impl math ============================================================================== */
 
 GIMANY_DEF gim_vec3 gim_v3(float x, float y, float z) { gim_vec3 r; r.x = x; r.y = y; r.z = z; return r; }
-GIMANY_DEF gim_vec3 gim_v3_add(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
-GIMANY_DEF gim_vec3 gim_v3_sub(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x - b.x, a.y - b.y, a.z - b.z); }
-GIMANY_DEF gim_vec3 gim_v3_scale(gim_vec3 a, float s) { return gim_v3(a.x * s, a.y * s, a.z * s); }
-GIMANY_DEF gim_vec3 gim_v3_mul(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x * b.x, a.y * b.y, a.z * b.z); }
-GIMANY_DEF float gim_v3_dot(gim_vec3 a, gim_vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
-GIMANY_DEF gim_vec3 gim_v3_cross(gim_vec3 a, gim_vec3 b) {
+static GIM__UNUSED gim_vec3 gim__v3_add(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
+static GIM__UNUSED gim_vec3 gim__v3_sub(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x - b.x, a.y - b.y, a.z - b.z); }
+static GIM__UNUSED gim_vec3 gim__v3_scale(gim_vec3 a, float s) { return gim_v3(a.x * s, a.y * s, a.z * s); }
+static GIM__UNUSED gim_vec3 gim__v3_mul(gim_vec3 a, gim_vec3 b) { return gim_v3(a.x * b.x, a.y * b.y, a.z * b.z); }
+static GIM__UNUSED float gim__v3_dot(gim_vec3 a, gim_vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+static GIM__UNUSED gim_vec3 gim__v3_cross(gim_vec3 a, gim_vec3 b) {
     return gim_v3(a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x);
 }
-GIMANY_DEF float gim_v3_length(gim_vec3 a) { return sqrtf(gim_v3_dot(a, a)); }
+static GIM__UNUSED float gim__v3_length(gim_vec3 a) { return sqrtf(gim__v3_dot(a, a)); }
 GIMANY_DEF gim_vec3 gim_v3_normalize(gim_vec3 a) {
     /* in double so tiny (1e-30) and huge (1e30) vectors still normalise */
     double l = sqrt((double)a.x * a.x + (double)a.y * a.y + (double)a.z * a.z);
     if (!(l > 0.0) || l > DBL_MAX) return gim_v3(0.0f, 0.0f, 0.0f);
     return gim_v3((float)(a.x / l), (float)(a.y / l), (float)(a.z / l));
 }
-GIMANY_DEF float gim_v3_luminance(gim_vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
-GIMANY_DEF int gim_v3_isfinite(gim_vec3 a) { return gim__isfinitef(a.x) && gim__isfinitef(a.y) && gim__isfinitef(a.z); }
-GIMANY_DEF void gim_basis(gim_vec3 n, gim_vec3 *t, gim_vec3 *b) {
+static GIM__UNUSED float gim__v3_luminance(gim_vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+static GIM__UNUSED int gim__v3_isfinite(gim_vec3 a) { return gim__isfinitef(a.x) && gim__isfinitef(a.y) && gim__isfinitef(a.z); }
+static GIM__UNUSED void gim__basis(gim_vec3 n, gim_vec3 *t, gim_vec3 *b) {
     /* Duff et al. 2017, "Building an orthonormal basis, revisited": no branch on a threshold */
     float s = n.z >= 0.0f ? 1.0f : -1.0f;
     float a = -1.0f / (s + n.z);
@@ -2040,7 +2026,7 @@ GIMANY_DEF gim_mat4 gim_mat4_mul(gim_mat4 a, gim_mat4 b) {
         }
     return r;
 }
-GIMANY_DEF gim_vec4 gim_mat4_vec4(gim_mat4 m, gim_vec4 v) {
+static GIM__UNUSED gim_vec4 gim__mat4_vec4(gim_mat4 m, gim_vec4 v) {
     gim_vec4 r;
     r.x = m.m[0] * v.x + m.m[4] * v.y + m.m[8] * v.z + m.m[12] * v.w;
     r.y = m.m[1] * v.x + m.m[5] * v.y + m.m[9] * v.z + m.m[13] * v.w;
@@ -2051,16 +2037,16 @@ GIMANY_DEF gim_vec4 gim_mat4_vec4(gim_mat4 m, gim_vec4 v) {
 GIMANY_DEF gim_vec3 gim_mat4_point(gim_mat4 m, gim_vec3 p) {
     gim_vec4 v, r;
     v.x = p.x; v.y = p.y; v.z = p.z; v.w = 1.0f;
-    r = gim_mat4_vec4(m, v);
+    r = gim__mat4_vec4(m, v);
     if (r.w != 1.0f && r.w != 0.0f) return gim_v3(r.x / r.w, r.y / r.w, r.z / r.w);
     return gim_v3(r.x, r.y, r.z);
 }
-GIMANY_DEF gim_vec3 gim_mat4_dir(gim_mat4 m, gim_vec3 d) {
+static GIM__UNUSED gim_vec3 gim__mat4_dir(gim_mat4 m, gim_vec3 d) {
     return gim_v3(m.m[0] * d.x + m.m[4] * d.y + m.m[8] * d.z,
                   m.m[1] * d.x + m.m[5] * d.y + m.m[9] * d.z,
                   m.m[2] * d.x + m.m[6] * d.y + m.m[10] * d.z);
 }
-GIMANY_DEF gim_mat4 gim_mat4_transpose(gim_mat4 m) {
+static GIM__UNUSED gim_mat4 gim__mat4_transpose(gim_mat4 m) {
     gim_mat4 r;
     int c, rr;
     for (c = 0; c < 4; ++c)
@@ -2097,26 +2083,26 @@ GIMANY_DEF int gim_mat4_invert(gim_mat4 m, gim_mat4 *out) {
     }
     return 1;
 }
-GIMANY_DEF gim_mat4 gim_mat4_normal(gim_mat4 model) {
+static GIM__UNUSED gim_mat4 gim__mat4_normal(gim_mat4 model) {
     gim_mat4 inv, r;
     if (!gim_mat4_invert(model, &inv)) return gim_mat4_identity();
-    r = gim_mat4_transpose(inv);
+    r = gim__mat4_transpose(inv);
     r.m[3] = r.m[7] = r.m[11] = 0.0f;
     r.m[12] = r.m[13] = r.m[14] = 0.0f;
     r.m[15] = 1.0f;
     return r;
 }
 GIMANY_DEF gim_mat4 gim_mat4_look_at(gim_vec3 eye, gim_vec3 target, gim_vec3 up) {
-    gim_vec3 f = gim_v3_normalize(gim_v3_sub(target, eye));
-    gim_vec3 s = gim_v3_normalize(gim_v3_cross(f, up));
-    gim_vec3 u = gim_v3_cross(s, f);
+    gim_vec3 f = gim_v3_normalize(gim__v3_sub(target, eye));
+    gim_vec3 s = gim_v3_normalize(gim__v3_cross(f, up));
+    gim_vec3 u = gim__v3_cross(s, f);
     gim_mat4 r = gim_mat4_identity();
     r.m[0] = s.x; r.m[4] = s.y; r.m[8] = s.z;
     r.m[1] = u.x; r.m[5] = u.y; r.m[9] = u.z;
     r.m[2] = -f.x; r.m[6] = -f.y; r.m[10] = -f.z;
-    r.m[12] = -gim_v3_dot(s, eye);
-    r.m[13] = -gim_v3_dot(u, eye);
-    r.m[14] = gim_v3_dot(f, eye);
+    r.m[12] = -gim__v3_dot(s, eye);
+    r.m[13] = -gim__v3_dot(u, eye);
+    r.m[14] = gim__v3_dot(f, eye);
     return r;
 }
 GIMANY_DEF gim_mat4 gim_mat4_perspective(float fovy_rad, float aspect, float znear, float zfar) {
@@ -2140,7 +2126,7 @@ GIMANY_DEF gim_mat4 gim_mat4_ortho(float l, float r, float b, float t, float n, 
     m.m[14] = -(f + n) / (f - n);
     return m;
 }
-GIMANY_DEF int gim_mat4_isfinite(gim_mat4 m) { return gim__all_finite(m.m, 16); }
+static GIM__UNUSED int gim__mat4_isfinite(gim_mat4 m) { return gim__all_finite(m.m, 16); }
 
 /* @impl samplers ========================================================================== */
 
@@ -3686,7 +3672,7 @@ GIMANY_DEF gim_result gim_cache_generate_scene(const gim_cache_scene_desc *desc,
         if (res != GIM_OK) return res;
         if (desc->models) {
             s = gim__cg_model_scale(&desc->models[i]);
-            if (!gim_mat4_isfinite(desc->models[i]) || !(s > 0.0))
+            if (!gim__mat4_isfinite(desc->models[i]) || !(s > 0.0))
                 return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "models[%u] must be finite with a non-zero scale", (unsigned)i);
         }
         for (j = 0; j < m->index_count; ++j) {
@@ -3973,7 +3959,7 @@ static gim_result gim__nb_vertex_normals(const gim_mesh_data *m, const gim_env *
             gim_vec3 p[3];
             double e1[3], e2[3], c[3];
             for (k = 0; k < 3u; ++k) { i[k] = gim__nb_index(m, t + k); p[k] = gim__nb_load3(m->positions, pstride, i[k]); }
-            if (!gim_v3_isfinite(p[0]) || !gim_v3_isfinite(p[1]) || !gim_v3_isfinite(p[2])) continue;
+            if (!gim__v3_isfinite(p[0]) || !gim__v3_isfinite(p[1]) || !gim__v3_isfinite(p[2])) continue;
             e1[0] = (double)p[1].x - p[0].x; e1[1] = (double)p[1].y - p[0].y; e1[2] = (double)p[1].z - p[0].z;
             e2[0] = (double)p[2].x - p[0].x; e2[1] = (double)p[2].y - p[0].y; e2[2] = (double)p[2].z - p[0].z;
             c[0] = e1[1] * e2[2] - e1[2] * e2[1];
@@ -4080,7 +4066,7 @@ GIMANY_DEF gim_result gim_cache_neighbours(const gim_neighbour_desc *desc, gim_n
         gim_vec3 p = gim__nb_load3(m->positions, pstride, v);
         uint32_t *oi = out->index + (size_t)v * n;
         int any;
-        if (gim_v3_isfinite(p)) {
+        if (gim__v3_isfinite(p)) {
             /* max_distance starts the pruning bound: a node or cache beyond it is never
                visited, and the n best inside it are the unlimited row's first entries */
             double bound = radius2;
@@ -4327,7 +4313,7 @@ static float gim__importance_texel(const float *p, const float *nrm, const float
     double nx, ny, nz, len, px, py, pz, phi, sum = 0.0, r;
     uint32_t j;
     if (!gim__all_finite(p, 3) || !gim__all_finite(nrm, 3) || !gim__all_finite(flux, 3)) return 0.0f;
-    phi = gim_v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
+    phi = gim__v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
     if (!(phi > 0.0)) return 0.0f;                 /* black, or negative (non-physical) flux */
     if (phi > FLT_MAX) phi = FLT_MAX;              /* the float luminance of huge rgb overflowed */
     len = sqrt((double)nrm[0] * nrm[0] + (double)nrm[1] * nrm[1] + (double)nrm[2] * nrm[2]);
@@ -4386,7 +4372,7 @@ GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float 
         double *o = vs + (size_t)j * 6u;
         double len = sqrt((double)s.normal.x * s.normal.x + (double)s.normal.y * s.normal.y +
                           (double)s.normal.z * s.normal.z);
-        if (!gim_v3_isfinite(s.position) || !gim_v3_isfinite(s.normal) || !(len > 0.0) || len > DBL_MAX) {
+        if (!gim__v3_isfinite(s.position) || !gim__v3_isfinite(s.normal) || !(len > 0.0) || len > DBL_MAX) {
             o[0] = o[1] = o[2] = o[3] = o[4] = o[5] = 0.0;
             ++unusable;
             continue;
@@ -4715,7 +4701,7 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    wall's light at RSM 128^2, 0.76 at 0.067 (tests/unit/test_physics.c; of the rest, 0.17 at 0.067
    lies in the wall's strip below its lowest texel centres, which the RSM gives to floor
    texels). Within d < GIM__VAL_NEAR sqrt(A) the VAL is a regular octagon of area A in its
-   plane (gim_basis(n_l) axes), clipped to the receiver's hemisphere, and Lambert's contour
+   plane (gim__basis(n_l) axes), clipped to the receiver's hemisphere, and Lambert's contour
    formula gives its vector form factor Phi = 1/(2 pi) sum_k angle(r_k, r_k+1) unit(r_k x
    r_k+1): the form factor F = n . Phi and the irradiance direction unit(Phi). In: d = x_l - c,
    n the receiver's normal, nl the VAL's, cos_x > 0 at the centre, the VAL's weight w and its
@@ -4741,7 +4727,7 @@ static double gim__val_near(float *d, const float *n, const float *nl, float are
     float v[8][3], h[8], poly[16][3], r, phi[3] = {0.0f, 0.0f, 0.0f}, f = 0.0f, d2, dl, fv, w, u[3], ul;
     gim_vec3 t, b;
     int k, a, m = 0;
-    gim_basis(gim_v3(nl[0], nl[1], nl[2]), &t, &b);
+    gim__basis(gim_v3(nl[0], nl[1], nl[2]), &t, &b);
     r = sqrtf(area / (2.0f * 1.41421356f));   /* octagon of area 2 sqrt(2) r^2 = A */
     d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     w = (GIM__VAL_NEAR * GIM__VAL_NEAR - d2 / area) / ((1.0f - 0.5625f) * GIM__VAL_NEAR * GIM__VAL_NEAR);
@@ -4890,7 +4876,7 @@ GIMANY_DEF gim_result gim_proxy_lights_twin(const gim_proxy_desc *desc, gim_prox
     if (!gim__isfinitef(desc->scene_scale) || desc->scene_scale < 0.0f)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and >= 0 (0: default)");
     if (glossy_out) {
-        if (!gim_v3_isfinite(desc->eye)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "eye is not finite");
+        if (!gim__v3_isfinite(desc->eye)) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "eye is not finite");
         if (!(desc->glossy_exponent >= 0.0f && desc->glossy_exponent <= GIM__TWINS_MAX_EXPONENT))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "glossy_exponent must be in [0, 1e6]");
         if (desc->cache_glossy_exponent)
@@ -5134,7 +5120,7 @@ GIMANY_DEF gim_result gim_rsm_gather_twin(const gim_gather_desc *d, float *radia
     if (d->sample_count == 0 || d->receiver_count == 0)
         return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "no samples or no receivers");
     if (!gim__isfinitef(d->radius) || !(d->radius > 0.0f) || !gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f) ||
-        !gim_mat4_isfinite(d->light_view_proj))
+        !gim__mat4_isfinite(d->light_view_proj))
         return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "radius, scene_scale or the light's matrix invalid");
     if (!gim__all_finite(d->samples, (size_t)d->sample_count * 2u))
         return gim__fail(&d->env, GIM_ERROR_INVALID_ARGUMENT, fn, "samples not finite");
@@ -5305,18 +5291,18 @@ GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, g
     det = (double)m[0] * ((double)m[5] * m[10] - (double)m[9] * m[6]) -
           (double)m[4] * ((double)m[1] * m[10] - (double)m[9] * m[2]) +
           (double)m[8] * ((double)m[1] * m[6] - (double)m[5] * m[2]);
-    if (!gim_mat4_isfinite(model) || !(fabs(det) > 0.0) || !gim_mat4_invert(model, &nm))
+    if (!gim__mat4_isfinite(model) || !(fabs(det) > 0.0) || !gim_mat4_invert(model, &nm))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "model is not finite or its 3x3 is singular");
-    nm = gim_mat4_normal(model);
+    nm = gim__mat4_normal(model);
     for (i = 0; i < count; ++i) {
         gim_cache c = in[i];
         gim_vec3 p = gim_mat4_point(model, gim_v3(c.position[0], c.position[1], c.position[2]));
-        gim_vec3 n = gim_mat4_dir(nm, gim_v3(c.normal[0], c.normal[1], c.normal[2]));
+        gim_vec3 n = gim__mat4_dir(nm, gim_v3(c.normal[0], c.normal[1], c.normal[2]));
         double len = sqrt((double)n.x * n.x + (double)n.y * n.y + (double)n.z * n.z);
         double len0 = sqrt((double)c.normal[0] * c.normal[0] + (double)c.normal[1] * c.normal[1] +
                            (double)c.normal[2] * c.normal[2]);
         double area = (double)c.area * fabs(det) * len / len0;   /* det M M^-T maps area vectors */
-        if (!gim_v3_isfinite(p) || !(len > 0.0) || !(len0 > 0.0) || !(area < (double)FLT_MAX) || !(area >= 0.0))
+        if (!gim__v3_isfinite(p) || !(len > 0.0) || !(len0 > 0.0) || !(area < (double)FLT_MAX) || !(area >= 0.0))
             return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "cache %u: not finite in world space", i);
         c.position[0] = p.x; c.position[1] = p.y; c.position[2] = p.z;
         c.normal[0] = (float)(n.x / len); c.normal[1] = (float)(n.y / len); c.normal[2] = (float)(n.z / len);
@@ -5581,17 +5567,17 @@ GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_ca
         a = gim_v3(positions[b->vertex[0] * 3u], positions[b->vertex[0] * 3u + 1u], positions[b->vertex[0] * 3u + 2u]);
         pb = gim_v3(positions[b->vertex[1] * 3u], positions[b->vertex[1] * 3u + 1u], positions[b->vertex[1] * 3u + 2u]);
         pc = gim_v3(positions[b->vertex[2] * 3u], positions[b->vertex[2] * 3u + 1u], positions[b->vertex[2] * 3u + 2u]);
-        e1 = gim_v3_sub(pb, a);
-        e2 = gim_v3_sub(pc, a);
-        cr = gim_v3_cross(e1, e2);
+        e1 = gim__v3_sub(pb, a);
+        e2 = gim__v3_sub(pc, a);
+        cr = gim__v3_cross(e1, e2);
         len = sqrtf(cr.x * cr.x + cr.y * cr.y + cr.z * cr.z);
         w = 1.0f - b->u - b->v;
         n = len > 0.0f ? gim_v3(cr.x / len, cr.y / len, cr.z / len) : gim_v3(0.0f, 0.0f, 0.0f);
         p = gim_v3(w * a.x + b->u * pb.x + b->v * pc.x + b->h * n.x, w * a.y + b->u * pb.y + b->v * pc.y + b->h * n.y,
                    w * a.z + b->u * pb.z + b->v * pc.z + b->h * n.z);
         /* M^-T n through the dual basis of (e1, e2, n'): each term a cross product, det dropped */
-        m = gim_v3_add(gim_v3_add(gim_v3_scale(gim_v3_cross(e2, n), b->frame[0]), gim_v3_scale(gim_v3_cross(n, e1), b->frame[1])),
-                       gim_v3_scale(cr, b->frame[2]));
+        m = gim__v3_add(gim__v3_add(gim__v3_scale(gim__v3_cross(e2, n), b->frame[0]), gim__v3_scale(gim__v3_cross(n, e1), b->frame[1])),
+                       gim__v3_scale(cr, b->frame[2]));
         {
             float ml = sqrtf(m.x * m.x + m.y * m.y + m.z * m.z);
             if (len > 0.0f && ml > 0.0f) {
@@ -5645,7 +5631,7 @@ GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t
         double area = 0.0, det;
         int k, plain;
         float lift = 1e-4f * scene_scale, near_skip = 1e-2f * scene_scale;
-        gim_basis(n, &t, &b);
+        gim__basis(n, &t, &b);
         for (k = 0; k < 3; ++k) c[k] = centres[3 * m + (uint32_t)k];
         for (i = 0; i < vpl_count; ++i) {
             const gim_vpl *v = vpls + i;
@@ -5691,7 +5677,7 @@ static gim_result gim__light_check(const gim_light *l, const gim_env *env, const
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: unknown type %d", (unsigned)index, (int)l->type);
     if (!gim__all_finite(l->color, 3) || l->color[0] < 0.0f || l->color[1] < 0.0f || l->color[2] < 0.0f)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: color must be finite and >= 0", (unsigned)index);
-    if (l->type != GIM_LIGHT_POINT && (!gim_v3_isfinite(l->direction) || gim_v3_length(gim_v3_normalize(l->direction)) == 0.0f))
+    if (l->type != GIM_LIGHT_POINT && (!gim__v3_isfinite(l->direction) || gim__v3_length(gim_v3_normalize(l->direction)) == 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: direction must be finite and non-zero",
                          (unsigned)index);
     if (l->rsm_size > 16384u)
@@ -5701,7 +5687,7 @@ static gim_result gim__light_check(const gim_light *l, const gim_env *env, const
         if (!gim__isfinitef(l->intensity) || l->intensity < 0.0f)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: intensity %g must be finite and >= 0",
                              (unsigned)index, (double)l->intensity);
-        if (!gim_v3_isfinite(l->position))
+        if (!gim__v3_isfinite(l->position))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: position is not finite", (unsigned)index);
         if (l->type == GIM_LIGHT_SPOT && !(l->cone_angle > 0.0f && l->cone_angle <= 1.5f))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "light %u: cone_angle %g outside (0, 1.5] radians",
@@ -5827,10 +5813,10 @@ GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[
         double eye[3];
         /* the eye 2R out along the light: the bounds' sphere lies between depths R and 3R */
         eye[0] = c[0] + 2.0 * R * l.x; eye[1] = c[1] + 2.0 * R * l.y; eye[2] = c[2] + 2.0 * R * l.z;
-        *view = gim__look_along(eye, gim_v3_scale(l, -1.0f), gim__up_for(l));
+        *view = gim__look_along(eye, gim__v3_scale(l, -1.0f), gim__up_for(l));
         *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
     }
-    if (!gim_mat4_isfinite(*view) || !gim_mat4_isfinite(*proj))
+    if (!gim__mat4_isfinite(*view) || !gim__mat4_isfinite(*proj))
         return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the light's camera is not finite");
     return GIM_OK;
 }
@@ -5852,8 +5838,8 @@ GIMANY_DEF gim_result gim_light_fit_view(const gim_light *light, const float sce
     int k, a;
     if (!light || !scene_min || !scene_max || !out_light || !out_min || !out_max)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
-    if (!gim__all_finite(scene_min, 3) || !gim__all_finite(scene_max, 3) || !gim_mat4_isfinite(view) ||
-        !gim_mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) || !gim_mat4_invert(proj, &inv_proj) ||
+    if (!gim__all_finite(scene_min, 3) || !gim__all_finite(scene_max, 3) || !gim__mat4_isfinite(view) ||
+        !gim__mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) || !gim_mat4_invert(proj, &inv_proj) ||
         !gim__isfinitef(view_distance) || view_distance < 0.0f)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "bounds, camera or view_distance not finite or invalid");
     *out_light = *light;
@@ -6114,7 +6100,7 @@ GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r != GIM_OK) return r;
-    if (!gim_mat4_isfinite(view) || !gim_mat4_isfinite(proj) || x >= width || y >= height)
+    if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || x >= width || y >= height)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "matrices not finite or pixel outside the view");
     memset(out, 0, sizeof *out);
     out->depth = 1.0f;
@@ -6159,7 +6145,7 @@ GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *nor
     uint32_t i;
     if (!depth || !normal || !pixels || !out || count == 0 || width == 0 || height == 0)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL array or zero count/size");
-    if (!gim_mat4_isfinite(view) || !gim_mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) ||
+    if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) ||
         !gim_mat4_invert(proj, &inv_proj))
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj not finite or singular");
     for (i = 0; i < count; ++i) {
@@ -6190,7 +6176,7 @@ GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *nor
 
 /* --- paraboloid maps and second-bounce VPLs (Dong sec. 4.2; SSVP sec. 3.C) ------------------- */
 
-/* A map's frame: unit n (normalised in float, as the GPU does) and t, b = gim_basis(n).
+/* A map's frame: unit n (normalised in float, as the GPU does) and t, b = gim__basis(n).
    0 where the map is unusable (origin or normal not finite, |n|^2 not within 1e-3 of 1,
    near_distance or attribute_near not finite and >= 0). */
 static int gim__paraboloid_frame(const gim_paraboloid *m, gim_vec3 *t, gim_vec3 *b, gim_vec3 *n) {
@@ -6199,7 +6185,7 @@ static int gim__paraboloid_frame(const gim_paraboloid *m, gim_vec3 *t, gim_vec3 
         !gim__unit_or_zero(m->normal, 0))
         return 0;
     *n = gim_v3_normalize(gim_v3(m->normal[0], m->normal[1], m->normal[2]));
-    gim_basis(*n, t, b);
+    gim__basis(*n, t, b);
     return 1;
 }
 
@@ -6462,7 +6448,7 @@ static float gim__paraboloid_vis(const float *distance, uint32_t size, const gim
     float pl[3], pd = 0.0f, z;
     const float *plane = NULL;
     int k, found = 0, open = 0;
-    gim_basis(n, &t, &b);
+    gim__basis(n, &t, &b);
     lx = p0 * t.x + p1 * t.y + p2 * t.z;
     ly = p0 * b.x + p1 * b.y + p2 * b.z;
     lz = p0 * n.x + p1 * n.y + p2 * n.z;
@@ -6520,8 +6506,8 @@ GIMANY_DEF gim_result gim_paraboloid_visibility_twin(const float *distance, uint
     if (size == 0 || size > 65536u) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u must be 1..65536", size);
     if (!gim__paraboloid_ok(map))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "map: origin not finite, normal not unit or size not >= 0");
-    if (!gim_v3_isfinite(receiver)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver is not finite");
-    if (normal && (!gim_v3_isfinite(*normal) || fabsf(gim_v3_dot(*normal, *normal) - 1.0f) > 1e-3f))
+    if (!gim__v3_isfinite(receiver)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver is not finite");
+    if (normal && (!gim__v3_isfinite(*normal) || fabsf(gim__v3_dot(*normal, *normal) - 1.0f) > 1e-3f))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "normal is not a finite unit vector");
     x[0] = receiver.x; x[1] = receiver.y; x[2] = receiver.z;
     if (normal) {
@@ -6625,7 +6611,7 @@ static void gim__ism_frame(const float *c, const float *normal, float lift, floa
                            gim_vec3 *n) {
     int a;
     *n = gim_v3(normal[0], normal[1], normal[2]);
-    gim_basis(*n, t, b);
+    gim__basis(*n, t, b);
     for (a = 0; a < 3; ++a) o[a] = c[a] + lift * normal[a];
 }
 
@@ -8509,7 +8495,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
                          (double)scene_scale);
     if (glossy_out) {
-        if (!gim_v3_isfinite(eye)) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "eye is not finite");
+        if (!gim__v3_isfinite(eye)) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "eye is not finite");
         if (!(exponent >= 0.0f && exponent <= GIM__TWINS_MAX_EXPONENT))
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "exponent %g must be in [0, 1e6]",
                              (double)exponent);
@@ -9041,12 +9027,12 @@ static void gim__vertex_normals(const float *pos, uint32_t vertex_count, const v
         uint32_t a = gim__index_at(indices, index_type, i * 3u), b = gim__index_at(indices, index_type, i * 3u + 1u),
                  c = gim__index_at(indices, index_type, i * 3u + 2u);
         gim_vec3 pa = gim_v3(pos[a * 3], pos[a * 3 + 1], pos[a * 3 + 2]);
-        gim_vec3 fn = gim_v3_cross(gim_v3_sub(gim_v3(pos[b * 3], pos[b * 3 + 1], pos[b * 3 + 2]), pa),
-                                   gim_v3_sub(gim_v3(pos[c * 3], pos[c * 3 + 1], pos[c * 3 + 2]), pa));
+        gim_vec3 fn = gim__v3_cross(gim__v3_sub(gim_v3(pos[b * 3], pos[b * 3 + 1], pos[b * 3 + 2]), pa),
+                                   gim__v3_sub(gim_v3(pos[c * 3], pos[c * 3 + 1], pos[c * 3 + 2]), pa));
         uint32_t v[3];
         int k;
         v[0] = a; v[1] = b; v[2] = c;
-        if (!gim_v3_isfinite(fn)) continue;
+        if (!gim__v3_isfinite(fn)) continue;
         for (k = 0; k < 3; ++k) {
             nrm[v[k] * 3] += fn.x;
             nrm[v[k] * 3 + 1] += fn.y;
@@ -9087,8 +9073,8 @@ static gim_result gim__cache_materials(gim_context *ctx, const float *pos, const
         a = gim_v3(pos[v[0] * 3], pos[v[0] * 3 + 1], pos[v[0] * 3 + 2]);
         b = gim_v3(pos[v[1] * 3], pos[v[1] * 3 + 1], pos[v[1] * 3 + 2]);
         c = gim_v3(pos[v[2] * 3], pos[v[2] * 3 + 1], pos[v[2] * 3 + 2]);
-        n = gim_v3_normalize(gim_v3_cross(gim_v3_sub(b, a), gim_v3_sub(c, a)));
-        if (!(n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) || !gim_v3_isfinite(n)) n = gim_v3(0.0f, 0.0f, 1.0f);
+        n = gim_v3_normalize(gim__v3_cross(gim__v3_sub(b, a), gim__v3_sub(c, a)));
+        if (!(n.x != 0.0f || n.y != 0.0f || n.z != 0.0f) || !gim__v3_isfinite(n)) n = gim_v3(0.0f, 0.0f, 1.0f);
         tc[i].position[0] = (a.x + b.x + c.x) / 3.0f;
         tc[i].position[1] = (a.y + b.y + c.y) / 3.0f;
         tc[i].position[2] = (a.z + b.z + c.z) / 3.0f;
@@ -9726,7 +9712,7 @@ GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
         if (!gim__mesh_get(ctx, instances[i].mesh))
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u: mesh %u is not a mesh", (unsigned)i,
                              (unsigned)instances[i].mesh.id);
-        if (!gim_mat4_isfinite(instances[i].model) || !gim_mat4_invert(instances[i].model, &inv))
+        if (!gim__mat4_isfinite(instances[i].model) || !gim_mat4_invert(instances[i].model, &inv))
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u: model matrix not finite or singular",
                              (unsigned)i);
     }
@@ -10062,7 +10048,7 @@ static void gim__gl_draw_meshes(gim_context *ctx, uint32_t copies) {
     for (i = 0; i < ctx->instance_count; ++i) {
         const gim_instance *in = &ctx->instances[i];
         const gim__mesh *m = gim__mesh_get(ctx, in->mesh);
-        gim_mat4 nm = gim_mat4_normal(in->model);
+        gim_mat4 nm = gim__mat4_normal(in->model);
         gl->UniformMatrix4fv(0, 1, GIM__GL_FALSE, in->model.m);
         gl->UniformMatrix4fv(1, 1, GIM__GL_FALSE, nm.m);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, m->triangle_material);
@@ -11860,7 +11846,7 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
     static const char where[] = "gim_update";
     gim_mat4 inv;
     uint32_t i, limit;
-    if (!gim_mat4_isfinite(f->view) || !gim_mat4_isfinite(f->proj) || !gim_mat4_invert(f->view, &inv) ||
+    if (!gim__mat4_isfinite(f->view) || !gim__mat4_isfinite(f->proj) || !gim_mat4_invert(f->view, &inv) ||
         !gim_mat4_invert(f->proj, &inv))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj is not finite or singular");
     limit = (uint32_t)ctx->max_texture_size;
@@ -12017,7 +12003,7 @@ static int gim__light_meets_instances(gim_context *ctx, gim_mat4 view, gim_mat4 
             c.y = (k & 2) ? m->bmax[1] : m->bmin[1];
             c.z = (k & 4) ? m->bmax[2] : m->bmin[2];
             c.w = 1.0f;
-            c = gim_mat4_vec4(mvp, c);
+            c = gim__mat4_vec4(mvp, c);
             code = (c.x < -c.w ? 1u : 0u) | (c.x > c.w ? 2u : 0u) | (c.y < -c.w ? 4u : 0u) |
                             (c.y > c.w ? 8u : 0u) | (c.z < -c.w ? 16u : 0u) | (c.z > c.w ? 32u : 0u);
             out &= code;

@@ -32,7 +32,7 @@ static void make_vpls(float *pos, float *nrm, float *flux, float sx, float sy, f
         float u = gim_rotate01(pts[i * 3 + 1], slide), v = gim_rotate01(pts[i * 3 + 2], slide), fall;
         gim_vec3 n;
         if (p > 7) p = 7;
-        n = gim_v3_normalize(gim_v3_cross(gim_v3(du[p][0], du[p][1], du[p][2]), gim_v3(dv[p][0], dv[p][1], dv[p][2])));
+        n = gim_v3_normalize(gim__v3_cross(gim_v3(du[p][0], du[p][1], du[p][2]), gim_v3(dv[p][0], dv[p][1], dv[p][2])));
         for (a = 0; a < 3; ++a) pos[i * 3 + a] = org[p][a] + u * du[p][a] + v * dv[p][a];
         /* the spot's footprint: falls off with distance from its centre in the plane's (u, v) */
         fall = 1.0f / (1.0f + 6.0f * ((u - sx) * (u - sx) + (v - sy) * (v - sy)));

@@ -103,8 +103,8 @@ static void host_write(deform_fx *h, const float *p) {
     for (i = 0; i < NI / 3; ++i) {
         uint32_t a = plate_idx[i * 3], b = plate_idx[i * 3 + 1], c = plate_idx[i * 3 + 2], v[3];
         gim_vec3 pa = gim_v3(p[a * 3], p[a * 3 + 1], p[a * 3 + 2]);
-        gim_vec3 fn = gim_v3_cross(gim_v3_sub(gim_v3(p[b * 3], p[b * 3 + 1], p[b * 3 + 2]), pa),
-                                   gim_v3_sub(gim_v3(p[c * 3], p[c * 3 + 1], p[c * 3 + 2]), pa));
+        gim_vec3 fn = gim__v3_cross(gim__v3_sub(gim_v3(p[b * 3], p[b * 3 + 1], p[b * 3 + 2]), pa),
+                                   gim__v3_sub(gim_v3(p[c * 3], p[c * 3 + 1], p[c * 3 + 2]), pa));
         v[0] = a; v[1] = b; v[2] = c;
         for (k = 0; k < 3; ++k) { n[v[k] * 3] += fn.x; n[v[k] * 3 + 1] += fn.y; n[v[k] * 3 + 2] += fn.z; }
     }
@@ -307,7 +307,7 @@ static void affine_caches(void **state) {
         for (i = 0; i < h.plate_set.count; ++i) sum += gpu[i].area;
         {   /* the sheared plate's area: 2.4^2 |det A| |A^-T y| = 2.4^2 |A e_x x A e_z| */
             gim_vec3 ax = gim_v3(A3[0], A3[1], A3[2]), az = gim_v3(A3[6], A3[7], A3[8]);
-            gim_vec3 c = gim_v3_cross(ax, az);
+            gim_vec3 c = gim__v3_cross(ax, az);
             closed = 2.4 * 2.4 * sqrt((double)c.x * c.x + (double)c.y * c.y + (double)c.z * c.z);
         }
         print_message("path %d: followed vs A applied to the rest caches: position %.2e, normal %.2e, area %.2e; "

@@ -1030,11 +1030,11 @@ static void partial_caches_and_nonuniform_scale(void **state) {
         wc = (gim_cache *)malloc(e.set[0].count * sizeof *wc);
         assert_int_equal(gim_caches_to_world(e.set[0].caches, e.set[0].count, model, wc, e.f.env), GIM_OK);
         {
-            gim_mat4 nm = gim_mat4_normal(model);
+            gim_mat4 nm = gim__mat4_normal(model);
             gim_mesh_desc md;
             for (i = 0; i < g.quads * 4; ++i) {
                 gim_vec3 p = gim_mat4_point(model, gim_v3(g.pos[i * 3], g.pos[i * 3 + 1], g.pos[i * 3 + 2]));
-                gim_vec3 n = gim_v3_normalize(gim_mat4_dir(nm, gim_v3(g.nrm[i * 3], g.nrm[i * 3 + 1], g.nrm[i * 3 + 2])));
+                gim_vec3 n = gim_v3_normalize(gim__mat4_dir(nm, gim_v3(g.nrm[i * 3], g.nrm[i * 3 + 1], g.nrm[i * 3 + 2])));
                 g.pos[i * 3] = p.x; g.pos[i * 3 + 1] = p.y; g.pos[i * 3 + 2] = p.z;
                 g.nrm[i * 3] = n.x; g.nrm[i * 3 + 1] = n.y; g.nrm[i * 3 + 2] = n.z;
             }

@@ -81,7 +81,7 @@ static void fit_view_follows_the_camera(void **state) {
     for (i = 0; i < 256; ++i) {
         gim_vec4 c;
         if (vs[i * 8 + 4] == 0.0f && vs[i * 8 + 5] == 0.0f && vs[i * 8 + 6] == 0.0f) continue;
-        c = gim_mat4_vec4(gim_mat4_mul(o.lights[0].proj, o.lights[0].view), (gim_vec4){vs[i * 8], vs[i * 8 + 1], vs[i * 8 + 2], 1.0f});
+        c = gim__mat4_vec4(gim_mat4_mul(o.lights[0].proj, o.lights[0].view), (gim_vec4){vs[i * 8], vs[i * 8 + 1], vs[i * 8 + 2], 1.0f});
         assert_true(fabsf(c.x / c.w) <= 1.0f && fabsf(c.y / c.w) <= 1.0f && c.z / c.w >= -1.0f && c.z / c.w <= 1.0f);
     }
 

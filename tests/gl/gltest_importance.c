@@ -60,7 +60,7 @@ static gim_view_sample *make_view_samples(int n, float L, const float origin[3])
         case 1: s[i].position = gim_v3(0.0f, a, b); s[i].normal = gim_v3(1.0f, 0.0f, 0.0f); break;
         default: s[i].position = gim_v3(L, a, b); s[i].normal = gim_v3(-1.0f, 0.2f, 0.1f); break; /* not unit */
         }
-        s[i].position = gim_v3_add(s[i].position, gim_v3(origin[0], origin[1], origin[2]));
+        s[i].position = gim__v3_add(s[i].position, gim_v3(origin[0], origin[1], origin[2]));
     }
     if (n > 3) s[3].normal.y = NAN;
     return s;

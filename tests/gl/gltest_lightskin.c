@@ -89,17 +89,17 @@ static void caches_to_world_keeps_area_and_normals(void **state) {
         gim_vec3 n0 = gim_v3(set.caches[i].normal[0], set.caches[i].normal[1], set.caches[i].normal[2]);
         gim_vec3 n1 = gim_v3(w[i].normal[0], w[i].normal[1], w[i].normal[2]);
         gim_vec3 t, b, tw, bw;
-        gim_basis(n0, &t, &b);
-        tw = gim_mat4_dir(m, t);
-        bw = gim_mat4_dir(m, b);
+        gim__basis(n0, &t, &b);
+        tw = gim__mat4_dir(m, t);
+        bw = gim__mat4_dir(m, b);
         /* the world normal is perpendicular to the placed tangents, unit, and the area scales
            with the placed parallelogram t x b */
-        assert_true(fabsf(gim_v3_dot(n1, tw)) < 1e-5f * gim_v3_length(tw));
-        assert_true(fabsf(gim_v3_dot(n1, bw)) < 1e-5f * gim_v3_length(bw));
-        assert_true(fabsf(gim_v3_length(n1) - 1.0f) < 1e-6f);
-        assert_true(fabs(w[i].area - set.caches[i].area * gim_v3_length(gim_v3_cross(tw, bw))) <=
+        assert_true(fabsf(gim__v3_dot(n1, tw)) < 1e-5f * gim__v3_length(tw));
+        assert_true(fabsf(gim__v3_dot(n1, bw)) < 1e-5f * gim__v3_length(bw));
+        assert_true(fabsf(gim__v3_length(n1) - 1.0f) < 1e-6f);
+        assert_true(fabs(w[i].area - set.caches[i].area * gim__v3_length(gim__v3_cross(tw, bw))) <=
                     1e-5 * w[i].area);
-        assert_true(gim_v3_dot(n1, gim_v3_cross(tw, bw)) > 0.0f);
+        assert_true(gim__v3_dot(n1, gim__v3_cross(tw, bw)) > 0.0f);
         a0 += set.caches[i].area;
         a1 += w[i].area;
     }

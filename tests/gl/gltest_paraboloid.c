@@ -100,7 +100,7 @@ typedef struct twin_soup {
    through the normal matrix (as the GPU gets it for unshared vertices). */
 static void soup_add(twin_soup *s, const float *pos, const float *nrm, const void *idx, int u16, uint32_t index_count,
                      const uint32_t *mat, uint32_t mat_all, gim_mat4 model) {
-    gim_mat4 nm = gim_mat4_normal(model);
+    gim_mat4 nm = gim__mat4_normal(model);
     uint32_t t, k, v[3];
     for (t = 0; t < index_count / 3; ++t) {
         float *P = s->pos + s->n * 9, *N = s->nrm + s->n * 9;
@@ -111,14 +111,14 @@ static void soup_add(twin_soup *s, const float *pos, const float *nrm, const voi
             w = gim_mat4_point(model, gim_v3(pos[v[k] * 3], pos[v[k] * 3 + 1], pos[v[k] * 3 + 2]));
             P[k * 3] = w.x; P[k * 3 + 1] = w.y; P[k * 3 + 2] = w.z;
             if (nrm) {
-                gim_vec3 n = gim_mat4_dir(nm, gim_v3(nrm[v[k] * 3], nrm[v[k] * 3 + 1], nrm[v[k] * 3 + 2]));
+                gim_vec3 n = gim__mat4_dir(nm, gim_v3(nrm[v[k] * 3], nrm[v[k] * 3 + 1], nrm[v[k] * 3 + 2]));
                 N[k * 3] = n.x; N[k * 3 + 1] = n.y; N[k * 3 + 2] = n.z;
             }
         }
         if (!nrm) {
             gim_vec3 a = gim_v3(pos[v[0] * 3], pos[v[0] * 3 + 1], pos[v[0] * 3 + 2]);
-            gim_vec3 fn = gim_mat4_dir(nm, gim_v3_cross(gim_v3_sub(gim_v3(pos[v[1] * 3], pos[v[1] * 3 + 1], pos[v[1] * 3 + 2]), a),
-                                                        gim_v3_sub(gim_v3(pos[v[2] * 3], pos[v[2] * 3 + 1], pos[v[2] * 3 + 2]), a)));
+            gim_vec3 fn = gim__mat4_dir(nm, gim__v3_cross(gim__v3_sub(gim_v3(pos[v[1] * 3], pos[v[1] * 3 + 1], pos[v[1] * 3 + 2]), a),
+                                                        gim__v3_sub(gim_v3(pos[v[2] * 3], pos[v[2] * 3 + 1], pos[v[2] * 3 + 2]), a)));
             for (k = 0; k < 3; ++k) { N[k * 3] = fn.x; N[k * 3 + 1] = fn.y; N[k * 3 + 2] = fn.z; }
         }
         memcpy(s->alb + s->n * 3, materials[mat ? mat[t] : mat_all].diffuse, 3 * sizeof(float));

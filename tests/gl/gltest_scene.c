@@ -59,7 +59,7 @@ static void make_box(void) {
 /* Append a mesh placed by model to the twin's soup; normals NULL: face normals. */
 static void soup_add(twin_soup *s, const float *pos, const float *nrm, const void *idx, int u16, uint32_t index_count,
                      const uint32_t *mat, gim_mat4 model) {
-    gim_mat4 nm = gim_mat4_normal(model);
+    gim_mat4 nm = gim__mat4_normal(model);
     uint32_t t, k;
     for (t = 0; t < index_count / 3; ++t) {
         float *P = s->pos + s->n * 9, *N = s->nrm + s->n * 9;
@@ -70,7 +70,7 @@ static void soup_add(twin_soup *s, const float *pos, const float *nrm, const voi
             w[k] = gim_mat4_point(model, gim_v3(pos[v * 3], pos[v * 3 + 1], pos[v * 3 + 2]));
             P[k * 3] = w[k].x; P[k * 3 + 1] = w[k].y; P[k * 3 + 2] = w[k].z;
             if (nrm) {
-                gim_vec3 n = gim_mat4_dir(nm, gim_v3(nrm[v * 3], nrm[v * 3 + 1], nrm[v * 3 + 2]));
+                gim_vec3 n = gim__mat4_dir(nm, gim_v3(nrm[v * 3], nrm[v * 3 + 1], nrm[v * 3 + 2]));
                 N[k * 3] = n.x; N[k * 3 + 1] = n.y; N[k * 3 + 2] = n.z;
             }
         }
@@ -79,8 +79,8 @@ static void soup_add(twin_soup *s, const float *pos, const float *nrm, const voi
             uint32_t v0 = ((const uint32_t *)idx)[t * 3], v1 = ((const uint32_t *)idx)[t * 3 + 1],
                      v2 = ((const uint32_t *)idx)[t * 3 + 2];
             gim_vec3 a = gim_v3(pos[v0 * 3], pos[v0 * 3 + 1], pos[v0 * 3 + 2]);
-            gim_vec3 fn = gim_mat4_dir(nm, gim_v3_cross(gim_v3_sub(gim_v3(pos[v1 * 3], pos[v1 * 3 + 1], pos[v1 * 3 + 2]), a),
-                                                        gim_v3_sub(gim_v3(pos[v2 * 3], pos[v2 * 3 + 1], pos[v2 * 3 + 2]), a)));
+            gim_vec3 fn = gim__mat4_dir(nm, gim__v3_cross(gim__v3_sub(gim_v3(pos[v1 * 3], pos[v1 * 3 + 1], pos[v1 * 3 + 2]), a),
+                                                        gim__v3_sub(gim_v3(pos[v2 * 3], pos[v2 * 3 + 1], pos[v2 * 3 + 2]), a)));
             for (k = 0; k < 3; ++k) { N[k * 3] = fn.x; N[k * 3 + 1] = fn.y; N[k * 3 + 2] = fn.z; }
         }
         memcpy(s->alb + s->n * 3, materials[mat ? mat[t] : 0].diffuse, 3 * sizeof(float));
@@ -167,7 +167,7 @@ static gim_frame default_frame(float s, const float offset[3], int w, int h) {
     gim_frame fr;
     gim_vec3 o = gim_v3(offset[0], offset[1], offset[2]);
     memset(&fr, 0, sizeof fr);
-    fr.view = gim_mat4_look_at(gim_v3_add(o, gim_v3(2.2f * s, 2.5f * s, 3.4f * s)), gim_v3_add(o, gim_v3(0.0f, 0.2f * s, 0.0f)),
+    fr.view = gim_mat4_look_at(gim__v3_add(o, gim_v3(2.2f * s, 2.5f * s, 3.4f * s)), gim__v3_add(o, gim_v3(0.0f, 0.2f * s, 0.0f)),
                                gim_v3(0.0f, 1.0f, 0.0f));
     fr.proj = gim_mat4_perspective(0.9f, (float)w / (float)h, 0.5f * s, 20.0f * s);
     fr.width = (uint32_t)w;

@@ -23,10 +23,10 @@ static void vs_plate_map(float *dist, uint32_t size, float h, float cx, float cy
         }
 }
 
-/* The world point at local (a, b, c) of map m (origin + a t + b b + c n, gim_basis of n). */
+/* The world point at local (a, b, c) of map m (origin + a t + b b + c n, gim__basis of n). */
 static gim_vec3 vs_local(const gim_paraboloid *m, float a, float b, float c) {
     gim_vec3 n = gim_v3(m->normal[0], m->normal[1], m->normal[2]), t, bb;
-    gim_basis(n, &t, &bb);
+    gim__basis(n, &t, &bb);
     return gim_v3(m->origin[0] + a * t.x + b * bb.x + c * n.x, m->origin[1] + a * t.y + b * bb.y + c * n.y,
                   m->origin[2] + a * t.z + b * bb.z + c * n.z);
 }

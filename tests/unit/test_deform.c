@@ -74,10 +74,10 @@ static void rest_and_affine(void **state) {
            = n.(b-a) : n.(c-a) : n.n_face, one factor for the three (the dual basis) */
         const uint32_t *v = b[2].vertex;
         gim_vec3 pa = gim_v3(moved[v[0] * 3], moved[v[0] * 3 + 1], moved[v[0] * 3 + 2]);
-        gim_vec3 e1 = gim_v3_sub(gim_v3(moved[v[1] * 3], moved[v[1] * 3 + 1], moved[v[1] * 3 + 2]), pa);
-        gim_vec3 e2 = gim_v3_sub(gim_v3(moved[v[2] * 3], moved[v[2] * 3 + 1], moved[v[2] * 3 + 2]), pa);
-        gim_vec3 nf = gim_v3_normalize(gim_v3_cross(e1, e2)), n = gim_v3(out[2].normal[0], out[2].normal[1], out[2].normal[2]);
-        double f1 = gim_v3_dot(n, e1) / b[2].frame[0], f2 = gim_v3_dot(n, e2) / b[2].frame[1], f3 = gim_v3_dot(n, nf) / b[2].frame[2];
+        gim_vec3 e1 = gim__v3_sub(gim_v3(moved[v[1] * 3], moved[v[1] * 3 + 1], moved[v[1] * 3 + 2]), pa);
+        gim_vec3 e2 = gim__v3_sub(gim_v3(moved[v[2] * 3], moved[v[2] * 3 + 1], moved[v[2] * 3 + 2]), pa);
+        gim_vec3 nf = gim_v3_normalize(gim__v3_cross(e1, e2)), n = gim_v3(out[2].normal[0], out[2].normal[1], out[2].normal[2]);
+        double f1 = gim__v3_dot(n, e1) / b[2].frame[0], f2 = gim__v3_dot(n, e2) / b[2].frame[1], f3 = gim__v3_dot(n, nf) / b[2].frame[2];
         assert_true(fabs(b[2].frame[0]) > 0.1 && fabs(b[2].frame[2]) > 0.1);
         assert_true(fabs(f1 - f3) < 1e-5 * fabs(f3));
         if (fabs(b[2].frame[1]) > 0.1) assert_true(fabs(f2 - f3) < 1e-5 * fabs(f3));
@@ -86,9 +86,9 @@ static void rest_and_affine(void **state) {
     }
     {   /* cache 1 sits 0.05 above the moved plane along its unit normal */
         gim_vec3 n = gim_v3(want[0].normal[0], want[0].normal[1], want[0].normal[2]);
-        gim_vec3 dp = gim_v3_sub(gim_v3(out[1].position[0], out[1].position[1], out[1].position[2]),
+        gim_vec3 dp = gim__v3_sub(gim_v3(out[1].position[0], out[1].position[1], out[1].position[2]),
                                  gim_v3(out[0].position[0], out[0].position[1], out[0].position[2]));
-        assert_true(fabsf(gim_v3_dot(dp, n) - 0.05f) < 1e-6f);
+        assert_true(fabsf(gim__v3_dot(dp, n) - 0.05f) < 1e-6f);
     }
 }
 

@@ -97,7 +97,7 @@ static void eq11_clamp(void **state) {
         set3(r.pos, 0, 0, 0, 0); set3(r.nrm, 0, 0, 0, 1); set3(r.flux, 0, 1, 1, 1); r.valid[0] = 1;
         for (ti = 0; ti < 5; ++ti) {
             float out, t = ts[ti];
-            double expect = (double)gim_v3_luminance(gim_v3(1, 1, 1)) / ((double)t * t > (double)c * c ? (double)t * t : (double)c * c);
+            double expect = (double)gim__v3_luminance(gim_v3(1, 1, 1)) / ((double)t * t > (double)c * c ? (double)t * t : (double)c * c);
             vs = vsample(0, 0, t * s, 0, 0, -1);
             d = desc_for(&r, &vs, 1, s, test_env(NULL, NULL));
             d.clamp = c;

@@ -84,7 +84,7 @@ static void scene_make(km_scene *s, uint32_t n, uint64_t seed) {
     for (i = 0; i < n; ++i) {
         int p = (int)(test_rand01() * 8.0), a;
         float u = (float)test_rand01(), v = (float)test_rand01(), fall;
-        gim_vec3 nn = gim_v3_normalize(gim_v3_cross(gim_v3(du[p][0], du[p][1], du[p][2]), gim_v3(dv[p][0], dv[p][1], dv[p][2])));
+        gim_vec3 nn = gim_v3_normalize(gim__v3_cross(gim_v3(du[p][0], du[p][1], du[p][2]), gim_v3(dv[p][0], dv[p][1], dv[p][2])));
         fall = 1.0f / (1.0f + 4.0f * ((u - 0.4f) * (u - 0.4f) + (v - 0.6f) * (v - 0.6f)));
         for (a = 0; a < 3; ++a) {
             s->pos[i * 3 + a] = org[p][a] + u * du[p][a] + v * dv[p][a];
@@ -595,14 +595,14 @@ static void area_of_rectangle(void **state) {
     uint32_t i, k;
     const double W = 3.0, H = 1.25;
     (void)state;
-    gim_basis(n, &t, &b);
+    gim__basis(n, &t, &b);
     for (k = 0; k < 4; ++k) {
         double rot = 0.37 * k, ct = cos(rot), st = sin(rot);
-        gim_vec3 u = gim_v3_add(gim_v3_scale(t, (float)ct), gim_v3_scale(b, (float)st));
-        gim_vec3 v = gim_v3_cross(n, u);
+        gim_vec3 u = gim__v3_add(gim__v3_scale(t, (float)ct), gim__v3_scale(b, (float)st));
+        gim_vec3 v = gim__v3_cross(n, u);
         for (i = 0; i < N; ++i) {
             float su = (float)(W * ((i % G) / (double)(G - 1) - 0.5)), sv = (float)(H * ((i / G) / (double)(G - 1) - 0.5));
-            gim_vec3 p = gim_v3_add(gim_v3(5, -2, 9), gim_v3_add(gim_v3_scale(u, su), gim_v3_scale(v, sv)));
+            gim_vec3 p = gim__v3_add(gim_v3(5, -2, 9), gim__v3_add(gim__v3_scale(u, su), gim__v3_scale(v, sv)));
             pos[i * 3] = p.x; pos[i * 3 + 1] = p.y; pos[i * 3 + 2] = p.z;
             nrm[i * 3] = n.x; nrm[i * 3 + 1] = n.y; nrm[i * 3 + 2] = n.z;
         }
@@ -623,7 +623,7 @@ static void area_of_rectangle(void **state) {
            leave the VAL as it was; without flux they widen it */
         {
             static float flux[(N + 2) * 3];
-            gim_vec3 q0 = gim_v3_add(gim_v3(5, -2, 9), gim_v3_scale(u, (float)W)), q1 = gim_v3_sub(gim_v3(5, -2, 9), gim_v3_scale(v, (float)H));
+            gim_vec3 q0 = gim__v3_add(gim_v3(5, -2, 9), gim__v3_scale(u, (float)W)), q1 = gim__v3_sub(gim_v3(5, -2, 9), gim__v3_scale(v, (float)H));
             for (i = 0; i < (N + 2) * 3; ++i) flux[i] = i < N * 3 ? 0.25f : 0.0f;
             pos[N * 3] = q0.x; pos[N * 3 + 1] = q0.y; pos[N * 3 + 2] = q0.z;
             pos[N * 3 + 3] = q1.x; pos[N * 3 + 4] = q1.y; pos[N * 3 + 5] = q1.z;
@@ -650,13 +650,13 @@ static void area_of_rectangle(void **state) {
             double ang = 6.283185307179586 * test_rand01();
             float su = (float)(test_rand01() * 2 - 1), sv = (float)(test_rand01() * 2 - 1) * (float)(k + 1) * 0.3f;
             if (k >= 5) { su = (float)cos(ang); sv = (float)sin(ang) * (k == 7 ? 0.25f : 1.0f); }
-            gim_vec3 pp = gim_v3_add(gim_v3(1, 2, 3), gim_v3_add(gim_v3_scale(t, su), gim_v3_scale(b, sv)));
+            gim_vec3 pp = gim__v3_add(gim_v3(1, 2, 3), gim__v3_add(gim__v3_scale(t, su), gim__v3_scale(b, sv)));
             pos[i * 3] = pp.x; pos[i * 3 + 1] = pp.y; pos[i * 3 + 2] = pp.z;
             nrm[i * 3] = n.x; nrm[i * 3 + 1] = n.y; nrm[i * 3 + 2] = n.z;
         }
         for (i = 0; i < R; ++i) {
-            gim_vec3 dd = gim_v3_sub(gim_v3(pos[i * 3], pos[i * 3 + 1], pos[i * 3 + 2]), gim_v3(1, 2, 3));
-            s2[i][0] = gim_v3_dot(dd, t); s2[i][1] = gim_v3_dot(dd, b);
+            gim_vec3 dd = gim__v3_sub(gim_v3(pos[i * 3], pos[i * 3 + 1], pos[i * 3 + 2]), gim_v3(1, 2, 3));
+            s2[i][0] = gim__v3_dot(dd, t); s2[i][1] = gim__v3_dot(dd, b);
         }
         for (p = 0; p < R; ++p)
             for (q = p + 1; q < R; ++q) {

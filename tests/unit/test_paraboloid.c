@@ -40,7 +40,7 @@ static void texel_dir(const gim_paraboloid *m, uint32_t size, uint32_t x, uint32
     int i;
     *r2 = u * u + v * v;
     w[0] = 2.0 * u / (1.0 + *r2); w[1] = 2.0 * v / (1.0 + *r2); w[2] = (1.0 - *r2) / (1.0 + *r2);
-    gim_basis(gim_v3_normalize(n), &t, &b);
+    gim__basis(gim_v3_normalize(n), &t, &b);
     n = gim_v3_normalize(n);
     for (i = 0; i < 3; ++i) d[i] = w[0] * (&t.x)[i] + w[1] * (&b.x)[i] + w[2] * (&n.x)[i];
 }

@@ -222,7 +222,7 @@ static void disk_and_hemisphere(void **state) {
     /* cosine-weighted: unit length, z >= 0, E[cos] = 2/3 */
     for (i = 0; i < N; ++i) {
         gim_vec3 d = gim_square_to_cosine_hemisphere(pts[i * 2], pts[i * 2 + 1]);
-        assert_true(fabsf(gim_v3_length(d) - 1.0f) < 1e-5f);
+        assert_true(fabsf(gim__v3_length(d) - 1.0f) < 1e-5f);
         assert_true(d.z >= 0.0f);
         mean_cos += d.z;
     }
@@ -245,16 +245,16 @@ static void math_basics(void **state) {
         memset(&z, 0, sizeof z);
         assert_false(gim_mat4_invert(z, &inv));
     }
-    gim_basis(n, &t, &b);
-    assert_true(fabsf(gim_v3_dot(t, n)) < 1e-6f && fabsf(gim_v3_dot(b, n)) < 1e-6f && fabsf(gim_v3_dot(t, b)) < 1e-6f);
-    assert_true(fabsf(gim_v3_length(t) - 1.0f) < 1e-6f);
-    gim_basis(gim_v3(0, 0, -1), &t, &b);
-    assert_true(gim_v3_isfinite(t) && gim_v3_isfinite(b));
+    gim__basis(n, &t, &b);
+    assert_true(fabsf(gim__v3_dot(t, n)) < 1e-6f && fabsf(gim__v3_dot(b, n)) < 1e-6f && fabsf(gim__v3_dot(t, b)) < 1e-6f);
+    assert_true(fabsf(gim__v3_length(t) - 1.0f) < 1e-6f);
+    gim__basis(gim_v3(0, 0, -1), &t, &b);
+    assert_true(gim__v3_isfinite(t) && gim__v3_isfinite(b));
     /* normalise at the float extremes */
-    assert_true(fabsf(gim_v3_length(gim_v3_normalize(gim_v3(1e-30f, 0, 1e-30f))) - 1.0f) < 1e-6f);
-    assert_true(fabsf(gim_v3_length(gim_v3_normalize(gim_v3(3e38f, 3e38f, 0))) - 1.0f) < 1e-6f);
-    assert_true(gim_v3_length(gim_v3_normalize(gim_v3(0, 0, 0))) == 0.0f);
-    assert_false(gim_v3_isfinite(gim_v3(0, NAN, 0)));
+    assert_true(fabsf(gim__v3_length(gim_v3_normalize(gim_v3(1e-30f, 0, 1e-30f))) - 1.0f) < 1e-6f);
+    assert_true(fabsf(gim__v3_length(gim_v3_normalize(gim_v3(3e38f, 3e38f, 0))) - 1.0f) < 1e-6f);
+    assert_true(gim__v3_length(gim_v3_normalize(gim_v3(0, 0, 0))) == 0.0f);
+    assert_false(gim__v3_isfinite(gim_v3(0, NAN, 0)));
     assert_string_equal(gim_result_string(GIM_ERROR_CORRUPT_DATA), "GIM_ERROR_CORRUPT_DATA");
 }
 

@@ -97,7 +97,7 @@ static void unit_free(void **state) {
     l.cone_angle = 0.6f;
     l.rsm_size = 16;
     lmm = l;
-    lmm.position = gim_v3_scale(l.position, 1000.0f);
+    lmm.position = gim__v3_scale(l.position, 1000.0f);
     for (k = 0; k < 2; ++k) {
         if (k) { /* the sun */
             memset(&l, 0, sizeof l);
@@ -143,7 +143,7 @@ static void light_camera(void **state) {
     for (k = 0; k < 8; ++k) { /* every corner in front of the near plane and before the far one */
         gim_vec4 q, w;
         q.x = (k & 1) ? bmax[0] : bmin[0]; q.y = (k & 2) ? bmax[1] : bmin[1]; q.z = (k & 4) ? bmax[2] : bmin[2]; q.w = 1.0f;
-        w = gim_mat4_vec4(vp, q);
+        w = gim__mat4_vec4(vp, q);
         assert_true(w.w > 0.0f && w.z / w.w > -1.0f && w.z / w.w < 1.0f);
     }
     memset(&l, 0, sizeof l);
@@ -157,7 +157,7 @@ static void light_camera(void **state) {
     }
     {   /* the view looks along -direction */
         gim_vec3 d = gim_v3_normalize(l.direction), f = gim_v3(-v.m[2], -v.m[6], -v.m[10]);
-        assert_true(fabsf(gim_v3_dot(d, f) + 1.0f) < 1e-5f);
+        assert_true(fabsf(gim__v3_dot(d, f) + 1.0f) < 1e-5f);
     }
     /* errors: NULL, empty or non-finite bounds, bad light */
     assert_int_equal(gim_light_camera(NULL, bmin, bmax, &v, &p), GIM_ERROR_INVALID_ARGUMENT);

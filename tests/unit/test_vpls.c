@@ -285,7 +285,7 @@ static void cluster_paraboloids(void **state) {
     double a = 0.6, expect = a * sqrt(1.0 - 1.0 / (K * K)), sizes[2];
     int turn, i, j;
     (void)state;
-    gim_basis(n, &t, &b);
+    gim__basis(n, &t, &b);
     for (turn = 0; turn < 2; ++turn) {
         double ang = turn ? 0.7 : 0.0, ca = cos(ang), sa = sin(ang);
         for (i = 0; i < K; ++i)
