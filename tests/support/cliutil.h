@@ -53,6 +53,23 @@ CLI_FN int cli_run(const char *cmd, char **out) {
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
 }
 
+/* Each of count bad option strings given to bin (with no display: option errors need no
+   window) must fail with exit status 2 and one line that starts with "name: ". */
+CLI_FN void cli_expect_bad_options(const char *bin, const char *name, const char *const *bad, size_t count) {
+    size_t k, n = strlen(name);
+    for (k = 0; k < count; ++k) {
+        char cmd[512], *out = NULL;
+        int rc;
+        snprintf(cmd, sizeof cmd, "DISPLAY= %s %s", bin, bad[k]);
+        rc = cli_run(cmd, &out);
+        print_message("%s -> %d: %s", bad[k], rc, out);
+        assert_int_equal(rc, 2);
+        assert_true(strncmp(out, name, n) == 0 && out[n] == ':' && out[n + 1] == ' ');
+        assert_true(strchr(out, '\n') == out + strlen(out) - 1);
+        free(out);
+    }
+}
+
 CLI_FN int cli_exists(const char *path) {
     struct stat s;
     return stat(path, &s) == 0;
