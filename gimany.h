@@ -509,8 +509,7 @@ typedef struct gim_frame_visibility {
                                    their VPLs x ism_size^2 16-bit depths within one shader storage block) */
     uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
                                    halves it until every cache's map fits one shader storage block (at 128
-                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64
-                                   (GIM_ISM_DEFAULT_VPL_SIZE, 32, is not what their frame uses) */
+                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64 */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame_visibility;
@@ -1679,12 +1678,11 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
 #define GIM_ISM_MIN_SIZE 4u
 #define GIM_ISM_MAX_SIZE 64u
 #define GIM_ISM_MAX_POINTS 65536u
-#define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (README) */
+#define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (docs/methods.md) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
-#define GIM_ISM_DEFAULT_VPL_SIZE 32u    /* the VPL methods' maps, made every frame */
 #define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
                                              (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
-                                             for the same error as 2048 at 3.7 s (README) */
+                                             for the same error as 2048 at 3.7 s (docs/methods.md) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
