@@ -542,8 +542,8 @@ typedef struct gim_frame_gather {
 /* The VPL methods, CLUSTERED and SSVP (gim_frame.vpl; see their twins in @section twins). */
 typedef struct gim_frame_vpl {
     uint32_t count;             /* first-bounce VPLs in all, split evenly over the rendered RSMs
-                                   (per_light_budget: per RSM); 0: 4096 (64 per pixel with the default
-                                   interleave of 8; 1024 is visibly noisier); <= 32768 in all */
+                                   (per_light_budget: per RSM); 0: 2048 (CLUSTERED: 128 per pixel with its
+                                   interleave of 4) or 4096 (SSVP: 64 per pixel at 8); <= 32768 in all */
     uint32_t cluster_count;     /* VALs (k-means clusters, paraboloid maps); 0: 30 (CLUSTERED) or 8 (SSVP);
                                    <= 256 and <= the VPLs */
     uint32_t kmeans_iterations; /* k-means steps per frame; 0: 3 from the last frame's centres, 8 from seeds */
@@ -556,7 +556,8 @@ typedef struct gim_frame_vpl {
     uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs from the maps */
     uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
     uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
-                                   k x k; 0: 8 (Dong sec. 6); 1: every VPL at every pixel, no blur */
+                                   k x k; 0: 4 (CLUSTERED) or 8 (SSVP; Dong sec. 6 uses 8); 1: every VPL at
+                                   every pixel, no blur (docs/methods.md: the trade) */
     float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
     float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
 } gim_frame_vpl;
@@ -726,7 +727,8 @@ typedef struct gim_debug_outputs {
     /* visibility ISM (0 otherwise) */
     uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render_twin), ism_size^2 16-bit depths,
                                    two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
-                                   methods: map i of VPL i of vpls */
+                                   methods: map i of VPL i of vpls, or with their paraboloid maps (SSVP's
+                                   second bounce) map i of VPL first_bounce_count + i */
     uint32_t ism_size;
 } gim_debug_outputs;
 
@@ -1565,7 +1567,15 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
      E_i = Phi_i (n_i . omega)+ (n_x . -omega)+ / (pi max(d^2, d_c^2)) V_i,  omega = (x - y_i) / d,
    d = |x - y_i|, d_c the clamping distance (Krivanek's slides: the 1 / d^2 singularity traded
    for bias; the energy it removes is measured by make bench) and V_i the visibility of the
-   VPL's cluster (1 without visibility). A receiver leaves
+   VPL's cluster (1 without visibility). Near field: a VPL with an area A > 0 (one from an RSM
+   texel: the texel's footprint) lights a receiver nearer than GIM__VAL_NEAR sqrt(A) as the
+   patch it stands for, a regular octagon of area A around y_i in its plane (as LightSkin's
+   VALs, gim__val_near):
+     E_i = Phi_i F_i / A V_i,  F_i the point-to-polygon form factor (Lambert's contour formula),
+   unclamped (F <= 1 bounds it), faded into the far field between 1.5 and 2 sqrt(A). That is
+   the expectation of the point's term over the texel (a VPL jittered inside its footprint),
+   so the near field is the same estimator without its singularity; the clamp alone removed
+   most of the light within d_c of a contact edge. A receiver leaves
      L = rho_d / pi sum E_i + rho_g (k + 2) / (2 pi) sum ((r_i . view)+)^k E_i,
    r_i = -omega mirrored at n_x, the same lobe as gim_lightskin_shade_twin. SSVP's eq. 6 divides by
    the total VPL count N; here each VPL's flux already carries its share (first bounce: the
@@ -1587,7 +1597,8 @@ typedef struct gim_vpl {
     float position[3];
     float lit;              /* 1: a VPL; 0: it emits nothing (an unlit RSM texel) */
     float normal[3];        /* unit */
-    float unused0;
+    float area;             /* A: the surface the VPL stands for (its RSM texel's footprint, L^2), which
+                               its near field spreads it over; 0: a point (far field and clamp only) */
     float flux[3];          /* Phi, rgb, >= 0 */
     float unused1;
 } gim_vpl;
@@ -1815,7 +1826,10 @@ typedef struct gim_vpl_shade_desc {
                                        radiosity with Ritschel et al. 2008's maps): map i is gim_ism_render_twin's for
                                        VPL i taken as a cache (its position and normal), and V_i its hard
                                        visibility by gim_ism_visibility_twin's lookup with the receiver as the VAL;
-                                       NULL: none. Not with cluster (one visibility per VPL) */
+                                       NULL: none. With cluster: maps only for the VPLs from ism_first on that
+                                       have no cluster (UINT32_MAX), map i - ism_first: SSVP's second bounce,
+                                       whose VPLs no cluster's paraboloid map sees from */
+    uint32_t ism_first;             /* with cluster and ism: the first VPL with a map (> 0); else 0 */
     uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
     float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     gim_env env;
@@ -4716,22 +4730,25 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    groups holding such a cache run. In the loop a branch around the patch's form factor costs
    every VAL on SIMD CPUs (llvmpipe masks both sides), 11x the proxy pass on the street. */
 #define GIM__VAL_NEAR_CAP 16u
-static double gim__val_near(float *d, const float *n, const float *nl, float area, double weight, double en, float *cos_x) {
+/* The patch of a VAL or a VPL near a receiver: a regular octagon of area A around d (the
+   light's centre relative to the receiver) in the plane of normal nl (gim__basis(nl) axes),
+   clipped to the receiver's hemisphere n . y >= 0, and its vector form factor by Lambert's
+   contour formula, 2 pi times it: phi = sum_k angle(r_k, r_k+1) unit(r_k x r_k+1), turned so
+   that n . phi >= 0. Returns f = n . phi (the form factor is f / (2 pi)); 0 with phi = 0 when
+   nothing of the patch is above the receiver's horizon. */
+static float gim__octagon_phi(const float *d, const float *n, const float *nl, float area, float *phi) {
     static const float dirs[8][2] = {{1.0f, 0.0f}, {0.70710678f, 0.70710678f}, {0.0f, 1.0f}, {-0.70710678f, 0.70710678f},
                                      {-1.0f, 0.0f}, {-0.70710678f, -0.70710678f}, {0.0f, -1.0f}, {0.70710678f, -0.70710678f}};
     /* a convex octagon clipped by a plane has at most 9 corners, but rounding can make h change
        sign more than twice around it (a plane through several corners): room for each corner and
        each crossing */
-    float v[8][3], h[8], poly[16][3], r, phi[3] = {0.0f, 0.0f, 0.0f}, f = 0.0f, d2, dl, fv, w, u[3], ul;
+    float v[8][3], h[8], poly[16][3], r, f;
     gim_vec3 t, b;
     int k, a, m = 0;
     gim__basis(gim_v3(nl[0], nl[1], nl[2]), &t, &b);
     r = sqrtf(area / (2.0f * 1.41421356f));   /* octagon of area 2 sqrt(2) r^2 = A */
-    d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    w = (GIM__VAL_NEAR * GIM__VAL_NEAR - d2 / area) / ((1.0f - 0.5625f) * GIM__VAL_NEAR * GIM__VAL_NEAR);
-    w = w < 1.0f ? w : 1.0f;
-    if (!(w > 0.0f)) return en;
-    for (k = 0; k < 8; ++k) {   /* the vertices relative to c */
+    phi[0] = phi[1] = phi[2] = 0.0f;
+    for (k = 0; k < 8; ++k) {   /* the vertices relative to the receiver */
         float ct = dirs[k][0], st = dirs[k][1];
         v[k][0] = d[0] + r * (ct * t.x + st * b.x);
         v[k][1] = d[1] + r * (ct * t.y + st * b.y);
@@ -4764,6 +4781,24 @@ static double gim__val_near(float *d, const float *n, const float *nl, float are
     }
     f = n[0] * phi[0] + n[1] * phi[1] + n[2] * phi[2];
     if (f < 0.0f) { f = -f; for (a = 0; a < 3; ++a) phi[a] = -phi[a]; }   /* the winding faces n */
+    return f;
+}
+
+/* The near field's weight at d^2 from a light of area A: 1 within 1.5 sqrt(A), 0 from
+   GIM__VAL_NEAR sqrt(A) on, linear in d^2 between (no step where the GPU and the twin round
+   d^2 to either side). */
+static float gim__near_weight(float d2, float area) {
+    float w = (GIM__VAL_NEAR * GIM__VAL_NEAR - d2 / area) / ((1.0f - 0.5625f) * GIM__VAL_NEAR * GIM__VAL_NEAR);
+    return w < 1.0f ? w : 1.0f;
+}
+
+static double gim__val_near(float *d, const float *n, const float *nl, float area, double weight, double en, float *cos_x) {
+    float phi[3], f, d2, dl, fv, w, u[3], ul;
+    int a;
+    d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    w = gim__near_weight(d2, area);
+    if (!(w > 0.0f)) return en;
+    f = gim__octagon_phi(d, n, nl, area, phi);
     fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
     if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv) || !(area > 0.0f)) return en;   /* no patch: the far field */
     dl = sqrtf(d2);
@@ -6844,7 +6879,8 @@ static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
     if (d->ism) {
         uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
-        if (d->cluster) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism and cluster: one visibility per VPL");
+        if (d->cluster && (d->ism_first == 0 || d->ism_first >= d->vpl_count))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism with cluster needs ism_first in 1..%u", d->vpl_count - 1u);
         if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism_size %u: a power of two in %u..%u", size,
                              GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
@@ -6862,8 +6898,9 @@ static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *
     for (i = 0; i < d->vpl_count; ++i) {
         const gim_vpl *v = d->vpls + i;
         if (!gim__all_finite(v->position, 3) || !gim__all_finite(v->normal, 3) || !gim__all_finite(v->flux, 3) ||
-            !gim__isfinitef(v->lit))
+            !gim__isfinitef(v->lit) || !gim__isfinitef(v->area))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u is not finite", i);
+        if (v->area < 0.0f) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: negative area", i);
         if (v->lit > 0.0f && (!gim__unit_or_zero(v->normal, 0) || !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f)))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "VPL %u: normal not unit or negative flux", i);
         if (d->cluster && d->cluster[i] != UINT32_MAX && d->cluster[i] >= d->map_count)
@@ -6904,6 +6941,34 @@ static uint32_t gim__vpl_scramble(uint32_t i, uint32_t n) {
     return i;
 }
 
+/* The near VPLs of a pixel's subset that take the near field, in member order; any more (a
+   subset with more than this many VPLs within 2 sqrt(A): up to about 6 expected on a plane
+   with every VPL in one subset, since a VPL's area is its share of the surface; 0.1 at the
+   default interleave) take the clamped far field. The GPU lists them in its VPL loop and
+   evaluates them after it (vpl_shade.comp). */
+#define GIM__VPL_NEAR_CAP 8u
+
+/* Near field of a VPL of area A (units of the VPL twins): E_i / Phi_i at a receiver (normal n)
+   dist from it along omega = o (VPL -> receiver), from its far-field value g_far blended
+   towards the octagon's F / A (gim__octagon_phi), and o turned towards where the patch's light
+   comes from (-unit(phi)), for the glossy lobe. The far field where no part of the patch is
+   above the receiver's horizon. */
+static float gim__vpl_near(float *o, float dist, const float *n, const float *nl, float area, float g_far) {
+    float d[3], phi[3], f, fv, w, u[3], ul;
+    int a;
+    for (a = 0; a < 3; ++a) d[a] = -o[a] * dist;   /* receiver -> VPL */
+    w = gim__near_weight(dist * dist, area);
+    if (!(w > 0.0f)) return g_far;
+    f = gim__octagon_phi(d, n, nl, area, phi);
+    fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
+    if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv)) return g_far;
+    for (a = 0; a < 3; ++a) u[a] = o[a] + w * (-phi[a] / fv - o[a]);
+    ul = sqrtf(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+    if (ul > 0.0f && gim__isfinitef(ul))
+        for (a = 0; a < 3; ++a) o[a] = u[a] / ul;
+    return g_far + w * (f / (2.0f * (float)GIM__PI * area) - g_far);
+}
+
 /* One pixel of gim_vpl_shade_twin (see vpl_shade.comp, the same steps): the members s, s + k^2, ...
    of its subset (each the VPL gim__vpl_scramble gives) summed in member order in float; vis
    caches the visibility per map (< 0: not yet). */
@@ -6912,7 +6977,7 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
     const float pi = (float)GIM__PI, near_ = GIM__TWINS_COINCIDENT * d->scene_scale;
     const float dc2 = d->clamp_distance * d->clamp_distance;
     float sd[3] = {0.0f, 0.0f, 0.0f}, sg[3] = {0.0f, 0.0f, 0.0f}, scale, fd, fg;
-    uint32_t j, i, count = 0;
+    uint32_t j, i, count = 0, near_n = 0;
     int a;
     for (j = s; j < d->vpl_count; j += step) {
         const gim_vpl *v = d->vpls + (i = gim__vpl_scramble(j, d->vpl_count));
@@ -6929,22 +6994,30 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
         cl = v->normal[0] * ox + v->normal[1] * oy + v->normal[2] * oz;
         cx = -(rc->normal[0] * ox + rc->normal[1] * oy + rc->normal[2] * oz);
         if (!(cl > 0.0f) || !(cx > 0.0f)) continue;
-        if (d->ism) {   /* VPL i's own map, hard visibility (gim_ism_visibility_twin's lookup) */
-            uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
-            float o[3], bias = d->ism_bias > 0.0f ? d->ism_bias : GIM_ISM_BIAS;
-            float texel = (d->ism_slope > 0.0f ? d->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)size;
-            gim_vec3 t, b, n;
-            gim__ism_frame(v->position, v->normal, GIM_ISM_LIFT * d->scene_scale, o, &t, &b, &n);
-            vv = gim__ism_visible(d->ism + (size_t)i * size * size, size, o, t, b, n, rc->position, rc->normal, bias, texel);
-        } else if (d->cluster && d->cluster[i] != UINT32_MAX) {
+        if (d->cluster && d->cluster[i] != UINT32_MAX) {
             uint32_t m = d->cluster[i];
             if (vis[m] < 0.0f)
                 vis[m] = gim__paraboloid_vis(d->distance + (size_t)m * d->map_size * d->map_size, d->map_size, d->maps + m,
                                              rc->position, rc->normal);
             vv = vis[m];
+        } else if (d->ism && (!d->cluster || i >= d->ism_first)) {   /* its own map, hard (gim_ism_visibility_twin's lookup) */
+            uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE, map = d->cluster ? i - d->ism_first : i;
+            float o[3], bias = d->ism_bias > 0.0f ? d->ism_bias : GIM_ISM_BIAS;
+            float texel = (d->ism_slope > 0.0f ? d->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)size;
+            gim_vec3 t, b, n;
+            gim__ism_frame(v->position, v->normal, GIM_ISM_LIFT * d->scene_scale, o, &t, &b, &n);
+            vv = gim__ism_visible(d->ism + (size_t)map * size * size, size, o, t, b, n, rc->position, rc->normal, bias, texel);
         }
-        /* E_i / Phi_i: Krivanek's clamping, max(d^2, d_c^2) */
-        g = cl * cx * vv / (pi * (d2 > dc2 ? d2 : dc2));
+        /* E_i / Phi_i: Krivanek's clamping, max(d^2, d_c^2); near its patch, the patch's */
+        if (v->area > 0.0f && d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * v->area && near_n++ < GIM__VPL_NEAR_CAP) {
+            float o[3];
+            o[0] = ox; o[1] = oy; o[2] = oz;
+            g = vv * gim__vpl_near(o, dist, rc->normal, v->normal, v->area, cl * cx / (pi * (d2 > dc2 ? d2 : dc2)));
+            ox = o[0]; oy = o[1]; oz = o[2];
+            cx = -(rc->normal[0] * ox + rc->normal[1] * oy + rc->normal[2] * oz);
+        } else {
+            g = cl * cx * vv / (pi * (d2 > dc2 ? d2 : dc2));
+        }
         /* r_i = -omega mirrored at n_x: 2 (n_x . -omega) n_x + omega */
         rx = 2.0f * cx * rc->normal[0] + ox;
         ry = 2.0f * cx * rc->normal[1] + oy;
@@ -8573,22 +8646,23 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
-static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
-                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
-                                        float scene_scale, gim__GLuint maps_out);
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
+                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
 static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                  gim__GLuint points, uint32_t point_count, uint32_t size,
                                                  uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
-    return gim__gl_ism_render_of(ctx, caches, 2u, cache_count, points, point_count, size, points_per_map, scene_scale,
+    return gim__gl_ism_render_of(ctx, caches, 2u, 0u, cache_count, points, point_count, size, points_per_map, scene_scale,
                                  maps_out);
 }
 
 /* ... with the maps' origins in any buffer of source_vec4s vec4 per map, the position in the
    first, the normal in the second: 2 for gim_cache, 3 for gim_vpl (one map per VPL, Keller's
-   instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches). */
-static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
-                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
-                                        float scene_scale, gim__GLuint maps_out) {
+   instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches);
+   map m from entry source_first + m (its point subset is m's). */
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
+                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -8614,7 +8688,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * source_vec4s * 16u);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, ((uint64_t)source_first + cache_count) * source_vec4s * 16u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
@@ -8632,6 +8706,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1f(5, GIM_ISM_SPLAT);
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
+    gl->Uniform1ui(8, source_first);
     for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
         uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
         gl->Uniform1ui(0, first);
@@ -10887,9 +10962,10 @@ vals:
 
 /* Subset members per VPL-shading dispatch: each costs an invocation up to 1 + 2 x 16 loop
    iterations (the two visibility kernels) plus the subset scramble's cycle walk (5 a step,
-   under 4 steps expected), and llvmpipe stops an invocation's loops after 65535 in all; 768
-   stays near 40k even with a 10-step walk. */
-#define GIM__VPL_SHADE_CHUNK 768u
+   under 4 steps expected), a near one as much again plus the octagon's 32, and llvmpipe stops
+   an invocation's loops after 65535 in all; 512 stays near 60k even with every member near
+   and a 10-step walk. */
+#define GIM__VPL_SHADE_CHUNK 512u
 
 /* What the VPL shading pass reads and writes. */
 typedef struct gim__vpl_shade_args {
@@ -10905,8 +10981,11 @@ typedef struct gim__vpl_shade_args {
     uint32_t map_count;
     gim__GLuint distance;          /* R32F 2D array texture, map_size^2 x map_count (layer m: map m), or 0: no visibility */
     uint32_t map_size;
-    gim__GLuint ism;               /* SSBO: vpl_count ism_size^2 floats, VPL i's ISM (gim_vpl_shade_desc.ism), or 0;
-                                      not with cluster */
+    gim__GLuint ism;               /* SSBO: VPL i's ISM (gim_vpl_shade_desc.ism: 16-bit texels), or 0. Without
+                                      cluster every VPL's (vpl_count maps); with cluster those of the VPLs
+                                      i >= ism_first that have none, map i - ism_first (vpl_count - ism_first
+                                      maps; SSVP's second bounce beside the clusters' paraboloid maps) */
+    uint32_t ism_first;            /* with cluster and ism: the first VPL with a map; else 0 */
     uint32_t ism_size;
     float ism_bias, ism_slope;     /* as gim_vpl_shade_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     uint32_t interleave;           /* k (gim_vpl_shade_desc); 0 or 1: every VPL */
@@ -10934,15 +11013,20 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     if (a->vpl_count > 0 && !a->vpls) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no VPL buffer");
     if (vis && (!a->maps || a->map_count == 0 || a->map_size == 0))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "visibility needs maps, map_count and map_size");
-    if (ism && (vis || a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u, or with "
-                         "cluster visibility", (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (ism && (a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u",
+                         (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (a->ism_first > 0u && (!ism || !vis || a->ism_first >= a->vpl_count))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_first %u needs ISMs, cluster visibility and "
+                         "fewer than %u VPLs before it", (unsigned)a->ism_first, (unsigned)a->vpl_count);
+    if (ism && vis && a->ism_first == 0u)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISMs with cluster visibility need ism_first > 0");
     if (ism && (!(a->ism_bias >= 0.0f && a->ism_bias <= 1.0f) || !(a->ism_slope >= 0.0f && a->ism_slope <= 64.0f)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM bias %g or slope %g out of range",
                          (double)a->ism_bias, (double)a->ism_slope);
-    if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 2u > (uint64_t)ctx->max_ssbo_bytes)
+    if (ism && (uint64_t)(a->vpl_count - a->ism_first) * a->ism_size * a->ism_size * 2u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
-                         (unsigned)a->vpl_count, (unsigned)a->ism_size);
+                         (unsigned)(a->vpl_count - a->ism_first), (unsigned)a->ism_size);
     if (!gim__isfinitef(a->clamp_distance) || !(a->clamp_distance >= 0.0f) || !gim__isfinitef(a->scene_scale) ||
         !(a->scene_scale > 0.0f))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance >= 0 and scene_scale > 0 must be finite");
@@ -10971,6 +11055,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     gl->Uniform1f(15, a->ism_bias > 0.0f ? a->ism_bias : GIM_ISM_BIAS);
     gl->Uniform1f(16, ism ? (a->ism_slope > 0.0f ? a->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)a->ism_size : 0.0f);
     gl->Uniform1f(17, GIM_ISM_LIFT * a->scene_scale);
+    gl->Uniform1ui(18, a->ism_first);
     gl->Uniform1ui(4, a->vpl_count);
     gl->Uniform1ui(5, k);
     gl->Uniform1ui(8, a->map_size);
@@ -10983,7 +11068,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     do {
         uint32_t n = members - first < chunk ? members - first : chunk;
         uint32_t flags = (vis ? 1u : 0u) | (host ? 2u : 0u) | (first == 0u ? 4u : 0u) | (first + n >= members ? 8u : 0u) |
-                         (ism ? 16u : 0u);
+                         (ism && !vis ? 16u : 0u) | (ism && vis ? 32u : 0u);
         gl->Uniform2ui(6, first, first + n);
         gl->Uniform1ui(7, flags);
         gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
@@ -11458,13 +11543,17 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;
     f.gather.samples = GIM__GATHER_DEFAULT_SAMPLES;
     f.gather.radius = GIM__GATHER_DEFAULT_RADIUS;
-    f.vpl.count = 4096u;   /* 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024: 57-79% */
+    /* CLUSTERED: 2048 VPLs at interleave 4 (128 a pixel, a 4 x 4 blur) against 4096 at 8: the
+       Cornell box 0.087 against 0.101, the street 0.257 against 0.316 (rel. MAE vs Embree) at
+       1.0-1.3x the frame; SSVP keeps 4096 at 8 (its one-bounce error rose 0.105 -> 0.113). Either
+       puts 80%+ of pixels within 20% of the closed forms (gltest_physics); 1024 at 8: 57-79% */
+    f.vpl.count = method == GIM_METHOD_CLUSTERED ? 2048u : 4096u;
     f.vpl.cluster_count = method == GIM_METHOD_SSVP ? 8u : 30u;
     f.vpl.kmeans_iterations = 0u;   /* depends on the frame: 3 warm, 8 from seeds (gim__vpl_settings_of) */
     f.vpl.paraboloid_size = 256u;
     f.vpl.bounces = method == GIM_METHOD_SSVP ? 2u : 1u;
     f.vpl.second_bounce_vpls = 256u;
-    f.vpl.interleave = 8u;
+    f.vpl.interleave = method == GIM_METHOD_CLUSTERED ? 4u : 8u;
     f.vpl.clamp_distance = 0.01f;
     f.vpl.blur_distance = 0.1f;
     return f;
@@ -11654,8 +11743,10 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
-    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM, hybrid;
     gim__vpl_settings_of(f, &s);
+    /* SSVP's second bounce beside the clusters' paraboloid maps: one ISM per second-bounce VPL */
+    hybrid = !ism && s.visibility && s.second > 0u;
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
@@ -11719,7 +11810,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else {
         gim__paraboloid_release(ctx, 1);
     }
-    if (r == GIM_OK && ism) {
+    if (r == GIM_OK && (ism || hybrid)) {
         /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
            only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
            this one makes its caches' again: ism_size 0 says they are not theirs) */
@@ -11737,7 +11828,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
             r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
                                (uint64_t)s.clusters * ism_size * ism_size * 2u, where);   /* 16 bits a texel */
             if (r == GIM_OK)
-                r = gim__gl_ism_render_of(ctx, v->maps, 3u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
+                r = gim__gl_ism_render_of(ctx, v->maps, 3u, 0u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
                                           scale, ctx->ism_cluster_maps);
             gi.maps = ctx->ism_cluster_maps;
             gi.size = ism_size;
@@ -11747,16 +11838,19 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         if (r == GIM_OK) r = gim__gl_second_bounce_ism(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first, &gi, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
     }
-    if (r == GIM_OK && ism) {
+    if (r == GIM_OK && (ism || hybrid)) {
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
-           Ritschel et al.'s maps), every frame: the VPLs move with the light. Their time is
-           GIM_PASS_PARABOLOID's. */
-        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 2u, where);
+           Ritschel et al.'s maps), every frame: the VPLs move with the light. With the clusters'
+           paraboloid maps (hybrid), only the second bounce's: no cluster's map sees from
+           where they lie. Their time is GIM_PASS_PARABOLOID's. */
+        uint32_t from = hybrid ? first : 0u;
+        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
+                           (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
         if (r == GIM_OK)
-            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, ism_pool, ism_size, ism_per, scale,
-                                      ctx->ism_maps);
+            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, from, total - from, ctx->ism_points, ism_pool, ism_size, ism_per,
+                                      scale, ctx->ism_maps);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
-    } else if (!ism && (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps)) {
+    } else if (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps) {
         gim__ism_release(ctx);
     }
     if (r == GIM_OK && ism && !s.second && ctx->ism_cluster_maps) {
@@ -11789,7 +11883,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.maps = v->maps;
         a.map_count = s.clusters;
         a.distance = s.visibility && !ism ? ctx->para_distance : 0u;
-        a.ism = ism ? ctx->ism_maps : 0u;
+        a.ism = ism || hybrid ? ctx->ism_maps : 0u;
+        a.ism_first = hybrid ? first : 0u;
         a.ism_size = ism_size;
         a.ism_bias = GIM_ISM_VPL_BIAS;
         a.ism_slope = GIM_ISM_VPL_SLOPE;
@@ -11835,8 +11930,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     dbg->paraboloid_position = ctx->para_position;
     dbg->paraboloid_normal = ctx->para_normal;
     dbg->paraboloid_albedo = ctx->para_albedo;
-    dbg->ism_maps = ism ? ctx->ism_maps : 0u;
-    dbg->ism_size = ism ? ism_size : 0u;
+    dbg->ism_maps = ism || hybrid ? ctx->ism_maps : 0u;
+    dbg->ism_size = ism || hybrid ? ism_size : 0u;
     return GIM_OK;
 }
 

@@ -46,7 +46,7 @@ static const char demo_usage_text[] =
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
-    "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 4096, 30 clustered;\n"
+    "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 2048, 30 clustered;\n"
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
@@ -195,8 +195,10 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
     else if (!strcmp(d->method, "full")) t = L * (double)caches * texels;
     else if (!strcmp(d->method, "gather")) t = L * px * 256.0;
     else if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp")) {
-        double v = d->vpls ? d->vpls : 4096.0;   /* the library's default */
-        t = px * (L * v + (bounces == 2 || (!strcmp(d->method, "ssvp") && bounces != 1) ? 256.0 : 0.0)) / 64.0;
+        int cl = !strcmp(d->method, "clustered");
+        double v = d->vpls ? d->vpls : cl ? 2048.0 : 4096.0;   /* the library's defaults: VPLs and */
+        double k2 = cl ? 16.0 : 64.0;                           /* interleave k^2 */
+        t = px * (L * v + (bounces == 2 || (!cl && bounces != 1) ? 256.0 : 0.0)) / k2;
     }
     if (ls) t += px * 16.0 + (d->ism ? (double)caches * 16384.0 : 0.0);   /* the library's default points per map */
     *terms = t;

@@ -81,48 +81,17 @@ shared vec3 tile_flux[TILE];
 shared uint any_work;   /* an invocation of the group has work in mode 1 or 3 */
 
 /* Near field of a VAL (gim__val_near, the same float steps): within d < 2 sqrt(A) the VAL is
-   a regular octagon of area A in its plane (gim_basis(n_l) axes), clipped to the receiver's
-   hemisphere, with vector form factor Phi by Lambert's contour formula. Returns the E_n term
-   e_n blended towards w |Phi| / A, sets cos_x = F / |Phi| and turns d to unit(Phi) (its
-   length kept); faded to the far field between d = 1.5 and 2 sqrt(A). Every loop has a
-   constant trip count, which the compiler unrolls (llvmpipe counts every loop iteration of
-   an invocation against its 65535). */
-const float VAL_NEAR = 2.0;
+   a regular octagon of area A in its plane, clipped to the receiver's hemisphere, with vector
+   form factor Phi by Lambert's contour formula (octagon_phi in common.glsl). Returns the E_n
+   term e_n blended towards w |Phi| / A, sets cos_x = F / |Phi| and turns d to unit(Phi) (its
+   length kept); faded to the far field between d = 1.5 and 2 sqrt(A). */
 const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: near VALs per cache listed in mode 0; mode 3 takes the rest */
 float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_n, inout float cos_x) {
     float d2 = dot(d, d);
-    float w = min((VAL_NEAR * VAL_NEAR - d2 / area) / ((1.0 - 0.5625) * VAL_NEAR * VAL_NEAR), 1.0);
+    float w = near_weight(d2, area);
     if (!(w > 0.0)) return e_n;
-    float s = nl.z >= 0.0 ? 1.0 : -1.0, a = -1.0 / (s + nl.z), k = nl.x * nl.y * a;   /* gim_basis */
-    vec3 t = vec3(1.0 + s * nl.x * nl.x * a, s * k, -s * nl.x), b = vec3(k, s + nl.y * nl.y * a, -nl.y);
-    float r = sqrt(area / (2.0 * 1.41421356));   /* octagon of area 2 sqrt(2) r^2 = A */
-    vec3 v[8];
-    float h[8];
-    vec3 poly[16];   /* each corner and each crossing: rounding can cross the plane more than twice */
-    for (int q = 0; q < 16; ++q) poly[q] = vec3(0.0);
-    int m = 0;
-    const float S = 0.70710678;
-    const vec2 dirs[8] = vec2[8](vec2(1.0, 0.0), vec2(S, S), vec2(0.0, 1.0), vec2(-S, S), vec2(-1.0, 0.0), vec2(-S, -S),
-                                 vec2(0.0, -1.0), vec2(S, -S));
-    for (int q = 0; q < 8; ++q) {
-        v[q] = d + r * (dirs[q].x * t + dirs[q].y * b);
-        h[q] = dot(n, v[q]);
-    }
-    for (int q = 0; q < 8; ++q) {   /* clipped to n . y >= 0 (Sutherland-Hodgman) */
-        int q1 = (q + 1) & 7;
-        if (h[q] >= 0.0) poly[m++] = v[q];
-        if ((h[q] >= 0.0) != (h[q1] >= 0.0)) poly[m++] = v[q] + h[q] / (h[q] - h[q1]) * (v[q1] - v[q]);
-    }
-    vec3 phi = vec3(0.0);
-    for (int q = 0; q < 16; ++q) {   /* Lambert's contour formula, as a vector */
-        vec3 p0 = poly[q], p1 = poly[q + 1 < m ? q + 1 : 0];
-        float l0 = length(p0), l1 = length(p1);
-        vec3 c = cross(p0, p1) / (l0 * l1);
-        float lc = length(c);
-        if (q < m && l0 > 0.0 && l1 > 0.0 && lc > 0.0) phi += atan(lc, dot(p0, p1) / (l0 * l1)) / lc * c;
-    }
-    float f = dot(n, phi);
-    if (f < 0.0) { f = -f; phi = -phi; }   /* the winding faces n */
+    vec3 phi;
+    float f = octagon_phi(d, n, nl, area, phi);
     float fv = length(phi);
     if (!(f > 0.0) || !(fv > 0.0) || !(fv <= 3.402823466e+38) || !(area > 0.0)) return e_n;   /* no patch: the far field */
     float dl = sqrt(d2);

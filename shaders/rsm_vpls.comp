@@ -1,15 +1,16 @@
 /* VPLs from an RSM (Dong et al. sec. 4), the GPU twin of gim_rsm_vpls_twin: VPL i on the texel
    texel[i] (the Halton texels, computed on the CPU by the twin's own function), with its
    position and normal and the texel's flux times T / S per channel: T the RSM's total over
-   the lit texels, S the sum over the VPLs' texels. Four modes, one dispatch each (the sums
+   the lit texels, S the sum over the VPLs' texels; its area (normal.w, the near field's patch)
+   the texel's footprint times (T_r + T_g + T_b) / (S_r + S_g + S_b). Four modes, one dispatch each (the sums
    pass through the scratch buffer `sums` between them, every loop under Mesa llvmpipe's 65535
    iterations per invocation):
      0: invocation y < size sums row y's lit flux into sums[y] (in double, x order); invocation
         i < count writes VPL i with its texel's raw flux (0 where unlit);
      1: invocation b sums the raw flux of VPLs [b BLOCK, (b + 1) BLOCK) into sums[size + b];
-     2: invocation 0 sums the rows (T) and the blocks (S), writes T / S (0 where S = 0) to
-        sums[size + blocks];
-     3: invocation i < count multiplies VPL i's flux by it.
+     2: invocation 0 sums the rows (T) and the blocks (S), writes T / S (0 where S = 0) and the
+        areas' factor to sums[size + blocks];
+     3: invocation i < count multiplies VPL i's flux and area by them.
    The same order of sums as the twin, in double. Lit: position.w > 0 and position, normal,
    flux finite with flux >= 0 (read as bits, so no fast-math folds the tests away). */
 #include "common.glsl"
@@ -20,7 +21,7 @@ layout(binding = 1, rgba32ui) readonly uniform uimage2D rsm_normal;    /* xyz; w
 layout(binding = 2, rgba32ui) readonly uniform uimage2D rsm_flux;      /* rgb */
 
 layout(std430, binding = 0) readonly buffer Texels { uvec2 texel[]; };
-struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit 1 / 0; 0; 0 */
+struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit 1 / 0; area; 0 */
 layout(std430, binding = 1) buffer Vpls { Vpl vpl[]; };
 layout(std430, binding = 2) buffer Sums { dvec4 sums[]; };
 
@@ -55,7 +56,9 @@ void main() {
             Vpl v;
             /* position and normal where finite (an unlit texel may hold anything), else 0 */
             v.position = vec4(finite3(x.xyz) ? uintBitsToFloat(x.xyz) : vec3(0.0), l ? 1.0 : 0.0);
-            v.normal = vec4(finite3(n.xyz) ? uintBitsToFloat(n.xyz) : vec3(0.0), 0.0);
+            float area = uintBitsToFloat(n.w);   /* the texel's footprint: the VPL's near field */
+            v.normal = vec4(finite3(n.xyz) ? uintBitsToFloat(n.xyz) : vec3(0.0),
+                            l && area > 0.0 && area <= FLT_MAX ? area : 0.0);
             v.flux = vec4(l ? uintBitsToFloat(f.rgb) : vec3(0.0), 0.0);
             vpl[i] = v;
         }
@@ -71,11 +74,15 @@ void main() {
             dvec3 t = dvec3(0.0), s = dvec3(0.0);
             for (uint y = 0u; y < size; ++y) t += sums[y].xyz;
             for (uint b = 0u; b < blocks; ++b) s += sums[size + b].xyz;
+            double ts = t.x + t.y + t.z, ss = s.x + s.y + s.z;   /* the areas' share: over all channels */
             sums[size + blocks] = dvec4(s.x > 0.0LF ? t.x / s.x : 0.0LF, s.y > 0.0LF ? t.y / s.y : 0.0LF,
-                                        s.z > 0.0LF ? t.z / s.z : 0.0LF, 0.0LF);
+                                        s.z > 0.0LF ? t.z / s.z : 0.0LF, ss > 0.0LF ? ts / ss : 0.0LF);
         }
     } else if (i < count) {
-        dvec3 scale = sums[size + blocks].xyz;
-        vpl[i].flux.rgb = vec3(min(dvec3(vpl[i].flux.rgb) * scale, dvec3(3.4028234663852886e38LF)));
+        dvec4 scale = sums[size + blocks];
+        vpl[i].flux.rgb = vec3(min(dvec3(vpl[i].flux.rgb) * scale.xyz, dvec3(3.4028234663852886e38LF)));
+        /* the VPL's patch: its texel's footprint times the texels it stands for, so that the patch
+           leaves the texel's own exitance */
+        vpl[i].normal.w = float(min(double(vpl[i].normal.w) * scale.w, 3.4028234663852886e38LF));
     }
 }

@@ -4,7 +4,8 @@
    is VPL scramble(j), a bijection that spreads each subset over the list) in member order,
    each with its cluster's soft visibility from the paraboloid maps (gim_paraboloid_visibility_twin,
    the same float steps; `precise` keeps the compiler from fusing them into multiply-adds),
-   clamped at d_c (Krivanek), diffuse + Phong lobe. The subset is split into dispatches of
+   clamped at d_c (Krivanek), diffuse + Phong lobe; a VPL with an area whose patch is near the
+   pixel as that patch (gim__vpl_near), summed after the others. The subset is split into dispatches of
    [first, last) of its members (llvmpipe stops an invocation's loops after 65535 iterations in
    all), the running float sums kept per pixel in `partial` between them. Writes rgb radiance,
    a = 1 where a surface is, at the last dispatch. */
@@ -36,7 +37,8 @@ layout(location = 3) uniform vec4 eye;          /* perspective: (position, 1); o
 layout(location = 4) uniform uint vpl_count;    /* N */
 layout(location = 5) uniform uint k;            /* interleave, >= 1 */
 layout(location = 6) uniform uvec2 range;       /* members [first, last) of the pixel's subset this dispatch */
-layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last; 16: ISM */
+layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last; 16: ISM;
+                                                   32: ISM for the VPLs with no cluster from ism_first on */
 layout(location = 8) uniform uint map_size;
 layout(location = 9) uniform float near_;       /* 1e-6 scene_scale */
 layout(location = 10) uniform float dc2;        /* clamp distance squared */
@@ -52,6 +54,9 @@ layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;
 layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
 layout(location = 17) uniform float ism_lift;   /* GIM_ISM_LIFT scene_scale */
+/* flags & 32: with the clusters' maps (flags & 1), a VPL i >= ism_first that has no cluster (SSVP's
+   second bounce) is shadowed by its own ISM, map i - ism_first */
+layout(location = 18) uniform uint ism_first;
 
 const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(0.176776692, 0.0), vec2(-0.225772187, 0.206825823), vec2(0.0345580503, -0.393771172),
@@ -161,6 +166,48 @@ uint scramble(uint i, uint n, uint half_) {
     return i;
 }
 
+/* The near field (gim__vpl_near): VPL p of area A, dist from x along o (VPL -> x), with its
+   far-field g_far; returns E / Phi blended towards the octagon's F / A and turns o towards
+   -unit(phi). */
+float vpl_near(inout vec3 o, float dist, vec3 nx, vec3 nl, float area, float g_far) {
+    vec3 d = -o * dist;
+    float w = near_weight(dist * dist, area);
+    if (!(w > 0.0)) return g_far;
+    vec3 phi;
+    float f = octagon_phi(d, nx, nl, area, phi);
+    float fv = length(phi);
+    if (!(f > 0.0) || !(fv > 0.0) || !(fv <= FLT_MAX)) return g_far;
+    vec3 u = o + w * (-phi / fv - o);
+    float ul = length(u);
+    if (ul > 0.0 && ul <= FLT_MAX) o = u / ul;
+    return g_far + w * (f / (2.0 * PI * area) - g_far);
+}
+
+/* VPL i near x (d2 < VAL_NEAR^2 A, in front of both): its visibility, near field and lobe
+   added to the sums. Out of the main loop: on SIMD CPUs (llvmpipe masks both sides of a
+   branch) a branch around the patch in the loop would cost every VPL. */
+void add_near(uint i, vec3 x, vec3 nx, vec3 view, float kexp, inout vec3 sd, inout vec3 sgl) {
+    Vpl p = vpl[i];
+    precise float dx = x.x - p.position_lit.x, dy = x.y - p.position_lit.y, dz = x.z - p.position_lit.z;
+    precise float d2 = dx * dx + dy * dy + dz * dz;
+    precise float dist = sqrt(d2);
+    vec3 o = vec3(dx, dy, dz) / dist;
+    float cl = dot(p.normal.xyz, o), cx = -dot(nx, o);
+    float vv = 1.0;
+    if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
+    else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
+    else if ((flags & 32u) != 0u && i >= ism_first) vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
+    float g = vv * vpl_near(o, dist, nx, p.normal.xyz, p.normal.w, cl * cx / (PI * (d2 > dc2 ? d2 : dc2)));
+    cx = -dot(nx, o);
+    vec3 r = 2.0 * cx * nx + o;
+    float re = dot(r, view);
+    float lobe = kexp == 0.0 ? 1.0 : (re > 0.0 ? pow(re, kexp) : 0.0);
+    vec3 e = p.flux.xyz * g;
+    sd += e;
+    sgl += e * lobe;
+}
+
+const uint NEAR_CAP = 8u;   /* GIM__VPL_NEAR_CAP */
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (px.x >= int(size.x) || px.y >= int(size.y)) return;
@@ -186,12 +233,16 @@ void main() {
     }
 
     precise vec3 sd = vec3(0.0), sgl = vec3(0.0);
+    uint near_count = 0u;   /* near VPLs of the pixel's subset so far (GIM__VPL_NEAR_CAP take the near field) */
     if ((flags & 4u) == 0u) {
         sd = partial[pix * 2u].xyz;
         sgl = partial[pix * 2u + 1u].xyz;
+        near_count = uint(partial[pix * 2u].w);
     }
     uint step = k * k, s = uint(px.x) % k + k * (uint(px.y) % k);
     uint bits = scramble_bits(vpl_count);
+    uvec4 near_a = uvec4(0u), near_b = uvec4(0u);   /* VPL indices of this dispatch's near ones */
+    uint near_first = near_count;
     for (uint j = range.x; j < range.y; ++j) {
         uint member = s + j * step;
         if (member >= vpl_count) break;
@@ -206,9 +257,19 @@ void main() {
         precise float cl = p.normal.x * ox + p.normal.y * oy + p.normal.z * oz;
         precise float cx = -(nx.x * ox + nx.y * oy + nx.z * oz);
         if (!(cl > 0.0) || !(cx > 0.0)) continue;
+        if (p.normal.w > 0.0 && d2 < VAL_NEAR * VAL_NEAR * p.normal.w && near_count < NEAR_CAP) {
+            /* its patch, after the loop: listed by selects (a dynamically indexed local array
+               is a gather and scatter on llvmpipe, 5x this pass) */
+            uint slot = near_count++ - near_first;
+            near_a += uvec4(equal(uvec4(0u, 1u, 2u, 3u), uvec4(slot))) * (i - near_a);
+            near_b += uvec4(equal(uvec4(4u, 5u, 6u, 7u), uvec4(slot))) * (i - near_b);
+            continue;
+        }
         precise float vv = 1.0;
         if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
         else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
+        else if ((flags & 32u) != 0u && i >= ism_first)
+            vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;
@@ -217,8 +278,14 @@ void main() {
         sd += e;
         sgl += e * lobe;
     }
+    /* the near ones: a loop, not a branch, so that they cost only where a pixel of the SIMD group has
+       them (llvmpipe leaves a loop when no lane is active; both sides of a branch always run) */
+    for (uint q = near_first; q < near_count; ++q) {
+        uint slot = q - near_first;
+        add_near(slot < 4u ? near_a[slot] : near_b[slot - 4u], x, nx, view, kexp, sd, sgl);
+    }
     if (!last) {
-        partial[pix * 2u] = vec4(sd, 0.0);
+        partial[pix * 2u] = vec4(sd, float(near_count));
         partial[pix * 2u + 1u] = vec4(sgl, 0.0);
         return;
     }

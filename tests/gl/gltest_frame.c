@@ -390,8 +390,10 @@ static void frame_defaults_render_as_zero(void **state) {
     assert_true(d.width == 0 && d.height == 0 && d.gbuffer.depth == 0 && d.scene_scale == 0.0f && d.vpl.kmeans_iterations == 0);
     d = gim_frame_defaults(GIM_METHOD_SSVP);
     assert_true(d.method == GIM_METHOD_SSVP && d.vpl.cluster_count == 8 && d.vpl.bounces == 2 && d.visibility.ism_points == 2048);
+    assert_true(d.vpl.count == 4096 && d.vpl.interleave == 8);
     d = gim_frame_defaults(GIM_METHOD_CLUSTERED);
     assert_true(d.vpl.cluster_count == 30 && d.vpl.bounces == 1 && d.visibility.ism_size == 64 && d.visibility.ism_points == 2048);
+    assert_true(d.vpl.count == 2048 && d.vpl.interleave == 4);
     img[0] = (float *)malloc(W * H * 16);
     img[1] = (float *)malloc(W * H * 16);
     for (mi = 0; mi < sizeof methods / sizeof methods[0]; ++mi) {

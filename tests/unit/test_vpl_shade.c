@@ -558,6 +558,68 @@ static void blur_undoes_interleaving(void **state) {
 }
 
 /* Bad input: an error with a message, never a crash; outputs are not required to be kept. */
+/* The near field: a VPL of area A lights a receiver within 1.5 sqrt(A) as the patch it stands
+   for, a regular octagon of area A in its plane (gim__basis axes). Against the octagon's
+   irradiance integrated point by point (1000^2 cells, the point VPL's term on each, clipped to
+   the receiver's hemisphere): a receiver over the patch facing it and one beside it at right
+   angles (a contact edge), whose plane cuts the octagon. The point VPL is far off at both. */
+static void near_field_is_the_patch(void **state) {
+    test_alloc_stats st;
+    test_log lg;
+    gim_env env = test_env(&st, &lg);
+    const float area = 0.01f;
+    const double rr = sqrt(area / (2.0 * sqrt(2.0)));   /* the octagon's circumradius */
+    gim_vpl v = vpl(gim_v3(0.0f, 0.0f, 0.0f), gim_v3(0.0f, 0.0f, 1.0f), 1.0f, 1.0f, 1.0f);
+    gim_receiver r[2];
+    gim_vec3 t, b;
+    float out[6], point[6];
+    int i, a;
+    (void)state;
+    r[0] = rec(gim_v3(0.01f, -0.02f, 0.03f), gim_v3(0.1f, 0.0f, -1.0f), gim_v3(0, 0, 1));
+    r[1] = rec(gim_v3(0.04f, 0.01f, 0.02f), gim_v3(-1.0f, 0.0f, 0.0f), gim_v3(-1, 0, 0));
+    for (i = 0; i < 2; ++i) { r[i].glossy[0] = r[i].glossy[1] = r[i].glossy[2] = 0.0f; }
+    gim__basis(gim_v3(0.0f, 0.0f, 1.0f), &t, &b);
+    v.area = area;
+    {
+        gim_vpl_shade_desc d = shade_desc(&v, 1, r, 2, 1, env);
+        assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
+        v.area = 0.0f;
+        assert_int_equal(gim_vpl_shade_twin(&d, point), GIM_OK);
+    }
+    for (i = 0; i < 2; ++i) {
+        const int n = 1000;
+        double e = 0.0, cell = 2.0 * rr / n, x[3], nx[3];
+        int p, q;
+        for (a = 0; a < 3; ++a) { x[a] = r[i].position[a]; nx[a] = r[i].normal[a]; }
+        for (p = 0; p < n; ++p)
+            for (q = 0; q < n; ++q) {
+                double u = -rr + (p + 0.5) * cell, w = -rr + (q + 0.5) * cell, y[3], dv[3], d2 = 0.0, cl, cx;
+                double ang = atan2(w, u), k = floor(ang / (GIM__PI / 4.0)), a0 = k * GIM__PI / 4.0;
+                /* inside the octagon: on the inner side of the edge between its corners at a0, a0 + 45 deg */
+                double ex = rr * (cos(a0 + GIM__PI / 4.0) - cos(a0)), ey = rr * (sin(a0 + GIM__PI / 4.0) - sin(a0));
+                if (ex * (w - rr * sin(a0)) - ey * (u - rr * cos(a0)) < 0.0) continue;
+                for (a = 0; a < 3; ++a) {
+                    y[a] = u * (&t.x)[a] + w * (&b.x)[a];
+                    dv[a] = x[a] - y[a];
+                    d2 += dv[a] * dv[a];
+                }
+                cl = dv[2] / sqrt(d2);                                               /* the patch's normal: +z */
+                cx = -(nx[0] * dv[0] + nx[1] * dv[1] + nx[2] * dv[2]) / sqrt(d2);
+                if (cl > 0.0 && cx > 0.0) e += cl * cx / (GIM__PI * d2) * cell * cell;
+            }
+        e /= area;   /* E / Phi */
+        for (a = 0; a < 3; ++a) {
+            double ref = r[i].albedo[a] / GIM__PI * e;
+            print_message("receiver %d channel %d: near field %.6g, integrated %.6g (%.2e), point %.6g\n", i, a,
+                          (double)out[i * 3 + a], ref, fabs(out[i * 3 + a] - ref) / ref, (double)point[i * 3 + a]);
+            assert_true(fabs(out[i * 3 + a] - ref) <= 1e-4 * ref);   /* measured 1e-6 */
+            assert_true(fabs(point[i * 3 + a] - ref) > 0.1 * ref);
+        }
+    }
+    assert_int_equal(lg.errors, 0);
+    assert_int_equal(st.live, 0);
+}
+
 static void bad_input(void **state) {
     test_log lg;
     gim_env env = test_env(NULL, &lg);
@@ -590,7 +652,12 @@ static void bad_input(void **state) {
     assert_int_equal(gim_vpl_shade_twin(&d, out), GIM_OK);
     RESET(); v.position[1] = INFINITY; BAD(gim_vpl_shade_twin(&d, out));
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1); v.flux[2] = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
+    v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1); v.area = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
+    v.area = NAN; BAD(gim_vpl_shade_twin(&d, out));
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
+    RESET(); d.cluster = &cl; d.maps = &m; d.map_count = 1; d.distance = dist; d.map_size = 2; d.ism = dist;
+    BAD(gim_vpl_shade_twin(&d, out));                                                /* ISMs with clusters: no ism_first */
+    RESET();
     r.normal[0] = 0.5f; BAD(gim_vpl_shade_twin(&d, out));
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.exponent = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.albedo[1] = NAN; BAD(gim_vpl_shade_twin(&d, out));
@@ -658,6 +725,7 @@ int main(void) {
         cmocka_unit_test(blur_light_not_albedo),
         cmocka_unit_test(blur_undoes_interleaving),
         cmocka_unit_test(bad_input),
+        cmocka_unit_test(near_field_is_the_patch),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
