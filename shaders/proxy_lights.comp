@@ -5,6 +5,7 @@
    here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
 #include "common.glsl"
+#include "near_field.glsl"
 #define TILE 64
 layout(local_size_x = TILE) in;
 

@@ -10,6 +10,7 @@
    all), the running float sums kept per pixel in `partial` between them. Writes rgb radiance,
    a = 1 where a surface is, at the last dispatch. */
 #include "common.glsl"
+#include "near_field.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define TAPS 16
