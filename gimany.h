@@ -1112,10 +1112,23 @@ typedef struct gim_selected_val {
     float pdf;                  /* P_VAL = map(x,y) / total; > 0 for every selected texel */
 } gim_selected_val;
 
-/* Pick count texels with probability proportional to the map. Sample i takes the point
+/* Input of gim_importance_select; zero means default. */
+typedef struct gim_select_desc {
+    const double *column;       /* width * height: eq. 12's column table (gim_importance_cumsum) */
+    const double *row;          /* width: eq. 12's row table */
+    uint32_t width, height;
+    uint32_t count;             /* texels to pick, > 0 */
+    uint32_t seed;              /* the rotation's seed (e.g. the frame) where offsets is NULL */
+    const float *offsets;       /* 4 values in [0,1): o_d = offsets[d] + offsets[d + 2] 2^-24 (gim_rotation_offsets'
+                                   4 values of a seed, or gim_drift_offsets' of dims 2), or NULL: from seed */
+    gim_env env;
+} gim_select_desc;
+
+/* Pick count texels with probability proportional to the map into out[count]. Sample i takes
+   the point
      u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
-   of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
-   o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
+   of the Hammersley set, Cranley-Patterson rotated by 48-bit offsets o_d: the desc's offsets,
+   or per seed o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
    column (first x with row[x] > u_i * total), v_i the texel in it (first y with
    column(x, y) > v_i * column total). Over the seeds every u_i and v_i alone is uniform, so
    every sample is distributed exactly as P; within one call the u_i are stratified, so
@@ -1129,14 +1142,7 @@ typedef struct gim_selected_val {
    GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
    negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
    positive difference (out is then partly written). */
-GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
-                                            uint32_t width, uint32_t height, uint32_t count,
-                                            uint32_t seed, gim_selected_val *out, gim_env env);
-/* The same with the offsets given: o_d = offsets[d] + offsets[d + 2] 2^-24 (gim_rotation_offsets'
-   4 values of a seed, or gim_drift_offsets' of dims 2). */
-GIMANY_API gim_result gim_importance_select_offsets(const double *column, const double *row, uint32_t width,
-                                                    uint32_t height, uint32_t count, const float offsets[4],
-                                                    gim_selected_val *out, gim_env env);
+GIMANY_API gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out);
 
 /* @section twins ========================================================================== */
 /* LightSkin cache lighting, CPU twins of its GPU passes (Bischoff 2017 sec. 3 "Cache Lighting",
@@ -4460,26 +4466,29 @@ static double gim__below(double t, double total) {
     return t < total ? t : nextafter(total, 0.0);
 }
 
-GIMANY_DEF gim_result gim_importance_select(const double *column, const double *row,
-                                            uint32_t width, uint32_t height, uint32_t count,
-                                            uint32_t seed, gim_selected_val *out, gim_env env) {
-    float off[4];
-    gim_rotation_offsets(off, 4u, seed);
-    return gim_importance_select_offsets(column, row, width, height, count, off, out, env);
-}
-
-GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const double *row, uint32_t width,
-                                                    uint32_t height, uint32_t count, const float off[4],
-                                                    gim_selected_val *out, gim_env env) {
+GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out) {
     static const char fn[] = "gim_importance_select";
+    const double *column, *row;
+    uint32_t width, height, count;
+    const gim_env *env;
+    float seeded[4];
+    const float *off;
     const double *totals; /* the last row of column: per-column totals */
     double total, prev, o0, o1;
     uint32_t i, x;
     gim_result r;
-    if (!column || !row || !out || !off)
-        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row, offsets and out are required");
-    if (count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
-    r = gim__importance_tables_check(&env, fn, width, height);
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    column = desc->column; row = desc->row; width = desc->width; height = desc->height; count = desc->count;
+    env = &desc->env;
+    if (!column || !row || !out)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row and out are required");
+    off = desc->offsets;
+    if (!off) {
+        gim_rotation_offsets(seeded, 4u, desc->seed);
+        off = seeded;
+    }
+    if (count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
+    r = gim__importance_tables_check(env, fn, width, height);
     if (r != GIM_OK) return r;
     totals = column + (size_t)(height - 1u) * width;
     /* O(width) check of what every search relies on; the interior of the columns is checked
@@ -4487,7 +4496,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
     for (x = 0, prev = 0.0; x < width; ++x) {
         if (!(row[x] >= prev && row[x] <= DBL_MAX) || !(totals[x] >= 0.0 && totals[x] <= DBL_MAX) ||
             (row[x] > prev && !(totals[x] > 0.0)))
-            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                              "tables are not cumulative sums at column %u (row %g, column total %g)",
                              (unsigned)x, row[x], totals[x]);
         prev = row[x];
@@ -4499,7 +4508,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
     o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
     o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
     if (!(total > 0.0))
-        gim__log(&env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
+        gim__log(env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
                  (unsigned)count);
     for (i = 0; i < count; ++i) {
         double u = (double)i / (double)count + o0, v = gim_van_der_corput(i) + o1;
@@ -4522,7 +4531,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
             p_row = (column[(size_t)sy * width + sx] - (sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0)) / col_total;
             p = p_col * p_row;
             if (!(p > 0.0 && p <= 1.0))
-                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                                  "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
                                  (unsigned)sx, (unsigned)sy, p);
             out[i].x = sx;
@@ -8386,7 +8395,7 @@ static void gim__select_offsets(const gim_frame *f, uint32_t light, uint32_t cou
         gim_rotation_offsets(off, 4u, gim__select_seed(f->frame_index, light));
 }
 
-/* gim__gl_importance_select with the offsets given as gim_importance_select_offsets takes them. */
+/* gim__gl_importance_select with the offsets given as gim_select_desc.offsets holds them. */
 static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuint column, gim__GLuint row,
                                                     uint32_t width, uint32_t height, uint32_t count, const float off[4],
                                                     gim__GLuint out) {
