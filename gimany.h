@@ -1398,9 +1398,17 @@ typedef enum gim_vpl_sequence {
    arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
    GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
 #define GIM_RSM_VPL_BLOCK 1024u
-GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                        const float *offsets, float *positions, float *normals, float *flux,
-                                        gim_env env);
+
+/* Input of gim_rsm_vpls_twin; zero means default. */
+typedef struct gim_rsm_vpls_desc {
+    const gim_rsm_data *rsm;        /* one light's RSM */
+    uint32_t count;                 /* VPLs, > 0 */
+    gim_vpl_sequence sequence;
+    const float *offsets;           /* 2 values in [0,1), or NULL: no rotation */
+    gim_env env;
+} gim_rsm_vpls_desc;
+
+GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux);
 
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
@@ -1445,8 +1453,17 @@ GIMANY_API gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
    collapsed to zero area keeps the rest normal with area 0. positions: vertex_count float3
    (model space). out may not alias rest. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL arrays, a
    binding's vertex >= vertex_count, a result that is not finite (out partly written then). */
-GIMANY_API gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
-                                        const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env);
+/* Input of gim_caches_follow_twin. */
+typedef struct gim_follow_desc {
+    const gim_cache *rest;          /* count caches as gim_cache_bind bound them (model space) */
+    const gim_cache_binding *bind;  /* count bindings (gim_cache_bind) */
+    uint32_t count;
+    const float *positions;         /* vertex_count * 3: the deformed vertices (model space) */
+    uint32_t vertex_count;
+    gim_env env;
+} gim_follow_desc;
+
+GIMANY_API gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_cache *out);
 
 
 /* twins of the scene passes: RSM texel, G-buffer, view samples ------------------------------
@@ -1628,10 +1645,19 @@ typedef struct gim_paraboloid {
    origin where it curves away (on the Cornell box the same VPLs as the lift alone). A
    cluster without VPLs gets
    zero flux and size, its centre and normal kept. Sums in double in VPL order.
-   cluster[vpl_count] < cluster_count; centres, normals: cluster_count * 3 (normals unit). */
-GIMANY_API gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
-                                              const float *centres, const float *normals, uint32_t cluster_count,
-                                              float scene_scale, gim_paraboloid *out, gim_env env);
+   out[cluster_count]; input: */
+typedef struct gim_cluster_desc {
+    const gim_vpl *vpls;
+    uint32_t vpl_count;             /* > 0 */
+    const uint32_t *cluster;        /* vpl_count: the cluster of each VPL, < cluster_count */
+    const float *centres;           /* cluster_count * 3 */
+    const float *normals;           /* cluster_count * 3, unit */
+    uint32_t cluster_count;         /* > 0 */
+    float scene_scale;              /* > 0 */
+    gim_env env;
+} gim_cluster_desc;
+
+GIMANY_API gim_result gim_cluster_paraboloids_twin(const gim_cluster_desc *desc, gim_paraboloid *out);
 
 /* What the paraboloid pass writes at one texel. */
 #define GIM_PARABOLOID_EMPTY 3.0e38f   /* distance where the texel sees nothing */
@@ -5224,13 +5250,17 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
 }
 
-GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                        const float *offsets, float *positions, float *normals, float *flux,
-                                        gim_env env) {
+GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux) {
     static const char fn[] = "gim_rsm_vpls_twin";
     double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
-    uint32_t i, x, y;
+    uint32_t i, x, y, count;
     int a;
+    const gim_rsm_data *rsm;
+    gim_vpl_sequence sequence;
+    const float *offsets;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    rsm = desc->rsm; count = desc->count; sequence = desc->sequence; offsets = desc->offsets; env = desc->env;
     if (!rsm || !positions || !normals || !flux)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm and the output arrays are required");
     if (!rsm->position || !rsm->normal || !rsm->flux)
@@ -5557,10 +5587,16 @@ done:
 
 /* In float, operation for operation as caches_follow.comp, so the twin and the pass agree to
    rounding. */
-GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
-                                        const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env) {
+GIMANY_DEF gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_cache *out) {
     static const char fn[] = "gim_caches_follow_twin";
-    uint32_t i;
+    const gim_cache *rest;
+    const gim_cache_binding *bind;
+    const float *positions;
+    uint32_t i, count, vertex_count;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    rest = desc->rest; bind = desc->bind; count = desc->count; positions = desc->positions;
+    vertex_count = desc->vertex_count; env = desc->env;
     if (count && (!rest || !bind || !positions || !out))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rest, bind, positions and out are required");
     for (i = 0; i < count; ++i) {
@@ -5602,11 +5638,17 @@ GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_ca
 
 /* The clusters' VALs and paraboloid maps (see the declaration): one independent loop per
    cluster over the VPLs in index order, as the GPU pass (clusters.comp) runs it. */
-GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
-                                              const float *centres, const float *normals, uint32_t cluster_count,
-                                              float scene_scale, gim_paraboloid *out, gim_env env) {
+GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_cluster_desc *desc, gim_paraboloid *out) {
     static const char fn[] = "gim_cluster_paraboloids_twin";
-    uint32_t i, m;
+    const gim_vpl *vpls;
+    const uint32_t *cluster;
+    const float *centres, *normals;
+    uint32_t i, m, vpl_count, cluster_count;
+    float scene_scale;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    vpls = desc->vpls; vpl_count = desc->vpl_count; cluster = desc->cluster; centres = desc->centres;
+    normals = desc->normals; cluster_count = desc->cluster_count; scene_scale = desc->scene_scale; env = desc->env;
     if (!vpls || !cluster || !centres || !normals || !out)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpls, cluster, centres, normals and out are required");
     if (vpl_count == 0 || cluster_count == 0)
