@@ -1511,10 +1511,29 @@ GIMANY_API gim_result gim_point_light_faces(const gim_light *point, gim_light fa
    direction by the scene's diagonal both ways, so the orthographic window covers the focus
    while its depth range still holds every caster of the scene. A focus that is empty (the
    camera looks out of the scene) falls back to the scene bounds. Other lights are copied
-   with the scene bounds. view, proj: the host's camera (finite, invertible). */
-GIMANY_API gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
-                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
-                                         float out_min[3], float out_max[3]);
+   with the scene bounds. */
+typedef struct gim_fit_view_desc {
+    const gim_light *light;
+    const float *scene_min, *scene_max; /* 3 each: the scene's world bounds */
+    gim_mat4 view, proj;                /* the host's camera (finite, invertible) */
+    float view_distance;                /* >= 0, finite; 0: the far plane */
+} gim_fit_view_desc;
+
+GIMANY_API gim_result gim_light_fit_view(const gim_fit_view_desc *desc, gim_light *out_light, float out_min[3],
+                                         float out_max[3]);
+
+/* What the G-buffer and view-sample passes render from: the host's camera and view size. */
+typedef struct gim_camera {
+    gim_mat4 view, proj;     /* finite; proj invertible */
+    uint32_t width, height;  /* pixels, > 0 */
+} gim_camera;
+
+/* What an RSM is rendered from: a light and the world bounds its camera is fitted to (what
+   gim_light_camera takes; gim_light_fit_view writes them for a fit_view sun). */
+typedef struct gim_rsm_view {
+    const gim_light *light;
+    const float *bmin, *bmax;  /* 3 each */
+} gim_rsm_view;
 
 /* A world-space triangle soup for the twins. */
 typedef struct gim_twin_scene {
@@ -1537,9 +1556,9 @@ typedef struct gim_rsm_texel {
 } gim_rsm_texel;
 
 /* Twin of the RSM pass at texel (x, y) of the light's rsm_size^2 RSM (row 0 at the bottom of
-   its clip space, as GL stores it); bounds as for gim_light_camera. */
-GIMANY_API gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
-                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out);
+   its clip space, as GL stores it); the camera is gim_light_camera's of view. */
+GIMANY_API gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_rsm_view *view, uint32_t x, uint32_t y,
+                                         gim_rsm_texel *out);
 
 /* What the G-buffer pass writes at one pixel. */
 typedef struct gim_gbuffer_texel {
@@ -1550,19 +1569,24 @@ typedef struct gim_gbuffer_texel {
     uint32_t triangle;       /* UINT32_MAX: none */
 } gim_gbuffer_texel;
 
+/* How a host's G-buffer holds its normals and depth (gim_frame.gbuffer's fields) and the
+   camera it was drawn with: the input of gim_gbuffer_decode_twin. */
+typedef struct gim_decode_desc {
+    gim_normal_encoding encoding;
+    int view_space;          /* 1: the normal is in view's space and turned back by its inverse rotation */
+    int depth_view_z;        /* 1: depth holds the positive view-space distance along -z; 0: window depth */
+    gim_mat4 view, proj;
+} gim_decode_desc;
+
 /* Twin of the G-buffer decode pass at one pixel: the host's stored normal (its texel's rgba as
-   the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth (window depth, or with
-   depth_view_z the positive view-space distance along -z) to a unit world normal (out_normal,
-   w = 1 where drawn; 0 elsewhere) and window depth (1 where nothing is drawn). view_space: the
-   normal is in view's space and turned back by its inverse rotation. */
-GIMANY_API gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
-                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+   the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth to a unit world normal
+   (out_normal, w = 1 where drawn; 0 elsewhere) and window depth (1 where nothing is drawn). */
+GIMANY_API gim_result gim_gbuffer_decode_twin(const gim_decode_desc *desc, const float host_normal[4], float host_depth,
                                               float out_normal[4], float *out_depth);
 
-/* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
-GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
-                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
-                                             gim_gbuffer_texel *out);
+/* Twin of the G-buffer pass at pixel (x, y) of camera's width x height view. */
+GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, const gim_camera *camera, uint32_t x,
+                                             uint32_t y, gim_gbuffer_texel *out);
 
 /* The pixels of the view samples (Bischoff 2017 sec. 4): Halton points 1..count in bases 2 and 3
    (point 0 is the corner), Cranley-Patterson rotated by offsets (2 values in [0,1), e.g. from
@@ -1571,15 +1595,15 @@ GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
 GIMANY_API gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uint32_t height, const float *offsets,
                                              uint32_t *pixels);
 
-/* Twin of the view-sample pass: the G-buffer at each pixel as a gim_view_sample. depth:
-   width * height window depths in [0, 1] (row-major, row 0 at the bottom); normal: width *
-   height * 4 (xyz used: world normal). The position is unprojected through the inverses of
-   proj and view (in double). Where depth >= 1 (nothing drawn) or the normal is zero or not
-   finite the sample is unusable: position and normal are written as zero (the importance
-   pass skips a zero normal). */
-GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
-                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
-                                            gim_view_sample *out);
+/* Twin of the view-sample pass: the G-buffer at each of count pixels (x, y pairs) as a
+   gim_view_sample into out[count]. depth: width * height window depths in [0, 1] (row-major,
+   row 0 at the bottom; width, height the camera's); normal: width * height * 4 (xyz used:
+   world normal). The position is unprojected through the inverses of the camera's proj and
+   view (in double). Where depth >= 1 (nothing drawn) or the normal is zero or not finite the
+   sample is unusable: position and normal are written as zero (the importance pass skips a
+   zero normal). */
+GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *normal, const gim_camera *camera,
+                                            const uint32_t *pixels, uint32_t count, gim_view_sample *out);
 
 /* twins of the VPL methods: clustered visibility (Dong et al.) and SSVP (Aranha et al.) -------
    Units: a VPL is a point y_i on a surface with normal n_i and flux Phi_i (W, rgb) that emits
@@ -5877,14 +5901,19 @@ static void gim__mat4_apply_d(const gim_mat4 *m, const double v[4], double out[4
         out[r] = m->m[r] * v[0] + m->m[4 + r] * v[1] + m->m[8 + r] * v[2] + m->m[12 + r] * v[3];
 }
 
-GIMANY_DEF gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
-                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
-                                         float out_min[3], float out_max[3]) {
+GIMANY_DEF gim_result gim_light_fit_view(const gim_fit_view_desc *desc, gim_light *out_light, float out_min[3],
+                                         float out_max[3]) {
     static const char where[] = "gim_light_fit_view";
-    gim_mat4 inv_view, inv_proj;
+    gim_mat4 inv_view, inv_proj, view, proj;
     double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, diag = 0.0, rad = 0.0, eye[3];
     gim_vec3 l;
     int k, a;
+    const gim_light *light;
+    const float *scene_min, *scene_max;
+    float view_distance;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
+    light = desc->light; scene_min = desc->scene_min; scene_max = desc->scene_max;
+    view = desc->view; proj = desc->proj; view_distance = desc->view_distance;
     if (!light || !scene_min || !scene_max || !out_light || !out_min || !out_max)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
     if (!gim__all_finite(scene_min, 3) || !gim__all_finite(scene_max, 3) || !gim__mat4_isfinite(view) ||
@@ -6046,8 +6075,8 @@ static gim_result gim__twin_scene_check(const gim_twin_scene *s, const char *whe
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
-                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out) {
+GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_rsm_view *rsm_view, uint32_t x, uint32_t y,
+                                         gim_rsm_texel *out) {
     static const char where[] = "gim_rsm_texel_twin";
     gim_mat4 view, proj;
     gim__twin_hit h;
@@ -6056,9 +6085,12 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     double a_perp, cosv, omega = 0.0;
     gim_result r;
     int i, hit;
+    const gim_light *light;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
+    if (!rsm_view) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view is NULL");
+    light = rsm_view->light;
     r = gim__twin_scene_check(scene, where);
-    if (r == GIM_OK) r = gim_light_camera(light, bmin, bmax, &view, &proj);
+    if (r == GIM_OK) r = gim_light_camera(light, rsm_view->bmin, rsm_view->bmax, &view, &proj);
     if (r != GIM_OK) return r;
     size = gim__light_rsm_size(light);
     if (x >= size || y >= size) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "texel outside the RSM");
@@ -6100,13 +6132,16 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
-                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+GIMANY_DEF gim_result gim_gbuffer_decode_twin(const gim_decode_desc *desc, const float host_normal[4], float host_depth,
                                               float out_normal[4], float *out_depth) {
     float n[3], d = host_depth, l;
-    int k, drawn;
-    if (!host_normal || !out_normal || !out_depth)
+    int k, drawn, view_space, depth_view_z;
+    gim_normal_encoding encoding;
+    const gim_mat4 *view, *proj;
+    if (!desc || !host_normal || !out_normal || !out_depth)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "NULL argument");
+    encoding = desc->encoding; view_space = desc->view_space; depth_view_z = desc->depth_view_z;
+    view = &desc->view; proj = &desc->proj;
     if ((unsigned)encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "unknown encoding %d", (int)encoding);
     for (k = 0; k < 3; ++k) n[k] = encoding == GIM_NORMAL_XYZ_UNORM ? host_normal[k] * 2.0f - 1.0f : host_normal[k];
@@ -6121,13 +6156,13 @@ GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int 
         }
     }
     if (depth_view_z) {   /* a point at view z = -d: ndc z = (P22 z + P32) / (P23 z + P33) */
-        float z = -d, w = proj.m[11] * z + proj.m[15], ndc = (proj.m[10] * z + proj.m[14]) / w;
+        float z = -d, w = proj->m[11] * z + proj->m[15], ndc = (proj->m[10] * z + proj->m[14]) / w;
         d = d > 0.0f && w > 0.0f && ndc <= 1.0f ? ndc * 0.5f + 0.5f : 1.0f;
         if (d != d) d = 1.0f;
     }
     if (view_space) {   /* normals go back by the transpose of view's 3x3 (its inverse transpose, inverted) */
         float w[3];
-        for (k = 0; k < 3; ++k) w[k] = view.m[k * 4] * n[0] + view.m[k * 4 + 1] * n[1] + view.m[k * 4 + 2] * n[2];
+        for (k = 0; k < 3; ++k) w[k] = view->m[k * 4] * n[0] + view->m[k * 4 + 1] * n[1] + view->m[k * 4 + 2] * n[2];
         memcpy(n, w, sizeof n);
     }
     l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
@@ -6139,16 +6174,19 @@ GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int 
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
-                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
-                                             gim_gbuffer_texel *out) {
+GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, const gim_camera *camera, uint32_t x,
+                                             uint32_t y, gim_gbuffer_texel *out) {
     static const char where[] = "gim_gbuffer_texel_twin";
     gim__twin_hit h;
     gim_result r;
     int i, hit;
+    gim_mat4 view, proj;
+    uint32_t width, height;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r != GIM_OK) return r;
+    if (!camera) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "camera is NULL");
+    view = camera->view; proj = camera->proj; width = camera->width; height = camera->height;
     if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || x >= width || y >= height)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "matrices not finite or pixel outside the view");
     memset(out, 0, sizeof *out);
@@ -6186,14 +6224,14 @@ GIMANY_DEF gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uin
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
-                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
-                                            gim_view_sample *out) {
+GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *normal, const gim_camera *camera,
+                                            const uint32_t *pixels, uint32_t count, gim_view_sample *out) {
     static const char where[] = "gim_view_samples_twin";
-    gim_mat4 inv_view, inv_proj;
-    uint32_t i;
-    if (!depth || !normal || !pixels || !out || count == 0 || width == 0 || height == 0)
+    gim_mat4 inv_view, inv_proj, view, proj;
+    uint32_t i, width, height;
+    if (!depth || !normal || !camera || !pixels || !out || count == 0 || camera->width == 0 || camera->height == 0)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL array or zero count/size");
+    view = camera->view; proj = camera->proj; width = camera->width; height = camera->height;
     if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) ||
         !gim_mat4_invert(proj, &inv_proj))
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj not finite or singular");
@@ -12223,10 +12261,13 @@ static gim_result gim__gl_shared_passes(gim_context *ctx, const gim_frame *f, co
         gim_light fl;
         gim_mat4 lv, lp;
         float fmin[3], fmax[3];
+        gim_fit_view_desc fd;
         ctx->light_on[i] = 0;
         ctx->light_vals[i] = 0;
         ctx->light_total[i] = 0.0;
-        r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, f->view, f->proj, f->view_distance, &fl, fmin, fmax);
+        fd.light = &ctx->lights[i]; fd.scene_min = bmin; fd.scene_max = bmax;
+        fd.view = f->view; fd.proj = f->proj; fd.view_distance = f->view_distance;
+        r = gim_light_fit_view(&fd, &fl, fmin, fmax);
         if (r == GIM_OK) r = gim_light_camera(&fl, fmin, fmax, &lv, &lp);
         if (r == GIM_OK && !gim__light_meets_instances(ctx, lv, lp) &&
             (ctx->light_on_count || i + 1u < ctx->light_count)) { /* the last of all-culled renders: the frame has outputs */
