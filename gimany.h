@@ -1043,7 +1043,7 @@ GIMANY_API size_t gim_cache_blob_size(const gim_cache_set *set);
 GIMANY_API gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity);
 /* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. On GIM_OK out
    owns caches allocated through env (free with gim_cache_set_free); else out is untouched. */
-GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out);
+GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cache_set *out, gim_env env);
 
 /* @section importance ===================================================================== */
 /* Bidirectional importance sampling of the RSM (Bischoff 2017 sec. 4, after Ritschel 2011).
@@ -4285,7 +4285,7 @@ GIMANY_DEF gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, 
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out) {
+GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cache_set *out, gim_env env) {
     static const char *where = "gim_cache_blob_read";
     const unsigned char *p = (const unsigned char *)blob;
     uint32_t version, count, i;
