@@ -783,6 +783,23 @@ GIMANY_API gim_result gim_frame_stats(gim_context *ctx, gim_stats *out);
 extern "C" {
 #endif
 
+/* The CPU layer (@section math .. @section twins) has one call style (sokol's and cgltf's
+   descriptors; docs/design.md sec. 10):
+   - parameters are the inputs, then the outputs (a buffer and its capacity together), then
+     `gim_env env` by value, last, where the call allocates or logs and no input carries one
+     (a desc, a gim_cache_set); a call with none logs nothing: its result code says it all;
+   - at most six parameters: a call that needs more takes its inputs in one
+     `const gim_<name>_desc *` (zero means default; sizes and env inside), then its outputs:
+     gim_kmeans(&desc, &result), gim_importance_select(&desc, out). A desc that several
+     calls share (gim_ism_desc) or that names a format (gim_decode_desc) may be followed by
+     the inputs of that one call or pixel;
+   - a per-texel twin takes what its pass renders from (a gim_camera, a gim_rsm_view, a
+     gim_paraboloid and its size), then the texel (x, y);
+   - one job, one call: a variant is a desc field (gim_select_desc.offsets), not a second
+     function.
+   The one exception: the samplers write their point set first, as memcpy does
+   (gim_halton_points(out, count, ...), gim_rotation_offsets(out, dims, frame)). */
+
 /* @section math =========================================================================== */
 /* The vector and matrix helpers a host needs for cameras and placements (the types are in
    @section scene; the others the implementation uses are private, gim__v3_dot and the like). */
