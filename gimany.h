@@ -11673,18 +11673,17 @@ static uint32_t gim__vpl_share(const gim_frame *f, const gim__vpl_settings *s, u
     return s->vpls / lights + (k < s->vpls % lights ? 1u : 0u);
 }
 
-/* The VPL fields of a frame, checked before any GL work (lights: the context's count). */
-static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
+/* The VPL fields of a frame, checked before any GL work (lights: the context's count); f as
+   the host wrote it, rf resolved (gim__frame_resolve). */
+static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf) {
     static const char where[] = "gim_update";
     gim__vpl_settings s;
-    gim_frame rf;
     uint32_t lights = ctx->light_count ? ctx->light_count : 1u;
     if (!gim__isfinitef(f->vpl.clamp_distance) || !gim__isfinitef(f->vpl.blur_distance) || f->vpl.blur_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
                          "(blur_distance >= 0)");
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
-    gim__frame_resolve(f, &rf);
-    gim__vpl_settings_of(&rf, &s);
+    gim__vpl_settings_of(rf, &s);
     if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs%s x %u lights above %u", (unsigned)s.vpls,
                          f->per_light_budget ? " per light" : "", (unsigned)lights, GIM__VPL_MAX);
@@ -11946,7 +11945,12 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     return GIM_OK;
 }
 
-static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
+/* The frame's own fields and the instances, before any GL work, with the world bounds into
+   bmin, bmax. f as the host wrote it (an explicit value is checked as given where a zero may
+   be resolved to something else), rf the same frame resolved (gim__frame_resolve): the checks
+   resolve nothing themselves. */
+static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, float bmin[3],
+                                   float bmax[3]) {
     static const char where[] = "gim_update";
     gim_mat4 inv;
     uint32_t i, limit;
@@ -11983,7 +11987,7 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         f->method != GIM_METHOD_RSM_GATHER && f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
     {
-        gim_result r = gim__vpl_check(ctx, f);
+        gim_result r = gim__vpl_check(ctx, f, rf);
         if (r != GIM_OK) return r;
     }
     if (f->gather.samples > 16384u || !gim__isfinitef(f->gather.radius) || f->gather.radius < 0.0f || f->gather.radius > 2.0f)
@@ -12034,20 +12038,22 @@ static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, 
     return size;
 }
 
-/* gim__frame_resolve, then the default that depends on the scene: a LightSkin frame's zero
-   ism_size halved until every cache's map fits one shader storage block. */
+/* After gim__frame_resolve and the checks (every instance's mesh exists), the one default
+   that depends on the scene: a LightSkin frame's zero ism_size (in: the host's frame) halved
+   until every cache's map fits one shader storage block, into the resolved out. */
 static void gim__frame_resolve_scene(gim_context *ctx, const gim_frame *in, gim_frame *out) {
     uint64_t caches = 0;
     uint32_t i;
-    gim__frame_resolve(in, out);
     if (in->visibility.ism_size || out->method == GIM_METHOD_CLUSTERED || out->method == GIM_METHOD_SSVP) return;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     out->visibility.ism_size = gim__ism_frame_size(ctx, in, caches);
 }
 
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
-   in range, a point count in range, and every cache's map within one shader storage block. */
-static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
+   in range, a point count in range, and every cache's map within one shader storage block. f
+   as the host wrote it (an explicit LightSkin ism_size is refused where a zero is halved to
+   fit), rf resolved (gim__frame_resolve: the VPL frame's map side). */
+static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, const char *where) {
     uint32_t size, i;
     uint64_t caches = 0;
     if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF && f->visibility.mode != GIM_VISIBILITY_ISM)
@@ -12063,12 +12069,9 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
                          GIM_ISM_MAX_POINTS);
     if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
         gim__vpl_settings s;
-        gim_frame rf;
         uint64_t maps;
-        uint32_t vsize;
-        gim__frame_resolve(f, &rf);   /* the map side the VPL frame renders with */
-        vsize = rf.visibility.ism_size;
-        gim__vpl_settings_of(&rf, &s);
+        uint32_t vsize = rf->visibility.ism_size;   /* the map side the VPL frame renders with */
+        gim__vpl_settings_of(rf, &s);
         if (f->vpl.no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
         maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
@@ -12479,13 +12482,14 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "the host's glClipControl is not the default and glClipControl was not loaded "
                              "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
     }
+    /* resolve, once: the checks read the host's frame and f, every later pass f alone */
+    gim__frame_resolve(frame, &f);
     r = gim__deform_prepare(ctx, frame);   /* before the bounds: a deforming mesh's are this frame's */
-    if (r == GIM_OK) r = gim__frame_check(ctx, frame, bmin, bmax);
-    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
+    if (r == GIM_OK) r = gim__frame_check(ctx, frame, &f, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, &f, where);
     if (r == GIM_OK) r = gim__frame_scene_check(ctx, frame, bmin, bmax, &scale);
     if (r != GIM_OK) return r;
-    /* resolve: every later pass reads f, the frame with its defaults */
-    gim__frame_resolve_scene(ctx, frame, &f);
+    gim__frame_resolve_scene(ctx, frame, &f);   /* the default the scene sets, now that it is checked */
     /* the shared passes */
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
@@ -12564,10 +12568,10 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     if (!ctx->gl.GetString(GIM__GL_VERSION))
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
-    r = gim__frame_check(ctx, frame, bmin, bmax);
-    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
-    if (r != GIM_OK) return r;
     gim__frame_resolve(frame, &f);
+    r = gim__frame_check(ctx, frame, &f, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, &f, where);
+    if (r != GIM_OK) return r;
     /* what gim_update's passes build for this method and these settings */
     ids[n++] = GIM__PROGRAM_RSM;
     if (!f.gbuffer.depth) ids[n++] = GIM__PROGRAM_GBUFFER;
