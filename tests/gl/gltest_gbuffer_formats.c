@@ -199,6 +199,10 @@ static void encodings_match_float(void **state) {
             for (k = 0; k < 4; ++k) twin_bad += fabsf(tn[k] - dec_n[i * 4 + k]) > 1e-3f;
             twin_bad += fabsf(td - dec_d[i]) > 1e-6f;
         }
+        {
+            float tn[4], td;
+            assert_int_equal(gim_gbuffer_decode_twin(NULL, host_n, 0.5f, tn, &td), GIM_ERROR_INVALID_ARGUMENT);
+        }
         print_message("%-32s median %.2e, max %.2e relative to the float G-buffer's image (%d lit pixels); "
                       "decode vs twin: %d values off\n", v->name, med, top, lit, twin_bad);
         assert_true(lit > W * H / 2);

@@ -349,6 +349,7 @@ static void cluster_paraboloids(void **state) {
     cl[3] = 0;
     assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 0.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(paraboloids_of(NULL, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cluster_paraboloids_twin(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
     normals[4] = 0.0f;
     assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
     normals[4] = 1.0f;
