@@ -785,6 +785,23 @@ GIMANY_API gim_result gim_frame_stats(gim_context *ctx, gim_stats *out);
 extern "C" {
 #endif
 
+/* The CPU layer (@section math .. @section twins) has one call style (sokol's and cgltf's
+   descriptors; docs/design.md sec. 10):
+   - parameters are the inputs, then the outputs (a buffer and its capacity together), then
+     `gim_env env` by value, last, where the call allocates or logs and no input carries one
+     (a desc, a gim_cache_set); a call with none logs nothing: its result code says it all;
+   - at most six parameters: a call that needs more takes its inputs in one
+     `const gim_<name>_desc *` (zero means default; sizes and env inside), then its outputs:
+     gim_kmeans(&desc, &result), gim_importance_select(&desc, out). A desc that several
+     calls share (gim_ism_desc) or that names a format (gim_decode_desc) may be followed by
+     the inputs of that one call or pixel;
+   - a per-texel twin takes what its pass renders from (a gim_camera, a gim_rsm_view, a
+     gim_paraboloid and its size), then the texel (x, y);
+   - one job, one call: a variant is a desc field (gim_select_desc.offsets), not a second
+     function.
+   The one exception: the samplers write their point set first, as memcpy does
+   (gim_halton_points(out, count, ...), gim_rotation_offsets(out, dims, frame)). */
+
 /* @section math =========================================================================== */
 /* The vector and matrix helpers a host needs for cameras and placements (the types are in
    @section scene; the others the implementation uses are private, gim__v3_dot and the like). */
@@ -1045,7 +1062,7 @@ GIMANY_API size_t gim_cache_blob_size(const gim_cache_set *set);
 GIMANY_API gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, size_t capacity);
 /* Read a blob; a truncated, corrupt or foreign one is GIM_ERROR_CORRUPT_DATA. On GIM_OK out
    owns caches allocated through env (free with gim_cache_set_free); else out is untouched. */
-GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out);
+GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cache_set *out, gim_env env);
 
 /* @section importance ===================================================================== */
 /* Bidirectional importance sampling of the RSM (Bischoff 2017 sec. 4, after Ritschel 2011).
@@ -1114,10 +1131,23 @@ typedef struct gim_selected_val {
     float pdf;                  /* P_VAL = map(x,y) / total; > 0 for every selected texel */
 } gim_selected_val;
 
-/* Pick count texels with probability proportional to the map. Sample i takes the point
+/* Input of gim_importance_select; zero means default. */
+typedef struct gim_select_desc {
+    const double *column;       /* width * height: eq. 12's column table (gim_importance_cumsum) */
+    const double *row;          /* width: eq. 12's row table */
+    uint32_t width, height;
+    uint32_t count;             /* texels to pick, > 0 */
+    uint32_t seed;              /* the rotation's seed (e.g. the frame) where offsets is NULL */
+    const float *offsets;       /* 4 values in [0,1): o_d = offsets[d] + offsets[d + 2] 2^-24 (gim_rotation_offsets'
+                                   4 values of a seed, or gim_drift_offsets' of dims 2), or NULL: from seed */
+    gim_env env;
+} gim_select_desc;
+
+/* Pick count texels with probability proportional to the map into out[count]. Sample i takes
+   the point
      u_i = frac(i / count + o_0),  v_i = frac(radical_inverse_2(i) + o_1)
-   of the Hammersley set, Cranley-Patterson rotated by per-seed 48-bit offsets
-   o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
+   of the Hammersley set, Cranley-Patterson rotated by 48-bit offsets o_d: the desc's offsets,
+   or per seed o_d = f[d] + f[d+2] * 2^-24 (f from gim_rotation_offsets(f, 4, seed)). u_i picks the
    column (first x with row[x] > u_i * total), v_i the texel in it (first y with
    column(x, y) > v_i * column total). Over the seeds every u_i and v_i alone is uniform, so
    every sample is distributed exactly as P; within one call the u_i are stratified, so
@@ -1131,14 +1161,7 @@ typedef struct gim_selected_val {
    GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
    negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
    positive difference (out is then partly written). */
-GIMANY_API gim_result gim_importance_select(const double *column, const double *row,
-                                            uint32_t width, uint32_t height, uint32_t count,
-                                            uint32_t seed, gim_selected_val *out, gim_env env);
-/* The same with the offsets given: o_d = offsets[d] + offsets[d + 2] 2^-24 (gim_rotation_offsets'
-   4 values of a seed, or gim_drift_offsets' of dims 2). */
-GIMANY_API gim_result gim_importance_select_offsets(const double *column, const double *row, uint32_t width,
-                                                    uint32_t height, uint32_t count, const float offsets[4],
-                                                    gim_selected_val *out, gim_env env);
+GIMANY_API gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out);
 
 /* @section twins ========================================================================== */
 /* LightSkin cache lighting, CPU twins of its GPU passes (Bischoff 2017 sec. 3 "Cache Lighting",
@@ -1394,9 +1417,17 @@ typedef enum gim_vpl_sequence {
    arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
    GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
 #define GIM_RSM_VPL_BLOCK 1024u
-GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                        const float *offsets, float *positions, float *normals, float *flux,
-                                        gim_env env);
+
+/* Input of gim_rsm_vpls_twin; zero means default. */
+typedef struct gim_rsm_vpls_desc {
+    const gim_rsm_data *rsm;        /* one light's RSM */
+    uint32_t count;                 /* VPLs, > 0 */
+    gim_vpl_sequence sequence;
+    const float *offsets;           /* 2 values in [0,1), or NULL: no rotation */
+    gim_env env;
+} gim_rsm_vpls_desc;
+
+GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux);
 
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
@@ -1441,8 +1472,17 @@ GIMANY_API gim_result gim_cache_bind(const gim_mesh_data *mesh, const gim_cache 
    collapsed to zero area keeps the rest normal with area 0. positions: vertex_count float3
    (model space). out may not alias rest. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL arrays, a
    binding's vertex >= vertex_count, a result that is not finite (out partly written then). */
-GIMANY_API gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
-                                        const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env);
+/* Input of gim_caches_follow_twin. */
+typedef struct gim_follow_desc {
+    const gim_cache *rest;          /* count caches as gim_cache_bind bound them (model space) */
+    const gim_cache_binding *bind;  /* count bindings (gim_cache_bind) */
+    uint32_t count;
+    const float *positions;         /* vertex_count * 3: the deformed vertices (model space) */
+    uint32_t vertex_count;
+    gim_env env;
+} gim_follow_desc;
+
+GIMANY_API gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_cache *out);
 
 
 /* twins of the scene passes: RSM texel, G-buffer, view samples ------------------------------
@@ -1490,10 +1530,29 @@ GIMANY_API gim_result gim_point_light_faces(const gim_light *point, gim_light fa
    direction by the scene's diagonal both ways, so the orthographic window covers the focus
    while its depth range still holds every caster of the scene. A focus that is empty (the
    camera looks out of the scene) falls back to the scene bounds. Other lights are copied
-   with the scene bounds. view, proj: the host's camera (finite, invertible). */
-GIMANY_API gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
-                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
-                                         float out_min[3], float out_max[3]);
+   with the scene bounds. */
+typedef struct gim_fit_view_desc {
+    const gim_light *light;
+    const float *scene_min, *scene_max; /* 3 each: the scene's world bounds */
+    gim_mat4 view, proj;                /* the host's camera (finite, invertible) */
+    float view_distance;                /* >= 0, finite; 0: the far plane */
+} gim_fit_view_desc;
+
+GIMANY_API gim_result gim_light_fit_view(const gim_fit_view_desc *desc, gim_light *out_light, float out_min[3],
+                                         float out_max[3]);
+
+/* What the G-buffer and view-sample passes render from: the host's camera and view size. */
+typedef struct gim_camera {
+    gim_mat4 view, proj;     /* finite; proj invertible */
+    uint32_t width, height;  /* pixels, > 0 */
+} gim_camera;
+
+/* What an RSM is rendered from: a light and the world bounds its camera is fitted to (what
+   gim_light_camera takes; gim_light_fit_view writes them for a fit_view sun). */
+typedef struct gim_rsm_view {
+    const gim_light *light;
+    const float *bmin, *bmax;  /* 3 each */
+} gim_rsm_view;
 
 /* A world-space triangle soup for the twins. */
 typedef struct gim_twin_scene {
@@ -1516,9 +1575,9 @@ typedef struct gim_rsm_texel {
 } gim_rsm_texel;
 
 /* Twin of the RSM pass at texel (x, y) of the light's rsm_size^2 RSM (row 0 at the bottom of
-   its clip space, as GL stores it); bounds as for gim_light_camera. */
-GIMANY_API gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
-                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out);
+   its clip space, as GL stores it); the camera is gim_light_camera's of view. */
+GIMANY_API gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_rsm_view *view, uint32_t x, uint32_t y,
+                                         gim_rsm_texel *out);
 
 /* What the G-buffer pass writes at one pixel. */
 typedef struct gim_gbuffer_texel {
@@ -1529,19 +1588,24 @@ typedef struct gim_gbuffer_texel {
     uint32_t triangle;       /* UINT32_MAX: none */
 } gim_gbuffer_texel;
 
+/* How a host's G-buffer holds its normals and depth (gim_frame.gbuffer's fields) and the
+   camera it was drawn with: the input of gim_gbuffer_decode_twin. */
+typedef struct gim_decode_desc {
+    gim_normal_encoding encoding;
+    int view_space;          /* 1: the normal is in view's space and turned back by its inverse rotation */
+    int depth_view_z;        /* 1: depth holds the positive view-space distance along -z; 0: window depth */
+    gim_mat4 view, proj;
+} gim_decode_desc;
+
 /* Twin of the G-buffer decode pass at one pixel: the host's stored normal (its texel's rgba as
-   the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth (window depth, or with
-   depth_view_z the positive view-space distance along -z) to a unit world normal (out_normal,
-   w = 1 where drawn; 0 elsewhere) and window depth (1 where nothing is drawn). view_space: the
-   normal is in view's space and turned back by its inverse rotation. */
-GIMANY_API gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
-                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+   the GPU reads it: unorm in [0, 1], snorm in [-1, 1]) and depth to a unit world normal
+   (out_normal, w = 1 where drawn; 0 elsewhere) and window depth (1 where nothing is drawn). */
+GIMANY_API gim_result gim_gbuffer_decode_twin(const gim_decode_desc *desc, const float host_normal[4], float host_depth,
                                               float out_normal[4], float *out_depth);
 
-/* Twin of the G-buffer pass at pixel (x, y) of a width x height view through view, proj. */
-GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
-                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
-                                             gim_gbuffer_texel *out);
+/* Twin of the G-buffer pass at pixel (x, y) of camera's width x height view. */
+GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, const gim_camera *camera, uint32_t x,
+                                             uint32_t y, gim_gbuffer_texel *out);
 
 /* The pixels of the view samples (Bischoff 2017 sec. 4): Halton points 1..count in bases 2 and 3
    (point 0 is the corner), Cranley-Patterson rotated by offsets (2 values in [0,1), e.g. from
@@ -1550,15 +1614,15 @@ GIMANY_API gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_ma
 GIMANY_API gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uint32_t height, const float *offsets,
                                              uint32_t *pixels);
 
-/* Twin of the view-sample pass: the G-buffer at each pixel as a gim_view_sample. depth:
-   width * height window depths in [0, 1] (row-major, row 0 at the bottom); normal: width *
-   height * 4 (xyz used: world normal). The position is unprojected through the inverses of
-   proj and view (in double). Where depth >= 1 (nothing drawn) or the normal is zero or not
-   finite the sample is unusable: position and normal are written as zero (the importance
-   pass skips a zero normal). */
-GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
-                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
-                                            gim_view_sample *out);
+/* Twin of the view-sample pass: the G-buffer at each of count pixels (x, y pairs) as a
+   gim_view_sample into out[count]. depth: width * height window depths in [0, 1] (row-major,
+   row 0 at the bottom; width, height the camera's); normal: width * height * 4 (xyz used:
+   world normal). The position is unprojected through the inverses of the camera's proj and
+   view (in double). Where depth >= 1 (nothing drawn) or the normal is zero or not finite the
+   sample is unusable: position and normal are written as zero (the importance pass skips a
+   zero normal). */
+GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *normal, const gim_camera *camera,
+                                            const uint32_t *pixels, uint32_t count, gim_view_sample *out);
 
 /* twins of the VPL methods: clustered visibility (Dong et al.) and SSVP (Aranha et al.) -------
    Units: a VPL is a point y_i on a surface with normal n_i and flux Phi_i (W, rgb) that emits
@@ -1633,10 +1697,19 @@ typedef struct gim_paraboloid {
    origin where it curves away (on the Cornell box the same VPLs as the lift alone). A
    cluster without VPLs gets
    zero flux and size, its centre and normal kept. Sums in double in VPL order.
-   cluster[vpl_count] < cluster_count; centres, normals: cluster_count * 3 (normals unit). */
-GIMANY_API gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
-                                              const float *centres, const float *normals, uint32_t cluster_count,
-                                              float scene_scale, gim_paraboloid *out, gim_env env);
+   out[cluster_count]; input: */
+typedef struct gim_cluster_desc {
+    const gim_vpl *vpls;
+    uint32_t vpl_count;             /* > 0 */
+    const uint32_t *cluster;        /* vpl_count: the cluster of each VPL, < cluster_count */
+    const float *centres;           /* cluster_count * 3 */
+    const float *normals;           /* cluster_count * 3, unit */
+    uint32_t cluster_count;         /* > 0 */
+    float scene_scale;              /* > 0 */
+    gim_env env;
+} gim_cluster_desc;
+
+GIMANY_API gim_result gim_cluster_paraboloids_twin(const gim_cluster_desc *desc, gim_paraboloid *out);
 
 /* What the paraboloid pass writes at one texel. */
 #define GIM_PARABOLOID_EMPTY 3.0e38f   /* distance where the texel sees nothing */
@@ -4243,7 +4316,7 @@ GIMANY_DEF gim_result gim_cache_blob_write(const gim_cache_set *set, void *out, 
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_env env, gim_cache_set *out) {
+GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cache_set *out, gim_env env) {
     static const char *where = "gim_cache_blob_read";
     const unsigned char *p = (const unsigned char *)blob;
     uint32_t version, count, i;
@@ -4474,26 +4547,29 @@ static double gim__below(double t, double total) {
     return t < total ? t : nextafter(total, 0.0);
 }
 
-GIMANY_DEF gim_result gim_importance_select(const double *column, const double *row,
-                                            uint32_t width, uint32_t height, uint32_t count,
-                                            uint32_t seed, gim_selected_val *out, gim_env env) {
-    float off[4];
-    gim_rotation_offsets(off, 4u, seed);
-    return gim_importance_select_offsets(column, row, width, height, count, off, out, env);
-}
-
-GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const double *row, uint32_t width,
-                                                    uint32_t height, uint32_t count, const float off[4],
-                                                    gim_selected_val *out, gim_env env) {
+GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out) {
     static const char fn[] = "gim_importance_select";
+    const double *column, *row;
+    uint32_t width, height, count;
+    const gim_env *env;
+    float seeded[4];
+    const float *off;
     const double *totals; /* the last row of column: per-column totals */
     double total, prev, o0, o1;
     uint32_t i, x;
     gim_result r;
-    if (!column || !row || !out || !off)
-        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row, offsets and out are required");
-    if (count == 0) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
-    r = gim__importance_tables_check(&env, fn, width, height);
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    column = desc->column; row = desc->row; width = desc->width; height = desc->height; count = desc->count;
+    env = &desc->env;
+    if (!column || !row || !out)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row and out are required");
+    off = desc->offsets;
+    if (!off) {
+        gim_rotation_offsets(seeded, 4u, desc->seed);
+        off = seeded;
+    }
+    if (count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
+    r = gim__importance_tables_check(env, fn, width, height);
     if (r != GIM_OK) return r;
     totals = column + (size_t)(height - 1u) * width;
     /* O(width) check of what every search relies on; the interior of the columns is checked
@@ -4501,7 +4577,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
     for (x = 0, prev = 0.0; x < width; ++x) {
         if (!(row[x] >= prev && row[x] <= DBL_MAX) || !(totals[x] >= 0.0 && totals[x] <= DBL_MAX) ||
             (row[x] > prev && !(totals[x] > 0.0)))
-            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                              "tables are not cumulative sums at column %u (row %g, column total %g)",
                              (unsigned)x, row[x], totals[x]);
         prev = row[x];
@@ -4513,7 +4589,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
     o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
     o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
     if (!(total > 0.0))
-        gim__log(&env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
+        gim__log(env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
                  (unsigned)count);
     for (i = 0; i < count; ++i) {
         double u = (double)i / (double)count + o0, v = gim_van_der_corput(i) + o1;
@@ -4536,7 +4612,7 @@ GIMANY_DEF gim_result gim_importance_select_offsets(const double *column, const 
             p_row = (column[(size_t)sy * width + sx] - (sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0)) / col_total;
             p = p_col * p_row;
             if (!(p > 0.0 && p <= 1.0))
-                return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                                  "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
                                  (unsigned)sx, (unsigned)sy, p);
             out[i].x = sx;
@@ -5250,13 +5326,17 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
 }
 
-GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence,
-                                        const float *offsets, float *positions, float *normals, float *flux,
-                                        gim_env env) {
+GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux) {
     static const char fn[] = "gim_rsm_vpls_twin";
     double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
-    uint32_t i, x, y;
+    uint32_t i, x, y, count;
     int a;
+    const gim_rsm_data *rsm;
+    gim_vpl_sequence sequence;
+    const float *offsets;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    rsm = desc->rsm; count = desc->count; sequence = desc->sequence; offsets = desc->offsets; env = desc->env;
     if (!rsm || !positions || !normals || !flux)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm and the output arrays are required");
     if (!rsm->position || !rsm->normal || !rsm->flux)
@@ -5583,10 +5663,16 @@ done:
 
 /* In float, operation for operation as caches_follow.comp, so the twin and the pass agree to
    rounding. */
-GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count,
-                                        const float *positions, uint32_t vertex_count, gim_cache *out, gim_env env) {
+GIMANY_DEF gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_cache *out) {
     static const char fn[] = "gim_caches_follow_twin";
-    uint32_t i;
+    const gim_cache *rest;
+    const gim_cache_binding *bind;
+    const float *positions;
+    uint32_t i, count, vertex_count;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    rest = desc->rest; bind = desc->bind; count = desc->count; positions = desc->positions;
+    vertex_count = desc->vertex_count; env = desc->env;
     if (count && (!rest || !bind || !positions || !out))
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "rest, bind, positions and out are required");
     for (i = 0; i < count; ++i) {
@@ -5628,11 +5714,17 @@ GIMANY_DEF gim_result gim_caches_follow_twin(const gim_cache *rest, const gim_ca
 
 /* The clusters' VALs and paraboloid maps (see the declaration): one independent loop per
    cluster over the VPLs in index order, as the GPU pass (clusters.comp) runs it. */
-GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster,
-                                              const float *centres, const float *normals, uint32_t cluster_count,
-                                              float scene_scale, gim_paraboloid *out, gim_env env) {
+GIMANY_DEF gim_result gim_cluster_paraboloids_twin(const gim_cluster_desc *desc, gim_paraboloid *out) {
     static const char fn[] = "gim_cluster_paraboloids_twin";
-    uint32_t i, m;
+    const gim_vpl *vpls;
+    const uint32_t *cluster;
+    const float *centres, *normals;
+    uint32_t i, m, vpl_count, cluster_count;
+    float scene_scale;
+    gim_env env;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
+    vpls = desc->vpls; vpl_count = desc->vpl_count; cluster = desc->cluster; centres = desc->centres;
+    normals = desc->normals; cluster_count = desc->cluster_count; scene_scale = desc->scene_scale; env = desc->env;
     if (!vpls || !cluster || !centres || !normals || !out)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vpls, cluster, centres, normals and out are required");
     if (vpl_count == 0 || cluster_count == 0)
@@ -5861,14 +5953,19 @@ static void gim__mat4_apply_d(const gim_mat4 *m, const double v[4], double out[4
         out[r] = m->m[r] * v[0] + m->m[4 + r] * v[1] + m->m[8 + r] * v[2] + m->m[12 + r] * v[3];
 }
 
-GIMANY_DEF gim_result gim_light_fit_view(const gim_light *light, const float scene_min[3], const float scene_max[3],
-                                         gim_mat4 view, gim_mat4 proj, float view_distance, gim_light *out_light,
-                                         float out_min[3], float out_max[3]) {
+GIMANY_DEF gim_result gim_light_fit_view(const gim_fit_view_desc *desc, gim_light *out_light, float out_min[3],
+                                         float out_max[3]) {
     static const char where[] = "gim_light_fit_view";
-    gim_mat4 inv_view, inv_proj;
+    gim_mat4 inv_view, inv_proj, view, proj;
     double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX}, diag = 0.0, rad = 0.0, eye[3];
     gim_vec3 l;
     int k, a;
+    const gim_light *light;
+    const float *scene_min, *scene_max;
+    float view_distance;
+    if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
+    light = desc->light; scene_min = desc->scene_min; scene_max = desc->scene_max;
+    view = desc->view; proj = desc->proj; view_distance = desc->view_distance;
     if (!light || !scene_min || !scene_max || !out_light || !out_min || !out_max)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL argument");
     if (!gim__all_finite(scene_min, 3) || !gim__all_finite(scene_max, 3) || !gim__mat4_isfinite(view) ||
@@ -6030,8 +6127,8 @@ static gim_result gim__twin_scene_check(const gim_twin_scene *s, const char *whe
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_light *light, const float bmin[3],
-                                         const float bmax[3], uint32_t x, uint32_t y, gim_rsm_texel *out) {
+GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_rsm_view *rsm_view, uint32_t x, uint32_t y,
+                                         gim_rsm_texel *out) {
     static const char where[] = "gim_rsm_texel_twin";
     gim_mat4 view, proj;
     gim__twin_hit h;
@@ -6040,9 +6137,12 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     double a_perp, cosv, omega = 0.0;
     gim_result r;
     int i, hit;
+    const gim_light *light;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
+    if (!rsm_view) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view is NULL");
+    light = rsm_view->light;
     r = gim__twin_scene_check(scene, where);
-    if (r == GIM_OK) r = gim_light_camera(light, bmin, bmax, &view, &proj);
+    if (r == GIM_OK) r = gim_light_camera(light, rsm_view->bmin, rsm_view->bmax, &view, &proj);
     if (r != GIM_OK) return r;
     size = gim__light_rsm_size(light);
     if (x >= size || y >= size) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "texel outside the RSM");
@@ -6084,13 +6184,16 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int view_space, int depth_view_z,
-                                              gim_mat4 view, gim_mat4 proj, const float host_normal[4], float host_depth,
+GIMANY_DEF gim_result gim_gbuffer_decode_twin(const gim_decode_desc *desc, const float host_normal[4], float host_depth,
                                               float out_normal[4], float *out_depth) {
     float n[3], d = host_depth, l;
-    int k, drawn;
-    if (!host_normal || !out_normal || !out_depth)
+    int k, drawn, view_space, depth_view_z;
+    gim_normal_encoding encoding;
+    const gim_mat4 *view, *proj;
+    if (!desc || !host_normal || !out_normal || !out_depth)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "NULL argument");
+    encoding = desc->encoding; view_space = desc->view_space; depth_view_z = desc->depth_view_z;
+    view = &desc->view; proj = &desc->proj;
     if ((unsigned)encoding > (unsigned)GIM_NORMAL_OCTAHEDRAL_UNORM)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, "gim_gbuffer_decode_twin", "unknown encoding %d", (int)encoding);
     for (k = 0; k < 3; ++k) n[k] = encoding == GIM_NORMAL_XYZ_UNORM ? host_normal[k] * 2.0f - 1.0f : host_normal[k];
@@ -6105,13 +6208,13 @@ GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int 
         }
     }
     if (depth_view_z) {   /* a point at view z = -d: ndc z = (P22 z + P32) / (P23 z + P33) */
-        float z = -d, w = proj.m[11] * z + proj.m[15], ndc = (proj.m[10] * z + proj.m[14]) / w;
+        float z = -d, w = proj->m[11] * z + proj->m[15], ndc = (proj->m[10] * z + proj->m[14]) / w;
         d = d > 0.0f && w > 0.0f && ndc <= 1.0f ? ndc * 0.5f + 0.5f : 1.0f;
         if (d != d) d = 1.0f;
     }
     if (view_space) {   /* normals go back by the transpose of view's 3x3 (its inverse transpose, inverted) */
         float w[3];
-        for (k = 0; k < 3; ++k) w[k] = view.m[k * 4] * n[0] + view.m[k * 4 + 1] * n[1] + view.m[k * 4 + 2] * n[2];
+        for (k = 0; k < 3; ++k) w[k] = view->m[k * 4] * n[0] + view->m[k * 4 + 1] * n[1] + view->m[k * 4 + 2] * n[2];
         memcpy(n, w, sizeof n);
     }
     l = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
@@ -6123,16 +6226,19 @@ GIMANY_DEF gim_result gim_gbuffer_decode_twin(gim_normal_encoding encoding, int 
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, gim_mat4 view, gim_mat4 proj,
-                                             uint32_t width, uint32_t height, uint32_t x, uint32_t y,
-                                             gim_gbuffer_texel *out) {
+GIMANY_DEF gim_result gim_gbuffer_texel_twin(const gim_twin_scene *scene, const gim_camera *camera, uint32_t x,
+                                             uint32_t y, gim_gbuffer_texel *out) {
     static const char where[] = "gim_gbuffer_texel_twin";
     gim__twin_hit h;
     gim_result r;
     int i, hit;
+    gim_mat4 view, proj;
+    uint32_t width, height;
     if (!out) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "out is NULL");
     r = gim__twin_scene_check(scene, where);
     if (r != GIM_OK) return r;
+    if (!camera) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "camera is NULL");
+    view = camera->view; proj = camera->proj; width = camera->width; height = camera->height;
     if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || x >= width || y >= height)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "matrices not finite or pixel outside the view");
     memset(out, 0, sizeof *out);
@@ -6170,14 +6276,14 @@ GIMANY_DEF gim_result gim_view_sample_pixels(uint32_t count, uint32_t width, uin
     return GIM_OK;
 }
 
-GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *normal, uint32_t width, uint32_t height,
-                                            gim_mat4 view, gim_mat4 proj, const uint32_t *pixels, uint32_t count,
-                                            gim_view_sample *out) {
+GIMANY_DEF gim_result gim_view_samples_twin(const float *depth, const float *normal, const gim_camera *camera,
+                                            const uint32_t *pixels, uint32_t count, gim_view_sample *out) {
     static const char where[] = "gim_view_samples_twin";
-    gim_mat4 inv_view, inv_proj;
-    uint32_t i;
-    if (!depth || !normal || !pixels || !out || count == 0 || width == 0 || height == 0)
+    gim_mat4 inv_view, inv_proj, view, proj;
+    uint32_t i, width, height;
+    if (!depth || !normal || !camera || !pixels || !out || count == 0 || camera->width == 0 || camera->height == 0)
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "NULL array or zero count/size");
+    view = camera->view; proj = camera->proj; width = camera->width; height = camera->height;
     if (!gim__mat4_isfinite(view) || !gim__mat4_isfinite(proj) || !gim_mat4_invert(view, &inv_view) ||
         !gim_mat4_invert(proj, &inv_proj))
         return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, where, "view or proj not finite or singular");
@@ -8459,7 +8565,7 @@ static void gim__select_offsets(const gim_frame *f, uint32_t light, uint32_t cou
         gim_rotation_offsets(off, 4u, gim__select_seed(f->frame_index, light));
 }
 
-/* gim__gl_importance_select with the offsets given as gim_importance_select_offsets takes them. */
+/* gim__gl_importance_select with the offsets given as gim_select_desc.offsets holds them. */
 static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuint column, gim__GLuint row,
                                                     uint32_t width, uint32_t height, uint32_t count, const float off[4],
                                                     gim__GLuint out) {
@@ -11656,18 +11762,17 @@ static uint32_t gim__vpl_share(const gim_frame *f, const gim__vpl_settings *s, u
     return s->vpls / lights + (k < s->vpls % lights ? 1u : 0u);
 }
 
-/* The VPL fields of a frame, checked before any GL work (lights: the context's count). */
-static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f) {
+/* The VPL fields of a frame, checked before any GL work (lights: the context's count); f as
+   the host wrote it, rf resolved (gim__frame_resolve). */
+static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf) {
     static const char where[] = "gim_update";
     gim__vpl_settings s;
-    gim_frame rf;
     uint32_t lights = ctx->light_count ? ctx->light_count : 1u;
     if (!gim__isfinitef(f->vpl.clamp_distance) || !gim__isfinitef(f->vpl.blur_distance) || f->vpl.blur_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
                          "(blur_distance >= 0)");
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
-    gim__frame_resolve(f, &rf);
-    gim__vpl_settings_of(&rf, &s);
+    gim__vpl_settings_of(rf, &s);
     if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs%s x %u lights above %u", (unsigned)s.vpls,
                          f->per_light_budget ? " per light" : "", (unsigned)lights, GIM__VPL_MAX);
@@ -11935,7 +12040,12 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     return GIM_OK;
 }
 
-static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float bmin[3], float bmax[3]) {
+/* The frame's own fields and the instances, before any GL work, with the world bounds into
+   bmin, bmax. f as the host wrote it (an explicit value is checked as given where a zero may
+   be resolved to something else), rf the same frame resolved (gim__frame_resolve): the checks
+   resolve nothing themselves. */
+static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, float bmin[3],
+                                   float bmax[3]) {
     static const char where[] = "gim_update";
     gim_mat4 inv;
     uint32_t i, limit;
@@ -11972,7 +12082,7 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, float b
         f->method != GIM_METHOD_RSM_GATHER && f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown method %d", (int)f->method);
     {
-        gim_result r = gim__vpl_check(ctx, f);
+        gim_result r = gim__vpl_check(ctx, f, rf);
         if (r != GIM_OK) return r;
     }
     if (f->gather.samples > 16384u || !gim__isfinitef(f->gather.radius) || f->gather.radius < 0.0f || f->gather.radius > 2.0f)
@@ -12023,20 +12133,22 @@ static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, 
     return size;
 }
 
-/* gim__frame_resolve, then the default that depends on the scene: a LightSkin frame's zero
-   ism_size halved until every cache's map fits one shader storage block. */
+/* After gim__frame_resolve and the checks (every instance's mesh exists), the one default
+   that depends on the scene: a LightSkin frame's zero ism_size (in: the host's frame) halved
+   until every cache's map fits one shader storage block, into the resolved out. */
 static void gim__frame_resolve_scene(gim_context *ctx, const gim_frame *in, gim_frame *out) {
     uint64_t caches = 0;
     uint32_t i;
-    gim__frame_resolve(in, out);
     if (in->visibility.ism_size || out->method == GIM_METHOD_CLUSTERED || out->method == GIM_METHOD_SSVP) return;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     out->visibility.ism_size = gim__ism_frame_size(ctx, in, caches);
 }
 
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
-   in range, a point count in range, and every cache's map within one shader storage block. */
-static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const char *where) {
+   in range, a point count in range, and every cache's map within one shader storage block. f
+   as the host wrote it (an explicit LightSkin ism_size is refused where a zero is halved to
+   fit), rf resolved (gim__frame_resolve: the VPL frame's map side). */
+static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, const char *where) {
     uint32_t size, i;
     uint64_t caches = 0;
     if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF && f->visibility.mode != GIM_VISIBILITY_ISM)
@@ -12052,12 +12164,9 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
                          GIM_ISM_MAX_POINTS);
     if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
         gim__vpl_settings s;
-        gim_frame rf;
         uint64_t maps;
-        uint32_t vsize;
-        gim__frame_resolve(f, &rf);   /* the map side the VPL frame renders with */
-        vsize = rf.visibility.ism_size;
-        gim__vpl_settings_of(&rf, &s);
+        uint32_t vsize = rf->visibility.ism_size;   /* the map side the VPL frame renders with */
+        gim__vpl_settings_of(rf, &s);
         if (f->vpl.no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
         maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
@@ -12267,10 +12376,13 @@ static gim_result gim__gl_shared_passes(gim_context *ctx, const gim_frame *f, co
         gim_light fl;
         gim_mat4 lv, lp;
         float fmin[3], fmax[3];
+        gim_fit_view_desc fd;
         ctx->light_on[i] = 0;
         ctx->light_vals[i] = 0;
         ctx->light_total[i] = 0.0;
-        r = gim_light_fit_view(&ctx->lights[i], bmin, bmax, f->view, f->proj, f->view_distance, &fl, fmin, fmax);
+        fd.light = &ctx->lights[i]; fd.scene_min = bmin; fd.scene_max = bmax;
+        fd.view = f->view; fd.proj = f->proj; fd.view_distance = f->view_distance;
+        r = gim_light_fit_view(&fd, &fl, fmin, fmax);
         if (r == GIM_OK) r = gim_light_camera(&fl, fmin, fmax, &lv, &lp);
         if (r == GIM_OK && !gim__light_meets_instances(ctx, lv, lp) &&
             (ctx->light_on_count || i + 1u < ctx->light_count)) { /* the last of all-culled renders: the frame has outputs */
@@ -12465,13 +12577,14 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
                              "the host's glClipControl is not the default and glClipControl was not loaded "
                              "(GIMANY_EXTERNAL_GL without get_proc_address): set GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE");
     }
+    /* resolve, once: the checks read the host's frame and f, every later pass f alone */
+    gim__frame_resolve(frame, &f);
     r = gim__deform_prepare(ctx, frame);   /* before the bounds: a deforming mesh's are this frame's */
-    if (r == GIM_OK) r = gim__frame_check(ctx, frame, bmin, bmax);
-    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
+    if (r == GIM_OK) r = gim__frame_check(ctx, frame, &f, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, &f, where);
     if (r == GIM_OK) r = gim__frame_scene_check(ctx, frame, bmin, bmax, &scale);
     if (r != GIM_OK) return r;
-    /* resolve: every later pass reads f, the frame with its defaults */
-    gim__frame_resolve_scene(ctx, frame, &f);
+    gim__frame_resolve_scene(ctx, frame, &f);   /* the default the scene sets, now that it is checked */
     /* the shared passes */
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
@@ -12550,10 +12663,10 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     if (!frame) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "frame is NULL");
     if (!ctx->gl.GetString(GIM__GL_VERSION))
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "no GL context is current on this thread");
-    r = gim__frame_check(ctx, frame, bmin, bmax);
-    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, where);
-    if (r != GIM_OK) return r;
     gim__frame_resolve(frame, &f);
+    r = gim__frame_check(ctx, frame, &f, bmin, bmax);
+    if (r == GIM_OK) r = gim__visibility_check(ctx, frame, &f, where);
+    if (r != GIM_OK) return r;
     /* what gim_update's passes build for this method and these settings */
     ids[n++] = GIM__PROGRAM_RSM;
     if (!f.gbuffer.depth) ids[n++] = GIM__PROGRAM_GBUFFER;

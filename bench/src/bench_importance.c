@@ -71,16 +71,20 @@ static int bench_select(void) {
     double *col = (double *)malloc(n * sizeof(double)), *row = (double *)malloc(w * sizeof(double));
     gim_selected_val *sel = (gim_selected_val *)malloc(count * sizeof(gim_selected_val));
     gim_env env;
+    gim_select_desc sd;
     double tc[REPS], ts[REPS], sink = 0.0;
     int r;
     if (!map || !col || !row || !sel) return 1;
     memset(&env, 0, sizeof env);
+    memset(&sd, 0, sizeof sd);
+    sd.column = col; sd.row = row; sd.width = w; sd.height = h; sd.count = count; sd.env = env;
     for (i = 0; i < n; ++i) map[i] = (i % 20 == 7) ? 0.0f : (float)exp(-11.5 * rand01());
     for (r = 0; r < REPS; ++r) {
         double t0 = now_s(), t1;
         if (gim_importance_cumsum(map, w, h, col, row, env) != GIM_OK) return 1;
         t1 = now_s();
-        if (gim_importance_select(col, row, w, h, count, (uint32_t)r, sel, env) != GIM_OK) return 1;
+        sd.seed = (uint32_t)r;
+        if (gim_importance_select(&sd, sel) != GIM_OK) return 1;
         ts[r] = now_s() - t1;
         tc[r] = t1 - t0;
         sink += sel[r].pdf;

@@ -177,7 +177,7 @@ static int make_frame(const scene *s, const soup *sp, frame *f) {
     gim_light light;
     gim_rsm_data rsm;
     float *rp, *rn, *rf, *ra, *rv, view[16], proj[16];
-    gim_mat4 v, p;
+    gim_camera cam;
     uint32_t x, y;
     gim_neighbour_desc nd;
     gim_neighbour_result nr;
@@ -212,8 +212,9 @@ static int make_frame(const scene *s, const soup *sp, frame *f) {
     for (y = 0; y < RSM; ++y)
         for (x = 0; x < RSM; ++x) {
             gim_rsm_texel t;
+            gim_rsm_view lv = {&light, s->bounds_min, s->bounds_max};
             uint32_t k = y * RSM + x;
-            if (gim_rsm_texel_twin(&ts, &light, s->bounds_min, s->bounds_max, x, y, &t) != GIM_OK) return 1;
+            if (gim_rsm_texel_twin(&ts, &lv, x, y, &t) != GIM_OK) return 1;
             memcpy(rp + k * 3, t.position, 12); memcpy(rn + k * 3, t.normal, 12); memcpy(rf + k * 3, t.flux, 12);
             ra[k] = t.area; rv[k] = (float)t.lit;
         }
@@ -225,7 +226,8 @@ static int make_frame(const scene *s, const soup *sp, frame *f) {
     free(rp); free(rn); free(rf); free(ra); free(rv);
     /* receivers: the camera's G-buffer */
     scene_camera_matrices(&s->camera, 0.01f * s->scale, 4.0f * s->scale, view, proj);
-    memcpy(v.m, view, sizeof view); memcpy(p.m, proj, sizeof proj);
+    memcpy(cam.view.m, view, sizeof view); memcpy(cam.proj.m, proj, sizeof proj);
+    cam.width = W; cam.height = H;
     f->eye = gim_v3(s->camera.eye[0], s->camera.eye[1], s->camera.eye[2]);
     f->rc = (gim_receiver *)calloc(W * H, sizeof(gim_receiver));
     ppos = (float *)calloc(W * H * 3, sizeof(float)); pnrm = (float *)calloc(W * H * 3, sizeof(float));
@@ -235,7 +237,7 @@ static int make_frame(const scene *s, const soup *sp, frame *f) {
             gim_receiver *r = f->rc + f->rc_count;
             double vl = 0.0;
             int a;
-            if (gim_gbuffer_texel_twin(&ts, v, p, W, H, x, y, &g) != GIM_OK) return 1;
+            if (gim_gbuffer_texel_twin(&ts, &cam, x, y, &g) != GIM_OK) return 1;
             if (g.triangle == UINT32_MAX) continue;
             memcpy(r->position, g.position, 12); memcpy(r->normal, g.normal, 12); memcpy(r->albedo, g.albedo, 12);
             for (a = 0; a < 3; ++a) { r->view[a] = s->camera.eye[a] - g.position[a]; vl += (double)r->view[a] * r->view[a]; }

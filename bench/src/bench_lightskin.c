@@ -106,6 +106,7 @@ int main(void) {
         gim_selected_val *pick = (gim_selected_val *)malloc(NSEL * sizeof *pick);
         gim_view_sample vs[256];
         gim_importance_desc id;
+        gim_select_desc seld;
         gim_rsm_data rsm;
         gim_env env;
         memset(&env, 0, sizeof env);
@@ -124,8 +125,10 @@ int main(void) {
         id.view_samples = vs; id.view_sample_count = 256; id.scene_scale = 150;
         memset(&rsm, 0, sizeof rsm);
         rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.width = RSM; rsm.height = RSM;
+        memset(&seld, 0, sizeof seld);
+        seld.column = col; seld.row = row; seld.width = RSM; seld.height = RSM; seld.count = NSEL; seld.seed = 1; seld.env = env;
         if (gim_importance_map(&id, map) != GIM_OK || gim_importance_cumsum(map, RSM, RSM, col, row, env) != GIM_OK ||
-            gim_importance_select(col, row, RSM, RSM, NSEL, 1, pick, env) != GIM_OK ||
+            gim_importance_select(&seld, pick) != GIM_OK ||
             gim_vals_gather_twin(&rsm, pick, NSEL, sel, env) != GIM_OK) return 1;
         free(pos); free(nrm); free(flux); free(area); free(map); free(col); free(row); free(pick);
     }

@@ -90,7 +90,7 @@ int main(void) {
     memset(&env, 0, sizeof env);
     for (k = 0; k < BLOB_RUNS; ++k) {
         double t0 = now_s();
-        if (gim_cache_blob_read(blob, size, env, &back) != GIM_OK) return 1;
+        if (gim_cache_blob_read(blob, size, &back, env) != GIM_OK) return 1;
         t[k] = now_s() - t0;
         free(back.caches);
     }

@@ -90,6 +90,7 @@ int main(void) {
     for (s = 0; s < sizeof rsm_sizes / sizeof rsm_sizes[0]; ++s) {
         float bmin[3], bmax[3], fmin[3], fmax[3];
         gim_light fitted;
+        gim_fit_view_desc fd;
         memset(&sun, 0, sizeof sun);
         sun.irradiance = 3.0f;
         sun.direction = gim_v3(0.3f, 1.0f, 0.2f);
@@ -100,7 +101,10 @@ int main(void) {
         memcpy(bmin, gim_outputs(ctx).bounds_min, sizeof bmin);
         memcpy(bmax, gim_outputs(ctx).bounds_max, sizeof bmax);
         /* the light as gim_update renders it (fitted to the view) */
-        if (gim_light_fit_view(&sun, bmin, bmax, fr.view, fr.proj, fr.view_distance, &fitted, fmin, fmax) != GIM_OK) return 1;
+        memset(&fd, 0, sizeof fd);
+        fd.light = &sun; fd.scene_min = bmin; fd.scene_max = bmax;
+        fd.view = fr.view; fd.proj = fr.proj; fd.view_distance = fr.view_distance;
+        if (gim_light_fit_view(&fd, &fitted, fmin, fmax) != GIM_OK) return 1;
         for (r = 0; r < RUNS; ++r) {
             double t0 = now_ms();
             gim__gl_enter(ctx, "bench");

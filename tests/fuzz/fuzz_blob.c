@@ -22,7 +22,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (size) memcpy(in, data, size);
     if ((mode & 1u) && size >= 4) gim__put32(in + size - 4, gim__crc32(in, size - 4));
     memset(&env, 0, sizeof env);
-    r = gim_cache_blob_read(in, size, env, &set);
+    r = gim_cache_blob_read(in, size, &set, env);
     if (r == GIM_OK) {
         size_t n = gim_cache_blob_size(&set);
         unsigned char *again = (unsigned char *)malloc(n ? n : 1);

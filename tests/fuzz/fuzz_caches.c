@@ -135,7 +135,11 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
                     FZ_CHECK(bd[i].u >= 0.0f && bd[i].v >= 0.0f && bd[i].u + bd[i].v <= 1.0f + 1e-6f);
                     FZ_CHECK(gim__isfinitef(bd[i].h) && gim__all_finite(bd[i].frame, 3) && bd[i].area2 >= 0.0f);
                 }
-                r = gim_caches_follow_twin(s.caches, bd, s.count, tight, nv, fl, d.env);
+                gim_follow_desc fd;
+                memset(&fd, 0, sizeof fd);
+                fd.rest = s.caches; fd.bind = bd; fd.count = s.count; fd.positions = tight; fd.vertex_count = nv;
+                fd.env = d.env;
+                r = gim_caches_follow_twin(&fd, fl);
                 FZ_CHECK(r == GIM_OK || r == GIM_ERROR_INVALID_ARGUMENT);   /* float overflow of huge vertices */
                 for (i = 0; r == GIM_OK && i < s.count; ++i) {
                     const gim_cache *c = &fl[i];

@@ -19,6 +19,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     gim_view_sample vs[8];
     gim_selected_val sel[64];
     gim_env env;
+    gim_select_desc sd;
     gim_result res;
     int all_zero = 1;
     r.p = data; r.n = size;
@@ -37,6 +38,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     flux = (float *)malloc(n * 3 * sizeof(float));
     valid = (float *)malloc(n * sizeof(float));
     if (!map || !col || !row || !pos || !nrm || !flux || !valid) abort();
+    memset(&sd, 0, sizeof sd);
+    sd.column = col; sd.row = row; sd.width = w; sd.height = h; sd.count = count; sd.seed = seed; sd.env = env;
     if (mode % 3 == 0) { /* an RSM and view samples: the whole chain */
         gim_importance_desc d;
         take_bytes(&r, pos, n * 3 * sizeof(float));
@@ -61,7 +64,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (mode % 3 == 2) { /* raw tables: select must survive anything */
         take_bytes(&r, col, n * sizeof(double));
         take_bytes(&r, row, w * sizeof(double));
-        res = gim_importance_select(col, row, w, h, count, seed, sel, env);
+        res = gim_importance_select(&sd, sel);
         if (res != GIM_OK) goto done;
         for (i = 0; i < count; ++i)
             if (sel[i].x >= w || sel[i].y >= h || !(sel[i].pdf > 0.0f && sel[i].pdf <= 1.0f)) abort();
@@ -69,7 +72,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     }
     if (gim_importance_cumsum(map, w, h, col, row, env) != GIM_OK) goto done;
     for (i = 0; i < n; ++i) if (map[i] > 0.0f) all_zero = 0;
-    if (gim_importance_select(col, row, w, h, count, seed, sel, env) != GIM_OK) abort();
+    if (gim_importance_select(&sd, sel) != GIM_OK) abort();
     for (i = 0; i < count; ++i) {
         if (sel[i].x >= w || sel[i].y >= h || !(sel[i].pdf > 0.0f && sel[i].pdf <= 1.0f)) abort();
         if (!all_zero && !(map[(size_t)sel[i].y * w + sel[i].x] > 0.0f)) abort();

@@ -25,6 +25,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     gim_twin_scene s;
     gim_light l;
     gim_mat4 view, proj;
+    gim_camera cam;
     gim_view_sample vs[8];
     uint32_t pixels[16], ntri, x, y, w, h;
     gim_result res;
@@ -50,7 +51,9 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     if (res == GIM_OK && (!finite_n(view.m, 16) || !finite_n(proj.m, 16))) abort();
     {
         gim_rsm_texel t;
-        if (gim_rsm_texel_twin(&s, &l, bmin, bmax, x, y, &t) == GIM_OK) {
+        gim_rsm_view rv;
+        rv.light = &l; rv.bmin = bmin; rv.bmax = bmax;
+        if (gim_rsm_texel_twin(&s, &rv, x, y, &t) == GIM_OK) {
             if (!finite_n(t.flux, 3) || !(t.area >= 0.0f) || !finite_n(&t.area, 1) || !(t.depth >= -1e-3f)) abort();
             if (t.flux[0] < 0.0f || t.flux[1] < 0.0f || t.flux[2] < 0.0f) abort();
             if (t.triangle != UINT32_MAX && (t.triangle >= ntri || !finite_n(t.position, 3))) abort();
@@ -59,9 +62,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
     }
     w = 1u + take_u32(&r) % 8u;
     h = 1u + take_u32(&r) % 8u;
+    cam.view = view; cam.proj = proj; cam.width = w; cam.height = h;
     {
         gim_gbuffer_texel t;
-        if (gim_gbuffer_texel_twin(&s, view, proj, w, h, x % w, y % h, &t) == GIM_OK) {
+        if (gim_gbuffer_texel_twin(&s, &cam, x % w, y % h, &t) == GIM_OK) {
             if (t.triangle != UINT32_MAX && (t.triangle >= ntri || !finite_n(t.position, 3))) abort();
             check_unit_or_zero(t.normal);
         }
@@ -75,7 +79,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
             uint32_t i;
             for (i = 0; i < 8; ++i)
                 if (pixels[2 * i] >= w || pixels[2 * i + 1] >= h) abort();
-            if (w * h <= 16 && gim_view_samples_twin(depth, gnrm, w, h, view, proj, pixels, 8, vs) == GIM_OK) {
+            if (w * h <= 16 && gim_view_samples_twin(depth, gnrm, &cam, pixels, 8, vs) == GIM_OK) {
                 for (i = 0; i < 8; ++i) {
                     float n[3];
                     n[0] = vs[i].normal.x; n[1] = vs[i].normal.y; n[2] = vs[i].normal.z;

@@ -233,6 +233,7 @@ static void twin(void **state) {
     float bent[NV * 3];
     gim_cache *gpu, *cpu;
     gim_cache_binding *bind;
+    gim_follow_desc fd;
     gim_mesh_data d;
     double dp, dn, da;
     int path;
@@ -250,7 +251,10 @@ static void twin(void **state) {
         read_followed(&h, gpu);
         d = plate_data(h.rest);
         assert_int_equal(gim_cache_bind(&d, h.plate_set.caches, h.plate_set.count, bind, h.f.env), GIM_OK);
-        assert_int_equal(gim_caches_follow_twin(h.plate_set.caches, bind, h.plate_set.count, bent, NV, cpu, h.f.env), GIM_OK);
+        memset(&fd, 0, sizeof fd);
+        fd.rest = h.plate_set.caches; fd.bind = bind; fd.count = h.plate_set.count; fd.positions = bent;
+        fd.vertex_count = NV; fd.env = h.f.env;
+        assert_int_equal(gim_caches_follow_twin(&fd, cpu), GIM_OK);
         cache_diff(gpu, cpu, h.plate_set.count, &dp, &dn, &da);
         print_message("path %d: %u caches, GPU vs twin: position %.2e, normal %.2e, area %.2e (relative)\n", path,
                       (unsigned)h.plate_set.count, dp, dn, da);
@@ -361,6 +365,7 @@ static void same_as_static(void (*deform)(const float *, float *), gim_visibilit
     deform_fx h;
     gim_cache_set moved;
     gim_cache_binding *bind;
+    gim_follow_desc fd;
     gim_mesh_data d;
     double e1, e2, e0, mean;
     /* the rest caches, generated as setup generates them, followed on the CPU */
@@ -372,7 +377,10 @@ static void same_as_static(void (*deform)(const float *, float *), gim_visibilit
     bind = (gim_cache_binding *)malloc(h.plate_set.count * sizeof(gim_cache_binding));
     d = plate_data(h.rest);
     assert_int_equal(gim_cache_bind(&d, h.plate_set.caches, h.plate_set.count, bind, h.f.env), GIM_OK);
-    assert_int_equal(gim_caches_follow_twin(h.plate_set.caches, bind, h.plate_set.count, p, NV, moved.caches, h.f.env), GIM_OK);
+    memset(&fd, 0, sizeof fd);
+    fd.rest = h.plate_set.caches; fd.bind = bind; fd.count = h.plate_set.count; fd.positions = p; fd.vertex_count = NV;
+    fd.env = h.f.env;
+    assert_int_equal(gim_caches_follow_twin(&fd, moved.caches), GIM_OK);
     teardown(&h);
     image(0, p, &moved, vis, stat);
     image(1, p, NULL, vis, def);

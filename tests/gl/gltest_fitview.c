@@ -27,6 +27,8 @@ static void fit_view_follows_the_camera(void **state) {
     gim_frame fr;
     gim_frame_outputs o;
     gim_debug_outputs od;
+    gim_fit_view_desc fd;
+    gim_rsm_view rv;
     float fmin[3], fmax[3], *pos = (float *)malloc(S * S * 16), *nrm = (float *)malloc(S * S * 16),
                             *flux = (float *)malloc(S * S * 16), vs[256 * 8];
     double area_scene, area_view, total = 0.0, a;
@@ -86,10 +88,13 @@ static void fit_view_follows_the_camera(void **state) {
     }
 
     /* the same camera as the twin's: gim_light_fit_view then gim_light_camera */
+    memset(&fd, 0, sizeof fd);
+    fd.light = &l; fd.scene_min = o.bounds_min; fd.scene_max = o.bounds_max; fd.view = fr.view; fd.proj = fr.proj;
+    rv.light = &fl; rv.bmin = fmin; rv.bmax = fmax;
     {
         gim_mat4 v, p;
         int k;
-        assert_int_equal(gim_light_fit_view(&l, o.bounds_min, o.bounds_max, fr.view, fr.proj, 0.0f, &fl, fmin, fmax), GIM_OK);
+        assert_int_equal(gim_light_fit_view(&fd, &fl, fmin, fmax), GIM_OK);
         assert_int_equal(gim_light_camera(&fl, fmin, fmax, &v, &p), GIM_OK);
         for (k = 0; k < 16; ++k) {
             assert_true(v.m[k] == o.lights[0].view.m[k]);
@@ -129,7 +134,7 @@ static void fit_view_follows_the_camera(void **state) {
             gim_rsm_texel tw;
             x = (uint32_t)(k * 7) % S;
             y = (uint32_t)(k * 13 + 5) % S;
-            assert_int_equal(gim_rsm_texel_twin(&ts, &fl, fmin, fmax, x, y, &tw), GIM_OK);
+            assert_int_equal(gim_rsm_texel_twin(&ts, &rv, x, y, &tw), GIM_OK);
             if (tw.triangle == UINT32_MAX) continue;
             for (t = 0; t < 3; ++t) {
                 assert_true(fabsf(pos[(y * S + x) * 4 + t] - tw.position[t]) < 1e-3f * 100.0f);
@@ -144,8 +149,9 @@ static void fit_view_follows_the_camera(void **state) {
     assert_true(pow(2.0 / o.lights[0].proj.m[0] / S, 2.0) < area_view);
     fr.view_distance = -1.0f;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_light_fit_view(&l, o.bounds_min, o.bounds_max, fr.view, fr.proj, NAN, &fl, fmin, fmax),
-                     GIM_ERROR_INVALID_ARGUMENT);
+    fd.view_distance = NAN;
+    assert_int_equal(gim_light_fit_view(&fd, &fl, fmin, fmax), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_light_fit_view(NULL, &fl, fmin, fmax), GIM_ERROR_INVALID_ARGUMENT);
     f.log.errors = 0;
     /* a camera looking out of the world: the whole world again */
     fr.view_distance = 0.0f;

@@ -167,6 +167,7 @@ static void encodings_match_float(void **state) {
         float host_n[W * H * 4], dec_n[W * H * 4], dec_d[W * H];
         GLuint d, n;
         int i, lit = 0, twin_bad = 0;
+        gim_decode_desc dd;
         encode(x, v, nrm, dep);
         d = v->view_z ? texture(GL_R32F, GL_RED, dep) : d0;
         if (v->format == GL_RG) {   /* two floats a texel as uploaded */
@@ -188,13 +189,19 @@ static void encodings_match_float(void **state) {
             for (i = 0; i < W * H; ++i) host_n[i * 4 + 2] = host_n[i * 4 + 3] = 0.0f;
         gltest_read_texture(gim_outputs(x->f.ctx).gbuffer_normal, GL_RGBA, dec_n);
         gltest_read_texture(gim_outputs(x->f.ctx).gbuffer_depth, GL_RED, dec_d);
+        memset(&dd, 0, sizeof dd);
+        dd.encoding = v->encoding; dd.view_space = v->view_space; dd.depth_view_z = v->view_z;
+        dd.view = x->fr.view; dd.proj = x->fr.proj;
         for (i = 0; i < W * H; ++i) {
             float tn[4], td;
             int k;
-            assert_int_equal(gim_gbuffer_decode_twin(v->encoding, v->view_space, v->view_z, x->fr.view, x->fr.proj,
-                                                     host_n + i * 4, v->view_z ? dep[i] : x->depth[i], tn, &td), GIM_OK);
+            assert_int_equal(gim_gbuffer_decode_twin(&dd, host_n + i * 4, v->view_z ? dep[i] : x->depth[i], tn, &td), GIM_OK);
             for (k = 0; k < 4; ++k) twin_bad += fabsf(tn[k] - dec_n[i * 4 + k]) > 1e-3f;
             twin_bad += fabsf(td - dec_d[i]) > 1e-6f;
+        }
+        {
+            float tn[4], td;
+            assert_int_equal(gim_gbuffer_decode_twin(NULL, host_n, 0.5f, tn, &td), GIM_ERROR_INVALID_ARGUMENT);
         }
         print_message("%-32s median %.2e, max %.2e relative to the float G-buffer's image (%d lit pixels); "
                       "decode vs twin: %d values off\n", v->name, med, top, lit, twin_bad);

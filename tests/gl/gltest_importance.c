@@ -322,11 +322,13 @@ static int compare_select(gltest_fixture *f, const double *column, const double 
     gim_selected_val *cpu = (gim_selected_val *)malloc(count * sizeof *cpu);
     gim_selected_val *gpu = (gim_selected_val *)malloc(count * sizeof *gpu);
     GLuint bout = gltest_ssbo(count * sizeof *gpu, NULL);
-    gim_env env = f->env;
+    gim_select_desc sd;
     uint32_t i;
     int differ = 0;
-    if (warn_log) env = test_env(NULL, warn_log);
-    assert_int_equal(gim_importance_select(column, row, w, h, count, seed, cpu, env), GIM_OK);
+    memset(&sd, 0, sizeof sd);
+    sd.column = column; sd.row = row; sd.width = w; sd.height = h; sd.count = count; sd.seed = seed;
+    sd.env = warn_log ? test_env(NULL, warn_log) : f->env;
+    assert_int_equal(gim_importance_select(&sd, cpu), GIM_OK);
     assert_int_equal(gim__gl_importance_select(f->ctx, bc, br, w, h, count, seed, bout), GIM_OK);
     gltest_state_unchanged(f);
     gltest_read_buffer(bout, count * sizeof *gpu, gpu);
@@ -398,6 +400,7 @@ static void chain_matches_twin(void **state) {
     float *map = (float *)malloc(sizeof(float) * W * H);
     double *col = (double *)malloc(sizeof(double) * W * H), row[W];
     gim_selected_val cpu[N], gpu[N];
+    gim_select_desc sd;
     GLuint tp, tn, tf, bvs, bmap, bc, br, bout;
     int i, differ = 0;
     (void)state;
@@ -407,7 +410,9 @@ static void chain_matches_twin(void **state) {
     vs = make_view_samples(S, 3.0f, zero);
     assert_true(compare_map(&f, &r, vs, S, 5.0f, 0.0f, map) < 1e-4);
     assert_int_equal(gim_importance_cumsum(map, W, H, col, row, f.env), GIM_OK);
-    assert_int_equal(gim_importance_select(col, row, W, H, N, 11, cpu, f.env), GIM_OK);
+    memset(&sd, 0, sizeof sd);
+    sd.column = col; sd.row = row; sd.width = W; sd.height = H; sd.count = N; sd.seed = 11; sd.env = f.env;
+    assert_int_equal(gim_importance_select(&sd, cpu), GIM_OK);
 
     tp = texture_rgba32f(W, H, r.position, r.valid);
     tn = texture_rgba32f(W, H, r.normal, NULL);

@@ -186,6 +186,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     gim_mesh mesh;
     gim_instance in;
     gim_frame fr;
+    gim_camera cam;
     gim_frame_outputs o;
     gim_cache *world, *sorted;
     int32_t *cells;
@@ -286,7 +287,8 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     pix = (uint32_t *)malloc(W * H * 8);
     vs = (gim_view_sample *)malloc(W * H * sizeof *vs);
     for (i = 0; i < W * H; ++i) { pix[i * 2] = i % W; pix[i * 2 + 1] = i / W; }
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pix, W * H, vs), GIM_OK);
+    cam.view = fr.view; cam.proj = fr.proj; cam.width = W; cam.height = H;
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, pix, W * H, vs), GIM_OK);
     rec = (gim_receiver *)calloc(W * H, sizeof *rec);
     pos_nrm = (float *)malloc(W * H * 24);
     {

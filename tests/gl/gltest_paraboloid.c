@@ -626,6 +626,7 @@ static void second_bounce_lands_first(void **state) {
     uint32_t cl[NX * NZ], i, x, y, tri, box_first;
     float centre[3] = {0, 0, 0}, up[3] = {0, 1, 0};
     gim_paraboloid map;
+    gim_cluster_desc cd;
     gim_second_bounce_desc d;
     double ff = 0.0, behind, on_box, behind_cpu, on_box_cpu;
     GLuint ssbo, out;
@@ -663,7 +664,10 @@ static void second_bounce_lands_first(void **state) {
         centre[0] += vpls[i].position[0] / (NX * NZ);
         cl[i] = 0;
     }
-    assert_int_equal(gim_cluster_paraboloids_twin(vpls, NX * NZ, cl, centre, up, 1, 4.0f, &map, f.env), GIM_OK);
+    memset(&cd, 0, sizeof cd);
+    cd.vpls = vpls; cd.vpl_count = NX * NZ; cd.cluster = cl; cd.centres = centre; cd.normals = up; cd.cluster_count = 1;
+    cd.scene_scale = 4.0f; cd.env = f.env;
+    assert_int_equal(gim_cluster_paraboloids_twin(&cd, &map), GIM_OK);
     print_message("the cluster: Delta %.3f, near_distance %.3f, attribute_near %.2g, the box's face %.3f away\n",
                   (double)map.size, (double)map.near_distance, (double)map.attribute_near, 0.1 - map.origin[0]);
     assert_true(map.near_distance > 0.45f && map.near_distance > 2.0f * (0.1f - map.origin[0]));

@@ -66,6 +66,7 @@ static void frame_begin(phys_frame *p, phys_which which, double scale, const dou
     gim_mesh_desc md;
     gim_instance in;
     gim_light light;
+    gim_camera cam;
     int q;
     memset(p, 0, sizeof *p);
     phys_scene_make(which, scale, offset, &p->s);
@@ -107,13 +108,14 @@ static void frame_begin(phys_frame *p, phys_which which, double scale, const dou
     p->fr.width = W;
     p->fr.height = H;
     p->fr.indirect_float32 = 1;
+    cam.view = p->fr.view; cam.proj = p->fr.proj; cam.width = W; cam.height = H;
     /* the exact radiance at every pixel's surface point */
     for (y = 0; y < H; ++y)
         for (x = 0; x < W; ++x) {
             gim_gbuffer_texel g;
             double pt[3], n[3];
             int a;
-            assert_int_equal(gim_gbuffer_texel_twin(&p->ts, p->fr.view, p->fr.proj, W, H, x, y, &g), GIM_OK);
+            assert_int_equal(gim_gbuffer_texel_twin(&p->ts, &cam, x, y, &g), GIM_OK);
             p->exact[y * W + x] = 0.0;
             p->edge[y * W + x] = -1.0;
             if (g.triangle == UINT32_MAX) continue;

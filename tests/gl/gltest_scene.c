@@ -195,6 +195,8 @@ static void check_rsm(fixture *f, const gim_light *light, uint32_t light_index, 
     gim_rsm_texel *tw = (gim_rsm_texel *)malloc((size_t)n * n * sizeof *tw);
     double flux_gpu = 0.0, flux_twin = 0.0;
     float radius = 0.0f, far_off = 0.0f, depth_tol;
+    gim_rsm_view rv;
+    rv.light = light; rv.bmin = o.bounds_min; rv.bmax = o.bounds_max;
     for (x = 0; x < 3; ++x) {
         radius += 0.25f * (o.bounds_max[x] - o.bounds_min[x]) * (o.bounds_max[x] - o.bounds_min[x]);
         far_off = fmaxf(far_off, fmaxf(fabsf(o.bounds_min[x]), fabsf(o.bounds_max[x])));
@@ -210,8 +212,7 @@ static void check_rsm(fixture *f, const gim_light *light, uint32_t light_index, 
     read_texture(lo->rsm_depth, GL_DEPTH_COMPONENT, 1, n, n, depth);
     for (y = 0; y < n; ++y)
         for (x = 0; x < n; ++x)
-            assert_int_equal(gim_rsm_texel_twin(&f->twin, light, o.bounds_min, o.bounds_max, (uint32_t)x, (uint32_t)y,
-                                                &tw[y * n + x]), GIM_OK);
+            assert_int_equal(gim_rsm_texel_twin(&f->twin, &rv, (uint32_t)x, (uint32_t)y, &tw[y * n + x]), GIM_OK);
     for (y = 1; y < n - 1; ++y)
         for (x = 1; x < n - 1; ++x) {
             const gim_rsm_texel *t = &tw[y * n + x];
@@ -414,6 +415,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     gim_view_sample vs_twin[256];
     uint32_t pixels[256 * 2];
     int x, y, i, compared = 0, usable = 0, round;
+    gim_camera cam;
     (void)state;
     GLTEST_BEGIN();
     fixture_begin(&f);
@@ -425,6 +427,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     fr = default_frame(1.0f, origin, W, H);
     fr.lightskin.view_sample_count = 256;
+    cam.view = fr.view; cam.proj = fr.proj; cam.width = W; cam.height = H;
     assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
     o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
     read_texture(o.gbuffer_normal, GL_RGBA, 4, W, H, nrm);
@@ -432,8 +435,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
     read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, 1, W, H, depth);
     for (y = 0; y < H; ++y)
         for (x = 0; x < W; ++x)
-            assert_int_equal(gim_gbuffer_texel_twin(&f.twin, fr.view, fr.proj, W, H, (uint32_t)x, (uint32_t)y, &tw[y * W + x]),
-                             GIM_OK);
+            assert_int_equal(gim_gbuffer_texel_twin(&f.twin, &cam, (uint32_t)x, (uint32_t)y, &tw[y * W + x]), GIM_OK);
     for (y = 1; y < H - 1; ++y)
         for (x = 1; x < W - 1; ++x) {
             int k, j = y * W + x, nb[4];
@@ -463,7 +465,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
         assert_int_equal(od.view_sample_count, 256);
         gltest_read_buffer(od.view_samples, sizeof vs_gpu, vs_gpu);
         assert_int_equal(gim_view_sample_pixels(256, W, H, round ? off : NULL, pixels), GIM_OK);
-        assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pixels, 256, vs_twin), GIM_OK);
+        assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, pixels, 256, vs_twin), GIM_OK);
         usable = 0;
         for (i = 0; i < 256; ++i) {
             const gim_gbuffer_texel *t = &tw[pixels[2 * i + 1] * W + pixels[2 * i]];

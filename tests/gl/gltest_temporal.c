@@ -1,7 +1,7 @@
 /* Temporal coherence, gim_frame.lightskin.temporal_steps L (the aim of Laine et al.'s incremental instant
    radiosity, 2007): the BRSM selection's and the view samples' offsets move by 1/L of their
    points' spacing a frame instead of jumping. On the built-in Cornell box:
-   - the selection is the twin's (gim_importance_select_offsets with gim_drift_offsets), and
+   - the selection is the twin's (gim_importance_select with gim_drift_offsets), and
      from one frame to the next most VALs keep their texel;
    - a static scene: each frame is as near FULL as with new offsets every frame (the same
      stratified set, moved), and the frame-to-frame change falls several-fold;
@@ -37,13 +37,16 @@ static void twin_selected(gim_context *ctx, uint32_t frame_index, uint32_t steps
     uint32_t size = o->lights[0].rsm_size;
     double *column = (double *)malloc((size_t)size * size * sizeof(double)), *row = (double *)malloc(size * sizeof(double));
     float off[4];
+    gim_select_desc sd;
     if (steps > 1)
         gim_drift_offsets(off, 2, gim__select_seed(0, 0), frame_index, 1.0 / ((double)n * steps));
     else
         gim_rotation_offsets(off, 4, gim__select_seed(frame_index, 0));
     gltest_read_buffer(o->lights[0].column, (size_t)size * size * sizeof(double), column);
     gltest_read_buffer(o->lights[0].row, size * sizeof(double), row);
-    assert_int_equal(gim_importance_select_offsets(column, row, size, size, n, off, s, env), GIM_OK);
+    memset(&sd, 0, sizeof sd);
+    sd.column = column; sd.row = row; sd.width = size; sd.height = size; sd.count = n; sd.offsets = off; sd.env = env;
+    assert_int_equal(gim_importance_select(&sd, s), GIM_OK);
     free(column);
     free(row);
 }

@@ -79,6 +79,7 @@ static void run_case(const shade_case *sc) {
     gim_mesh mesh;
     gim_instance in;
     gim_frame fr;
+    gim_camera cam;
     gim_frame_outputs out;
     gim_vpl vpls[NV];
     uint32_t cluster[NV], i, pix_count = W * H;
@@ -230,7 +231,8 @@ static void run_case(const shade_case *sc) {
     rec = (gim_receiver *)calloc(W * H, sizeof *rec);
     surface = (int *)calloc(W * H, sizeof *surface);
     for (i = 0; i < pix_count; ++i) { pixels[i * 2] = i % W; pixels[i * 2 + 1] = i / W; }
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, fr.view, fr.proj, pixels, W * H, vs), GIM_OK);
+    cam.view = fr.view; cam.proj = fr.proj; cam.width = W; cam.height = H;
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, pixels, W * H, vs), GIM_OK);
     for (i = 0; i < pix_count; ++i) {
         surface[i] = room_receiver(&vs[i], eye, alb + i * 4, mat[i], sc->host, rec + i);
     }

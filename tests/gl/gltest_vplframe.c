@@ -44,6 +44,7 @@ static void clusters_match_twin(frame_fixture *ff) {
     gim_paraboloid *gpu = (gim_paraboloid *)malloc(m * sizeof *gpu), *cpu = (gim_paraboloid *)malloc(m * sizeof *cpu);
     float *centres4 = (float *)malloc(m * 32), *c3 = (float *)malloc(m * 12), *n3 = (float *)malloc(m * 12);
     double worst = 0.0;
+    gim_cluster_desc cd;
     assert_true(n > 0 && m > 0 && od.vpls && od.clusters && od.kmeans_centres && od.vpl_clusters);
     gltest_read_buffer(od.vpls, n * sizeof *v, v);
     gltest_read_buffer(od.vpl_clusters, n * 4, asg);
@@ -55,7 +56,10 @@ static void clusters_match_twin(frame_fixture *ff) {
         memcpy(n3 + 3 * i, centres4 + 8 * i + 4, 12);
         assert_true(centres4[8 * i + 3] >= 1.0f);   /* no cluster lost */
     }
-    assert_int_equal(gim_cluster_paraboloids_twin(v, n, asg, c3, n3, m, o.scene_scale, cpu, ff->f.env), GIM_OK);
+    memset(&cd, 0, sizeof cd);
+    cd.vpls = v; cd.vpl_count = n; cd.cluster = asg; cd.centres = c3; cd.normals = n3; cd.cluster_count = m;
+    cd.scene_scale = o.scene_scale; cd.env = ff->f.env;
+    assert_int_equal(gim_cluster_paraboloids_twin(&cd, cpu), GIM_OK);
     for (i = 0; i < m; ++i) {
         int k;
         double e = 0.0;

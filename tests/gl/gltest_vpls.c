@@ -102,6 +102,7 @@ typedef struct vpl_stats {
 static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vpl_sequence seq, const float *offsets,
                      vpl_stats *st) {
     gim_rsm_data d = rsm_data(r);
+    gim_rsm_vpls_desc vd;
     float *p = (float *)malloc(count * 12), *n = (float *)malloc(count * 12), *fl = (float *)malloc(count * 12);
     float *gpu = (float *)malloc((count + 3) * 48);
     double sum[3] = {0, 0, 0}, gsum[3] = {0, 0, 0};
@@ -109,7 +110,9 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
     GLuint out;
     for (i = 0; i < (count + 3) * 12; ++i) gpu[i] = -7.0f;
     out = gltest_ssbo((count + 3) * 48, gpu);
-    assert_int_equal(gim_rsm_vpls_twin(&d, count, seq, offsets, p, n, fl, f->env), GIM_OK);
+    memset(&vd, 0, sizeof vd);
+    vd.rsm = &d; vd.count = count; vd.sequence = seq; vd.offsets = offsets; vd.env = f->env;
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, n, fl), GIM_OK);
     assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, seq, offsets, out), GIM_OK);
     gltest_state_unchanged(f);
     gltest_read_buffer(out, (count + 3) * 48, gpu);
@@ -480,6 +483,7 @@ static void vpls_into_kmeans(void **state) {
     kmeans_stats st;
     vpl_rsm r;
     gim_rsm_data d;
+    gim_rsm_vpls_desc vd;
     float *p = (float *)malloc(n * 12), *nn = (float *)malloc(n * 12), *fl = (float *)malloc(n * 12);
     uint32_t t, k;
     GLuint bv;
@@ -503,7 +507,9 @@ static void vpls_into_kmeans(void **state) {
     r.tex[1] = texture_rgba(size, r.normal4);
     r.tex[2] = texture_rgba(size, r.flux4);
     d = rsm_data(&r);
-    assert_int_equal(gim_rsm_vpls_twin(&d, n, GIM_VPL_SEQUENCE_HALTON, off, p, nn, fl, f.env), GIM_OK);
+    memset(&vd, 0, sizeof vd);
+    vd.rsm = &d; vd.count = n; vd.sequence = GIM_VPL_SEQUENCE_HALTON; vd.offsets = off; vd.env = f.env;
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, nn, fl), GIM_OK);
     bv = gltest_ssbo(n * 48, NULL);
     assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, GIM_VPL_SEQUENCE_HALTON, off, bv), GIM_OK);
     for (k = 1; k <= 8; k *= 2) kmeans_compare(&f, bv, p, nn, fl, n, 30, k, GIM_KMEANS_METRIC_DONG, origin, 10.0f, &st);

@@ -82,6 +82,7 @@ static FRAMEFIX_UNUSED uint32_t frame_receivers(frame_fixture *ff, gim_receiver 
     uint32_t *pix = (uint32_t *)malloc(W * H * 8), i, nrec = 0;
     gim_mat4 inv;
     gim_vec3 eye;
+    gim_camera cam;
     gltest_read_texture(o.gbuffer_depth, GL_DEPTH_COMPONENT, depth);
     gltest_read_texture(o.gbuffer_normal, GL_RGBA, nrm);
     gltest_read_texture(o.gbuffer_albedo, GL_RGBA, alb);
@@ -89,7 +90,8 @@ static FRAMEFIX_UNUSED uint32_t frame_receivers(frame_fixture *ff, gim_receiver 
     assert_true(gim_mat4_invert(ff->fr.view, &inv));
     eye = gim_v3(inv.m[12], inv.m[13], inv.m[14]);
     for (i = 0; i < W * H; ++i) { pix[i * 2] = i % W; pix[i * 2 + 1] = i / W; }
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, ff->fr.view, ff->fr.proj, pix, W * H, vs), GIM_OK);
+    cam.view = ff->fr.view; cam.proj = ff->fr.proj; cam.width = W; cam.height = H;
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, pix, W * H, vs), GIM_OK);
     for (i = 0; i < W * H; ++i) {
         gim_receiver *rc = rec + nrec;
         double v[3], l;

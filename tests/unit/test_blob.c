@@ -50,7 +50,7 @@ static void round_trip_bit_exact(void **state) {
     assert_memory_equal(blob, "GIMCACHE", 8);
     assert_int_equal(blob[8], 1); /* version 1, little-endian */
     assert_int_equal(blob[20], C); assert_int_equal(blob[21], 0);
-    assert_int_equal(gim_cache_blob_read(blob, size, env, &back), GIM_OK);
+    assert_int_equal(gim_cache_blob_read(blob, size, &back, env), GIM_OK);
     assert_int_equal(back.count, C);
     assert_memory_equal(back.caches, caches, sizeof caches); /* every bit, -0 and subnormals too */
     assert_true(memcmp(&back.d_eps, &set.d_eps, 4) == 0 && memcmp(&back.theta_eps, &set.theta_eps, 4) == 0);
@@ -66,13 +66,13 @@ static void round_trip_bit_exact(void **state) {
     assert_int_equal(back.count, 0);
     /* one trailing byte is a size mismatch */
     blob[size] = 0;
-    assert_int_equal(gim_cache_blob_read(blob, size + 1, env, &back), GIM_ERROR_CORRUPT_DATA);
+    assert_int_equal(gim_cache_blob_read(blob, size + 1, &back, env), GIM_ERROR_CORRUPT_DATA);
     assert_non_null(strstr(lg.last, "size mismatch"));
     /* an empty set round-trips too */
     set.count = 0; set.caches = NULL;
     assert_int_equal(gim_cache_blob_size(&set), 92);
     assert_int_equal(gim_cache_blob_write(&set, blob, 92), GIM_OK);
-    assert_int_equal(gim_cache_blob_read(blob, 92, env, &back), GIM_OK);
+    assert_int_equal(gim_cache_blob_read(blob, 92, &back, env), GIM_OK);
     assert_int_equal(back.count, 0);
     assert_null(back.caches);
     assert_int_equal(st.live, 0);
@@ -101,7 +101,7 @@ static void every_corruption_and_truncation(void **state) {
             memcpy(bad, blob, sizeof blob);
             bad[i] ^= flips[f];
             memset(&back, 0x5a, sizeof back);
-            if (gim_cache_blob_read(bad, sizeof bad, env, &back) != GIM_ERROR_CORRUPT_DATA) {
+            if (gim_cache_blob_read(bad, sizeof bad, &back, env) != GIM_ERROR_CORRUPT_DATA) {
                 print_error("byte %zu ^ 0x%02x accepted\n", i, flips[f]);
                 fail();
             }
@@ -112,14 +112,14 @@ static void every_corruption_and_truncation(void **state) {
     for (len = 0; len < sizeof blob; ++len) {
         unsigned char *cut = (unsigned char *)malloc(len ? len : 1); /* exact size: ASan sees any overread */
         memcpy(cut, blob, len);
-        if (gim_cache_blob_read(cut, len, env, &back) != GIM_ERROR_CORRUPT_DATA) {
+        if (gim_cache_blob_read(cut, len, &back, env) != GIM_ERROR_CORRUPT_DATA) {
             print_error("truncation to %zu accepted\n", len);
             fail();
         }
         free(cut);
     }
     assert_int_equal(st.live, 0);
-    assert_int_equal(gim_cache_blob_read(blob, sizeof blob, env, &back), GIM_OK);
+    assert_int_equal(gim_cache_blob_read(blob, sizeof blob, &back, env), GIM_OK);
     gim_cache_set_free(&back);
     assert_int_equal(st.live, 0);
 }
@@ -140,7 +140,7 @@ static void valid_checksum_invalid_fields(void **state) {
     make_set(&set, caches, C);
     assert_int_equal(gim_cache_blob_write(&set, blob, S), GIM_OK);
 #define EXPECT_BAD(what, edit) do { memcpy(bad, blob, S); edit; reseal(bad, S); \
-        assert_int_equal(gim_cache_blob_read(bad, S, env, &back), GIM_ERROR_CORRUPT_DATA); \
+        assert_int_equal(gim_cache_blob_read(bad, S, &back, env), GIM_ERROR_CORRUPT_DATA); \
         if (!strstr(lg.last, what)) { print_error("'%s' not in '%s'\n", what, lg.last); fail(); } \
         assert_int_equal(st.live, 0); } while (0)
     EXPECT_BAD("magic", bad[0] = 'X');
@@ -169,10 +169,10 @@ static void valid_checksum_invalid_fields(void **state) {
 #undef EXPECT_BAD
     /* not resealed: a payload byte, then the stored CRC itself */
     memcpy(bad, blob, S); bad[100] ^= 0x10;
-    assert_int_equal(gim_cache_blob_read(bad, S, env, &back), GIM_ERROR_CORRUPT_DATA);
+    assert_int_equal(gim_cache_blob_read(bad, S, &back, env), GIM_ERROR_CORRUPT_DATA);
     assert_non_null(strstr(lg.last, "checksum mismatch"));
     memcpy(bad, blob, S); bad[S - 1] ^= 0x10;
-    assert_int_equal(gim_cache_blob_read(bad, S, env, &back), GIM_ERROR_CORRUPT_DATA);
+    assert_int_equal(gim_cache_blob_read(bad, S, &back, env), GIM_ERROR_CORRUPT_DATA);
     assert_non_null(strstr(lg.last, "checksum mismatch"));
     assert_int_equal(st.live, 0);
 }
@@ -206,17 +206,17 @@ static void writer_and_argument_errors(void **state) {
     set.caches = caches;
     assert_int_equal(lg.errors, 6);
     assert_int_equal(gim_cache_blob_write(&set, blob, S), GIM_OK);
-    assert_int_equal(gim_cache_blob_read(NULL, S, set.env, &back), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_cache_blob_read(blob, S, set.env, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cache_blob_read(NULL, S, &back, set.env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cache_blob_read(blob, S, NULL, set.env), GIM_ERROR_INVALID_ARGUMENT);
     /* out of memory on read: an error, nothing leaked, out untouched */
     st.fail_after = 0;
     memset(&back, 0x5a, sizeof back);
-    assert_int_equal(gim_cache_blob_read(blob, S, set.env, &back), GIM_ERROR_OUT_OF_MEMORY);
+    assert_int_equal(gim_cache_blob_read(blob, S, &back, set.env), GIM_ERROR_OUT_OF_MEMORY);
     assert_int_equal(back.count, 0x5a5a5a5au);
     assert_int_equal(st.live, 0);
     st.fail_after = -1;
     k = st.allocs;
-    assert_int_equal(gim_cache_blob_read(blob, S, set.env, &back), GIM_OK);
+    assert_int_equal(gim_cache_blob_read(blob, S, &back, set.env), GIM_OK);
     assert_int_equal(st.allocs - k, 1);
     gim_cache_set_free(&back);
     gim_cache_set_free(NULL);

@@ -8,6 +8,15 @@
 static const float sq[12] = {0, 0, 0, 1, 0, 0, 1, 0, -1, 0, 0, -1};
 static const uint32_t sq_idx[6] = {0, 1, 2, 0, 2, 3};
 
+/* gim_caches_follow_twin with its desc filled from arguments. */
+static gim_result follow(const gim_cache *rest, const gim_cache_binding *bind, uint32_t count, const float *positions,
+                         uint32_t vertex_count, gim_cache *out, gim_env env) {
+    gim_follow_desc d;
+    memset(&d, 0, sizeof d);
+    d.rest = rest; d.bind = bind; d.count = count; d.positions = positions; d.vertex_count = vertex_count; d.env = env;
+    return gim_caches_follow_twin(&d, out);
+}
+
 static gim_mesh_data square(const float *p) {
     gim_mesh_data d;
     memset(&d, 0, sizeof d);
@@ -42,7 +51,7 @@ static void rest_and_affine(void **state) {
     c[2].normal[0] = (float)s; c[2].normal[1] = (float)s;   /* tilted 45 degrees from its triangle */
     assert_int_equal(gim_cache_bind(&d, c, 3, b, env0), GIM_OK);
     assert_true(fabsf(b[1].h - 0.05f) < 1e-7f);
-    assert_int_equal(gim_caches_follow_twin(c, b, 3, sq, 4, out, env0), GIM_OK);
+    assert_int_equal(follow(c, b, 3, sq, 4, out, env0), GIM_OK);
     for (i = 0; i < 3; ++i)
         for (k = 0; k < 3; ++k) {
             assert_true(fabsf(out[i].position[k] - c[i].position[k]) < 1e-6f);
@@ -57,7 +66,7 @@ static void rest_and_affine(void **state) {
         gim_vec3 p = gim_mat4_point(a, gim_v3(sq[i * 3], sq[i * 3 + 1], sq[i * 3 + 2]));
         moved[i * 3] = p.x; moved[i * 3 + 1] = p.y; moved[i * 3 + 2] = p.z;
     }
-    assert_int_equal(gim_caches_follow_twin(c, b, 3, moved, 4, out, env0), GIM_OK);
+    assert_int_equal(follow(c, b, 3, moved, 4, out, env0), GIM_OK);
     assert_int_equal(gim_caches_to_world(c, 3, a, want, env0), GIM_OK);
     for (i = 0; i < 3; ++i) {
         for (k = 0; k < 3; ++k) {
@@ -111,7 +120,7 @@ static void refusals(void **state) {
     assert_int_equal(gim_cache_bind(&d, &c, 1, &b, env), GIM_OK);
     memcpy(flat, sq, sizeof flat);
     flat[6] = 0.0f; flat[8] = 0.0f;   /* vertex 2 onto vertex 0: both triangles collapse */
-    assert_int_equal(gim_caches_follow_twin(&c, &b, 1, flat, 4, &out, env), GIM_OK);
+    assert_int_equal(follow(&c, &b, 1, flat, 4, &out, env), GIM_OK);
     assert_true(out.area == 0.0f && out.normal[1] == 1.0f);
 #define EXPECT(call) do { assert_int_equal((call), GIM_ERROR_INVALID_ARGUMENT); assert_int_equal(log.errors, ++errors); } while (0)
     EXPECT(gim_cache_bind(NULL, &c, 1, &b, env));
@@ -125,10 +134,11 @@ static void refusals(void **state) {
     d = square(sq);
     d.vertex_count = 3;
     EXPECT(gim_cache_bind(&d, &c, 1, &b, env));             /* index 3 out of range */
-    EXPECT(gim_caches_follow_twin(&c, &b, 1, sq, 2, &out, env)); /* a binding past the vertices */
-    EXPECT(gim_caches_follow_twin(&c, &b, 1, nan_pos, 4, &out, env));   /* non-finite positions */
-    EXPECT(gim_caches_follow_twin(&c, NULL, 1, sq, 4, &out, env));
+    EXPECT(follow(&c, &b, 1, sq, 2, &out, env)); /* a binding past the vertices */
+    EXPECT(follow(&c, &b, 1, nan_pos, 4, &out, env));   /* non-finite positions */
+    EXPECT(follow(&c, NULL, 1, sq, 4, &out, env));
 #undef EXPECT
+    assert_int_equal(gim_caches_follow_twin(NULL, &out), GIM_ERROR_INVALID_ARGUMENT); /* no env to log through */
     assert_int_equal(st.live, 0);
 }
 

@@ -34,6 +34,16 @@ static gim_importance_desc desc_for(const test_rsm *r, const gim_view_sample *vs
     return d;
 }
 
+/* gim_importance_select with the offsets drawn from seed (gim_select_desc.offsets NULL), the
+   form most tests here take. */
+static gim_result select_seed(const double *column, const double *row, uint32_t w, uint32_t h, uint32_t count,
+                              uint32_t seed, gim_selected_val *out, gim_env env) {
+    gim_select_desc d;
+    memset(&d, 0, sizeof d);
+    d.column = column; d.row = row; d.width = w; d.height = h; d.count = count; d.seed = seed; d.env = env;
+    return gim_importance_select(&d, out);
+}
+
 static gim_view_sample vsample(float px, float py, float pz, float nx, float ny, float nz) {
     gim_view_sample s;
     s.position = gim_v3(px, py, pz);
@@ -298,7 +308,7 @@ static void chi_square_frequencies(void **state) {
     }
     for (k = 0; k < 4; ++k) qw[k] = q[k] * (k == 0 ? 1.1 : 1.0) / (1.0 + 0.1 * q[0]);
     for (s = 0; s < seeds; ++s) {
-        assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 1000u + s, sel, env), GIM_OK);
+        assert_int_equal(select_seed(t.col, t.row, w, h, count, 1000u + s, sel, env), GIM_OK);
         for (k = 0; k < count; ++k) {
             size_t idx = (size_t)sel[k].y * w + sel[k].x;
             assert_true(sel[k].x < w && sel[k].y < h);
@@ -350,7 +360,7 @@ static void count_one(void **state) {
     t = tables_of(map, w, h);
     for (i = 0; i < 64; ++i) p[i] = map[i] / total;
     for (s = 0; s < seeds; ++s) {
-        assert_int_equal(gim_importance_select(t.col, t.row, w, h, 1, s, &sel, test_env(NULL, NULL)), GIM_OK);
+        assert_int_equal(select_seed(t.col, t.row, w, h, 1, s, &sel, test_env(NULL, NULL)), GIM_OK);
         assert_true(sel.x < w && sel.y < h);
         assert_true(rel_close(sel.pdf, p[sel.y * w + sel.x], 1e-6));
         obs[sel.y * w + sel.x]++;
@@ -382,7 +392,7 @@ static void huge_count(void **state) {
         coltot[i % w] += map[i];
     }
     t = tables_of(map, w, h);
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 7u, sel, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 7u, sel, test_env(NULL, NULL)), GIM_OK);
     for (k = 0; k < count; ++k) {
         obs[(size_t)sel[k].y * w + sel[k].x]++;
         colobs[sel[k].x]++;
@@ -428,7 +438,7 @@ static void documented_scheme(void **state) {
         gim_rotation_offsets(f, 4, seed);
         o0 = (double)f[0] + (double)f[2] / 16777216.0;
         o1 = (double)f[1] + (double)f[3] / 16777216.0;
-        assert_int_equal(gim_importance_select(col, row, w, h, count, seed, sel, test_env(NULL, NULL)), GIM_OK);
+        assert_int_equal(select_seed(col, row, w, h, count, seed, sel, test_env(NULL, NULL)), GIM_OK);
         for (i = 0; i < count; ++i) {
             double u = fmod((double)i / count + o0, 1.0), v = fmod(gim_radical_inverse(2, i) + o1, 1.0), ct, p;
             for (x = 0; !(row[x] > u * total); ++x) {}
@@ -455,7 +465,7 @@ static void width_or_height_one(void **state) {
         uint32_t w = pass ? 1u : 37u, h = pass ? 37u : 1u;
         test_tables t = tables_of(map, w, h);
         assert_true(t.row[w - 1] == total);
-        assert_int_equal(gim_importance_select(t.col, t.row, w, h, 3700, 3, sel, test_env(NULL, NULL)), GIM_OK);
+        assert_int_equal(select_seed(t.col, t.row, w, h, 3700, 3, sel, test_env(NULL, NULL)), GIM_OK);
         memset(obs, 0, sizeof obs);
         for (i = 0; i < 3700; ++i) {
             uint32_t idx = sel[i].x + sel[i].y * w;
@@ -476,7 +486,7 @@ static void width_or_height_one(void **state) {
         float one = 2.5f;
         double c, r;
         assert_int_equal(gim_importance_cumsum(&one, 1, 1, &c, &r, test_env(NULL, NULL)), GIM_OK);
-        assert_int_equal(gim_importance_select(&c, &r, 1, 1, 5, 9, sel, test_env(NULL, NULL)), GIM_OK);
+        assert_int_equal(select_seed(&c, &r, 1, 1, 5, 9, sel, test_env(NULL, NULL)), GIM_OK);
         for (i = 0; i < 5; ++i) assert_true(sel[i].x == 0 && sel[i].y == 0 && sel[i].pdf == 1.0f);
     }
 }
@@ -499,7 +509,7 @@ static void all_zero_map(void **state) {
     assert_int_equal(gim_importance_map(&d, map), GIM_OK);
     for (i = 0; i < w * h; ++i) assert_true(map[i] == 0.0f);
     t = tables_of(map, w, h);
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 11, sel, env), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 11, sel, env), GIM_OK);
     assert_int_equal(lg.warnings, 1);
     assert_non_null(strstr(lg.last, "all zero"));
     for (i = 0; i < count; ++i) {
@@ -523,14 +533,26 @@ static void reproducible(void **state) {
     for (i = 0; i < 512; ++i) map[i] = (float)test_rand01();
     t = tables_of(map, w, h);
     memset(a, 0, sizeof a); memset(b, 0xff, sizeof b);
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 42, a, test_env(NULL, NULL)), GIM_OK);
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 42, b, test_env(NULL, NULL)), GIM_OK);
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 43, c, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 42, a, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 42, b, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 43, c, test_env(NULL, NULL)), GIM_OK);
     for (i = 0; i < 512; ++i) {
         assert_true(a[i].x == b[i].x && a[i].y == b[i].y && a[i].pdf == b[i].pdf);
         differ += a[i].x != c[i].x || a[i].y != c[i].y;
     }
     assert_true(differ > 256);
+    { /* offsets given: seed 42's own offsets pick as seed 42 does (one call, two ways in) */
+        gim_select_desc d;
+        float off[4];
+        memset(&d, 0, sizeof d);
+        gim_rotation_offsets(off, 4u, 42u);
+        d.column = t.col; d.row = t.row; d.width = w; d.height = h; d.count = count;
+        d.seed = 43u; /* ignored: offsets win */
+        d.offsets = off;
+        memset(b, 0xff, sizeof b);
+        assert_int_equal(gim_importance_select(&d, b), GIM_OK);
+        for (i = 0; i < 512; ++i) assert_true(a[i].x == b[i].x && a[i].y == b[i].y && a[i].pdf == b[i].pdf);
+    }
     tables_free(&t);
 }
 
@@ -602,20 +624,21 @@ static void argument_errors(void **state) {
 
     /* select */
     assert_int_equal(gim_importance_cumsum(map, 4, 4, col, row, env), GIM_OK);
-    EXPECT_ERR(gim_importance_select(NULL, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "gim_importance_select");
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 8, 0, NULL, env), GIM_ERROR_INVALID_ARGUMENT, "gim_importance_select");
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 0, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "count is 0");
-    EXPECT_ERR(gim_importance_select(col, row, 4, 0, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "empty");
+    assert_int_equal(gim_importance_select(NULL, sel), GIM_ERROR_INVALID_ARGUMENT); /* no env to log through */
+    EXPECT_ERR(select_seed(NULL, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "gim_importance_select");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 8, 0, NULL, env), GIM_ERROR_INVALID_ARGUMENT, "gim_importance_select");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 0, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "count is 0");
+    EXPECT_ERR(select_seed(col, row, 4, 0, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "empty");
     row[2] = NAN;
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
     row[2] = 1.0; /* decreasing */
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
     assert_int_equal(gim_importance_cumsum(map, 4, 4, col, row, env), GIM_OK);
     col[3 * 4 + 1] = 0.0; /* column 1 has no total but the row table gives it weight */
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "not cumulative sums");
     assert_int_equal(gim_importance_cumsum(map, 4, 4, col, row, env), GIM_OK);
     for (i = 0; i < 12; ++i) col[i] = NAN; /* NaN inside the columns: caught per sample */
-    EXPECT_ERR(gim_importance_select(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "is not a cumulative sum");
+    EXPECT_ERR(select_seed(col, row, 4, 4, 8, 0, sel, env), GIM_ERROR_INVALID_ARGUMENT, "is not a cumulative sum");
 #undef EXPECT_ERR
     assert_int_equal(lg.warnings, 0);
     assert_true(as.live == 0);
@@ -699,7 +722,7 @@ static void precision_4096(void **state) {
     assert_int_equal(off_d, 0);
     assert_true(err_f > 1e3 * err_d); /* why the tables are double */
     /* selection: every pdf is the exact P, and 1M selections in 64x64 blocks pass chi-square */
-    assert_int_equal(gim_importance_select(t.col, t.row, w, h, count, 2024u, sel, test_env(NULL, NULL)), GIM_OK);
+    assert_int_equal(select_seed(t.col, t.row, w, h, count, 2024u, sel, test_env(NULL, NULL)), GIM_OK);
     for (k = 0; k < count; ++k) {
         size_t idx = (size_t)sel[k].y * w + sel[k].x;
         double e = map[idx] / total, rel = fabs(sel[k].pdf - e) / e;

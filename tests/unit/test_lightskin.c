@@ -773,7 +773,11 @@ static void brsm_pipeline(void **state) {
     assert_int_equal(gim_vals_gather_twin(&rsm, NULL, 0, full, test_env(NULL, NULL)), GIM_OK);
     cache_radiance(c, 4, full, W * W, Lf);
     for (seed = 0; seed < 8; ++seed) {
-        assert_int_equal(gim_importance_select(col, row, W, W, NSEL, seed, sel, test_env(NULL, NULL)), GIM_OK);
+        gim_select_desc sd;
+        memset(&sd, 0, sizeof sd);
+        sd.column = col; sd.row = row; sd.width = W; sd.height = W; sd.count = NSEL; sd.seed = seed;
+        sd.env = test_env(NULL, NULL);
+        assert_int_equal(gim_importance_select(&sd, sel), GIM_OK);
         assert_int_equal(gim_vals_gather_twin(&rsm, sel, NSEL, brsm, test_env(NULL, NULL)), GIM_OK);
         cache_radiance(c, 4, brsm, NSEL, Lb);
         for (i = 0; i < 4; ++i) err += fabs(Lb[i] / Lf[i] - 1.0) / 32.0;

@@ -81,7 +81,8 @@ static void run_begin(phys_run *r, phys_which which, double scale, const double 
         for (x = 0; x < RSM; ++x) {
             gim_rsm_texel tx;
             k = y * RSM + x;
-            assert_int_equal(gim_rsm_texel_twin(&r->ts, &light, r->bmin, r->bmax, x, y, &tx), GIM_OK);
+            gim_rsm_view rv = {&light, r->bmin, r->bmax};
+            assert_int_equal(gim_rsm_texel_twin(&r->ts, &rv, x, y, &tx), GIM_OK);
             memcpy(r->pos + k * 3, tx.position, sizeof tx.position);
             memcpy(r->nrm + k * 3, tx.normal, sizeof tx.normal);
             memcpy(r->flux + k * 3, tx.flux, sizeof tx.flux);
@@ -325,7 +326,8 @@ static void point_light_faces(void **state) {
         for (y = 0; y < N; ++y)
             for (x = 0; x < N; ++x) {
                 gim_rsm_texel tx;
-                assert_int_equal(gim_rsm_texel_twin(&ts, &faces[k], bmin, bmax, x, y, &tx), GIM_OK);
+                gim_rsm_view rv = {&faces[k], bmin, bmax};
+                assert_int_equal(gim_rsm_texel_twin(&ts, &rv, x, y, &tx), GIM_OK);
                 if (tx.lit) face_flux[k] += (tx.flux[0] + tx.flux[1] + tx.flux[2]) / 3.0;
             }
         flux += face_flux[k];

@@ -21,15 +21,17 @@ static void square(float h, float pos[18], float alb[6], gim_twin_scene *s) {
 /* Sum of the twin's green flux over the whole RSM, and of the area of lit texels. */
 static double twin_total(const gim_twin_scene *s, const gim_light *l, float h, double *area) {
     float bmin[3], bmax[3];
+    gim_rsm_view rv;
     uint32_t x, y, n = l->rsm_size;
     double sum = 0.0;
     bmin[0] = -h; bmin[1] = 0.0f; bmin[2] = -h;
     bmax[0] = h; bmax[1] = 0.0f; bmax[2] = h;
+    rv.light = l; rv.bmin = bmin; rv.bmax = bmax;
     *area = 0.0;
     for (y = 0; y < n; ++y)
         for (x = 0; x < n; ++x) {
             gim_rsm_texel t;
-            assert_int_equal(gim_rsm_texel_twin(s, l, bmin, bmax, x, y, &t), GIM_OK);
+            assert_int_equal(gim_rsm_texel_twin(s, &rv, x, y, &t), GIM_OK);
             sum += t.flux[1];
             if (t.lit) *area += t.area;
             assert_true(t.lit ? t.triangle < 2 : t.flux[1] == 0.0f);
@@ -108,8 +110,9 @@ static void unit_free(void **state) {
             lmm.irradiance = 5e-6f;
         }
         for (i = 0; i < 256; ++i) {
-            assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, (uint32_t)i % 16, (uint32_t)i / 16, &a), GIM_OK);
-            assert_int_equal(gim_rsm_texel_twin(&smm, &lmm, bminmm, bmaxmm, (uint32_t)i % 16, (uint32_t)i / 16, &b), GIM_OK);
+            gim_rsm_view rv = {&l, bmin, bmax}, rvmm = {&lmm, bminmm, bmaxmm};
+            assert_int_equal(gim_rsm_texel_twin(&s, &rv, (uint32_t)i % 16, (uint32_t)i / 16, &a), GIM_OK);
+            assert_int_equal(gim_rsm_texel_twin(&smm, &rvmm, (uint32_t)i % 16, (uint32_t)i / 16, &b), GIM_OK);
             assert_int_equal(a.lit, b.lit);
             assert_int_equal(a.triangle, b.triangle);
             if (a.triangle == UINT32_MAX) continue;
@@ -179,6 +182,7 @@ static void gbuffer_and_view_samples(void **state) {
     gim_twin_scene s;
     gim_mat4 v = gim_mat4_look_at(gim_v3(0.5f, 2.0f, 1.5f), gim_v3(0.0f, 0.0f, 0.0f), gim_v3(0.0f, 1.0f, 0.0f));
     gim_mat4 p = gim_mat4_perspective(1.0f, (float)W / H, 0.1f, 10.0f);
+    gim_camera cam = {v, p, W, H}, flat = {v, gim_mat4_ortho(0, 0, 0, 1, 0, 1), W, H};
     gim_view_sample vs[N];
     uint32_t px[N * 2], px2[N * 2];
     int i, hits = 0;
@@ -186,7 +190,7 @@ static void gbuffer_and_view_samples(void **state) {
     square(1.0f, pos, alb, &s);
     for (i = 0; i < W * H; ++i) {
         gim_gbuffer_texel t;
-        assert_int_equal(gim_gbuffer_texel_twin(&s, v, p, W, H, (uint32_t)(i % W), (uint32_t)(i / W), &t), GIM_OK);
+        assert_int_equal(gim_gbuffer_texel_twin(&s, &cam, (uint32_t)(i % W), (uint32_t)(i / W), &t), GIM_OK);
         depth[i] = t.depth;
         memcpy(nrm + i * 4, t.normal, 3 * sizeof(float));
         nrm[i * 4 + 3] = t.triangle == UINT32_MAX ? 0.0f : 1.0f;
@@ -206,7 +210,7 @@ static void gbuffer_and_view_samples(void **state) {
     gim_rotation_offsets(off, 2, 9);
     assert_int_equal(gim_view_sample_pixels(N, W, H, off, px2), GIM_OK);
     assert_memory_not_equal(px, px2, sizeof px);
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, v, p, px2, N, vs), GIM_OK);
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, px2, N, vs), GIM_OK);
     for (i = 0; i < N; ++i) {
         uint32_t k = px2[2 * i + 1] * W + px2[2 * i];
         if (depth[k] >= 1.0f) {
@@ -222,16 +226,17 @@ static void gbuffer_and_view_samples(void **state) {
     assert_int_equal(gim_view_sample_pixels(N, W, H, off, px2), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim_view_sample_pixels(0, W, H, NULL, px2), GIM_ERROR_INVALID_ARGUMENT);
     px2[0] = W;
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, v, p, px2, N, vs), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_view_samples_twin(depth, nrm, W, H, v, gim_mat4_ortho(0, 0, 0, 1, 0, 1), px, N, vs),
-                     GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &cam, px2, N, vs), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_view_samples_twin(depth, nrm, &flat, px, N, vs), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_view_samples_twin(depth, nrm, NULL, px, N, vs), GIM_ERROR_INVALID_ARGUMENT);
     {
         gim_gbuffer_texel t;
         pos[4] = NAN;
-        assert_int_equal(gim_gbuffer_texel_twin(&s, v, p, W, H, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_gbuffer_texel_twin(&s, &cam, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
         pos[4] = 0.0f;
-        assert_int_equal(gim_gbuffer_texel_twin(&s, v, p, W, H, W, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
-        assert_int_equal(gim_gbuffer_texel_twin(NULL, v, p, W, H, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_gbuffer_texel_twin(&s, &cam, W, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_gbuffer_texel_twin(NULL, &cam, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_gbuffer_texel_twin(&s, NULL, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
     }
 }
 
@@ -243,6 +248,7 @@ static void light_checks_log(void **state) {
     float bmin[3] = {0, 0, 0}, bmax[3] = {1, 1, 1}, pos[18], alb[6];
     gim_twin_scene s;
     gim_rsm_texel t;
+    gim_rsm_view rv = {&l, bmin, bmax};
     (void)state;
     memset(&l, 0, sizeof l);
     l.direction = gim_v3(0.0f, 1.0f, 0.0f);
@@ -260,14 +266,15 @@ static void light_checks_log(void **state) {
     assert_int_equal(gim__light_check(&l, &env, "test", 0), GIM_OK);
     square(1.0f, pos, alb, &s);
     l.rsm_size = 8;
-    assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 8, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 0, 0, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_texel_twin(&s, &rv, 8, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_texel_twin(&s, &rv, 0, 0, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_texel_twin(&s, NULL, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
     s.triangle_count = 0;
-    assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_rsm_texel_twin(&s, &rv, 0, 0, &t), GIM_ERROR_INVALID_ARGUMENT);
     /* a scene 1e25 across: areas and fluxes beyond float clamp at FLT_MAX, never inf */
     square(1e25f, pos, alb, &s);
     bmin[0] = bmin[2] = -1e25f; bmax[0] = bmax[2] = 1e25f; bmax[1] = 0.0f;
-    assert_int_equal(gim_rsm_texel_twin(&s, &l, bmin, bmax, 4, 4, &t), GIM_OK);
+    assert_int_equal(gim_rsm_texel_twin(&s, &rv, 4, 4, &t), GIM_OK);
     assert_true(t.lit && t.area == FLT_MAX && t.flux[1] == FLT_MAX && gim__all_finite(t.position, 3));
 }
 

@@ -10,6 +10,25 @@
 #define H 23
 #define N 300
 
+/* gim_rsm_vpls_twin and gim_cluster_paraboloids_twin with their descs filled from arguments,
+   the form the many calls here take. */
+static gim_result vpls_of(const gim_rsm_data *rsm, uint32_t count, gim_vpl_sequence sequence, const float *offsets,
+                          float *positions, float *normals, float *flux, gim_env env) {
+    gim_rsm_vpls_desc d;
+    memset(&d, 0, sizeof d);
+    d.rsm = rsm; d.count = count; d.sequence = sequence; d.offsets = offsets; d.env = env;
+    return gim_rsm_vpls_twin(&d, positions, normals, flux);
+}
+static gim_result paraboloids_of(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster, const float *centres,
+                                 const float *normals, uint32_t cluster_count, float scene_scale, gim_paraboloid *out,
+                                 gim_env env) {
+    gim_cluster_desc d;
+    memset(&d, 0, sizeof d);
+    d.vpls = vpls; d.vpl_count = vpl_count; d.cluster = cluster; d.centres = centres; d.normals = normals;
+    d.cluster_count = cluster_count; d.scene_scale = scene_scale; d.env = env;
+    return gim_cluster_paraboloids_twin(&d, out);
+}
+
 /* Texel (x, y) at position (x + 0.5, y + 0.5, 7) so a VPL's position names its texel; random
    unit-ish normals, random flux; every 9th texel unlit. */
 typedef struct vpl_rsm {
@@ -64,7 +83,7 @@ static void flux_sums_to_the_total(void **state) {
         double sum[3] = {0.0, 0.0, 0.0}, factor[3] = {0.0, 0.0, 0.0};
         float p2[N * 3], n2[N * 3], f2[N * 3];
         const float *o = pass ? off : NULL;
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, g_p, g_n, g_f, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, g_p, g_n, g_f, env), GIM_OK);
         for (i = 0; i < N; ++i) {
             int x = (int)g_p[i * 3], y = (int)g_p[i * 3 + 1], t = y * W + x;
             for (a = 0; a < 3; ++a) {
@@ -81,7 +100,7 @@ static void flux_sums_to_the_total(void **state) {
             assert_true(fabs(sum[a] - tot[a]) <= 1e-6 * tot[a]);
             assert_true(factor[a] > 1.0);   /* N < lit texels: each VPL stands for several */
         }
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, p2, n2, f2, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, p2, n2, f2, env), GIM_OK);
         assert_memory_equal(p2, g_p, sizeof p2);
         assert_memory_equal(n2, g_n, sizeof n2);
         assert_memory_equal(f2, g_f, sizeof f2);
@@ -101,7 +120,7 @@ static void halton_placement(void **state) {
         float pts[N * 2];
         const float *o = pass ? off : NULL;
         assert_int_equal(gim_halton_points(pts, N, 2, 1, o), GIM_OK);
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, g_p, g_n, g_f, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, o, g_p, g_n, g_f, env), GIM_OK);
         for (i = 0; i < N; ++i) {
             double u = o ? gim_rotate01((float)gim_halton((uint32_t)i + 1, 0), o[0]) : gim_halton((uint32_t)i + 1, 0);
             int x = (int)floor((double)pts[i * 2] * W), y = (int)floor((double)pts[i * 2 + 1] * H);
@@ -139,7 +158,7 @@ static void unlit_texels(void **state) {
     for (i = 0; i < W * H; ++i) g_rsm.flux[i * 3 + 2] = 0.0f;   /* blue: dark everywhere */
     g_rsm.flux[(W * H - 1) * 3 + 2] = 1.0f;                        /* but for a corner texel no VPL takes */
     g_rsm.valid[W * H - 1] = 1.0f;
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_OK);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_OK);
     assert_true(p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f);
     assert_true(n[0] == 0.0f && n[1] == 0.0f && n[2] == 0.0f);
     assert_true(f[0] == 0.0f && f[1] == 0.0f && f[2] == 0.0f);
@@ -175,7 +194,7 @@ static void unlit_texels(void **state) {
         float fl[3] = {3.0f, 0.0f, 1.5f};
         one.flux = fl; one.valid = NULL; one.position = g_rsm.pos + 3; one.normal = g_rsm.nrm + 3;
         one.width = one.height = 1;
-        assert_int_equal(gim_rsm_vpls_twin(&one, 4, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_OK);
+        assert_int_equal(vpls_of(&one, 4, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_OK);
         for (i = 0; i < 4; ++i) {
             assert_true(p[i * 3] == 1.5f);
             assert_true(f[i * 3] == 0.75f && f[i * 3 + 1] == 0.0f && f[i * 3 + 2] == 0.375f);
@@ -191,9 +210,9 @@ static void units(void **state) {
     gim_env env = test_env(NULL, NULL);
     (void)state;
     make_rsm(&g_rsm);
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, g_p, g_n, g_f, env), GIM_OK);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, g_p, g_n, g_f, env), GIM_OK);
     for (i = 0; i < W * H * 3; ++i) { g_rsm.flux[i] *= 1000.0f; g_rsm.pos[i] *= 1e-3f; }
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p2, n2, f2, env), GIM_OK);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p2, n2, f2, env), GIM_OK);
     for (i = 0; i < N * 3; ++i) {
         assert_true(fabs(f2[i] - 1000.0 * g_f[i]) <= 1e-5 * 1000.0 * g_f[i]);
         assert_true(p2[i] == g_p[i] * 1e-3f);
@@ -211,23 +230,24 @@ static void bad_arguments(void **state) {
     (void)state;
     make_rsm(&g_rsm);
     for (k = 0; k < N * 3; ++k) p[k] = n[k] = f[k] = -5.0f;
-    assert_int_equal(gim_rsm_vpls_twin(NULL, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, NULL, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, NULL, f, env), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, NULL, env), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, 0, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(NULL, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, NULL, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, NULL, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, NULL, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&g_rsm.rsm, 0, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
     for (k = 0; k < 3; ++k)
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, bad_off[k], p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, bad_off[k], p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
     d = g_rsm.rsm; d.width = 0;
-    assert_int_equal(gim_rsm_vpls_twin(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
     d = g_rsm.rsm; d.flux = NULL;
-    assert_int_equal(gim_rsm_vpls_twin(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
     d = g_rsm.rsm; d.position = NULL;
-    assert_int_equal(gim_rsm_vpls_twin(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(vpls_of(&d, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_INVALID_ARGUMENT);
     /* a total beyond FLT_MAX */
     g_rsm.flux[0] = g_rsm.flux[3] = 3e38f; g_rsm.valid[0] = g_rsm.valid[1] = 1.0f;
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(log.errors, 12);
+    assert_int_equal(gim_rsm_vpls_twin(NULL, p, n, f), GIM_ERROR_INVALID_ARGUMENT); /* no env to log through */
     for (k = 0; k < N * 3; ++k) assert_true(p[k] == -5.0f && n[k] == -5.0f && f[k] == -5.0f);
 }
 
@@ -243,7 +263,7 @@ static void hammersley_placement(void **state) {
     total_flux(&g_rsm, total);
     for (pass = 0; pass < 2; ++pass) {
         const float *o = pass ? off : NULL;
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, o, g_p, g_n, g_f, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, o, g_p, g_n, g_f, env), GIM_OK);
         sum[0] = sum[1] = sum[2] = 0.0;
         for (i = 0; i < N; ++i) {
             float u = (float)((i + 0.5) / N), v = (float)gim_van_der_corput((uint32_t)i);
@@ -255,18 +275,18 @@ static void hammersley_placement(void **state) {
         for (c = 0; c < 3; ++c) assert_true(fabs(sum[c] - total[c]) <= 1e-5 * total[c]);
     }
     /* the first two points unrotated: (0.5 / N, 0) and (1.5 / N, 1/2) */
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, NULL, g_p, g_n, g_f, env), GIM_OK);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HAMMERSLEY, NULL, g_p, g_n, g_f, env), GIM_OK);
     assert_true(g_p[0] == 0.5f && g_p[1] == 0.5f);
     assert_true(g_p[4] == (float)(H / 2) + 0.5f);
     /* DEFAULT is HALTON */
     {
         static float p2[N * 3], n2[N * 3], f2[N * 3];
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, off, g_p, g_n, g_f, env), GIM_OK);
-        assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_DEFAULT, off, p2, n2, f2, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, off, g_p, g_n, g_f, env), GIM_OK);
+        assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_DEFAULT, off, p2, n2, f2, env), GIM_OK);
         assert_memory_equal(g_p, p2, sizeof p2);
         assert_memory_equal(g_f, f2, sizeof f2);
     }
-    assert_int_equal(gim_rsm_vpls_twin(&g_rsm.rsm, N, (gim_vpl_sequence)7, NULL, g_p, g_n, g_f, env),
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, (gim_vpl_sequence)7, NULL, g_p, g_n, g_f, env),
                      GIM_ERROR_INVALID_ARGUMENT);
 }
 
@@ -309,7 +329,7 @@ static void cluster_paraboloids(void **state) {
         centres[3] = 9.0f; centres[4] = 0.0f; centres[5] = 0.0f;
         normals[0] = n.x; normals[1] = n.y; normals[2] = n.z;
         normals[3] = 0.0f; normals[4] = 2.0f; normals[5] = 0.0f;   /* renormalised */
-        assert_int_equal(gim_cluster_paraboloids_twin(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_OK);
+        assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_OK);
         sizes[turn] = out[0].size;
         assert_true(fabs(out[0].size - expect) < 1e-4 * expect);
         assert_true(fabs(out[0].flux[0] - K * K) < 1e-3 && fabs(out[0].flux[1] - 2 * K * K) < 1e-3);
@@ -325,15 +345,16 @@ static void cluster_paraboloids(void **state) {
     assert_true(fabs(sizes[0] - sizes[1]) < 1e-5 * sizes[0]);
     /* bad input */
     cl[3] = 2;
-    assert_int_equal(gim_cluster_paraboloids_twin(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 10.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
     cl[3] = 0;
-    assert_int_equal(gim_cluster_paraboloids_twin(v, NV, cl, centres, normals, 2, 0.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim_cluster_paraboloids_twin(NULL, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 0.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(paraboloids_of(NULL, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_cluster_paraboloids_twin(NULL, out), GIM_ERROR_INVALID_ARGUMENT);
     normals[4] = 0.0f;
-    assert_int_equal(gim_cluster_paraboloids_twin(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
     normals[4] = 1.0f;
     v[5].flux[1] = -1.0f;
-    assert_int_equal(gim_cluster_paraboloids_twin(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
 }
 
 int main(void) {
