@@ -1413,7 +1413,11 @@ typedef enum gim_vpl_sequence {
    VPL of zero flux (weight 0 in gim_kmeans' means), its position and normal copied when
    finite, zero otherwise (gim_kmeans refuses a zero normal: leave those VPLs out). Sums in double in a fixed order, the GPU pass's: T row by row (each row in x
    order, then the rows), S in blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks.
-   positions, normals, flux: count * 3 each, written. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL
+   positions, normals, flux: count * 3 each, written. area (count, or NULL: not written): the
+   surface each VPL stands for (gim_vpl.area, its near field), its texel's footprint times the
+   texels it stands for, A_t(i) (T_r + T_g + T_b) / (S_r + S_g + S_b), so that the patch leaves
+   the texel's own exitance; 0 for an unlit texel, a footprint that is not finite and > 0, or an
+   RSM without areas. Errors (GIM_ERROR_INVALID_ARGUMENT): NULL
    arrays, zero sizes or count, offsets outside [0,1); a total beyond FLT_MAX is
    GIM_ERROR_OUT_OF_RANGE. Outputs untouched on error. */
 #define GIM_RSM_VPL_BLOCK 1024u
@@ -1427,7 +1431,8 @@ typedef struct gim_rsm_vpls_desc {
     gim_env env;
 } gim_rsm_vpls_desc;
 
-GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux);
+GIMANY_API gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux,
+                                        float *area);
 
 /* Caches of a mesh placed by an instance (the runtime's "caches to world space" step): the
    position through model, the normal through its inverse transpose (normalised), the area
@@ -5326,9 +5331,10 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
 }
 
-GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux) {
+GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux,
+                                        float *area) {
     static const char fn[] = "gim_rsm_vpls_twin";
-    double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3];
+    double total[3] = {0.0, 0.0, 0.0}, sampled[3] = {0.0, 0.0, 0.0}, scale[3], ts, ss, area_scale;
     uint32_t i, x, y, count;
     int a;
     const gim_rsm_data *rsm;
@@ -5374,12 +5380,20 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
         for (a = 0; a < 3; ++a) sampled[a] += block[a];
     }
     for (a = 0; a < 3; ++a) scale[a] = sampled[a] > 0.0 ? total[a] / sampled[a] : 0.0;
+    ts = total[0] + total[1] + total[2];
+    ss = sampled[0] + sampled[1] + sampled[2];
+    area_scale = ss > 0.0 ? ts / ss : 0.0;
     for (i = 0; i < count; ++i) {
         size_t t;
         int lit;
         gim__rsm_vpl_texel(i, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
         t = (size_t)y * rsm->width + x;
         lit = gim__rsm_vpl_lit(rsm, t);
+        if (area) {
+            float at = rsm->area && lit ? rsm->area[t] : 0.0f;
+            double av = at > 0.0f && at <= FLT_MAX ? (double)at * area_scale : 0.0;
+            area[i] = (float)(av < FLT_MAX ? av : FLT_MAX);
+        }
         {   /* position and normal copied where finite (an unlit texel may hold anything) */
             int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
             for (a = 0; a < 3; ++a) {

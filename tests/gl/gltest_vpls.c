@@ -62,6 +62,8 @@ static void rsm_make(vpl_rsm *r, uint32_t size, const float origin[3], float L) 
         case 29: f[2] = NAN; break;
         case 41: x[3] = NAN; break;
         case 53: x[3] = -1.0f; break;
+        case 61: nn[3] = -1.0f; break;   /* a footprint that is not > 0: a point VPL (area 0) */
+        case 71: nn[3] = NAN; break;
         default: break;
         }
     }
@@ -94,6 +96,7 @@ static void rsm_free(vpl_rsm *r) {
 typedef struct vpl_stats {
     double flux;        /* largest relative flux error */
     uint32_t unlit;     /* VPLs on unlit texels */
+    uint32_t lit_area;  /* lit VPLs with an area */
     uint32_t vpls;
 } vpl_stats;
 
@@ -104,6 +107,7 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
     gim_rsm_data d = rsm_data(r);
     gim_rsm_vpls_desc vd;
     float *p = (float *)malloc(count * 12), *n = (float *)malloc(count * 12), *fl = (float *)malloc(count * 12);
+    float *ar = (float *)malloc(count * 4);
     float *gpu = (float *)malloc((count + 3) * 48);
     double sum[3] = {0, 0, 0}, gsum[3] = {0, 0, 0};
     uint32_t i, a;
@@ -112,7 +116,7 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
     out = gltest_ssbo((count + 3) * 48, gpu);
     memset(&vd, 0, sizeof vd);
     vd.rsm = &d; vd.count = count; vd.sequence = seq; vd.offsets = offsets; vd.env = f->env;
-    assert_int_equal(gim_rsm_vpls_twin(&vd, p, n, fl), GIM_OK);
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, n, fl, ar), GIM_OK);
     assert_int_equal(gim__gl_rsm_vpls(f->ctx, r->tex[0], r->tex[1], r->tex[2], r->size, count, seq, offsets, out), GIM_OK);
     gltest_state_unchanged(f);
     gltest_read_buffer(out, (count + 3) * 48, gpu);
@@ -125,8 +129,12 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
                      (double)g[1], (double)g[2], (double)g[4], (double)g[5], (double)g[6], (double)p[i * 3],
                      (double)p[i * 3 + 1], (double)p[i * 3 + 2], (double)n[i * 3], (double)n[i * 3 + 1],
                      (double)n[i * 3 + 2]);
-        assert_true(g[7] == 0.0f && g[11] == 0.0f);
-        if (lit) assert_true(g[3] == 1.0f);
+        assert_true(g[11] == 0.0f);
+        /* the area (the near field's patch): the twin's within the flux's tolerance, 0 where unlit */
+        if (ar[i] == 0.0f) assert_true(g[7] == 0.0f);
+        else if (!(fabs(g[7] - ar[i]) <= TOL_FLUX * ar[i]))
+            fail_msg("VPL %u: area %.9g, the twin's %.9g", i, (double)g[7], (double)ar[i]);
+        if (lit) { assert_true(g[3] == 1.0f); st->lit_area += ar[i] > 0.0f; }
         else st->unlit++;
         for (a = 0; a < 3; ++a) {
             double c = fl[i * 3 + a], e;
@@ -158,7 +166,7 @@ static void vpls_one(gltest_fixture *f, const vpl_rsm *r, uint32_t count, gim_vp
     }
     st->vpls += count;
     glDeleteBuffers(1, &out);
-    free(p); free(n); free(fl); free(gpu);
+    free(p); free(n); free(fl); free(ar); free(gpu);
 }
 
 /* Sizes 64 (whole groups), 37 (partial), 5 (more VPLs than texels) and 1; counts 1, 100,
@@ -187,8 +195,10 @@ static void matches_twin(void **state) {
                          (c + o) % 2 ? off : NULL, &st);
             rsm_free(&r);
         }
-    print_message("RSM VPLs: %u VPLs (%u unlit), largest relative flux error %.3g\n", st.vpls, st.unlit, st.flux);
+    print_message("RSM VPLs: %u VPLs (%u unlit, %u lit with an area), largest relative flux error %.3g\n", st.vpls,
+                  st.unlit, st.lit_area, st.flux);
     assert_true(st.unlit > 100);
+    assert_true(st.lit_area > st.vpls / 2);   /* the areas were compared, not all zero */
     gltest_fixture_end(&f);
     GLTEST_END();
 }
@@ -509,7 +519,7 @@ static void vpls_into_kmeans(void **state) {
     d = rsm_data(&r);
     memset(&vd, 0, sizeof vd);
     vd.rsm = &d; vd.count = n; vd.sequence = GIM_VPL_SEQUENCE_HALTON; vd.offsets = off; vd.env = f.env;
-    assert_int_equal(gim_rsm_vpls_twin(&vd, p, nn, fl), GIM_OK);
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, nn, fl, NULL), GIM_OK);
     bv = gltest_ssbo(n * 48, NULL);
     assert_int_equal(gim__gl_rsm_vpls(f.ctx, r.tex[0], r.tex[1], r.tex[2], size, n, GIM_VPL_SEQUENCE_HALTON, off, bv), GIM_OK);
     for (k = 1; k <= 8; k *= 2) kmeans_compare(&f, bv, p, nn, fl, n, 30, k, GIM_KMEANS_METRIC_DONG, origin, 10.0f, &st);

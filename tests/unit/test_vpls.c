@@ -17,7 +17,7 @@ static gim_result vpls_of(const gim_rsm_data *rsm, uint32_t count, gim_vpl_seque
     gim_rsm_vpls_desc d;
     memset(&d, 0, sizeof d);
     d.rsm = rsm; d.count = count; d.sequence = sequence; d.offsets = offsets; d.env = env;
-    return gim_rsm_vpls_twin(&d, positions, normals, flux);
+    return gim_rsm_vpls_twin(&d, positions, normals, flux, NULL);
 }
 static gim_result paraboloids_of(const gim_vpl *vpls, uint32_t vpl_count, const uint32_t *cluster, const float *centres,
                                  const float *normals, uint32_t cluster_count, float scene_scale, gim_paraboloid *out,
@@ -220,6 +220,46 @@ static void units(void **state) {
 }
 
 /* Bad arguments: an error through the logger, the outputs untouched. */
+/* A VPL's area (its near field's patch) is its texel's footprint times the texels it stands
+   for, so the patch leaves the texel's exitance: on a uniform RSM the areas sum to the lit
+   area. An unlit texel, a footprint that is not > 0 and an RSM without areas give 0. */
+static void areas_cover_the_lit_surface(void **state) {
+    enum { S = 8, T = S * S, C = 24 };
+    float pos[T * 3], nrm[T * 3], flux[T * 3], area[T], valid[T], p[C * 3], n[C * 3], f[C * 3], a[C];
+    gim_rsm_data rsm;
+    gim_rsm_vpls_desc d;
+    double sum = 0.0, lit_area = 0.0;
+    uint32_t t, i, unlit = 0;
+    (void)state;
+    for (t = 0; t < T; ++t) {
+        pos[t * 3] = (float)(t % S); pos[t * 3 + 1] = (float)(t / S); pos[t * 3 + 2] = 0.0f;
+        nrm[t * 3] = 0.0f; nrm[t * 3 + 1] = 0.0f; nrm[t * 3 + 2] = 1.0f;
+        flux[t * 3] = flux[t * 3 + 1] = flux[t * 3 + 2] = 0.25f;
+        area[t] = 0.5f;
+        valid[t] = t % 3 == 1 ? 0.0f : 1.0f;
+        if (valid[t] > 0.0f) lit_area += area[t];
+    }
+    memset(&rsm, 0, sizeof rsm);
+    rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.valid = valid; rsm.width = rsm.height = S;
+    memset(&d, 0, sizeof d);
+    d.rsm = &rsm; d.count = C; d.sequence = GIM_VPL_SEQUENCE_HALTON;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p, n, f, a), GIM_OK);
+    for (i = 0; i < C; ++i) {
+        sum += a[i];
+        if (f[i * 3] == 0.0f) { assert_true(a[i] == 0.0f); ++unlit; }
+    }
+    assert_true(unlit > 0 && unlit < C);
+    print_message("areas: %.6f, lit area %.6f\n", sum, lit_area);
+    assert_true(fabs(sum - lit_area) <= 1e-6 * lit_area);
+    area[5] = -1.0f; area[6] = NAN;   /* not > 0: a point */
+    rsm.area = area;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p, n, f, a), GIM_OK);
+    for (i = 0; i < C; ++i) assert_true(a[i] >= 0.0f && isfinite(a[i]));
+    rsm.area = NULL;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p, n, f, a), GIM_OK);
+    for (i = 0; i < C; ++i) assert_true(a[i] == 0.0f);
+}
+
 static void bad_arguments(void **state) {
     static const float bad_off[3][2] = {{1.0f, 0.0f}, {0.0f, -0.1f}, {NAN, 0.5f}};
     float p[N * 3], n[N * 3], f[N * 3];
@@ -247,7 +287,7 @@ static void bad_arguments(void **state) {
     g_rsm.flux[0] = g_rsm.flux[3] = 3e38f; g_rsm.valid[0] = g_rsm.valid[1] = 1.0f;
     assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(log.errors, 12);
-    assert_int_equal(gim_rsm_vpls_twin(NULL, p, n, f), GIM_ERROR_INVALID_ARGUMENT); /* no env to log through */
+    assert_int_equal(gim_rsm_vpls_twin(NULL, p, n, f, NULL), GIM_ERROR_INVALID_ARGUMENT); /* no env to log through */
     for (k = 0; k < N * 3; ++k) assert_true(p[k] == -5.0f && n[k] == -5.0f && f[k] == -5.0f);
 }
 
@@ -366,6 +406,7 @@ int main(void) {
         cmocka_unit_test(unlit_texels),
         cmocka_unit_test(units),
         cmocka_unit_test(bad_arguments),
+        cmocka_unit_test(areas_cover_the_lit_surface),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
