@@ -7068,6 +7068,9 @@ static uint32_t gim__vpl_scramble(uint32_t i, uint32_t n) {
    evaluates them after it (vpl_shade.comp). */
 #define GIM__VPL_NEAR_CAP 8u
 
+/* The near field needs the receiver this far (times sqrt(A)) in front of the patch's plane. */
+#define GIM__VPL_NEAR_LIFT 0.01f
+
 /* Near field of a VPL of area A (units of the VPL twins): E_i / Phi_i at a receiver (normal n)
    dist from it along omega = o (VPL -> receiver), from its far-field value g_far blended
    towards the octagon's F / A (gim__octagon_phi), and o turned towards where the patch's light
@@ -7079,6 +7082,10 @@ static float gim__vpl_near(float *o, float dist, const float *n, const float *nl
     for (a = 0; a < 3; ++a) d[a] = -o[a] * dist;   /* receiver -> VPL */
     w = gim__near_weight(dist * dist, area);
     if (!(w > 0.0f)) return g_far;
+    /* a receiver (nearly) in the patch's plane: the other side of a thin surface, whose points
+       coincide with the VPL's own surface; its octagon would be all in or all out of the
+       receiver's hemisphere by rounding (F 1 or 0) */
+    if (!((nl[0] * o[0] + nl[1] * o[1] + nl[2] * o[2]) * dist > GIM__VPL_NEAR_LIFT * sqrtf(area))) return g_far;
     f = gim__octagon_phi(d, n, nl, area, phi);
     fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
     if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv)) return g_far;
@@ -12695,7 +12702,8 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
         if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
-        if (f.visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        /* ISMs: every VPL's, or the second bounce's beside the paraboloid maps */
+        if (f.visibility.mode == GIM_VISIBILITY_ISM || (s.visibility && s.second)) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;

@@ -174,6 +174,7 @@ float vpl_near(inout vec3 o, float dist, vec3 nx, vec3 nl, float area, float g_f
     vec3 d = -o * dist;
     float w = near_weight(dist * dist, area);
     if (!(w > 0.0)) return g_far;
+    if (!(dot(nl, o) * dist > 0.01 * sqrt(area))) return g_far;   /* GIM__VPL_NEAR_LIFT: a thin surface's other side */
     vec3 phi;
     float f = octagon_phi(d, nx, nl, area, phi);
     float fv = length(phi);
