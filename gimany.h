@@ -92,7 +92,8 @@
                            no caches, no visibility; f.gather
      CLUSTERED             VPLs clustered by k-means into VALs with paraboloid soft shadow maps
                            [3]; f.vpl
-     SSVP                  two bounces from one paraboloid map per cluster [4]; f.vpl
+     SSVP                  two bounces from one paraboloid map per cluster [4], the second
+                           shadowed by one imperfect shadow map [5] per second-bounce VPL; f.vpl
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
      off by default, and off costs nothing. f.lightskin.temporal_steps keeps the VALs

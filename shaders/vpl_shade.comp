@@ -261,7 +261,7 @@ void main() {
         if (!(cl > 0.0) || !(cx > 0.0)) continue;
         if (p.normal.w > 0.0 && d2 < VAL_NEAR * VAL_NEAR * p.normal.w && near_count < NEAR_CAP) {
             /* its patch, after the loop: listed by selects (a dynamically indexed local array
-               is a gather and scatter on llvmpipe, 5x this pass) */
+               is a gather and scatter on llvmpipe: several times this pass) */
             uint slot = near_count++ - near_first;
             near_a += uvec4(equal(uvec4(0u, 1u, 2u, 3u), uvec4(slot))) * (i - near_a);
             near_b += uvec4(equal(uvec4(4u, 5u, 6u, 7u), uvec4(slot))) * (i - near_b);
