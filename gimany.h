@@ -4807,6 +4807,11 @@ static void gim__proxy_finish(const gim__proxy_sums *a, const gim_cache *c, cons
    comes from. Faded to the far field between d = 0.75 and 1 GIM__VAL_NEAR sqrt(A): no step
    where the GPU and the twin round d^2 to either side. */
 #define GIM__VAL_NEAR 2.0f
+/* The near field of a VAL or VPL needs the receiver this far (times sqrt(A)) in front of the
+   patch's plane: the other side of a thin plate lies in the plane, inside the octagon, and
+   rounding put the whole octagon in its hemisphere (F = 1 for a surface that sees nothing of
+   it; the VPL methods' parallel plates, sun: 56% of pixels within 10% before, 93% after). */
+#define GIM__VPL_NEAR_LIFT 0.01f
 /* The GPU evaluates the near VALs out of its VAL loop: the first GIM__VAL_NEAR_CAP of a cache
    from a list after each chunk's loop, any more in a dispatch of their own that only the work
    groups holding such a cache run. In the loop a branch around the patch's form factor costs
@@ -4880,6 +4885,8 @@ static double gim__val_near(float *d, const float *n, const float *nl, float are
     d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     w = gim__near_weight(d2, area);
     if (!(w > 0.0f)) return en;
+    /* a cache (nearly) in the VAL's plane: the other side of a thin surface (gim__vpl_near) */
+    if (!(-(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) > GIM__VPL_NEAR_LIFT * sqrtf(area))) return en;
     f = gim__octagon_phi(d, n, nl, area, phi);
     fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
     if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv) || !(area > 0.0f)) return en;   /* no patch: the far field */
@@ -7068,9 +7075,6 @@ static uint32_t gim__vpl_scramble(uint32_t i, uint32_t n) {
    default interleave) take the clamped far field. The GPU lists them in its VPL loop and
    evaluates them after it (vpl_shade.comp). */
 #define GIM__VPL_NEAR_CAP 8u
-
-/* The near field needs the receiver this far (times sqrt(A)) in front of the patch's plane. */
-#define GIM__VPL_NEAR_LIFT 0.01f
 
 /* Near field of a VPL of area A (units of the VPL twins): E_i / Phi_i at a receiver (normal n)
    dist from it along omega = o (VPL -> receiver), from its far-field value g_far blended

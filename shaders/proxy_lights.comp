@@ -91,6 +91,7 @@ float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_
     float d2 = dot(d, d);
     float w = near_weight(d2, area);
     if (!(w > 0.0)) return e_n;
+    if (!(-dot(nl, d) > 0.01 * sqrt(area))) return e_n;   /* GIM__VPL_NEAR_LIFT: a thin surface's other side */
     vec3 phi;
     float f = octagon_phi(d, n, nl, area, phi);
     float fv = length(phi);

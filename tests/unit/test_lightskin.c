@@ -828,6 +828,38 @@ static void frame_memory_determinism(void **state) {
     assert_int_equal(as.live, 0);
 }
 
+/* The near field and a thin plate: a VAL on the plate's top (normal +z) and a cache on its
+   underside (normal -z) share the plane; rounding that lifts the cache by 1e-7 must not give it
+   the patch's F = 1 (it sees nothing of the VAL), while a cache 0.1 sqrt(A) above the patch,
+   facing it, does get its light (GIM__VPL_NEAR_LIFT: 0.01 sqrt(A)). */
+static void near_field_thin_plate(void **state) {
+    test_alloc_stats st;
+    test_log lg;
+    gim_env env = test_env(&st, &lg);
+    const float zs[2] = {1e-7f, 0.01f};
+    gim_proxy_light pl;
+    int k;
+    (void)state;
+    for (k = 0; k < 2; ++k) {
+        gim_cache c;
+        gim_val v;
+        gim_proxy_desc d;
+        memset(&c, 0, sizeof c);
+        memset(&v, 0, sizeof v);
+        c.position[0] = 0.02f; c.position[1] = 0.01f; c.position[2] = zs[k]; c.normal[2] = -1.0f;
+        c.area = 1e-4f; c.reflectance = 1.0f;
+        v.normal[2] = 1.0f; v.area = 0.01f; v.weight = 1.0f; v.flux[0] = v.flux[1] = v.flux[2] = 1.0f;
+        d = proxy_desc(&c, 1, &v, 1, env);
+        d.scene_scale = 1.0f;
+        assert_int_equal(gim_proxy_lights_twin(&d, &pl, NULL), GIM_OK);
+        print_message("cache %g above the VAL's plane: proxy flux %g\n", (double)zs[k], (double)pl.flux[0]);
+        if (k == 0) assert_true(pl.flux[0] < 1e-3f);   /* 0.63 without the guard */
+        else assert_true(pl.flux[0] > 0.5f);
+    }
+    assert_int_equal(lg.errors, 0);
+    assert_int_equal(st.live, 0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(eq3_hand_computed),
@@ -845,6 +877,7 @@ int main(void) {
         cmocka_unit_test(gather),
         cmocka_unit_test(brsm_pipeline),
         cmocka_unit_test(frame_memory_determinism),
+        cmocka_unit_test(near_field_thin_plate),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
