@@ -92,7 +92,8 @@
                            no caches, no visibility; f.gather
      CLUSTERED             VPLs clustered by k-means into VALs with paraboloid soft shadow maps
                            [3]; f.vpl
-     SSVP                  two bounces from one paraboloid map per cluster [4]; f.vpl
+     SSVP                  two bounces from one paraboloid map per cluster [4], the second
+                           shadowed by one imperfect shadow map [5] per second-bounce VPL; f.vpl
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
      off by default, and off costs nothing. f.lightskin.temporal_steps keeps the VALs
@@ -727,7 +728,8 @@ typedef struct gim_debug_outputs {
     /* visibility ISM (0 otherwise) */
     uint32_t ism_maps;          /* SSBO: map i of cache i of caches (gim_ism_render_twin), ism_size^2 16-bit depths,
                                    two to a uint (texel 2k in the low half; gim_ism_dequantize); the VPL
-                                   methods: map i of VPL i of vpls */
+                                   methods: map i of VPL i of vpls, or with their paraboloid maps (SSVP's
+                                   second bounce) map i of VPL first_bounce_count + i */
     uint32_t ism_size;
 } gim_debug_outputs;
 
@@ -1903,7 +1905,10 @@ typedef struct gim_vpl_shade_desc {
                                        radiosity with Ritschel et al. 2008's maps): map i is gim_ism_render_twin's for
                                        VPL i taken as a cache (its position and normal), and V_i its hard
                                        visibility by gim_ism_visibility_twin's lookup with the receiver as the VAL;
-                                       NULL: none. Not with cluster (one visibility per VPL) */
+                                       NULL: none. With cluster: maps only for the VPLs from ism_first on that
+                                       have no cluster (UINT32_MAX), map i - ism_first: SSVP's second bounce,
+                                       whose VPLs no cluster's paraboloid map sees from */
+    uint32_t ism_first;             /* with cluster and ism: the first VPL with a map (> 0); else 0 */
     uint32_t ism_size;              /* 0: GIM_ISM_DEFAULT_SIZE */
     float ism_bias, ism_slope;      /* as gim_ism_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     gim_env env;
@@ -7002,7 +7007,8 @@ static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
     if (d->ism) {
         uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
-        if (d->cluster) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism and cluster: one visibility per VPL");
+        if (d->cluster && (d->ism_first == 0 || d->ism_first >= d->vpl_count))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism with cluster needs ism_first in 1..%u", d->vpl_count - 1u);
         if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism_size %u: a power of two in %u..%u", size,
                              GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
@@ -7126,13 +7132,13 @@ static void gim__vpl_pixel(const gim_vpl_shade_desc *d, const gim_receiver *rc, 
                 vis[m] = gim__paraboloid_vis(d->distance + (size_t)m * d->map_size * d->map_size, d->map_size, d->maps + m,
                                              rc->position, rc->normal);
             vv = vis[m];
-        } else if (d->ism) {   /* its own map, hard (gim_ism_visibility_twin's lookup) */
-            uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
+        } else if (d->ism && (!d->cluster || i >= d->ism_first)) {   /* its own map, hard (gim_ism_visibility_twin's lookup) */
+            uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE, map = d->cluster ? i - d->ism_first : i;
             float o[3], bias = d->ism_bias > 0.0f ? d->ism_bias : GIM_ISM_BIAS;
             float texel = (d->ism_slope > 0.0f ? d->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)size;
             gim_vec3 t, b, n;
             gim__ism_frame(v->position, v->normal, GIM_ISM_LIFT * d->scene_scale, o, &t, &b, &n);
-            vv = gim__ism_visible(d->ism + (size_t)i * size * size, size, o, t, b, n, rc->position, rc->normal, bias, texel);
+            vv = gim__ism_visible(d->ism + (size_t)map * size * size, size, o, t, b, n, rc->position, rc->normal, bias, texel);
         }
         /* E_i / Phi_i: Krivanek's clamping, max(d^2, d_c^2); near its patch, the patch's */
         if (v->area > 0.0f && d2 < GIM__VAL_NEAR * GIM__VAL_NEAR * v->area && near_n++ < GIM__VPL_NEAR_CAP) {
@@ -8772,22 +8778,23 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
-static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
-                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
-                                        float scene_scale, gim__GLuint maps_out);
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
+                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
 static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                  gim__GLuint points, uint32_t point_count, uint32_t size,
                                                  uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
-    return gim__gl_ism_render_of(ctx, caches, 2u, cache_count, points, point_count, size, points_per_map, scene_scale,
+    return gim__gl_ism_render_of(ctx, caches, 2u, 0u, cache_count, points, point_count, size, points_per_map, scene_scale,
                                  maps_out);
 }
 
 /* ... with the maps' origins in any buffer of source_vec4s vec4 per map, the position in the
    first, the normal in the second: 2 for gim_cache, 3 for gim_vpl (one map per VPL, Keller's
-   instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches). */
-static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t cache_count,
-                                        gim__GLuint points, uint32_t point_count, uint32_t size, uint32_t points_per_map,
-                                        float scene_scale, gim__GLuint maps_out) {
+   instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches);
+   map m from entry source_first + m (its point subset is m's). */
+static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
+                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -8813,7 +8820,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * source_vec4s * 16u);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches, ((uint64_t)source_first + cache_count) * source_vec4s * 16u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
@@ -8831,6 +8838,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1f(5, GIM_ISM_SPLAT);
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
+    gl->Uniform1ui(8, source_first);
     for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
         uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
         gl->Uniform1ui(0, first);
@@ -11105,8 +11113,11 @@ typedef struct gim__vpl_shade_args {
     uint32_t map_count;
     gim__GLuint distance;          /* R32F 2D array texture, map_size^2 x map_count (layer m: map m), or 0: no visibility */
     uint32_t map_size;
-    gim__GLuint ism;               /* SSBO: vpl_count ism_size^2 16-bit texels, VPL i's ISM (gim_vpl_shade_desc.ism),
-                                      or 0; not with cluster */
+    gim__GLuint ism;               /* SSBO: VPL i's ISM (gim_vpl_shade_desc.ism: 16-bit texels), or 0. Without
+                                      cluster every VPL's (vpl_count maps); with cluster those of the VPLs
+                                      i >= ism_first that have none, map i - ism_first (vpl_count - ism_first
+                                      maps; SSVP's second bounce beside the clusters' paraboloid maps) */
+    uint32_t ism_first;            /* with cluster and ism: the first VPL with a map; else 0 */
     uint32_t ism_size;
     float ism_bias, ism_slope;     /* as gim_vpl_shade_desc's; 0: GIM_ISM_BIAS, GIM_ISM_SLOPE */
     uint32_t interleave;           /* k (gim_vpl_shade_desc); 0 or 1: every VPL */
@@ -11134,15 +11145,20 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     if (a->vpl_count > 0 && !a->vpls) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no VPL buffer");
     if (vis && (!a->maps || a->map_count == 0 || a->map_size == 0))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "visibility needs maps, map_count and map_size");
-    if (ism && (vis || a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u, or with "
-                         "cluster visibility", (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (ism && (a->ism_size < GIM_ISM_MIN_SIZE || a->ism_size > GIM_ISM_MAX_SIZE || (a->ism_size & (a->ism_size - 1u))))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u not a power of two in %u..%u",
+                         (unsigned)a->ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (a->ism_first > 0u && (!ism || !vis || a->ism_first >= a->vpl_count))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_first %u needs ISMs, cluster visibility and "
+                         "fewer than %u VPLs before it", (unsigned)a->ism_first, (unsigned)a->vpl_count);
+    if (ism && vis && a->ism_first == 0u)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISMs with cluster visibility need ism_first > 0");
     if (ism && (!(a->ism_bias >= 0.0f && a->ism_bias <= 1.0f) || !(a->ism_slope >= 0.0f && a->ism_slope <= 64.0f)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM bias %g or slope %g out of range",
                          (double)a->ism_bias, (double)a->ism_slope);
-    if (ism && (uint64_t)a->vpl_count * a->ism_size * a->ism_size * 2u > (uint64_t)ctx->max_ssbo_bytes)
+    if (ism && (uint64_t)(a->vpl_count - a->ism_first) * a->ism_size * a->ism_size * 2u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE",
-                         (unsigned)a->vpl_count, (unsigned)a->ism_size);
+                         (unsigned)(a->vpl_count - a->ism_first), (unsigned)a->ism_size);
     if (!gim__isfinitef(a->clamp_distance) || !(a->clamp_distance >= 0.0f) || !gim__isfinitef(a->scene_scale) ||
         !(a->scene_scale > 0.0f))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance >= 0 and scene_scale > 0 must be finite");
@@ -11171,6 +11187,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     gl->Uniform1f(15, a->ism_bias > 0.0f ? a->ism_bias : GIM_ISM_BIAS);
     gl->Uniform1f(16, ism ? (a->ism_slope > 0.0f ? a->ism_slope : GIM_ISM_SLOPE) * 2.0f / (float)a->ism_size : 0.0f);
     gl->Uniform1f(17, GIM_ISM_LIFT * a->scene_scale);
+    gl->Uniform1ui(18, a->ism_first);
     gl->Uniform1ui(4, a->vpl_count);
     gl->Uniform1ui(5, k);
     gl->Uniform1ui(8, a->map_size);
@@ -11183,7 +11200,7 @@ static GIM__UNUSED gim_result gim__gl_vpl_shade(gim_context *ctx, const gim__vpl
     do {
         uint32_t n = members - first < chunk ? members - first : chunk;
         uint32_t flags = (vis ? 1u : 0u) | (host ? 2u : 0u) | (first == 0u ? 4u : 0u) | (first + n >= members ? 8u : 0u) |
-                         (ism ? 16u : 0u);
+                         (ism && !vis ? 16u : 0u) | (ism && vis ? 32u : 0u);
         gl->Uniform2ui(6, first, first + n);
         gl->Uniform1ui(7, flags);
         gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
@@ -11857,8 +11874,10 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
-    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM, hybrid;
     gim__vpl_settings_of(f, &s);
+    /* SSVP's second bounce beside the clusters' paraboloid maps: one ISM per second-bounce VPL */
+    hybrid = !ism && s.visibility && s.second > 0u;
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
@@ -11922,7 +11941,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else {
         gim__paraboloid_release(ctx, 1);
     }
-    if (r == GIM_OK && ism) {
+    if (r == GIM_OK && (ism || hybrid)) {
         /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
            only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
            this one makes its caches' again: ism_size 0 says they are not theirs) */
@@ -11940,7 +11959,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
             r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
                                (uint64_t)s.clusters * ism_size * ism_size * 2u, where);   /* 16 bits a texel */
             if (r == GIM_OK)
-                r = gim__gl_ism_render_of(ctx, v->maps, 3u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
+                r = gim__gl_ism_render_of(ctx, v->maps, 3u, 0u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
                                           scale, ctx->ism_cluster_maps);
             gi.maps = ctx->ism_cluster_maps;
             gi.size = ism_size;
@@ -11950,15 +11969,17 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         if (r == GIM_OK) r = gim__gl_second_bounce_ism(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first, &gi, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
     }
-    if (r == GIM_OK && ism) {
+    if (r == GIM_OK && (ism || hybrid)) {
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
-           Ritschel et al.'s maps), every frame: the VPLs move with the light. Their time is
-           GIM_PASS_PARABOLOID's. (The second bounce's alone beside the clusters' paraboloid
-           maps was tried and measured a loss: docs/methods.md.) */
-        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * ism_size * ism_size * 2u, where);
+           Ritschel et al.'s maps), every frame: the VPLs move with the light. With the clusters'
+           paraboloid maps (hybrid), only the second bounce's: no cluster's map sees from
+           where they lie. Their time is GIM_PASS_PARABOLOID's. */
+        uint32_t from = hybrid ? first : 0u;
+        r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
+                           (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
         if (r == GIM_OK)
-            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, total, ctx->ism_points, ism_pool, ism_size, ism_per, scale,
-                                      ctx->ism_maps);
+            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, from, total - from, ctx->ism_points, ism_pool, ism_size, ism_per,
+                                      scale, ctx->ism_maps);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else if (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps) {
         gim__ism_release(ctx);
@@ -11993,7 +12014,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.maps = v->maps;
         a.map_count = s.clusters;
         a.distance = s.visibility && !ism ? ctx->para_distance : 0u;
-        a.ism = ism ? ctx->ism_maps : 0u;
+        a.ism = ism || hybrid ? ctx->ism_maps : 0u;
+        a.ism_first = hybrid ? first : 0u;
         a.ism_size = ism_size;
         a.ism_bias = GIM_ISM_VPL_BIAS;
         a.ism_slope = GIM_ISM_VPL_SLOPE;
@@ -12039,8 +12061,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     dbg->paraboloid_position = ctx->para_position;
     dbg->paraboloid_normal = ctx->para_normal;
     dbg->paraboloid_albedo = ctx->para_albedo;
-    dbg->ism_maps = ism ? ctx->ism_maps : 0u;
-    dbg->ism_size = ism ? ism_size : 0u;
+    dbg->ism_maps = ism || hybrid ? ctx->ism_maps : 0u;
+    dbg->ism_size = ism || hybrid ? ism_size : 0u;
     return GIM_OK;
 }
 
@@ -12685,7 +12707,8 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
         if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
-        if (f.visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;
+        /* ISMs: every VPL's, or the second bounce's beside the paraboloid maps */
+        if (f.visibility.mode == GIM_VISIBILITY_ISM || (s.visibility && s.second)) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;

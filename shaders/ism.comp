@@ -27,6 +27,7 @@ layout(location = 4) uniform float lift;       /* GIM_ISM_LIFT scene_scale */
 layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
 layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
+layout(location = 8) uniform uint source_first; /* map m's origin is source entry source_first + m */
 
 shared uint level0[MAX_SIZE * MAX_SIZE];
 shared float pyramid[PYRAMID];
@@ -74,9 +75,9 @@ void main() {
     uint texels = size * size;
     for (uint q = local; q < texels; q += uint(GROUP)) level0[q] = floatBitsToUint(ISM_EMPTY);
     barrier();
-    vec3 n = source[m * source_vec4s + 1u].xyz, t, b;
+    vec3 n = source[(source_first + m) * source_vec4s + 1u].xyz, t, b;
     basis(n, t, b);
-    vec3 c = source[m * source_vec4s].xyz;
+    vec3 c = source[(source_first + m) * source_vec4s].xyz;
     vec3 o = vec3(c.x + lift * n.x, c.y + lift * n.y, c.z + lift * n.z);
     /* the map's offset frac(m phi) stride, as gim__ism_offset */
     uint hi, lo;

@@ -38,7 +38,8 @@ layout(location = 3) uniform vec4 eye;          /* perspective: (position, 1); o
 layout(location = 4) uniform uint vpl_count;    /* N */
 layout(location = 5) uniform uint k;            /* interleave, >= 1 */
 layout(location = 6) uniform uvec2 range;       /* members [first, last) of the pixel's subset this dispatch */
-layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last; 16: ISM */
+layout(location = 7) uniform uint flags;        /* 1: visibility; 2: host G-buffer; 4: first dispatch; 8: last; 16: ISM;
+                                                   32: ISM for the VPLs with no cluster from ism_first on */
 layout(location = 8) uniform uint map_size;
 layout(location = 9) uniform float near_;       /* 1e-6 scene_scale */
 layout(location = 10) uniform float dc2;        /* clamp distance squared */
@@ -54,6 +55,9 @@ layout(location = 14) uniform uint ism_size;
 layout(location = 15) uniform float ism_bias;
 layout(location = 16) uniform float ism_texel;  /* slope 2 / size */
 layout(location = 17) uniform float ism_lift;   /* GIM_ISM_LIFT scene_scale */
+/* flags & 32: with the clusters' maps (flags & 1), a VPL i >= ism_first that has no cluster (SSVP's
+   second bounce) is shadowed by its own ISM, map i - ism_first */
+layout(location = 18) uniform uint ism_first;
 
 const vec2 VOGEL[TAPS] = vec2[TAPS](            /* gim__vogel16 */
     vec2(0.176776692, 0.0), vec2(-0.225772187, 0.206825823), vec2(0.0345580503, -0.393771172),
@@ -194,6 +198,7 @@ void add_near(uint i, vec3 x, vec3 nx, vec3 view, float kexp, inout vec3 sd, ino
     float vv = 1.0;
     if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
     else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
+    else if ((flags & 32u) != 0u && i >= ism_first) vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
     float g = vv * vpl_near(o, dist, nx, p.normal.xyz, p.normal.w, cl * cx / (PI * (d2 > dc2 ? d2 : dc2)));
     cx = -dot(nx, o);
     vec3 r = 2.0 * cx * nx + o;
@@ -265,6 +270,8 @@ void main() {
         precise float vv = 1.0;
         if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
         else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
+        else if ((flags & 32u) != 0u && i >= ism_first)
+            vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;

@@ -91,6 +91,7 @@ static void run_case(const shade_case *sc) {
     int *surface;
     GLuint b_vpls, b_cluster, b_maps, t_dist, t_out, t_blur, b_ism = 0;
     float *ism = NULL;
+    uint32_t ism_first = sc->visibility == 3 ? NV / 2 : 0;   /* the hybrid: SSVP's second bounce */
     gim__vpl_shade_args a;
     gim__blur_args ba;
     gim_vec3 eye = gim_v3(o[0] + 0.5f * L, o[1] + 0.55f * L, o[2] + 1.9f * L);
@@ -146,7 +147,8 @@ static void run_case(const shade_case *sc) {
             cluster[i] = i % 4u < 3u ? mm : UINT32_MAX;
         }
     }
-    if (sc->visibility == 2) {   /* one ISM per VPL (gim_ism_render_twin on the VPLs as caches) of the room's points */
+    if (sc->visibility >= 2) {   /* one ISM per VPL (gim_ism_render_twin on the VPLs as caches) of the room's points;
+                                    3: for the VPLs from ism_first on only, the clusters' maps for the rest */
         gim_twin_scene ts;
         gim_cache vc[NV];
         gim_ism_desc idd;
@@ -167,11 +169,11 @@ static void run_case(const shade_case *sc) {
             vc[i].reflectance = 0.5f;
         }
         memset(&idd, 0, sizeof idd);
-        idd.caches = vc; idd.cache_count = NV; idd.points = pts; idd.point_count = NP;
+        idd.caches = vc + ism_first; idd.cache_count = NV - ism_first; idd.points = pts; idd.point_count = NP;
         idd.size = IS; idd.points_per_map = NP / 4; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
         ism = (float *)malloc((size_t)NV * IS * IS * 4);
         assert_int_equal(gim_ism_render_twin(&idd, ism), GIM_OK);
-        b_ism = gltest_ism_ssbo(ism, (size_t)NV * IS * IS);
+        b_ism = gltest_ism_ssbo(ism, (size_t)(NV - ism_first) * IS * IS);
         free(pos); free(alb3); free(pts);
     }
     b_vpls = gltest_ssbo(sizeof vpls, vpls);
@@ -194,8 +196,9 @@ static void run_case(const shade_case *sc) {
     a.albedo = sc->host ? 0u : out.gbuffer_albedo; a.material = sc->host ? 0u : out.gbuffer_material;
     a.width = W; a.height = H; a.view = fr.view; a.proj = fr.proj;
     a.vpls = b_vpls; a.vpl_count = NV;
-    a.cluster = sc->visibility == 1 ? b_cluster : 0u; a.maps = b_maps; a.map_count = M;
-    a.distance = sc->visibility == 1 ? t_dist : 0u; a.map_size = S;
+    a.cluster = sc->visibility & 1 ? b_cluster : 0u; a.maps = b_maps; a.map_count = M;
+    a.distance = sc->visibility & 1 ? t_dist : 0u; a.map_size = S;
+    a.ism_first = ism_first;
     a.ism = b_ism; a.ism_size = IS;
     a.interleave = sc->interleave; a.clamp_distance = sc->clamp * L; a.scene_scale = 1.7320508f * L;
     a.format = sc->format;
@@ -235,7 +238,7 @@ static void run_case(const shade_case *sc) {
     }
     memset(&sd, 0, sizeof sd);
     sd.vpls = vpls; sd.vpl_count = NV;
-    sd.cluster = sc->visibility == 1 ? cluster : NULL; sd.maps = maps;
+    sd.cluster = sc->visibility & 1 ? cluster : NULL; sd.maps = maps; sd.ism_first = ism_first;
     sd.ism = ism; sd.ism_size = IS; sd.map_count = M; sd.distance = dist; sd.map_size = S;
     sd.receivers = rec; sd.width = W; sd.height = H; sd.interleave = sc->interleave;
     sd.clamp_distance = a.clamp_distance; sd.scene_scale = a.scene_scale; sd.env = f.env;
@@ -270,8 +273,17 @@ static void run_case(const shade_case *sc) {
         sd.vpls = vpls;
         free(pts);
     }
+    if (sc->visibility == 3) {   /* the ISMs shadow: the twin with those VPLs unshadowed is far */
+        compare_stats cu;
+        sd.ism = NULL; sd.ism_first = 0;
+        assert_int_equal(gim_vpl_shade_twin(&sd, cpu), GIM_OK);
+        cu = compare(gpu, cpu, surface, pix_count, 1e-2);
+        print_message("hybrid: %u of %u pixels differ by over 1%% with the ISM VPLs unshadowed\n", cu.above, cu.count);
+        assert_true(cu.above > cu.count / 50);
+    }
     /* the test can fail: the twin without visibility (or with the other interleave) is far */
     sd.cluster = sc->visibility ? NULL : cluster;
+    sd.ism_first = 0;
     sd.ism = NULL;
     assert_int_equal(gim_vpl_shade_twin(&sd, cpu), GIM_OK);
     cfail = compare(gpu, cpu, surface, pix_count, 1e-3);
@@ -384,7 +396,9 @@ static void vpl_shade_ism_matches_twin(void **state) {
     run_case(&sc);
     sc.L = 0.004f; sc.origin[0] = 0.3f; sc.origin[1] = -0.1f; sc.origin[2] = 0.2f; sc.interleave = 4; sc.chunk = 4;
     run_case(&sc);
-    sc.area = 0.25f;   /* with the near field */
+    /* the clusters' paraboloid maps and, for the VPLs from NV / 2 on that have no cluster, their
+       own ISMs (SSVP's second bounce), with the near field */
+    sc.visibility = 3; sc.area = 0.25f;
     run_case(&sc);
     GLTEST_END();
 }

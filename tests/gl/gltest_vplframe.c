@@ -118,7 +118,7 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
     uint32_t k = ff->fr.vpl.interleave ? ff->fr.vpl.interleave : 8u, *cl = (uint32_t *)malloc(n * 4), *map = (uint32_t *)malloc(W * H * 4);
     gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
     gim_paraboloid *maps = (gim_paraboloid *)malloc(m * sizeof *maps);
-    float *dist = NULL, *shade = (float *)malloc(W * H * 12), *blur = (float *)malloc(W * H * 12);
+    float *dist = NULL, *ism = NULL, *shade = (float *)malloc(W * H * 12), *blur = (float *)malloc(W * H * 12);
     gim_receiver *grid = (gim_receiver *)malloc(W * H * sizeof *grid);
     gim_vpl_shade_desc sd;
     gim_blur_desc bd;
@@ -133,6 +133,13 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
     }
     grid_receivers(ff, grid);
     memset(&sd, 0, sizeof sd);
+    if (dist && od.ism_maps) {   /* SSVP's second bounce: one ISM per VPL beside the clusters' maps */
+        size_t texels = (size_t)(n - od.first_bounce_count) * od.ism_size * od.ism_size;
+        ism = (float *)malloc(texels * 4);
+        gltest_read_ism(od.ism_maps, texels, ism);
+        sd.ism = ism; sd.ism_first = od.first_bounce_count; sd.ism_size = od.ism_size;
+        sd.ism_bias = GIM_ISM_VPL_BIAS; sd.ism_slope = GIM_ISM_VPL_SLOPE;
+    }
     sd.vpls = v; sd.vpl_count = n;
     sd.cluster = dist ? cl : NULL;
     sd.maps = maps; sd.map_count = m;
@@ -153,7 +160,7 @@ static uint32_t compare_with_cpu_chain(frame_fixture *ff, const float *gpu, doub
     else memcpy(blur, shade, W * H * 12);
     for (i = 0; i < W * H; ++i) map[i] = i;
     bad = compare_pixels(gpu, blur, map, W * H, tol, max_rel);
-    free(cl); free(map); free(v); free(maps); free(dist); free(shade); free(blur); free(grid);
+    free(cl); free(map); free(v); free(maps); free(dist); free(ism); free(shade); free(blur); free(grid);
     return bad;
 }
 
@@ -338,6 +345,7 @@ static void only_what_is_enabled(void **state) {
     od = gim_debug(ff.f.ctx);
     assert_true(od.paraboloid_position != 0 && od.paraboloid_normal != 0 && od.paraboloid_albedo != 0);
     assert_true(od.paraboloid_distance == 0);   /* without visibility, the attribute pass alone */
+    assert_true(od.ism_maps == 0);              /* nor the second bounce's ISMs */
     assert_int_equal(od.vpl_count, od.first_bounce_count + 256u);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     two = st.gpu_bytes;
