@@ -140,16 +140,29 @@ static void maps_of_vpls_match(void **state) {
     d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
-    /* a buffer too small for NC VPLs of 48 bytes is refused */
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bp, 3u, NP * 2u / 3u + 1u, bp, NP, n, per, 6.0f, bm),
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
+    /* a buffer too small for NC VPLs of 48 bytes is refused, so is one too small for the maps
+       from source_first on */
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bp, 3u, 0u, NP * 2u / 3u + 1u, bp, NP, n, per, 6.0f, bm),
                      GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 1u, NC, bp, NP, n, per, 6.0f, bm), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
     f.log.errors = 0;
     read_maps(bm, texels, gpu);
     for (q = 0; q < texels; ++q) off += !(fabsf(gpu[q] - cpu[q]) <= 1e-4f * cpu[q]);
     print_message("%u VPLs' maps of %u^2: %u of %zu texels differ from the twin\n", NC, n, off, texels);
     assert_true(off <= texels / 200u);
+    /* maps of the VPLs from the 3rd on (SSVP's second bounce: source_first), map m from VPL
+       3 + m with map m's points, as the twin's on those VPLs taken as caches */
+    d.caches = s.caches + 3; d.cache_count = NC - 3;
+    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
+    gim__gl_enter(f.ctx, "test");
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 3u, NC - 3u, bp, NP, n, per, 6.0f, bm), GIM_OK);
+    assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
+    read_maps(bm, (size_t)(NC - 3) * n * n, gpu);
+    for (q = 0, off = 0; q < (NC - 3) * n * n; ++q) off += !(fabsf(gpu[q] - cpu[q]) <= 1e-4f * cpu[q]);
+    print_message("maps from VPL 3 on: %u of %u texels differ from the twin\n", off, (NC - 3) * n * n);
+    assert_true(off <= (NC - 3) * n * n / 200u);
     gltest_state_unchanged(&f);
     glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bp); glDeleteBuffers(1, &bm);
     free(cpu); free(gpu); free(s.points);

@@ -204,8 +204,8 @@ typedef struct method_row {
      RSM gather        0.184 (0.186)          1.139
      LightSkin BRSM    0.157 (0.161)          1.148
      LightSkin FULL    0.157 (0.160)          1.151
-     clustered, 30     0.150 (0.107-0.140)    0.995   (8 x 8 interleaving is coarse at 80x45)
-     SSVP, 8, 2 bounces 0.169 (0.103-0.254)   1.061
+     clustered, 30     0.116 (0.092-0.175)    0.994   (0.150 at 4096 VPLs, 8 x 8: coarse at 80x45)
+     SSVP, 8, 2 bounces 0.167 (0.108-0.269)   1.020   (0.169, 1.063 before its near field and second-bounce ISMs)
      SSVP + ISM        0.157                  0.996
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
    SSVP's second bounce lands on the first surface its ray meets since the attribute maps have
@@ -226,8 +226,8 @@ static const method_row cornell_rows[] = {
     {"RSM gather", GIM_METHOD_RSM_GATHER, GIM_VISIBILITY_OFF, 1, 0.230, 0.2},
     {"LightSkin BRSM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 1, 0.200, 0.2},
     {"LightSkin FULL", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_OFF, 1, 0.200, 0.2},
-    {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0.190, 0.1},
-    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.215, 0.1},
+    {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0.145, 0.1},
+    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.210, 0.1},
     {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05},
     {"LightSkin BRSM + ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1},
 };
