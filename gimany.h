@@ -718,7 +718,8 @@ typedef struct gim_debug_outputs {
     uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
     uint32_t vpl_count;
     uint32_t first_bounce_count; /* VPLs [0, first_bounce_count) are the first bounce */
-    uint32_t vpl_clusters;      /* SSBO: vpl_count uint, each VPL's cluster (0xffffffff: none, unshadowed) */
+    uint32_t vpl_clusters;      /* SSBO: vpl_count uint, each VPL's cluster (0xffffffff: none; the second
+                                   bounce's, shadowed by their own ISMs, see ism_maps) */
     uint32_t clusters;          /* SSBO: cluster_count gim_paraboloid */
     uint32_t cluster_count;
     uint32_t kmeans_centres;    /* SSBO: cluster_count {vec4 centre (w: VPLs), vec4 normal} */
@@ -11856,7 +11857,7 @@ static gim_result gim__gl_clusters(gim_context *ctx, uint32_t vpl_count, uint32_
 }
 
 /* Every VPL's cluster reset to none (0xffffffff): the k-means' first assignment, and the
-   second bounce's "unshadowed"; a GPU clear, no upload. */
+   second bounce's "no cluster" (their own ISMs shadow them); a GPU clear, no upload. */
 static gim_result gim__gl_clusters_reset(gim_context *ctx) {
     static const uint32_t none = 0xffffffffu;
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->vpl.cluster_of);
