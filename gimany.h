@@ -1638,13 +1638,13 @@ GIMANY_API gim_result gim_view_samples_twin(const float *depth, const float *nor
      E_i = Phi_i (n_i . omega)+ (n_x . -omega)+ / (pi max(d^2, d_c^2)) V_i,  omega = (x - y_i) / d,
    d = |x - y_i|, d_c the clamping distance (Krivanek's slides: the 1 / d^2 singularity traded
    for bias; the energy it removes is measured by make bench) and V_i the visibility of the
-   VPL's cluster (1 without visibility). Near field: a VPL with an area A > 0 (one from an RSM
-   texel: the texel's footprint) lights a receiver nearer than GIM__VAL_NEAR sqrt(A) as the
+   VPL's cluster (1 without visibility). Near field: a VPL with an area A > 0 (one from an RSM:
+   its share of the surface, gim_vpl.area) lights a receiver nearer than GIM__VAL_NEAR sqrt(A) as the
    patch it stands for, a regular octagon of area A around y_i in its plane (as LightSkin's
    VALs, gim__val_near):
      E_i = Phi_i F_i / A V_i,  F_i the point-to-polygon form factor (Lambert's contour formula),
    unclamped (F <= 1 bounds it), faded into the far field between 1.5 and 2 sqrt(A). That is
-   the expectation of the point's term over the texel (a VPL jittered inside its footprint),
+   the expectation of the point's term over that patch (a VPL jittered inside its share),
    so the near field is the same estimator without its singularity; the clamp alone removed
    most of the light within d_c of a contact edge. A receiver leaves
      L = rho_d / pi sum E_i + rho_g (k + 2) / (2 pi) sum ((r_i . view)+)^k E_i,
@@ -1668,8 +1668,9 @@ typedef struct gim_vpl {
     float position[3];
     float lit;              /* 1: a VPL; 0: it emits nothing (an unlit RSM texel) */
     float normal[3];        /* unit */
-    float area;             /* A: the surface the VPL stands for (its RSM texel's footprint, L^2), which
-                               its near field spreads it over; 0: a point (far field and clamp only) */
+    float area;             /* A (L^2): the surface the VPL stands for, its RSM texel's footprint times the
+                               texels it stands for (gim_rsm_vpls_twin), which its near field spreads it
+                               over; 0: a point (far field and clamp only) */
     float flux[3];          /* Phi, rgb, >= 0 */
     float unused1;
 } gim_vpl;
@@ -4880,17 +4881,31 @@ static float gim__near_weight(float d2, float area) {
     return w < 1.0f ? w : 1.0f;
 }
 
+/* The near field of a VAL or VPL at a receiver: its weight w (gim__near_weight) where the patch
+   applies, 0 where the far field stands (beyond 2 sqrt(A), a receiver within
+   GIM__VPL_NEAR_LIFT sqrt(A) of the patch's plane, nothing of the patch above its horizon).
+   d: the light's centre relative to the receiver (d2 = |d|^2), n the receiver's normal, nl
+   the light's; phi, f = n . phi and fv = |phi| as gim__octagon_phi gives them. */
+static float gim__near_patch(const float *d, float d2, const float *n, const float *nl, float area, float *phi, float *f,
+                             float *fv) {
+    float w = gim__near_weight(d2, area);
+    if (!(w > 0.0f)) return 0.0f;
+    /* a receiver (nearly) in the patch's plane: the other side of a thin surface, whose points
+       coincide with the light's own; its octagon would be all in or all out of the receiver's
+       hemisphere by rounding (F 1 or 0) */
+    if (!(-(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) > GIM__VPL_NEAR_LIFT * sqrtf(area))) return 0.0f;
+    *f = gim__octagon_phi(d, n, nl, area, phi);
+    *fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
+    if (!(*f > 0.0f) || !(*fv > 0.0f) || !gim__isfinitef(*fv) || !(area > 0.0f)) return 0.0f;   /* no patch */
+    return w;
+}
+
 static double gim__val_near(float *d, const float *n, const float *nl, float area, double weight, double en, float *cos_x) {
     float phi[3], f, d2, dl, fv, w, u[3], ul;
     int a;
     d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    w = gim__near_weight(d2, area);
-    if (!(w > 0.0f)) return en;
-    /* a cache (nearly) in the VAL's plane: the other side of a thin surface (gim__vpl_near) */
-    if (!(-(nl[0] * d[0] + nl[1] * d[1] + nl[2] * d[2]) > GIM__VPL_NEAR_LIFT * sqrtf(area))) return en;
-    f = gim__octagon_phi(d, n, nl, area, phi);
-    fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
-    if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv) || !(area > 0.0f)) return en;   /* no patch: the far field */
+    w = gim__near_patch(d, d2, n, nl, area, phi, &f, &fv);
+    if (!(w > 0.0f)) return en;   /* the far field */
     dl = sqrtf(d2);
     for (a = 0; a < 3; ++a) u[a] = d[a] / dl + w * (phi[a] / fv - d[a] / dl);
     ul = sqrtf(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
@@ -7006,6 +7021,8 @@ static gim_result gim__check_vpl_shade(const gim_vpl_shade_desc *d, const char *
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "clamp_distance must be finite and >= 0");
     if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
+    if (d->ism_first && (!d->ism || !d->cluster))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "ism_first needs ism and cluster");
     if (d->ism) {
         uint32_t size = d->ism_size ? d->ism_size : GIM_ISM_DEFAULT_SIZE;
         if (d->cluster && (d->ism_first == 0 || d->ism_first >= d->vpl_count))
@@ -7086,15 +7103,8 @@ static float gim__vpl_near(float *o, float dist, const float *n, const float *nl
     float d[3], phi[3], f, fv, w, u[3], ul;
     int a;
     for (a = 0; a < 3; ++a) d[a] = -o[a] * dist;   /* receiver -> VPL */
-    w = gim__near_weight(dist * dist, area);
+    w = gim__near_patch(d, dist * dist, n, nl, area, phi, &f, &fv);
     if (!(w > 0.0f)) return g_far;
-    /* a receiver (nearly) in the patch's plane: the other side of a thin surface, whose points
-       coincide with the VPL's own surface; its octagon would be all in or all out of the
-       receiver's hemisphere by rounding (F 1 or 0) */
-    if (!((nl[0] * o[0] + nl[1] * o[1] + nl[2] * o[2]) * dist > GIM__VPL_NEAR_LIFT * sqrtf(area))) return g_far;
-    f = gim__octagon_phi(d, n, nl, area, phi);
-    fv = sqrtf(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]);
-    if (!(f > 0.0f) || !(fv > 0.0f) || !gim__isfinitef(fv)) return g_far;
     for (a = 0; a < 3; ++a) u[a] = o[a] + w * (-phi[a] / fv - o[a]);
     ul = sqrtf(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
     if (ul > 0.0f && gim__isfinitef(ul))
@@ -11752,6 +11762,7 @@ static void gim__vpl_release(gim_context *ctx) {
 /* The settings of a resolved VPL frame (gim__frame_resolve), as the passes use them. */
 typedef struct gim__vpl_settings {
     int ssvp, visibility, restart;
+    int second_ism;   /* SSVP's second bounce beside the clusters' paraboloid maps: one ISM per second-bounce VPL */
     uint32_t vpls, clusters, iterations, size, bounces, second, interleave;
     float clamp_distance, blur_distance;   /* in scene scales (clamp 0: none) */
 } gim__vpl_settings;
@@ -11768,6 +11779,7 @@ static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->size = f->vpl.paraboloid_size;
     s->bounces = f->vpl.bounces;
     s->second = s->bounces == 2u ? f->vpl.second_bounce_vpls : 0u;
+    s->second_ism = f->visibility.mode != GIM_VISIBILITY_ISM && s->visibility && s->second > 0u;
     s->interleave = f->vpl.interleave;
     s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance;
     s->blur_distance = f->vpl.blur_distance;
@@ -11875,10 +11887,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
-    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM, hybrid;
+    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
-    /* SSVP's second bounce beside the clusters' paraboloid maps: one ISM per second-bounce VPL */
-    hybrid = !ism && s.visibility && s.second > 0u;
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
@@ -11942,7 +11952,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else {
         gim__paraboloid_release(ctx, 1);
     }
-    if (r == GIM_OK && (ism || hybrid)) {
+    if (r == GIM_OK && (ism || s.second_ism)) {
         /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
            only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
            this one makes its caches' again: ism_size 0 says they are not theirs) */
@@ -11970,12 +11980,12 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         if (r == GIM_OK) r = gim__gl_second_bounce_ism(ctx, v->maps, s.clusters, s.size, s.second, v->vpls, first, &gi, scale);
         gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
     }
-    if (r == GIM_OK && (ism || hybrid)) {
+    if (r == GIM_OK && (ism || s.second_ism)) {
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
            Ritschel et al.'s maps), every frame: the VPLs move with the light. With the clusters'
-           paraboloid maps (hybrid), only the second bounce's: no cluster's map sees from
+           paraboloid maps (s.second_ism), only the second bounce's: no cluster's map sees from
            where they lie. Their time is GIM_PASS_PARABOLOID's. */
-        uint32_t from = hybrid ? first : 0u;
+        uint32_t from = s.second_ism ? first : 0u;
         r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
                            (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
         if (r == GIM_OK)
@@ -12015,8 +12025,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.maps = v->maps;
         a.map_count = s.clusters;
         a.distance = s.visibility && !ism ? ctx->para_distance : 0u;
-        a.ism = ism || hybrid ? ctx->ism_maps : 0u;
-        a.ism_first = hybrid ? first : 0u;
+        a.ism = ism || s.second_ism ? ctx->ism_maps : 0u;
+        a.ism_first = s.second_ism ? first : 0u;
         a.ism_size = ism_size;
         a.ism_bias = GIM_ISM_VPL_BIAS;
         a.ism_slope = GIM_ISM_VPL_SLOPE;
@@ -12062,8 +12072,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     dbg->paraboloid_position = ctx->para_position;
     dbg->paraboloid_normal = ctx->para_normal;
     dbg->paraboloid_albedo = ctx->para_albedo;
-    dbg->ism_maps = ism || hybrid ? ctx->ism_maps : 0u;
-    dbg->ism_size = ism || hybrid ? ism_size : 0u;
+    dbg->ism_maps = ism || s.second_ism ? ctx->ism_maps : 0u;
+    dbg->ism_size = ism || s.second_ism ? ism_size : 0u;
     return GIM_OK;
 }
 
@@ -12172,15 +12182,19 @@ static void gim__frame_resolve_scene(gim_context *ctx, const gim_frame *in, gim_
 }
 
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
-   in range, a point count in range, and every cache's map within one shader storage block. f
-   as the host wrote it (an explicit LightSkin ism_size is refused where a zero is halved to
-   fit), rf resolved (gim__frame_resolve: the VPL frame's map side). */
+   in range, a point count in range, and every cache's map within one shader storage block
+   (also for SSVP's second-bounce ISMs beside the paraboloid maps). f as the host wrote it (an
+   explicit LightSkin ism_size is refused where a zero is halved to fit), rf resolved
+   (gim__frame_resolve: the VPL frame's map side). */
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, const char *where) {
     uint32_t size, i;
     uint64_t caches = 0;
+    int vplm = f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP;
+    gim__vpl_settings s;
     if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF && f->visibility.mode != GIM_VISIBILITY_ISM)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility.mode);
-    if (f->visibility.mode != GIM_VISIBILITY_ISM) return GIM_OK;
+    if (vplm) gim__vpl_settings_of(rf, &s);
+    if (f->visibility.mode != GIM_VISIBILITY_ISM && !(vplm && s.second_ism)) return GIM_OK;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     size = gim__ism_frame_size(ctx, f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
@@ -12189,14 +12203,12 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
     if (f->visibility.ism_points > GIM_ISM_MAX_POINTS)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_points %u above %u", (unsigned)f->visibility.ism_points,
                          GIM_ISM_MAX_POINTS);
-    if (f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP) {   /* one map per VPL, both bounces */
-        gim__vpl_settings s;
+    if (vplm) {   /* one map per VPL of both bounces, or per second-bounce VPL (s.second_ism) */
         uint64_t maps;
         uint32_t vsize = rf->visibility.ism_size;   /* the map side the VPL frame renders with */
-        gim__vpl_settings_of(rf, &s);
         if (f->vpl.no_visibility)
             return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
-        maps = (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u) + s.second;
+        maps = (s.second_ism ? 0u : (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u)) + s.second;
         if (maps * vsize * vsize * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                              "%llu VPLs' ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): fewer VPLs or "
@@ -12709,7 +12721,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
         if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
         /* ISMs: every VPL's, or the second bounce's beside the paraboloid maps */
-        if (f.visibility.mode == GIM_VISIBILITY_ISM || (s.visibility && s.second)) ids[n++] = GIM__PROGRAM_ISM;
+        if (f.visibility.mode == GIM_VISIBILITY_ISM || s.second_ism) ids[n++] = GIM__PROGRAM_ISM;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;

@@ -175,12 +175,28 @@ DEMO_OPTIONS_FN gim_method demo_method(const demo_options *d) {
                                              : GIM_METHOD_LIGHTSKIN_BRSM;
 }
 
+/* The gim_frame fields these options set, for the demo's frame and the viewer's alike (a zero
+   leaves gimany's default); bounces: the scene option's. */
+DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim_frame *f) {
+    f->method = demo_method(d);
+    f->vpl.count = d->vpls;
+    f->vpl.cluster_count = d->clusters;
+    f->vpl.bounces = (uint32_t)bounces;
+    f->vpl.no_visibility = d->no_visibility;
+    f->lightskin.val_count = d->vals;
+    f->lightskin.view_sample_count = d->view_samples;
+    f->lightskin.rotate_view_samples = 1;
+    f->visibility.mode = d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+    f->visibility.ism_size = d->ism_size;
+    f->visibility.ism_points = d->ism_points;
+}
+
 /* A frame's work from the cost model, in terms (one VAL or VPL or texel
    evaluated for one cache, pixel or view sample) and bytes of GL and CPU memory:
      brsm      importance rsm^2 x view samples + accumulation caches x VALs, per light
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
-     clustered, ssvp   pixels x VPLs / 64 (8x8 interleaving), second bounce included
+     clustered, ssvp   pixels x VPLs / k^2 (interleaving: 4x4 clustered, 8x8 ssvp), second bounce included
      LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384
    memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
    Measured on llvmpipe (2 cores): 3.9e7 terms/s (full, the Cornell box's 8960 caches x 256^2

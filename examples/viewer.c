@@ -222,17 +222,7 @@ static int run(viewer *v, GLFWwindow *w) {
         scene_gimany_camera(&v->s, &f.view, &f.proj);
         f.width = (uint32_t)fw;
         f.height = (uint32_t)fh;
-        f.method = demo_method(&v->d);
-        f.vpl.count = v->d.vpls;
-        f.vpl.cluster_count = v->d.clusters;
-        f.vpl.bounces = (uint32_t)v->bounces;
-        f.vpl.no_visibility = v->d.no_visibility;
-        f.lightskin.val_count = v->d.vals;
-        f.lightskin.view_sample_count = v->d.view_samples;
-        f.visibility.mode = v->d.ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
-        f.visibility.ism_size = v->d.ism_size;
-        f.visibility.ism_points = v->d.ism_points;
-        f.lightskin.rotate_view_samples = 1;
+        demo_frame_settings(&v->d, v->bounces, &f);
         f.frame_index = frame;
         f.timing = 1;
         if (gim_update(v->ctx, &f) != GIM_OK) { rc = 1; break; }

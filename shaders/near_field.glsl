@@ -46,3 +46,20 @@ float octagon_phi(vec3 d, vec3 n, vec3 nl, float area, out vec3 phi) {
 float near_weight(float d2, float area) {
     return min((VAL_NEAR * VAL_NEAR - d2 / area) / ((1.0 - 0.5625) * VAL_NEAR * VAL_NEAR), 1.0);
 }
+
+/* gim__near_patch: the near field's weight where the patch applies (with phi, f = n . phi,
+   fv = |phi|), 0 where the far field stands: beyond 2 sqrt(A), a receiver within
+   GIM__VPL_NEAR_LIFT (0.01) sqrt(A) of the patch's plane (a thin surface's other side, whose
+   octagon rounding puts all in or all out of its hemisphere), nothing above its horizon. */
+float near_patch(vec3 d, float d2, vec3 n, vec3 nl, float area, out vec3 phi, out float f, out float fv) {
+    phi = vec3(0.0);
+    f = 0.0;
+    fv = 0.0;
+    float w = near_weight(d2, area);
+    if (!(w > 0.0)) return 0.0;
+    if (!(-dot(nl, d) > 0.01 * sqrt(area))) return 0.0;
+    f = octagon_phi(d, n, nl, area, phi);
+    fv = length(phi);
+    if (!(f > 0.0) || !(fv > 0.0) || !(fv <= 3.402823466e+38) || !(area > 0.0)) return 0.0;
+    return w;
+}

@@ -83,19 +83,15 @@ shared uint any_work;   /* an invocation of the group has work in mode 1 or 3 */
 
 /* Near field of a VAL (gim__val_near, the same float steps): within d < 2 sqrt(A) the VAL is
    a regular octagon of area A in its plane, clipped to the receiver's hemisphere, with vector
-   form factor Phi by Lambert's contour formula (octagon_phi in common.glsl). Returns the E_n
+   form factor Phi by Lambert's contour formula (near_patch in near_field.glsl). Returns the E_n
    term e_n blended towards w |Phi| / A, sets cos_x = F / |Phi| and turns d to unit(Phi) (its
    length kept); faded to the far field between d = 1.5 and 2 sqrt(A). */
 const uint NEAR_CAP = 16u;   /* GIM__VAL_NEAR_CAP: near VALs per cache listed in mode 0; mode 3 takes the rest */
 float val_near(inout vec3 d, vec3 n, vec3 nl, float area, float weight, float e_n, inout float cos_x) {
-    float d2 = dot(d, d);
-    float w = near_weight(d2, area);
-    if (!(w > 0.0)) return e_n;
-    if (!(-dot(nl, d) > 0.01 * sqrt(area))) return e_n;   /* GIM__VPL_NEAR_LIFT: a thin surface's other side */
+    float d2 = dot(d, d), f, fv;
     vec3 phi;
-    float f = octagon_phi(d, n, nl, area, phi);
-    float fv = length(phi);
-    if (!(f > 0.0) || !(fv > 0.0) || !(fv <= 3.402823466e+38) || !(area > 0.0)) return e_n;   /* no patch: the far field */
+    float w = near_patch(d, d2, n, nl, area, phi, f, fv);
+    if (!(w > 0.0)) return e_n;   /* the far field */
     float dl = sqrt(d2);
     vec3 u = d / dl + w * (phi / fv - d / dl);
     float ul = length(u);

@@ -167,18 +167,23 @@ uint scramble(uint i, uint n, uint half_) {
     return i;
 }
 
+/* VPL i's visibility from x (normal nx): its own ISM (flags & 16), its cluster's paraboloid
+   map (flags & 1), or beside those maps its own second-bounce ISM (flags & 32); 1 unshadowed */
+float vpl_visibility(uint i, Vpl p, vec3 x, vec3 nx) {
+    if ((flags & 16u) != 0u) return ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
+    if ((flags & 1u) != 0u && cluster[i] < map_count) return visibility(cluster[i], x, nx);
+    if ((flags & 32u) != 0u && i >= ism_first) return ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
+    return 1.0;
+}
+
 /* The near field (gim__vpl_near): VPL p of area A, dist from x along o (VPL -> x), with its
    far-field g_far; returns E / Phi blended towards the octagon's F / A and turns o towards
    -unit(phi). */
 float vpl_near(inout vec3 o, float dist, vec3 nx, vec3 nl, float area, float g_far) {
-    vec3 d = -o * dist;
-    float w = near_weight(dist * dist, area);
+    vec3 d = -o * dist, phi;
+    float f, fv;
+    float w = near_patch(d, dist * dist, nx, nl, area, phi, f, fv);
     if (!(w > 0.0)) return g_far;
-    if (!(dot(nl, o) * dist > 0.01 * sqrt(area))) return g_far;   /* GIM__VPL_NEAR_LIFT: a thin surface's other side */
-    vec3 phi;
-    float f = octagon_phi(d, nx, nl, area, phi);
-    float fv = length(phi);
-    if (!(f > 0.0) || !(fv > 0.0) || !(fv <= FLT_MAX)) return g_far;
     vec3 u = o + w * (-phi / fv - o);
     float ul = length(u);
     if (ul > 0.0 && ul <= FLT_MAX) o = u / ul;
@@ -195,11 +200,7 @@ void add_near(uint i, vec3 x, vec3 nx, vec3 view, float kexp, inout vec3 sd, ino
     precise float dist = sqrt(d2);
     vec3 o = vec3(dx, dy, dz) / dist;
     float cl = dot(p.normal.xyz, o), cx = -dot(nx, o);
-    float vv = 1.0;
-    if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
-    else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
-    else if ((flags & 32u) != 0u && i >= ism_first) vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
-    float g = vv * vpl_near(o, dist, nx, p.normal.xyz, p.normal.w, cl * cx / (PI * (d2 > dc2 ? d2 : dc2)));
+    float g = vpl_visibility(i, p, x, nx) * vpl_near(o, dist, nx, p.normal.xyz, p.normal.w, cl * cx / (PI * (d2 > dc2 ? d2 : dc2)));
     cx = -dot(nx, o);
     vec3 r = 2.0 * cx * nx + o;
     float re = dot(r, view);
@@ -267,11 +268,7 @@ void main() {
             near_b += uvec4(equal(uvec4(4u, 5u, 6u, 7u), uvec4(slot))) * (i - near_b);
             continue;
         }
-        precise float vv = 1.0;
-        if ((flags & 16u) != 0u) vv = ism_visibility(i, p.position_lit.xyz, p.normal.xyz, x, nx);
-        else if ((flags & 1u) != 0u && cluster[i] < map_count) vv = visibility(cluster[i], x, nx);
-        else if ((flags & 32u) != 0u && i >= ism_first)
-            vv = ism_visibility(i - ism_first, p.position_lit.xyz, p.normal.xyz, x, nx);
+        precise float vv = vpl_visibility(i, p, x, nx);
         precise float g = cl * cx * vv / (PI * (d2 > dc2 ? d2 : dc2));
         precise float rx = 2.0 * cx * nx.x + ox, ry = 2.0 * cx * nx.y + oy, rz = 2.0 * cx * nx.z + oz;
         precise float re = rx * view.x + ry * view.y + rz * view.z;

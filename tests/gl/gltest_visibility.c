@@ -408,6 +408,21 @@ static void bad_settings(void **state) {
     s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ism_maps, 0);
     assert_int_equal(s.f.ctx->ism_cluster_maps, 0);
+    /* SSVP's second-bounce ISMs beside the paraboloid maps (visibility off): their side and
+       their fit are checked as before any GL work too (16384 maps of 64^2 are 128 MiB) */
+    s.fr.vpl.no_visibility = 0;
+    s.fr.vpl.count = 0;
+    s.fr.visibility.mode = GIM_VISIBILITY_OFF;
+    s.fr.visibility.ism_size = 48;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.visibility.ism_size = 64;
+    s.fr.vpl.second_bounce_vpls = 16384;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(s.f.log.errors, 2);
+    s.f.log.errors = 0;
+    assert_int_equal(s.f.ctx->ism_maps, 0);
+    s.fr.vpl.second_bounce_vpls = 0;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
     s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;   /* the caches' maps again */
     s.fr.vpl.no_visibility = 0;
     s.fr.vpl.count = 0;

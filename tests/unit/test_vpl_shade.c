@@ -670,6 +670,7 @@ static void bad_input(void **state) {
     v = vpl(gim_v3(0, 0, 0), gim_v3(0, 0, 1), 1, 1, 1);
     RESET(); d.cluster = &cl; d.maps = &m; d.map_count = 1; d.distance = dist; d.map_size = 2; d.ism = dist;
     BAD(gim_vpl_shade_twin(&d, out));                                                /* ISMs with clusters: no ism_first */
+    d.ism = NULL; d.ism_first = 1; BAD(gim_vpl_shade_twin(&d, out));                 /* ism_first without ISMs */
     RESET();
     r.normal[0] = 0.5f; BAD(gim_vpl_shade_twin(&d, out));
     r = rec(gim_v3(0, 0, 1), gim_v3(0, 0, -1), gim_v3(0, 0, -1)); r.exponent = -1.0f; BAD(gim_vpl_shade_twin(&d, out));
