@@ -509,8 +509,9 @@ typedef struct gim_frame_visibility {
                                    their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
                                    their VPLs x ism_size^2 16-bit depths within one shader storage block) */
     uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
-                                   halves it until every cache's map fits one shader storage block (at 128
-                                   MiB: 64^2 up to 16,384 caches, 32^2 up to 65,536); CLUSTERED, SSVP keep 64 */
+                                   halves it until every cache's map fits GIM_ISM_BUDGET_BYTES (256 MiB: 64^2
+                                   up to 32,768 caches, 32^2 up to 131,072) and refuses an explicit side whose
+                                   maps exceed GIM_ISM_MAX_BYTES (1 GiB); CLUSTERED, SSVP keep 64 */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
 } gim_frame_visibility;
@@ -602,9 +603,9 @@ typedef struct gim_frame {
    diagonal; view_distance: the far plane), the off switches, and vpl.kmeans_iterations, whose
    default depends on the frame (3 from the last frame's centres, 8 from seeds). One more
    default depends on the scene: a zero visibility.ism_size is halved below 64 for LightSkin
-   when the caches' maps would not fit one shader storage block (the 64 written here is then
-   refused instead). With view, proj, width and height set, it renders what the zero frame of
-   the same method renders (tests/gl/gltest_frame.c). */
+   when the caches' maps would exceed GIM_ISM_BUDGET_BYTES (the 64 written here is the host's
+   then, refused above GIM_ISM_MAX_BYTES). With view, proj, width and height set, it renders
+   what the zero frame of the same method renders (tests/gl/gltest_frame.c). */
 GIMANY_API gim_frame gim_frame_defaults(gim_method method);
 
 /* Run the frame's passes (docs/design.md sec. 3, Bischoff 2017): RSM per light whose frustum meets an
@@ -1775,6 +1776,8 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
 #define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
                                              (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
                                              for the same error as 2048 at 3.7 s (docs/methods.md) */
+#define GIM_ISM_BUDGET_BYTES (256u << 20)  /* LightSkin's default side halves until the caches' maps fit */
+#define GIM_ISM_MAX_BYTES (1u << 30)      /* the most an explicit side may take (maps of 16 bits a texel) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
@@ -8661,6 +8664,25 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
    a scratch buffer of 96 bytes a cache between them. */
+/* The scene's points the maps draw their subsets from: four times a map's, so the subsets
+   differ per map (at most GIM_ISM_MAX_POINTS). */
+static uint32_t gim__ism_pool(uint32_t points_per_map) {
+    return points_per_map <= GIM_ISM_MAX_POINTS / 4u ? 4u * points_per_map : GIM_ISM_MAX_POINTS;
+}
+
+/* Maps of side `size` that one shader storage block holds, a power of two at most cap: the
+   maps of every cache exceed one block at scale (Sponza's 24,863 caches at 64^2 take 204 MB,
+   llvmpipe's and Intel's blocks 128 MiB, GL's minimum 16 MiB), so the passes bind them a range
+   of this many maps at a time. A power of two times a map's bytes (32 at least) keeps each
+   range's offset a multiple of GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT (a power of two, at
+   most 256 on every GL 4.3 driver we know; checked where bound). */
+static uint32_t gim__ism_block_maps(const gim_context *ctx, uint32_t size, uint32_t cap) {
+    uint64_t map_bytes = (uint64_t)size * size * 2u;
+    uint32_t n = 1u;
+    while (n < cap && (uint64_t)n * 2u * map_bytes <= (uint64_t)ctx->max_ssbo_bytes) n *= 2u;
+    return n;
+}
+
 /* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
    gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
 typedef struct gim__gl_ism {
@@ -8693,7 +8715,8 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
-    uint32_t step;
+    uint32_t step, range, cache_first;
+    uint64_t map_bytes;
     gim_result r;
     if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
@@ -8750,29 +8773,44 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
     gl->Uniform1ui(9, glossy_out && exponents ? 1u : 0u);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 7, with_ism ? ism->maps : caches);  /* never read without */
     gl->Uniform1ui(12, with_ism ? ism->size : 0u);
     gl->Uniform1f(13, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
     gl->Uniform1f(14, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
     gl->Uniform1f(15, GIM_ISM_LIFT * scene_scale);
-    /* sums over the VALs chunk by chunk (mode 0), the near VALs past a cache's first
+    /* per range of caches whose maps fit one storage block (all caches in one without maps):
+       sums over the VALs chunk by chunk (mode 0), the near VALs past a cache's first
        GIM__VAL_NEAR_CAP (mode 3), the dark caches' positions (mode 1), the proxy lights (mode 2);
        one dispatch each, the sums kept in proxy_state between them */
-    for (step = 0; step < 4u; ++step) {
-        static const uint32_t modes[4] = {0u, 3u, 1u, 2u};
-        uint32_t first = 0, mode = modes[step];
-        if (mode == 3u && val_count <= GIM__VAL_NEAR_CAP) continue;   /* no cache can have more */
-        do {
-            /* mode 3's list adds up to a loop iteration per VAL: half the chunk */
-            uint32_t chunk = mode == 3u ? (ctx->proxy_chunk + 1u) / 2u : ctx->proxy_chunk;
-            uint32_t n = mode == 2u ? 0u : (val_count - first < chunk ? val_count - first : chunk);
-            gl->Uniform1ui(6, first);
-            gl->Uniform1ui(7, n);
-            gl->Uniform1ui(8, mode);
-            gl->DispatchCompute((cache_count + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
-            gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
-            first += n;
-        } while (mode != 2u && first < val_count);
+    range = with_ism ? gim__ism_block_maps(ctx, ism->size, cache_count) : cache_count;
+    map_bytes = with_ism ? (uint64_t)ism->size * ism->size * 2u : 0u;
+    if (range < cache_count && (range * map_bytes) % (uint64_t)(ctx->ssbo_align > 0 ? ctx->ssbo_align : 1))
+        return gim__gl_leave(ctx, gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                                            "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d", (int)ctx->ssbo_align));
+    for (cache_first = 0; cache_first < cache_count; cache_first += range) {
+        uint32_t cache_end = cache_count - cache_first < range ? cache_count : cache_first + range;
+        if (with_ism)
+            gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 7, ism->maps, (gim__GLintptr)(cache_first * map_bytes),
+                                (gim__GLsizeiptr)((cache_end - cache_first) * map_bytes));
+        else
+            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 7, caches);   /* never read without */
+        gl->Uniform1ui(0, cache_end);
+        gl->Uniform1ui(16, cache_first);
+        for (step = 0; step < 4u; ++step) {
+            static const uint32_t modes[4] = {0u, 3u, 1u, 2u};
+            uint32_t first = 0, mode = modes[step];
+            if (mode == 3u && val_count <= GIM__VAL_NEAR_CAP) continue;   /* no cache can have more */
+            do {
+                /* mode 3's list adds up to a loop iteration per VAL: half the chunk */
+                uint32_t chunk = mode == 3u ? (ctx->proxy_chunk + 1u) / 2u : ctx->proxy_chunk;
+                uint32_t n = mode == 2u ? 0u : (val_count - first < chunk ? val_count - first : chunk);
+                gl->Uniform1ui(6, first);
+                gl->Uniform1ui(7, n);
+                gl->Uniform1ui(8, mode);
+                gl->DispatchCompute((cache_end - cache_first + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+                gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+                first += n;
+            } while (mode != 2u && first < val_count);
+        }
     }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -8780,6 +8818,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
 
 /* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
 #define GIM__ISM_CHUNK 4096u
+
 
 /* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render_twin (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
@@ -8809,7 +8848,8 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
-    uint32_t take, stride, first;
+    uint32_t take, stride, first, chunk;
+    uint64_t map_bytes;
     gim_result r;
     if (!caches || !points || !maps_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (cache_count == 0 || point_count == 0)
@@ -8823,11 +8863,18 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
                          (double)scene_scale);
-    if ((uint64_t)cache_count * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes ||
-        (uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
+    if ((uint64_t)point_count * 32u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
-                         "%u maps of %u^2 or %u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
-                         (unsigned)cache_count, (unsigned)size, (unsigned)point_count, (long long)ctx->max_ssbo_bytes);
+                         "%u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)point_count,
+                         (long long)ctx->max_ssbo_bytes);
+    if ((uint64_t)cache_count * size * size * 2u > (uint64_t)GIM_ISM_MAX_BYTES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps of %u^2 exceed GIM_ISM_MAX_BYTES",
+                         (unsigned)cache_count, (unsigned)size);
+    chunk = gim__ism_block_maps(ctx, size, GIM__ISM_CHUNK);
+    map_bytes = (uint64_t)size * size * 2u;
+    if (chunk < cache_count && (chunk * map_bytes) % (uint64_t)(ctx->ssbo_align > 0 ? ctx->ssbo_align : 1))
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
+                         (int)ctx->ssbo_align);
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
@@ -8840,7 +8887,6 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, points);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out);
     gl->UseProgram(program);
     gl->Uniform1ui(1, size);
     gl->Uniform1ui(2, stride);
@@ -8850,9 +8896,12 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
-    for (first = 0; first < cache_count; first += GIM__ISM_CHUNK) {
-        uint32_t n = cache_count - first < GIM__ISM_CHUNK ? cache_count - first : GIM__ISM_CHUNK;
+    for (first = 0; first < cache_count; first += chunk) {   /* each dispatch's maps within one storage block */
+        uint32_t n = cache_count - first < chunk ? cache_count - first : chunk;
+        gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)(first * map_bytes),
+                            (gim__GLsizeiptr)(n * map_bytes));
         gl->Uniform1ui(0, first);
+        gl->Uniform1ui(9, first);
         gl->DispatchCompute(n, 1u, 1u);
     }
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
@@ -10147,7 +10196,7 @@ GIMANY_DEF gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
 
 static void gim__lightskin_drop(gim_context *ctx);
 static void gim__ism_release(gim_context *ctx);
-static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches);
+static uint32_t gim__ism_frame_size(const gim_frame *f, uint64_t caches);
 
 static void gim__scene_destroy(gim_context *ctx) {
     const gim__gl *gl = &ctx->gl;
@@ -11039,13 +11088,14 @@ vals:
         /* the caches' maps, made again only when the scene (mesh, instance) or a setting changed */
         uint32_t size = f->visibility.ism_size;   /* resolved: halved to fit the caches' maps (gim__frame_resolve_scene) */
         uint32_t per = f->visibility.ism_points;
-        uint32_t pool = per <= GIM_ISM_MAX_POINTS / 4u ? 4u * per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
+        uint32_t pool = gim__ism_pool(per);
         if (!ctx->ism_maps || ctx->ism_version != ctx->scene_version || ctx->ism_size != size || ctx->ism_per_map != per ||
             ctx->ism_scale != scale || ctx->ism_point_count != pool) {
             ctx->ism_version = ctx->scene_version - 1u;
             r = gim__gl_ism_scene_points(ctx, pool, where);
             if (r == GIM_OK)
-                r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL, (uint64_t)total * size * size * 2u, where);
+                r = gim__gl_sized_buffer(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, (uint64_t)total * size * size * 2u,
+                                         where);   /* may exceed one storage block: the passes bind ranges */
             if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
             if (r != GIM_OK) return r;
             ctx->ism_version = ctx->scene_version;
@@ -11886,7 +11936,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     uint32_t i, k, off, first, total, it, iterations, ism_size = f->visibility.ism_size;
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
-    uint32_t ism_pool = ism_per <= GIM_ISM_MAX_POINTS / 4u ? 4u * ism_per : GIM_ISM_MAX_POINTS;   /* subsets differ per map */
+    uint32_t ism_pool = gim__ism_pool(ism_per);
     int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
@@ -12162,30 +12212,30 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const g
 }
 
 /* The map side of a frame: f->ism_size, or the default halved until caches maps of 16 bits a
-   texel fit one shader storage block (never below GIM_ISM_MIN_SIZE). */
-static uint32_t gim__ism_frame_size(const gim_context *ctx, const gim_frame *f, uint64_t caches) {
+   texel fit GIM_ISM_BUDGET_BYTES (never below GIM_ISM_MIN_SIZE). The passes split the maps over
+   storage blocks (gim__ism_block_maps), so the budget is one of memory, not of the GL. */
+static uint32_t gim__ism_frame_size(const gim_frame *f, uint64_t caches) {
     uint32_t size = GIM_ISM_DEFAULT_SIZE;
     if (f->visibility.ism_size) return f->visibility.ism_size;
-    while (size > GIM_ISM_MIN_SIZE && caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes) size /= 2u;
+    while (size > GIM_ISM_MIN_SIZE && caches * size * size * 2u > (uint64_t)GIM_ISM_BUDGET_BYTES) size /= 2u;
     return size;
 }
 
 /* After gim__frame_resolve and the checks (every instance's mesh exists), the one default
    that depends on the scene: a LightSkin frame's zero ism_size (in: the host's frame) halved
-   until every cache's map fits one shader storage block, into the resolved out. */
+   until every cache's map fits GIM_ISM_BUDGET_BYTES, into the resolved out. */
 static void gim__frame_resolve_scene(gim_context *ctx, const gim_frame *in, gim_frame *out) {
     uint64_t caches = 0;
     uint32_t i;
     if (in->visibility.ism_size || out->method == GIM_METHOD_CLUSTERED || out->method == GIM_METHOD_SSVP) return;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
-    out->visibility.ism_size = gim__ism_frame_size(ctx, in, caches);
+    out->visibility.ism_size = gim__ism_frame_size(in, caches);
 }
 
 /* The visibility settings, before any GL work: a known mode, a map side that is a power of two
-   in range, a point count in range, and every cache's map within one shader storage block
-   (also for SSVP's second-bounce ISMs beside the paraboloid maps). f as the host wrote it (an
-   explicit LightSkin ism_size is refused where a zero is halved to fit), rf resolved
-   (gim__frame_resolve: the VPL frame's map side). */
+   in range, a point count in range, every cache's map within GIM_ISM_MAX_BYTES, and every
+   VPL's within one shader storage block (also SSVP's second-bounce ISMs beside the paraboloid
+   maps). f as the host wrote it, rf resolved (gim__frame_resolve: the VPL frame's map side). */
 static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, const gim_frame *rf, const char *where) {
     uint32_t size, i;
     uint64_t caches = 0;
@@ -12196,7 +12246,7 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
     if (vplm) gim__vpl_settings_of(rf, &s);
     if (f->visibility.mode != GIM_VISIBILITY_ISM && !(vplm && s.second_ism)) return GIM_OK;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
-    size = gim__ism_frame_size(ctx, f, caches);
+    size = gim__ism_frame_size(f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ism_size %u: a power of two in %u..%u",
                          (unsigned)f->visibility.ism_size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
@@ -12215,10 +12265,18 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
                              "a smaller ism_size", (unsigned long long)maps, (unsigned)vsize, (long long)ctx->max_ssbo_bytes);
         return GIM_OK;
     }
-    if (caches * size * size * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
+    if (caches * size * size * 2u > (uint64_t)GIM_ISM_MAX_BYTES)   /* 16 bits a texel */
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
-                         "%llu ISMs of %u^2 exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes): a smaller ism_size",
-                         (unsigned long long)caches, (unsigned)size, (long long)ctx->max_ssbo_bytes);
+                         "%llu ISMs of %u^2 exceed GIM_ISM_MAX_BYTES (%u bytes): a smaller ism_size",
+                         (unsigned long long)caches, (unsigned)size, (unsigned)GIM_ISM_MAX_BYTES);
+    {   /* the passes bind one map, and the whole point pool, as one storage block at least */
+        uint32_t per = f->visibility.ism_points ? f->visibility.ism_points : GIM_ISM_DEFAULT_POINTS;
+        uint64_t pool = gim__ism_pool(per);
+        if ((uint64_t)size * size * 2u > (uint64_t)ctx->max_ssbo_bytes || pool * 32u > (uint64_t)ctx->max_ssbo_bytes)
+            return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                             "an ISM of %u^2 or %llu points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)",
+                             (unsigned)size, (unsigned long long)pool, (long long)ctx->max_ssbo_bytes);
+    }
     return GIM_OK;
 }
 

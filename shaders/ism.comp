@@ -28,6 +28,7 @@ layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
 layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 layout(location = 8) uniform uint source_first; /* map m's origin is source entry source_first + m */
+layout(location = 9) uniform uint out_first;    /* Maps is bound from map out_first on (a block holds a range) */
 
 shared uint level0[MAX_SIZE * MAX_SIZE];
 shared float pyramid[PYRAMID];
@@ -126,5 +127,5 @@ void main() {
     }
     uint half_texels = texels / 2u;
     for (uint q = local; q < half_texels; q += uint(GROUP))
-        map_out[m * half_texels + q] = ism_pack(level0[2u * q], level0[2u * q + 1u]);
+        map_out[(m - out_first) * half_texels + q] = ism_pack(level0[2u * q], level0[2u * q + 1u]);
 }

@@ -18,7 +18,8 @@ layout(std430, binding = 2) writeonly buffer Diffuse { Proxy diffuse_out[]; };
 layout(std430, binding = 3) writeonly buffer Glossy { Proxy glossy_out[]; };
 layout(std430, binding = 5) readonly buffer Exponents { float cache_k[]; };   /* per cache, when per_cache_k */
 
-layout(location = 0) uniform uint cache_count;
+layout(location = 0) uniform uint cache_count;   /* this dispatch's caches: [cache_first, cache_count) */
+layout(location = 16) uniform uint cache_first;  /* a range whose maps fit one storage block (the host splits them) */
 layout(location = 1) uniform uint val_count;
 layout(location = 2) uniform vec3 eye;
 layout(location = 3) uniform float exponent;     /* Phong k of the glossy lobe (every cache's unless per_cache_k) */
@@ -41,7 +42,7 @@ layout(std430, binding = 4) buffer State { vec4 state[]; };
 /* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility_twin's lookup,
    its float arithmetic in its order); ism_size 0: every VAL seen. Texels in 16 bits, two to a
    uint (ism.comp): texel 2k in the low half; a texel's float is its bits shifted up. */
-layout(std430, binding = 7) readonly buffer IsmMaps { uint ism[]; };
+layout(std430, binding = 7) readonly buffer IsmMaps { uint ism[]; };   /* bound from cache cache_first's map on */
 layout(location = 12) uniform uint ism_size;
 layout(location = 13) uniform float ism_bias;
 layout(location = 14) uniform float ism_texel;   /* slope 2 / size */
@@ -60,7 +61,7 @@ float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
     int ix = fx < 0.0 ? 0 : fx > float(ism_size - 1u) ? int(ism_size) - 1 : int(fx);
     int iy = fy < 0.0 ? 0 : fy > float(ism_size - 1u) ? int(ism_size) - 1 : int(fy);
     int tx = iy * int(ism_size) + ix;
-    uint zi = i * ism_size * ism_size + uint(tx);
+    uint zi = (i - cache_first) * ism_size * ism_size + uint(tx);
     float z = ism_unpack(ism[zi >> 1u], zi);
     float dref = dist;
     vec3 dir = ism_texel_ray(tx, ism_size, t, b, n);
@@ -223,7 +224,7 @@ void accumulate(inout Sums sd, inout Sums sg, inout float en, inout float shift,
 }
 
 void main() {
-    uint i = gl_GlobalInvocationID.x;
+    uint i = cache_first + gl_GlobalInvocationID.x;
     uint local = gl_LocalInvocationIndex;
     bool inside = i < cache_count;
     uint ii = min(i, cache_count - 1u);

@@ -427,19 +427,59 @@ static void bad_settings(void **state) {
     s.fr.vpl.no_visibility = 0;
     s.fr.vpl.count = 0;
     s.fr.visibility.ism_size = 0;
-    {   /* the default side halves until the maps fit: 64^2 of these caches do not fit 3 MiB, 32^2 do */
-        gim__GLint64 keep = s.f.ctx->max_ssbo_bytes;
-        uint64_t n = 0;
-        uint32_t i;
-        for (i = 0; i < s.f.ctx->instance_count; ++i) n += gim__mesh_get(s.f.ctx, s.f.ctx->instances[i].mesh)->cache_count;
-        s.f.ctx->max_ssbo_bytes = (gim__GLint64)(n * 32 * 32 * 2);
-        s.fr.visibility.ism_points = 256;
-        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_int_equal(gim_debug(s.f.ctx).ism_size, 32);
-        s.f.ctx->max_ssbo_bytes = keep;
-        s.fr.visibility.ism_points = 0;
-        s.fr.visibility.mode = GIM_VISIBILITY_OFF;
-        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    gltest_state_unchanged(&s.f);
+    teardown(&s);
+    GLTEST_END();
+}
+
+/* The caches' maps split over storage blocks: a GL whose blocks hold a third of them renders
+   them a range at a time (ism.comp) and the proxy-light pass looks them up a range of caches at
+   a time, bit for bit the frame of one block (it fails when either ignores the ranges: wrong
+   maps, or each cache looking into another's). The default side is no longer bounded by the
+   block but by GIM_ISM_BUDGET_BYTES (Sponza's 24,863 caches keep 64^2). */
+static void maps_split_over_blocks(void **state) {
+    scene_fx s;
+    gim_debug_outputs od;
+    float *img[2], *maps[2];
+    uint32_t n, k;
+    gim__GLint64 keep;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 16;
+    s.fr.visibility.ism_points = 2048;   /* a pool of 8192 points: 256 KiB */
+    keep = s.f.ctx->max_ssbo_bytes;
+    for (k = 0; k < 2; ++k) {
+        if (k == 1) {
+            s.f.ctx->max_ssbo_bytes = 256 << 10;   /* 512 maps of 16^2 a block */
+            gim__ism_release(s.f.ctx);             /* made again, in ranges */
+        }
+        if (gim_update(s.f.ctx, &s.fr) != GIM_OK) print_message("%s\n", s.f.log.last);
+        assert_int_equal(s.f.log.errors, 0);
+        od = gim_debug(s.f.ctx);
+        n = od.cache_count;
+        if (k == 1) assert_true(n > 2 * 512);     /* three ranges */
+        img[k] = (float *)malloc(W * H * 16);
+        maps[k] = (float *)malloc((size_t)n * 256 * 4);
+        gltest_read_texture(gim_outputs(s.f.ctx).indirect, GL_RGBA, img[k]);
+        gltest_read_ism(od.ism_maps, (size_t)n * 256, maps[k]);
+    }
+    s.f.ctx->max_ssbo_bytes = keep;
+    print_message("%u caches' 16^2 maps in 3 storage blocks: maps %s, image %s\n", n,
+                  memcmp(maps[0], maps[1], (size_t)n * 256 * 4) ? "differ" : "equal",
+                  memcmp(img[0], img[1], W * H * 16) ? "differs" : "equal");
+    assert_memory_equal(maps[0], maps[1], (size_t)n * 256 * 4);
+    assert_memory_equal(img[0], img[1], W * H * 16);
+    for (k = 0; k < 2; ++k) { free(img[k]); free(maps[k]); }
+    {   /* the default side: 64^2 up to the budget, then halved */
+        gim_frame f;
+        memset(&f, 0, sizeof f);
+        assert_int_equal(gim__ism_frame_size(&f, 32768), 64);
+        assert_int_equal(gim__ism_frame_size(&f, 32769), 32);
+        assert_int_equal(gim__ism_frame_size(&f, 131073), 16);
+        f.visibility.ism_size = 8;
+        assert_int_equal(gim__ism_frame_size(&f, 1u << 30), 8);
     }
     gltest_state_unchanged(&s.f);
     teardown(&s);
@@ -453,6 +493,7 @@ int main(void) {
         cmocka_unit_test(maps_are_the_twins),
         cmocka_unit_test(vpl_maps_are_the_twins),
         cmocka_unit_test(bad_settings),
+        cmocka_unit_test(maps_split_over_blocks),
     };
     int r;
     (void)room_receiver;   /* room.h's, for the shading tests */
