@@ -1,8 +1,10 @@
 /* A host that leaves GL state away from its defaults around gim_update: ordinary texture-upload
    pixel store (row length, skips), glClipControl, a logic op, primitive restart, the provoking
-   vertex, polygon mode, scissor, masks, depth range, culling, blending, stencil, samplers. Every
-   method's image must equal the one made from GL's default state, and every item must be as the
-   host left it afterwards. And gim_update with no current context says so. */
+   vertex, polygon mode, scissor, masks, depth range, culling, blending, stencil, samplers, all 8
+   clip planes, and bindings gimany does not save (pixel pack/unpack, uniform and indirect
+   buffers, the read framebuffer, a VAO's element array, textures on every unit). Every method's
+   image must equal the one made from GL's default state, and every item must be as the host
+   left it afterwards. And gim_update with no current context says so. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "scene_gimany.h"
@@ -13,7 +15,17 @@
 
 typedef struct hostile {
     GLuint samplers[8], program;
+    GLuint buffers[7], vao, fbo, tex2d[8], tex2d_array[8];
 } hostile;
+
+/* Bindings gimany neither reads nor changes (so does not save): {target, binding query}; the
+   last is the host VAO's element array. */
+static const GLenum bound[][2] = {
+    {GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING}, {GL_PIXEL_UNPACK_BUFFER, GL_PIXEL_UNPACK_BUFFER_BINDING},
+    {GL_UNIFORM_BUFFER, GL_UNIFORM_BUFFER_BINDING}, {GL_DISPATCH_INDIRECT_BUFFER, GL_DISPATCH_INDIRECT_BUFFER_BINDING},
+    {GL_DRAW_INDIRECT_BUFFER, GL_DRAW_INDIRECT_BUFFER_BINDING}, {GL_ARRAY_BUFFER, GL_ARRAY_BUFFER_BINDING},
+    {GL_ELEMENT_ARRAY_BUFFER, GL_ELEMENT_ARRAY_BUFFER_BINDING}};
+#define N_BOUND (sizeof bound / sizeof bound[0])
 
 static GLuint hostile_program(void) {
     static const char *src = "#version 430 core\nlayout(local_size_x = 1) in;\nvoid main() {}\n";
@@ -39,8 +51,10 @@ static const GLint pixel_store[][2] = {
 
 static const GLenum enabled[] = {GL_COLOR_LOGIC_OP, GL_PRIMITIVE_RESTART, GL_PRIMITIVE_RESTART_FIXED_INDEX,
                                  GL_SCISSOR_TEST, GL_CULL_FACE, GL_BLEND, GL_STENCIL_TEST, GL_POLYGON_OFFSET_FILL,
-                                 GL_DEPTH_CLAMP, GL_FRAMEBUFFER_SRGB, GL_CLIP_DISTANCE0, GL_RASTERIZER_DISCARD,
-                                 GL_DEPTH_TEST, GL_POLYGON_SMOOTH};
+                                 GL_DEPTH_CLAMP, GL_FRAMEBUFFER_SRGB, GL_CLIP_DISTANCE0, GL_CLIP_DISTANCE1,
+                                 GL_CLIP_DISTANCE2, GL_CLIP_DISTANCE3, GL_CLIP_DISTANCE4, GL_CLIP_DISTANCE5,
+                                 GL_CLIP_DISTANCE6, GL_CLIP_DISTANCE7, GL_RASTERIZER_DISCARD, GL_DEPTH_TEST,
+                                 GL_POLYGON_SMOOTH};
 #define N_ENABLED (sizeof enabled / sizeof enabled[0])
 
 static void set_hostile(hostile *h) {
@@ -73,9 +87,22 @@ static void set_hostile(hostile *h) {
         glSamplerParameteri(h->samplers[i], GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
         glBindSampler(i, h->samplers[i]);
     }
+    glGenTextures(8, h->tex2d);
+    glGenTextures(8, h->tex2d_array);
+    for (i = 0; i < 8; ++i) {
+        glActiveTexture(GL_TEXTURE0 + i);
+        glBindTexture(GL_TEXTURE_2D, h->tex2d[i]);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, h->tex2d_array[i]);
+    }
     glActiveTexture(GL_TEXTURE3);
     h->program = hostile_program();
     glUseProgram(h->program);
+    glGenVertexArrays(1, &h->vao);
+    glBindVertexArray(h->vao);
+    glGenBuffers((GLsizei)N_BOUND, h->buffers);
+    for (i = 0; i < N_BOUND; ++i) glBindBuffer(bound[i][0], h->buffers[i]);
+    glGenFramebuffers(1, &h->fbo);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, h->fbo);
     assert_int_equal(gltest_errors(), 0);
 }
 
@@ -92,6 +119,10 @@ static void check_hostile(const hostile *h) {
     glGetIntegerv(GL_CLIP_ORIGIN, &v); assert_int_equal(v, GL_UPPER_LEFT);
     glGetIntegerv(GL_CLIP_DEPTH_MODE, &v); assert_int_equal(v, GL_ZERO_TO_ONE);
     for (i = 0; i < N_ENABLED; ++i) assert_true(glIsEnabled(enabled[i]));
+    for (i = 0; i < 8; ++i) {   /* blending and colour masks of every draw buffer, not only gimany's */
+        assert_true(glIsEnabledi(GL_BLEND, i));
+        glGetBooleani_v(GL_COLOR_WRITEMASK, i, b4); assert_true(!b4[0] && !b4[1] && !b4[2] && !b4[3]);
+    }
     assert_false(glIsEnabled(GL_DITHER));
     glGetIntegerv(GL_LOGIC_OP_MODE, &v); assert_int_equal(v, GL_INVERT);
     glGetIntegerv(GL_PRIMITIVE_RESTART_INDEX, &v); assert_int_equal(v, 0);
@@ -113,9 +144,17 @@ static void check_hostile(const hostile *h) {
     for (i = 0; i < 8; ++i) {
         glActiveTexture(GL_TEXTURE0 + i);
         glGetIntegerv(GL_SAMPLER_BINDING, &v); assert_int_equal(v, h->samplers[i]);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D, &v); assert_int_equal(v, h->tex2d[i]);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &v); assert_int_equal(v, h->tex2d_array[i]);
     }
     glActiveTexture(GL_TEXTURE3);
     glGetIntegerv(GL_CURRENT_PROGRAM, &v); assert_int_equal(v, h->program);
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &v); assert_int_equal(v, h->vao);
+    for (i = 0; i < N_BOUND; ++i) {
+        glGetIntegerv(bound[i][1], &v); assert_int_equal(v, h->buffers[i]);
+    }
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, h->fbo);
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, 0);
 }
 
 /* Back to GL's defaults, so the test reads its images with its own known state. */
@@ -144,12 +183,25 @@ static void set_default(hostile *h) {
     glViewport(0, 0, W, H);
     glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
     glClearDepth(1.0);
-    for (i = 0; i < 8; ++i) glBindSampler(i, 0);
+    for (i = 0; i < 8; ++i) {
+        glBindSampler(i, 0);
+        glActiveTexture(GL_TEXTURE0 + i);
+        glBindTexture(GL_TEXTURE_2D, 0);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+    }
     glActiveTexture(GL_TEXTURE0);
     glUseProgram(0);
+    for (i = 0; i < N_BOUND; ++i) glBindBuffer(bound[i][0], 0);
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
     if (h) {
         glDeleteSamplers(8, h->samplers);
         glDeleteProgram(h->program);
+        glDeleteTextures(8, h->tex2d);
+        glDeleteTextures(8, h->tex2d_array);
+        glDeleteVertexArrays(1, &h->vao);
+        glDeleteBuffers((GLsizei)N_BOUND, h->buffers);
+        glDeleteFramebuffers(1, &h->fbo);
     }
 }
 
