@@ -82,7 +82,8 @@
      Every function that can fail returns a gim_result (GIM_OK == 0) and writes one line
      through the log callback of the gim_env it was given ("gimany: <function>: <what>").
      Nothing in gimany calls exit() or abort(); outputs are left untouched on error unless a
-     function says otherwise. Every GL call leaves the host's GL state as it found it.
+     function says otherwise. Every GL call leaves the host's GL state as it found it (or, with
+     gim_desc.gl_state = GIM_GL_STATE_RESET, at GL's initial values, asking GL nothing).
 
    METHODS (gim_frame.method; each one setting of the same runtime)
      LIGHTSKIN_BRSM (default)  LightSkin light caches fed by val_count VALs drawn from the RSM
@@ -306,7 +307,8 @@ typedef enum gim_normal_encoding {
 /* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
    host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
    the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
-   every call below. Every call that touches GL leaves the GL state as it found it.
+   every call below. Every call that touches GL leaves the GL state as it found it (unless
+   gim_desc.gl_state is GIM_GL_STATE_RESET: see gim_gl_state).
 
    The calls in a frame's order: the QUICK START at the top of this file. Caches come from
    gim_cache_generate_scene over all the meshes (or a blob) once, handed over per mesh in
@@ -321,10 +323,38 @@ extern "C" {
 /* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
 typedef void (*gim_gl_proc)(void);
 
+/* What gimany does with the host's GL state around each call that touches GL (gim_desc.gl_state).
+   Either way a call sets, for itself, every item its passes depend on, so its results do not
+   depend on the host's state; and either way it leaves alone what is not listed below. */
+typedef enum gim_gl_state {
+    /* The default: the outermost call saves the items it may change (about 65 GL queries, each
+       a round trip on threaded drivers such as NVIDIA's threaded optimisation or Mesa's
+       glthread) and restores them on return. */
+    GIM_GL_STATE_RESTORE = 0,
+    /* For hosts that set their own state before they draw: no query; on return every item gimany
+       may change is at GL's initial value: program 0, vertex array 0, draw framebuffer 0;
+       texture units 0-6: GL_TEXTURE_2D and GL_TEXTURE_2D_ARRAY 0, sampler 0; active texture
+       GL_TEXTURE0; image units 0-2 unbound (level 0, layer 0, not layered, GL_READ_ONLY,
+       GL_R8); shader storage bindings 0-7 and the generic GL_SHADER_STORAGE_BUFFER,
+       GL_ARRAY_BUFFER, GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER bindings 0; disabled:
+       GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_SCISSOR_TEST, GL_PRIMITIVE_RESTART,
+       GL_PRIMITIVE_RESTART_FIXED_INDEX, GL_RASTERIZER_DISCARD, GL_POLYGON_OFFSET_FILL,
+       GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH, GL_COLOR_LOGIC_OP, and GL_BLEND
+       of draw buffers 0-3; colour masks of draw buffers 0-3 all GL_TRUE; depth mask GL_TRUE,
+       depth func GL_LESS, depth range 0..1; polygon mode GL_FILL; provoking vertex
+       GL_LAST_VERTEX_CONVENTION; clip control GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE (GL 4.5).
+       The viewport is left as gimany's last pass set it (GL's initial viewport is the size of
+       the first surface made current, which a library cannot know): set yours before you draw. */
+    GIM_GL_STATE_RESET
+} gim_gl_state;
+
 /* Input of gim_create; zero means default. */
 typedef struct gim_desc {
     gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
     gim_env env;                                        /* allocator and log of the context */
+    gim_gl_state gl_state;  /* GIM_GL_STATE_RESTORE (0): the host's GL state restored after each
+                               call; GIM_GL_STATE_RESET: no GL query, GL's initial values left
+                               (the list at gim_gl_state); another value: gim_create refuses */
 } gim_desc;
 
 /* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
@@ -641,8 +671,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
    each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
    A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
-   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
-   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
+   host's GL state is saved, set to what the passes need (clip control, provoking vertex and
+   the raster state to GL's defaults) and restored (gim_desc.gl_state: or reset). Warnings: RGBA16F output a light
    can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
    (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
@@ -652,7 +682,8 @@ GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
    BRSM's 11 programs: 132 ms on llvmpipe with Mesa's shader cache off, `gimany-demo` prints
    it): call it behind a loading screen, after the scene is set. A driver that compiles more at
    the first dispatch still does that there. The frame is checked as gim_update checks it;
-   programs of other methods are built when first used. The host's GL state is saved and restored. */
+   programs of other methods are built when first used. The host's GL state is saved and restored
+   (gim_desc.gl_state: or reset). */
 GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -7823,7 +7854,8 @@ static void gim__gl_state_baseline(const gim__gl *gl) {
     if (gl->ClipControl) gl->ClipControl(GIM__GL_LOWER_LEFT, GIM__GL_NEGATIVE_ONE_TO_ONE);
 }
 
-static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+/* Set every item of the list to s's values (the viewport only with viewport != 0). */
+static void gim__gl_state_apply(const gim__gl *gl, const gim__gl_state *s, int viewport) {
     unsigned i;
     /* the host may have deleted its program while current: it lived only as long as it stayed
        current, and binding the dead name would leave GL_INVALID_VALUE for the host (imgui's guard) */
@@ -7831,7 +7863,7 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     else gl->UseProgram(0);
     gl->BindVertexArray((gim__GLuint)s->vertex_array);
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);
-    gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
+    if (viewport) gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
     for (i = 0; i < GIM__GL_STATE_CAPS; ++i) {
         if (s->caps[i]) gl->Enable(gim__gl_state_caps[i]);
         else gl->Disable(gim__gl_state_caps[i]);
@@ -7863,6 +7895,33 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
         gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
     gl->ProvokingVertex((gim__GLenum)s->provoking_vertex);
     if (gl->ClipControl) gl->ClipControl((gim__GLenum)s->clip_origin, (gim__GLenum)s->clip_depth_mode);
+}
+
+static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+    gim__gl_state_apply(gl, s, 1);
+}
+
+/* GIM_GL_STATE_RESET's exit: every item of the list at GL's initial value but the viewport
+   (which has none a library can know). Sets only; no query. */
+static void gim__gl_state_reset(const gim__gl *gl) {
+    gim__gl_state s;
+    unsigned i, k;
+    memset(&s, 0, sizeof s);   /* bindings 0, capabilities and blending off */
+    s.depth_func = GIM__GL_LESS;
+    s.depth_mask = GIM__GL_TRUE;
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i)
+        for (k = 0; k < 4; ++k) s.color_mask_i[i][k] = GIM__GL_TRUE;
+    s.polygon_mode[0] = s.polygon_mode[1] = GIM__GL_FILL;
+    s.depth_range[1] = 1.0;
+    s.active_texture = GIM__GL_TEXTURE0;
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        s.image[i].access = GIM__GL_READ_ONLY;
+        s.image[i].format = GIM__GL_R8;
+    }
+    s.provoking_vertex = GIM__GL_LAST_VERTEX_CONVENTION;
+    s.clip_origin = GIM__GL_LOWER_LEFT;
+    s.clip_depth_mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
+    gim__gl_state_apply(gl, &s, 0);
 }
 
 /* --- the context ----------------------------------------------------------------------- */
@@ -7998,6 +8057,7 @@ struct gim_context {
     gim__gl gl;
     int gl_major, gl_minor;
     int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
+    gim_gl_state gl_state;      /* gim_desc.gl_state: restore the host's state, or reset to GL's */
     int own_objects;            /* 1 inside gim_update's passes: every object is the context's own, made to
                                    size by the frame, so the host-object checks (GL queries) are skipped */
     gim__gl_state saved;
@@ -8101,8 +8161,9 @@ struct gim_context {
 
 static void gim__vpl_release(gim_context *ctx);
 
-/* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
-   error the host left pending is logged and cleared, so it is not blamed on gimany. */
+/* Enter a call that touches GL: the outermost saves the host's state (not with
+   GIM_GL_STATE_RESET) and sets the baseline. Under GIMANY_DEBUG an error the host left pending
+   is logged and cleared, so it is not blamed on gimany. */
 static void gim__gl_enter(gim_context *ctx, const char *where) {
     if (ctx->gl_depth++ != 0) return;
 #ifdef GIMANY_DEBUG
@@ -8116,14 +8177,18 @@ static void gim__gl_enter(gim_context *ctx, const char *where) {
 #else
     (void)where;
 #endif
-    gim__gl_state_save(&ctx->gl, &ctx->saved);
+    if (ctx->gl_state != GIM_GL_STATE_RESET) gim__gl_state_save(&ctx->gl, &ctx->saved);
     gim__gl_state_baseline(&ctx->gl);
 }
 
-/* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
+/* Leave it: the outermost restores the host's state, or with GIM_GL_STATE_RESET leaves GL's
+   initial values. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
 static gim_result gim__gl_leave(gim_context *ctx, gim_result r) {
     GIMANY_ASSERT(ctx->gl_depth > 0);
-    if (--ctx->gl_depth == 0) gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    if (--ctx->gl_depth == 0) {
+        if (ctx->gl_state == GIM_GL_STATE_RESET) gim__gl_state_reset(&ctx->gl);
+        else gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    }
     return r;
 }
 
@@ -12768,6 +12833,10 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
     if (!out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create", "out is NULL");
+    if ((unsigned)desc->gl_state > (unsigned)GIM_GL_STATE_RESET)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
+                         "desc.gl_state %d is not a gim_gl_state (GIM_GL_STATE_RESTORE or GIM_GL_STATE_RESET)",
+                         (int)desc->gl_state);
 #ifndef GIMANY_EXTERNAL_GL
     if (!desc->get_proc_address)
         return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
@@ -12801,6 +12870,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
+    ctx->gl_state = desc->gl_state;
     if (major == 4 && minor < 5) gl.ClipControl = NULL, gl.GetTextureParameteriv = NULL; /* 4.5 core */
     ctx->gl = gl;
     ctx->gl_major = (int)major;
