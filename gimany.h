@@ -672,9 +672,10 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
    A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
    host's GL state is saved, set to what the passes need (clip control, provoking vertex and
-   the raster state to GL's defaults) and restored (gim_desc.gl_state: or reset). Warnings: RGBA16F output a light
-   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
-   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
+   the raster state to GL's defaults) and restored (or reset: gim_desc.gl_state). Warnings:
+   RGBA16F output a light can saturate (once); with LightSkin, a G-buffer that mostly shows the
+   back of its surfaces (counted one frame in 32, read at a later frame once done). No current
+   context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* Builds every GL program a frame like `frame` needs (its method and settings; sizes do not
@@ -683,7 +684,7 @@ GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
    it): call it behind a loading screen, after the scene is set. A driver that compiles more at
    the first dispatch still does that there. The frame is checked as gim_update checks it;
    programs of other methods are built when first used. The host's GL state is saved and restored
-   (gim_desc.gl_state: or reset). */
+   (or reset: gim_desc.gl_state). */
 GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -7368,8 +7369,6 @@ enum {
     GIM__GL_SHADER_STORAGE_BUFFER_START = 0x90D4,
     GIM__GL_SHADER_STORAGE_BUFFER_SIZE = 0x90D5,
     GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
-    GIM__GL_PROVOKING_VERTEX = 0x8E4F,
-    GIM__GL_LAST_VERTEX_CONVENTION = 0x8E4E,
     GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
     GIM__GL_VIEWPORT = 0x0BA2,
     GIM__GL_SCISSOR_BOX = 0x0C10,
@@ -7486,6 +7485,8 @@ enum {
     GIM__GL_PACK_SKIP_IMAGES = 0x806B,
     GIM__GL_COLOR_LOGIC_OP = 0x0BF2,
     GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX = 0x8D69,
+    GIM__GL_PROVOKING_VERTEX = 0x8E4F,
+    GIM__GL_LAST_VERTEX_CONVENTION = 0x8E4E,
     GIM__GL_CLIP_ORIGIN = 0x935C,
     GIM__GL_CLIP_DEPTH_MODE = 0x935D,
     GIM__GL_LOWER_LEFT = 0x8CA1,
@@ -7692,9 +7693,9 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    texture units, 8 draw buffers, 8 clip distances).
    Read but not saved: clip distances (the last vertex stage of every draw, scene.vert and
    paraboloid.geom, writes gl_ClipDistance[0..7] = 1, so a host's enabled planes clip nothing);
-   texture state (reads go through gimany's nearest sampler; the
-   texture state of a host's G-buffer, swizzle, base level, depth-stencil mode, is the host's
-   and checked instead, gim__gl_check_host_gbuffer). Clip control and the provoking vertex are
+   texture state (reads go through gimany's nearest sampler; the texture state of a host's
+   G-buffer, swizzle, base level, depth-stencil mode, is the host's and checked instead,
+   gim__gl_check_host_gbuffer). Clip control and the provoking vertex are
    saved and set to GL's defaults for the call (gim__gl_state_baseline): the provoking vertex
    changes images although every flat value gimany draws (paraboloid.geom's) is the same on all
    vertices of its primitive, because llvmpipe sets triangles up from it (the last bit of
@@ -7712,10 +7713,11 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
    clear values (glClearBuffer* takes its own), front face and cull mode (culling is off), the
    scissor box (the scissor test is off). */
 #define GIM__GL_TEXTURE_UNITS 7  /* the shaders' sampler bindings are 0-6 */
-#define GIM__GL_TEXTURE_ARRAY_UNITS 0x17u /* the units (bits) bound as 2D arrays: 0-2 (second_bounce.comp), 4 (vpl_shade.comp) */
+/* of those, the units (bits) bound to 2D arrays: 0-2 (second_bounce.comp), 4 (vpl_shade.comp) */
+#define GIM__GL_TEXTURE_ARRAY_UNITS 0x17u
 #define GIM__GL_IMAGE_UNITS 3    /* the shaders' image bindings are 0-2 */
 #define GIM__GL_SSBO_BINDINGS 8  /* and their SSBO bindings 0-7 (proxy_lights.comp reads the ISM at 7) */
-#define GIM__GL_DRAW_BUFFERS 4   /* colour attachments of gimany's FBOs: 3 (RSM, G-buffer), 4 (paraboloid maps) */
+#define GIM__GL_DRAW_BUFFERS 4   /* gimany's FBOs' colour attachments: 3 (RSM, G-buffer), 4 (paraboloids) */
 
 /* glEnable/glDisable capabilities, all off in GL's initial state; every draw turns them off but
    the depth test (gim__gl_raster_state) */
@@ -7845,9 +7847,9 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
 }
 
 /* State gimany's passes read but do not each set, put to GL's defaults for the whole call
-   (after the save): clip control, the provoking vertex; and texture unit 0 active, so that the checks of a host's
-   G-buffer, which bind it on the active unit, bind it on a unit of the list. The raster passes
-   set the rest of the list themselves (gim__gl_raster_state). */
+   (after the save): clip control, the provoking vertex; and texture unit 0 active, so that the
+   checks of a host's G-buffer, which bind it on the active unit, bind it on a unit of the list.
+   The raster passes set the rest of the list themselves (gim__gl_raster_state). */
 static void gim__gl_state_baseline(const gim__gl *gl) {
     gl->ActiveTexture(GIM__GL_TEXTURE0);
     gl->ProvokingVertex(GIM__GL_LAST_VERTEX_CONVENTION);
@@ -10238,8 +10240,8 @@ static gim_result gim__gl_framebuffer(gim_context *ctx, gim__GLuint *fbo, const 
     gl->GenFramebuffers(1, fbo);
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, *fbo);   /* not the read framebuffer: the host's stays */
     for (i = 0; i < n; ++i) {
-        gl->FramebufferTexture2D(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, GIM__GL_TEXTURE_2D,
-                                 color[i], 0);
+        gl->FramebufferTexture2D(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i,
+                                 GIM__GL_TEXTURE_2D, color[i], 0);
         bufs[i] = GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i;
     }
     gl->FramebufferTexture2D(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, GIM__GL_TEXTURE_2D, depth, 0);
@@ -11489,7 +11491,8 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
     gl->GenFramebuffers(1, &ctx->para_fbo);
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, ctx->para_fbo);
     for (i = 0; i < 4; ++i) /* layered attachments: gl_Layer picks the map */
-        if (color[i]) gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
+        if (color[i])
+            gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
     gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->para_depth, 0);
     {   /* what the first pass draws (gim__gl_paraboloids sets each pass's) */
         gim__GLenum bufs[4] = {GIM__GL_COLOR_ATTACHMENT0, GIM__GL_NONE, GIM__GL_NONE, GIM__GL_NONE};
@@ -11901,7 +11904,8 @@ static gim_result gim__gl_clusters_reset(gim_context *ctx, uint32_t count) {
     gim__GLuint program = 0;
     gim_result r;
     if (count > 65535u * 64u)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, "gim_update", "%u VPLs above the dispatch limit", (unsigned)count);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, "gim_update", "%u VPLs above the dispatch limit",
+                         (unsigned)count);
     r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_ASSIGN, &program);
     if (r != GIM_OK) return r;
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->vpl.cluster_of);
