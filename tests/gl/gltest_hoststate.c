@@ -4,7 +4,8 @@
    clip planes, and bindings gimany does not save (pixel pack/unpack, uniform and indirect
    buffers, the read framebuffer, a VAO's element array, textures on every unit). Every method's
    image must equal the one made from GL's default state, and every item must be as the host
-   left it afterwards. And gim_update with no current context says so. */
+   left it afterwards; with GIM_GL_STATE_RESET the same image, and gimany's items at GL's
+   initial values. And gim_update with no current context says so. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "scene_gimany.h"

@@ -1,6 +1,7 @@
 /* Per-frame overheads of gim_update with timing 0, as a release build runs it (NDEBUG, so no
    GIMANY_DEBUG error checks): every method asks GL at most GLTEST_MAX_QUERIES questions a frame
-   (each glGet / glIs / glGetError / sync wait is a round trip on a threaded driver), and a
+   (GLTEST_MAX_QUERIES_RESET with gim_desc.gl_state = GIM_GL_STATE_RESET; each glGet / glIs /
+   glGetError / sync wait is a round trip on a threaded driver), and a
    second frame identical to the first allocates nothing through the context's allocator and
    creates, resizes or uploads no buffer or texture. The counts come from wrapping the entries
    of the context's loaded GL table. gim_prepare builds every program the frame then uses. */
