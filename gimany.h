@@ -8072,6 +8072,7 @@ struct gim_context {
     uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
+    gim__GLint max_layers[2];     /* GL_MAX_ARRAY_TEXTURE_LAYERS, GL_MAX_FRAMEBUFFER_LAYERS (asked once, not a frame) */
     /* the scene (see "the scene" below) */
     gim__mesh *meshes;            /* slots; a handle is slot + 1 | generation << 16 */
     uint32_t mesh_slots;
@@ -11543,7 +11544,6 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
                                             GIM__GL_COLOR_ATTACHMENT0 + 3}};
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
-    gim__GLint max_layers = 0, max_fb_layers = 0;
     gim_result r = GIM_OK;
     uint32_t i;
     int k, pass;
@@ -11559,12 +11559,10 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
                          (unsigned)size);
     if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the SSBO limit", (unsigned)count);
+    if ((int64_t)count > (int64_t)ctx->max_layers[0] || (int64_t)count > (int64_t)ctx->max_layers[1])
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)",
+                         (unsigned)count, (int)ctx->max_layers[0], (int)ctx->max_layers[1]);
     gim__gl_enter(ctx, where);
-    gl->GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
-    gl->GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &max_fb_layers);
-    if ((int64_t)count > (int64_t)max_layers || (int64_t)count > (int64_t)max_fb_layers)
-        r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)", (unsigned)count,
-                      (int)max_layers, (int)max_fb_layers);
     for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
         if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
             r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
@@ -12882,6 +12880,8 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
     gl.GetIntegerv(GIM__GL_MAX_TEXTURE_SIZE, &ctx->max_texture_size);
     gl.GetIntegerv(GIM__GL_MAX_VIEWPORT_DIMS, ctx->max_viewport);
+    gl.GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &ctx->max_layers[0]);
+    gl.GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &ctx->max_layers[1]);
     ctx->proxy_chunk = GIM__PROXY_CHUNK;
     gl.GetIntegerv(GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT, &ctx->ssbo_align);
     if (ctx->ssbo_align < 1) ctx->ssbo_align = 256;
