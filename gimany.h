@@ -82,7 +82,8 @@
      Every function that can fail returns a gim_result (GIM_OK == 0) and writes one line
      through the log callback of the gim_env it was given ("gimany: <function>: <what>").
      Nothing in gimany calls exit() or abort(); outputs are left untouched on error unless a
-     function says otherwise. Every GL call leaves the host's GL state as it found it.
+     function says otherwise. Every GL call leaves the host's GL state as it found it (or, with
+     gim_desc.gl_state = GIM_GL_STATE_RESET, at GL's initial values, asking GL nothing).
 
    METHODS (gim_frame.method; each one setting of the same runtime)
      LIGHTSKIN_BRSM (default)  LightSkin light caches fed by val_count VALs drawn from the RSM
@@ -306,7 +307,8 @@ typedef enum gim_normal_encoding {
 /* The GL 4.3 runtime. gimany includes no GL header: it loads the functions it uses from the
    host's get_proc_address into a table inside the context (or, with GIMANY_EXTERNAL_GL, takes
    the host loader's gl* functions). A GL 4.3 context must be current on the calling thread for
-   every call below. Every call that touches GL leaves the GL state as it found it.
+   every call below. Every call that touches GL leaves the GL state as it found it (unless
+   gim_desc.gl_state is GIM_GL_STATE_RESET: see gim_gl_state).
 
    The calls in a frame's order: the QUICK START at the top of this file. Caches come from
    gim_cache_generate_scene over all the meshes (or a blob) once, handed over per mesh in
@@ -321,10 +323,38 @@ extern "C" {
 /* A GL function as a loader returns it: matches eglGetProcAddress and glfwGetProcAddress. */
 typedef void (*gim_gl_proc)(void);
 
+/* What gimany does with the host's GL state around each call that touches GL (gim_desc.gl_state).
+   Either way a call sets, for itself, every item its passes depend on, so its results do not
+   depend on the host's state; and either way it leaves alone what is not listed below. */
+typedef enum gim_gl_state {
+    /* The default: the outermost call saves the items it may change (about 65 GL queries, each
+       a round trip on threaded drivers such as NVIDIA's threaded optimisation or Mesa's
+       glthread) and restores them on return. */
+    GIM_GL_STATE_RESTORE = 0,
+    /* For hosts that set their own state before they draw: no query; on return every item gimany
+       may change is at GL's initial value: program 0, vertex array 0, draw framebuffer 0;
+       texture units 0-6: GL_TEXTURE_2D and GL_TEXTURE_2D_ARRAY 0, sampler 0; active texture
+       GL_TEXTURE0; image units 0-2 unbound (level 0, layer 0, not layered, GL_READ_ONLY,
+       GL_R8); shader storage bindings 0-7 and the generic GL_SHADER_STORAGE_BUFFER,
+       GL_ARRAY_BUFFER, GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER bindings 0; disabled:
+       GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_SCISSOR_TEST, GL_PRIMITIVE_RESTART,
+       GL_PRIMITIVE_RESTART_FIXED_INDEX, GL_RASTERIZER_DISCARD, GL_POLYGON_OFFSET_FILL,
+       GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH, GL_COLOR_LOGIC_OP, and GL_BLEND
+       of draw buffers 0-3; colour masks of draw buffers 0-3 all GL_TRUE; depth mask GL_TRUE,
+       depth func GL_LESS, depth range 0..1; polygon mode GL_FILL; provoking vertex
+       GL_LAST_VERTEX_CONVENTION; clip control GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE (GL 4.5).
+       The viewport is left as gimany's last pass set it (GL's initial viewport is the size of
+       the first surface made current, which a library cannot know): set yours before you draw. */
+    GIM_GL_STATE_RESET
+} gim_gl_state;
+
 /* Input of gim_create; zero means default. */
 typedef struct gim_desc {
     gim_gl_proc (*get_proc_address)(const char *name); /* required unless GIMANY_EXTERNAL_GL */
     gim_env env;                                        /* allocator and log of the context */
+    gim_gl_state gl_state;  /* GIM_GL_STATE_RESTORE (0): the host's GL state restored after each
+                               call; GIM_GL_STATE_RESET: no GL query, GL's initial values left
+                               (the list at gim_gl_state); another value: gim_create refuses */
 } gim_desc;
 
 /* The runtime: GL functions, programs and buffers. Opaque; one per GL context. */
@@ -642,10 +672,11 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    bounds at most 1024 diagonals from the origin (float positions are too coarse beyond), and
    each light's power into the scene (colour x E x diagonal^2, or colour x 4 pi I) <= 1e36.
    A host G-buffer needs a depth format and signed normals (GIM_ERROR_INVALID_ARGUMENT). The
-   host's GL state is saved, set to what the passes need (pixel store, clip control, provoking
-   vertex and the raster state to GL's defaults) and restored. Warnings: RGBA16F output a light
-   can saturate (once); with LightSkin, a G-buffer that mostly shows the back of its surfaces
-   (counted one frame in 32, read at a later frame once done). No current context: GIM_ERROR_GL. */
+   host's GL state is saved, set to what the passes need (clip control, provoking vertex and
+   the raster state to GL's defaults) and restored (or reset: gim_desc.gl_state). Warnings:
+   RGBA16F output a light can saturate (once); with LightSkin, a G-buffer that mostly shows the
+   back of its surfaces (counted one frame in 32, read at a later frame once done). No current
+   context: GIM_ERROR_GL. */
 GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
 
 /* Builds every GL program a frame like `frame` needs (its method and settings; sizes do not
@@ -653,7 +684,8 @@ GIMANY_API gim_result gim_update(gim_context *ctx, const gim_frame *frame);
    BRSM's 11 programs: 132 ms on llvmpipe with Mesa's shader cache off, `gimany-demo` prints
    it): call it behind a loading screen, after the scene is set. A driver that compiles more at
    the first dispatch still does that there. The frame is checked as gim_update checks it;
-   programs of other methods are built when first used. The host's GL state is saved and restored. */
+   programs of other methods are built when first used. The host's GL state is saved and restored
+   (or reset: gim_desc.gl_state). */
 GIMANY_API gim_result gim_prepare(gim_context *ctx, const gim_frame *frame);
 
 /* What one light's passes wrote (GL names; valid until the next gim_update or gim_set_lights). */
@@ -7331,15 +7363,6 @@ enum {
     GIM__GL_ARRAY_BUFFER = 0x8892,
     GIM__GL_ARRAY_BUFFER_BINDING = 0x8894,
     GIM__GL_ELEMENT_ARRAY_BUFFER = 0x8893,
-    GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING = 0x8895,
-    GIM__GL_DISPATCH_INDIRECT_BUFFER = 0x90EE,
-    GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING = 0x90EF,
-    GIM__GL_DRAW_INDIRECT_BUFFER = 0x8F3F,
-    GIM__GL_DRAW_INDIRECT_BUFFER_BINDING = 0x8F43,
-    GIM__GL_PIXEL_PACK_BUFFER = 0x88EB,
-    GIM__GL_PIXEL_PACK_BUFFER_BINDING = 0x88ED,
-    GIM__GL_PIXEL_UNPACK_BUFFER = 0x88EC,
-    GIM__GL_PIXEL_UNPACK_BUFFER_BINDING = 0x88EF,
     GIM__GL_COPY_READ_BUFFER = 0x8F36,
     GIM__GL_COPY_READ_BUFFER_BINDING = 0x8F36,
     GIM__GL_COPY_WRITE_BUFFER = 0x8F37,
@@ -7348,14 +7371,8 @@ enum {
     GIM__GL_SHADER_STORAGE_BUFFER_BINDING = 0x90D3,
     GIM__GL_SHADER_STORAGE_BUFFER_START = 0x90D4,
     GIM__GL_SHADER_STORAGE_BUFFER_SIZE = 0x90D5,
-    GIM__GL_UNIFORM_BUFFER = 0x8A11,
-    GIM__GL_UNIFORM_BUFFER_BINDING = 0x8A28,
-    GIM__GL_UNIFORM_BUFFER_START = 0x8A29,
-    GIM__GL_UNIFORM_BUFFER_SIZE = 0x8A2A,
     GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
-    GIM__GL_READ_FRAMEBUFFER = 0x8CA8,
     GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
-    GIM__GL_READ_FRAMEBUFFER_BINDING = 0x8CAA,
     GIM__GL_VIEWPORT = 0x0BA2,
     GIM__GL_SCISSOR_BOX = 0x0C10,
     GIM__GL_BLEND = 0x0BE2,
@@ -7395,9 +7412,7 @@ enum {
     GIM__GL_IMAGE_BINDING_ACCESS = 0x8F3E,
     GIM__GL_IMAGE_BINDING_FORMAT = 0x906E,
     GIM__GL_PACK_ALIGNMENT = 0x0D05,
-    GIM__GL_UNPACK_ALIGNMENT = 0x0CF5,
     GIM__GL_PACK_ROW_LENGTH = 0x0D02,
-    GIM__GL_UNPACK_ROW_LENGTH = 0x0CF2,
     GIM__GL_COLOR_CLEAR_VALUE = 0x0C22,
     GIM__GL_DEPTH_CLEAR_VALUE = 0x0B73,
     GIM__GL_COMPUTE_SHADER = 0x91B9,
@@ -7440,7 +7455,6 @@ enum {
     GIM__GL_DEPTH_COMPONENT32F = 0x8CAC,
     GIM__GL_RGBA16F = 0x881A,
     GIM__GL_RGBA8 = 0x8058,
-    GIM__GL_FRAMEBUFFER = 0x8D40,
     GIM__GL_COLOR_ATTACHMENT0 = 0x8CE0,
     GIM__GL_DEPTH_ATTACHMENT = 0x8D00,
     GIM__GL_FRAMEBUFFER_COMPLETE = 0x8CD5,
@@ -7455,7 +7469,6 @@ enum {
     GIM__GL_DEPTH_RANGE = 0x0B70,
     GIM__GL_MAX_TEXTURE_SIZE = 0x0D33,
     GIM__GL_MAX_VIEWPORT_DIMS = 0x0D3A,
-    GIM__GL_CLIP_DISTANCE0 = 0x3000,
     GIM__GL_POLYGON_SMOOTH = 0x0B41,
     GIM__GL_WRITE_ONLY = 0x88B9,
     GIM__GL_TIMESTAMP = 0x8E28,
@@ -7467,12 +7480,6 @@ enum {
     GIM__GL_RGBA32UI = 0x8D70,
     GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
     GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317,
-    GIM__GL_UNPACK_SWAP_BYTES = 0x0CF0,
-    GIM__GL_UNPACK_LSB_FIRST = 0x0CF1,
-    GIM__GL_UNPACK_SKIP_ROWS = 0x0CF3,
-    GIM__GL_UNPACK_SKIP_PIXELS = 0x0CF4,
-    GIM__GL_UNPACK_IMAGE_HEIGHT = 0x806E,
-    GIM__GL_UNPACK_SKIP_IMAGES = 0x806D,
     GIM__GL_PACK_SWAP_BYTES = 0x0D00,
     GIM__GL_PACK_LSB_FIRST = 0x0D01,
     GIM__GL_PACK_SKIP_ROWS = 0x0D03,
@@ -7536,7 +7543,6 @@ enum {
     X(void, BindImageTexture, (gim__GLuint unit, gim__GLuint texture, gim__GLint level,          \
                                gim__GLboolean layered, gim__GLint layer, gim__GLenum access,     \
                                gim__GLenum format))                                              \
-    X(void, PixelStorei, (gim__GLenum pname, gim__GLint param))                                  \
     X(gim__GLuint, CreateShader, (gim__GLenum type))                                             \
     X(void, ShaderSource, (gim__GLuint shader, gim__GLsizei count,                               \
                            const gim__GLchar *const *string, const gim__GLint *length))          \
@@ -7605,8 +7611,6 @@ enum {
     X(void, CopyBufferSubData, (gim__GLenum read_target, gim__GLenum write_target,               \
                                 gim__GLintptr read_offset, gim__GLintptr write_offset,           \
                                 gim__GLsizeiptr size))                                           \
-    X(void, ClearBufferData, (gim__GLenum target, gim__GLenum internalformat, gim__GLenum format, \
-                              gim__GLenum type, const void *data))                               \
     X(gim__GLboolean, IsEnabledi, (gim__GLenum cap, gim__GLuint index))                          \
     X(void, Enablei, (gim__GLenum cap, gim__GLuint index))                                       \
     X(void, Disablei, (gim__GLenum cap, gim__GLuint index))                                      \
@@ -7685,60 +7689,62 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 /* --- GL state save/restore ----------------------------------------------------------------
    The GL state gimany may touch, in one place. gim__gl_enter saves it on the way into the
    outermost call that touches GL, gim__gl_leave restores it on the way out; what is not listed
-   here gimany must not change. Units and bindings are those gimany's passes use (within
-   GL 4.3's minimums: 8 image units, 8 SSBO bindings, 36 UBO bindings, 80 texture units).
-   State the calls read that a host may have set: glClearBufferData reads the unpack pixel
-   store, the draws read clip control, provoking vertex and the raster state; all set for the
-   call (gim__gl_state_baseline, gim__gl_raster_state). Texture reads go through gimany's
-   nearest sampler; the texture state of a host's G-buffer (swizzle, base level, depth-stencil
-   mode) is the host's and checked instead (gim__gl_check_host_gbuffer). No call reads or
-   writes pixels (glReadPixels, glTexSubImage, glGetTexImage). State no call sets is not saved
-   (each item read is a GL query, a round trip on threaded drivers): blend functions and
-   equations (blending is off in every draw), clear values (glClearBuffer* takes its own), front
-   face and cull mode (culling is off), the scissor box (the scissor test is off). */
+   here gimany must not change. Each item read is a GL query, a round trip on threaded drivers
+   (NVIDIA's threaded optimisation, Mesa's glthread), so the list holds only what some call
+   changes; state a call merely reads is made harmless instead of saved. Units and bindings are
+   those gimany's passes use (within GL 4.3's minimums: 8 image units, 8 SSBO bindings, 80
+   texture units, 8 draw buffers, 8 clip distances).
+   Read but not saved: clip distances (the last vertex stage of every draw, scene.vert and
+   paraboloid.geom, writes gl_ClipDistance[0..7] = 1, so a host's enabled planes clip nothing);
+   texture state (reads go through gimany's nearest sampler; the texture state of a host's
+   G-buffer, swizzle, base level, depth-stencil mode, is the host's and checked instead,
+   gim__gl_check_host_gbuffer). Clip control and the provoking vertex are
+   saved and set to GL's defaults for the call (gim__gl_state_baseline): the provoking vertex
+   changes images although every flat value gimany draws (paraboloid.geom's) is the same on all
+   vertices of its primitive, because llvmpipe sets triangles up from it (the last bit of
+   interpolated values differs: gltest_hoststate with GL_FIRST_VERTEX_CONVENTION, every
+   method). The draws set the rest of the list (gim__gl_raster_state).
+   Neither read nor changed, so not saved: the pixel store and the pixel pack/unpack buffers (no
+   call moves pixels to or from client memory: no glReadPixels, glTexSubImage, glGetTexImage,
+   and no glClearBufferData with a clear value, see gim__gl_clusters_reset); the uniform and
+   indirect buffer bindings (no shader has a uniform block, no draw or dispatch is indirect);
+   the read framebuffer (gimany binds its FBOs to GL_DRAW_FRAMEBUFFER only); the element array
+   buffer (VAO state, bound only with gimany's own mesh VAOs); the blend enable and colour mask
+   of draw buffers GIM__GL_DRAW_BUFFERS and up (gimany sets those of its own attachments only,
+   glDisablei / glColorMaski, never the glDisable(GL_BLEND) / glColorMask that set all eight);
+   and state no call sets: blend functions and equations (blending is off in every draw),
+   clear values (glClearBuffer* takes its own), front face and cull mode (culling is off), the
+   scissor box (the scissor test is off). */
 #define GIM__GL_TEXTURE_UNITS 7  /* the shaders' sampler bindings are 0-6 */
+/* of those, the units (bits) bound to 2D arrays: 0-2 (second_bounce.comp), 4 (vpl_shade.comp) */
+#define GIM__GL_TEXTURE_ARRAY_UNITS 0x17u
 #define GIM__GL_IMAGE_UNITS 3    /* the shaders' image bindings are 0-2 */
 #define GIM__GL_SSBO_BINDINGS 8  /* and their SSBO bindings 0-7 (proxy_lights.comp reads the ISM at 7) */
-#define GIM__GL_UBO_BINDINGS 4
-#define GIM__GL_DRAW_BUFFERS 8   /* per-draw-buffer blend and colour mask (GL 4.3 has >= 8) */
+#define GIM__GL_DRAW_BUFFERS 4   /* gimany's FBOs' colour attachments: 3 (RSM, G-buffer), 4 (paraboloids) */
 
-/* glEnable/glDisable capabilities */
+/* glEnable/glDisable capabilities, all off in GL's initial state; every draw turns them off but
+   the depth test (gim__gl_raster_state) */
 static const gim__GLenum gim__gl_state_caps[] = {
-    GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
+    GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
     GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
     GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
-    /* a host's clip planes would cut gimany's draws (its vertex shader writes no clip
-       distance); polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
-    GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2, GIM__GL_CLIP_DISTANCE0 + 3,
-    GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5, GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7,
+    /* polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
     GIM__GL_POLYGON_SMOOTH,
     /* a logic op replaces the writes to integer targets (the G-buffer's material); a fixed
        restart index would cut a mesh with 65535 or 2^32-1 vertices */
     GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
 #define GIM__GL_STATE_CAPS (sizeof gim__gl_state_caps / sizeof gim__gl_state_caps[0])
 
-/* Non-indexed buffer bindings: {target, its binding query}. ELEMENT_ARRAY_BUFFER is VAO state
-   and restored with the VAO. The generic SSBO/UBO bindings come after the indexed ones on
-   restore, because glBindBufferBase/Range also sets them. */
+/* Non-indexed buffer bindings gimany changes: {target, its binding query} (meshes are uploaded
+   through ARRAY_BUFFER, buffers copied and read back through COPY_READ/WRITE, SSBOs sized
+   through SHADER_STORAGE_BUFFER). The generic SSBO binding comes after the indexed ones on
+   restore, because glBindBufferBase/Range also sets it. */
 static const gim__GLenum gim__gl_state_buffers[][2] = {
     {GIM__GL_ARRAY_BUFFER, GIM__GL_ARRAY_BUFFER_BINDING},
-    {GIM__GL_DISPATCH_INDIRECT_BUFFER, GIM__GL_DISPATCH_INDIRECT_BUFFER_BINDING},
-    {GIM__GL_DRAW_INDIRECT_BUFFER, GIM__GL_DRAW_INDIRECT_BUFFER_BINDING},
-    {GIM__GL_PIXEL_PACK_BUFFER, GIM__GL_PIXEL_PACK_BUFFER_BINDING},
-    {GIM__GL_PIXEL_UNPACK_BUFFER, GIM__GL_PIXEL_UNPACK_BUFFER_BINDING},
     {GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_READ_BUFFER_BINDING},
     {GIM__GL_COPY_WRITE_BUFFER, GIM__GL_COPY_WRITE_BUFFER_BINDING},
-    {GIM__GL_SHADER_STORAGE_BUFFER, GIM__GL_SHADER_STORAGE_BUFFER_BINDING},
-    {GIM__GL_UNIFORM_BUFFER, GIM__GL_UNIFORM_BUFFER_BINDING}};
+    {GIM__GL_SHADER_STORAGE_BUFFER, GIM__GL_SHADER_STORAGE_BUFFER_BINDING}};
 #define GIM__GL_STATE_BUFFERS (sizeof gim__gl_state_buffers / sizeof gim__gl_state_buffers[0])
-
-/* glPixelStorei's unpack parameters: they apply to glClearBufferData's clear value too, so a
-   host's row length or skips would make the driver read past it. The pack ones are left alone:
-   no call packs pixels (glGetBufferSubData takes none). */
-static const gim__GLenum gim__gl_state_pixel_store[] = {
-    GIM__GL_UNPACK_ALIGNMENT, GIM__GL_UNPACK_ROW_LENGTH, GIM__GL_UNPACK_SWAP_BYTES, GIM__GL_UNPACK_LSB_FIRST,
-    GIM__GL_UNPACK_SKIP_ROWS, GIM__GL_UNPACK_SKIP_PIXELS, GIM__GL_UNPACK_IMAGE_HEIGHT, GIM__GL_UNPACK_SKIP_IMAGES};
-#define GIM__GL_STATE_PIXEL_STORE (sizeof gim__gl_state_pixel_store / sizeof gim__gl_state_pixel_store[0])
 
 /* One image unit (glBindImageTexture's arguments). */
 typedef struct gim__gl_image_binding {
@@ -7752,14 +7758,13 @@ typedef struct gim__gl_indexed_buffer {
 } gim__gl_indexed_buffer;
 
 typedef struct gim__gl_state {
-    gim__GLint program, vertex_array, element_array_buffer;
-    gim__GLint draw_framebuffer, read_framebuffer;
+    gim__GLint program, vertex_array, draw_framebuffer;
     gim__GLint viewport[4];
     gim__GLboolean caps[GIM__GL_STATE_CAPS];
     gim__GLint buffers[GIM__GL_STATE_BUFFERS];
     gim__GLint depth_func;
-    gim__GLboolean depth_mask, color_mask[4];
-    /* per draw buffer (glEnablei/glColorMaski), restored after the global ones */
+    gim__GLboolean depth_mask;
+    /* per draw buffer of gimany's FBOs (glEnablei/glColorMaski) */
     gim__GLboolean blend_i[GIM__GL_DRAW_BUFFERS], color_mask_i[GIM__GL_DRAW_BUFFERS][4];
     gim__GLint polygon_mode[2];
     double depth_range[2];
@@ -7767,8 +7772,7 @@ typedef struct gim__gl_state {
     gim__GLint texture_2d[GIM__GL_TEXTURE_UNITS], texture_2d_array[GIM__GL_TEXTURE_UNITS];
     gim__GLint sampler[GIM__GL_TEXTURE_UNITS];
     gim__gl_image_binding image[GIM__GL_IMAGE_UNITS];
-    gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS], ubo[GIM__GL_UBO_BINDINGS];
-    gim__GLint pixel_store[GIM__GL_STATE_PIXEL_STORE];
+    gim__gl_indexed_buffer ssbo[GIM__GL_SSBO_BINDINGS];
     gim__GLint provoking_vertex;
     gim__GLint clip_origin, clip_depth_mode;  /* with ClipControl only */
 } gim__gl_state;
@@ -7801,15 +7805,12 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     memset(s, 0, sizeof *s);
     gl->GetIntegerv(GIM__GL_CURRENT_PROGRAM, &s->program);
     gl->GetIntegerv(GIM__GL_VERTEX_ARRAY_BINDING, &s->vertex_array);
-    gl->GetIntegerv(GIM__GL_ELEMENT_ARRAY_BUFFER_BINDING, &s->element_array_buffer);
     gl->GetIntegerv(GIM__GL_DRAW_FRAMEBUFFER_BINDING, &s->draw_framebuffer);
-    gl->GetIntegerv(GIM__GL_READ_FRAMEBUFFER_BINDING, &s->read_framebuffer);
     gl->GetIntegerv(GIM__GL_VIEWPORT, s->viewport);
     for (i = 0; i < GIM__GL_STATE_CAPS; ++i) s->caps[i] = gl->IsEnabled(gim__gl_state_caps[i]);
     for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i) gl->GetIntegerv(gim__gl_state_buffers[i][1], &s->buffers[i]);
     gl->GetIntegerv(GIM__GL_DEPTH_FUNC, &s->depth_func);
     gl->GetBooleanv(GIM__GL_DEPTH_WRITEMASK, &s->depth_mask);
-    gl->GetBooleanv(GIM__GL_COLOR_WRITEMASK, s->color_mask);
     for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
         s->blend_i[i] = gl->IsEnabledi(GIM__GL_BLEND, i);
         gl->GetBooleani_v(GIM__GL_COLOR_WRITEMASK, i, s->color_mask_i[i]);
@@ -7820,7 +7821,8 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
         gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D, &s->texture_2d[i]);
-        gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D_ARRAY, &s->texture_2d_array[i]);
+        if (GIM__GL_TEXTURE_ARRAY_UNITS >> i & 1u)
+            gl->GetIntegerv(GIM__GL_TEXTURE_BINDING_2D_ARRAY, &s->texture_2d_array[i]);
         gl->GetIntegerv(GIM__GL_SAMPLER_BINDING, &s->sampler[i]);
     }
     gl->ActiveTexture((gim__GLenum)s->active_texture);
@@ -7840,9 +7842,6 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
     }
     gim__gl_indexed_save(gl, GIM__GL_SHADER_STORAGE_BUFFER_BINDING, GIM__GL_SHADER_STORAGE_BUFFER_START,
                          GIM__GL_SHADER_STORAGE_BUFFER_SIZE, s->ssbo, GIM__GL_SSBO_BINDINGS);
-    gim__gl_indexed_save(gl, GIM__GL_UNIFORM_BUFFER_BINDING, GIM__GL_UNIFORM_BUFFER_START,
-                         GIM__GL_UNIFORM_BUFFER_SIZE, s->ubo, GIM__GL_UBO_BINDINGS);
-    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->GetIntegerv(gim__gl_state_pixel_store[i], &s->pixel_store[i]);
     gl->GetIntegerv(GIM__GL_PROVOKING_VERTEX, &s->provoking_vertex);
     if (gl->ClipControl) {
         gl->GetIntegerv(GIM__GL_CLIP_ORIGIN, &s->clip_origin);
@@ -7851,36 +7850,31 @@ static void gim__gl_state_save(const gim__gl *gl, gim__gl_state *s) {
 }
 
 /* State gimany's passes read but do not each set, put to GL's defaults for the whole call
-   (after the save): pixel store, clip control, provoking vertex. The raster passes set the
-   rest of the list themselves (gim__gl_raster_state). */
+   (after the save): clip control, the provoking vertex; and texture unit 0 active, so that the
+   checks of a host's G-buffer, which bind it on the active unit, bind it on a unit of the list.
+   The raster passes set the rest of the list themselves (gim__gl_raster_state). */
 static void gim__gl_state_baseline(const gim__gl *gl) {
-    unsigned i;
-    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) {
-        gim__GLenum p = gim__gl_state_pixel_store[i];
-        gl->PixelStorei(p, p == GIM__GL_UNPACK_ALIGNMENT ? 4 : 0);
-    }
+    gl->ActiveTexture(GIM__GL_TEXTURE0);
     gl->ProvokingVertex(GIM__GL_LAST_VERTEX_CONVENTION);
     if (gl->ClipControl) gl->ClipControl(GIM__GL_LOWER_LEFT, GIM__GL_NEGATIVE_ONE_TO_ONE);
 }
 
-static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+/* Set every item of the list to s's values (the viewport only with viewport != 0). */
+static void gim__gl_state_apply(const gim__gl *gl, const gim__gl_state *s, int viewport) {
     unsigned i;
     /* the host may have deleted its program while current: it lived only as long as it stayed
        current, and binding the dead name would leave GL_INVALID_VALUE for the host (imgui's guard) */
     if (s->program == 0 || gl->IsProgram((gim__GLuint)s->program)) gl->UseProgram((gim__GLuint)s->program);
     else gl->UseProgram(0);
     gl->BindVertexArray((gim__GLuint)s->vertex_array);
-    if (s->vertex_array) gl->BindBuffer(GIM__GL_ELEMENT_ARRAY_BUFFER, (gim__GLuint)s->element_array_buffer);
     gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, (gim__GLuint)s->draw_framebuffer);
-    gl->BindFramebuffer(GIM__GL_READ_FRAMEBUFFER, (gim__GLuint)s->read_framebuffer);
-    gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
+    if (viewport) gl->Viewport(s->viewport[0], s->viewport[1], s->viewport[2], s->viewport[3]);
     for (i = 0; i < GIM__GL_STATE_CAPS; ++i) {
         if (s->caps[i]) gl->Enable(gim__gl_state_caps[i]);
         else gl->Disable(gim__gl_state_caps[i]);
     }
     gl->DepthFunc((gim__GLenum)s->depth_func);
     gl->DepthMask(s->depth_mask);
-    gl->ColorMask(s->color_mask[0], s->color_mask[1], s->color_mask[2], s->color_mask[3]);
     for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
         if (s->blend_i[i]) gl->Enablei(GIM__GL_BLEND, i);
         else gl->Disablei(GIM__GL_BLEND, i);
@@ -7891,7 +7885,8 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
         gl->BindTexture(GIM__GL_TEXTURE_2D, (gim__GLuint)s->texture_2d[i]);
-        gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, (gim__GLuint)s->texture_2d_array[i]);
+        if (GIM__GL_TEXTURE_ARRAY_UNITS >> i & 1u)
+            gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, (gim__GLuint)s->texture_2d_array[i]);
         gl->BindSampler(i, (gim__GLuint)s->sampler[i]);
     }
     gl->ActiveTexture((gim__GLenum)s->active_texture);
@@ -7901,12 +7896,37 @@ static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
                              (gim__GLenum)b->access, (gim__GLenum)b->format);
     }
     gim__gl_indexed_restore(gl, GIM__GL_SHADER_STORAGE_BUFFER, s->ssbo, GIM__GL_SSBO_BINDINGS);
-    gim__gl_indexed_restore(gl, GIM__GL_UNIFORM_BUFFER, s->ubo, GIM__GL_UBO_BINDINGS);
     for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i)
         gl->BindBuffer(gim__gl_state_buffers[i][0], (gim__GLuint)s->buffers[i]);
-    for (i = 0; i < GIM__GL_STATE_PIXEL_STORE; ++i) gl->PixelStorei(gim__gl_state_pixel_store[i], s->pixel_store[i]);
     gl->ProvokingVertex((gim__GLenum)s->provoking_vertex);
     if (gl->ClipControl) gl->ClipControl((gim__GLenum)s->clip_origin, (gim__GLenum)s->clip_depth_mode);
+}
+
+static void gim__gl_state_restore(const gim__gl *gl, const gim__gl_state *s) {
+    gim__gl_state_apply(gl, s, 1);
+}
+
+/* GIM_GL_STATE_RESET's exit: every item of the list at GL's initial value but the viewport
+   (which has none a library can know). Sets only; no query. */
+static void gim__gl_state_reset(const gim__gl *gl) {
+    gim__gl_state s;
+    unsigned i, k;
+    memset(&s, 0, sizeof s);   /* bindings 0, capabilities and blending off */
+    s.depth_func = GIM__GL_LESS;
+    s.depth_mask = GIM__GL_TRUE;
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i)
+        for (k = 0; k < 4; ++k) s.color_mask_i[i][k] = GIM__GL_TRUE;
+    s.polygon_mode[0] = s.polygon_mode[1] = GIM__GL_FILL;
+    s.depth_range[1] = 1.0;
+    s.active_texture = GIM__GL_TEXTURE0;
+    for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) {
+        s.image[i].access = GIM__GL_READ_ONLY;
+        s.image[i].format = GIM__GL_R8;
+    }
+    s.provoking_vertex = GIM__GL_LAST_VERTEX_CONVENTION;
+    s.clip_origin = GIM__GL_LOWER_LEFT;
+    s.clip_depth_mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
+    gim__gl_state_apply(gl, &s, 0);
 }
 
 /* --- the context ----------------------------------------------------------------------- */
@@ -8042,6 +8062,7 @@ struct gim_context {
     gim__gl gl;
     int gl_major, gl_minor;
     int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
+    gim_gl_state gl_state;      /* gim_desc.gl_state: restore the host's state, or reset to GL's */
     int own_objects;            /* 1 inside gim_update's passes: every object is the context's own, made to
                                    size by the frame, so the host-object checks (GL queries) are skipped */
     gim__gl_state saved;
@@ -8054,6 +8075,7 @@ struct gim_context {
     uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
+    gim__GLint max_layers[2];     /* GL_MAX_ARRAY_TEXTURE_LAYERS, GL_MAX_FRAMEBUFFER_LAYERS (asked once, not a frame) */
     /* the scene (see "the scene" below) */
     gim__mesh *meshes;            /* slots; a handle is slot + 1 | generation << 16 */
     uint32_t mesh_slots;
@@ -8145,8 +8167,9 @@ struct gim_context {
 
 static void gim__vpl_release(gim_context *ctx);
 
-/* Enter a call that touches GL: the outermost saves the host's state. Under GIMANY_DEBUG an
-   error the host left pending is logged and cleared, so it is not blamed on gimany. */
+/* Enter a call that touches GL: the outermost saves the host's state (not with
+   GIM_GL_STATE_RESET) and sets the baseline. Under GIMANY_DEBUG an error the host left pending
+   is logged and cleared, so it is not blamed on gimany. */
 static void gim__gl_enter(gim_context *ctx, const char *where) {
     if (ctx->gl_depth++ != 0) return;
 #ifdef GIMANY_DEBUG
@@ -8160,14 +8183,18 @@ static void gim__gl_enter(gim_context *ctx, const char *where) {
 #else
     (void)where;
 #endif
-    gim__gl_state_save(&ctx->gl, &ctx->saved);
+    if (ctx->gl_state != GIM_GL_STATE_RESET) gim__gl_state_save(&ctx->gl, &ctx->saved);
     gim__gl_state_baseline(&ctx->gl);
 }
 
-/* Leave it: the outermost restores the host's state. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
+/* Leave it: the outermost restores the host's state, or with GIM_GL_STATE_RESET leaves GL's
+   initial values. Returns r, so calls end `return gim__gl_leave(ctx, r);`. */
 static gim_result gim__gl_leave(gim_context *ctx, gim_result r) {
     GIMANY_ASSERT(ctx->gl_depth > 0);
-    if (--ctx->gl_depth == 0) gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    if (--ctx->gl_depth == 0) {
+        if (ctx->gl_state == GIM_GL_STATE_RESET) gim__gl_state_reset(&ctx->gl);
+        else gim__gl_state_restore(&ctx->gl, &ctx->saved);
+    }
     return r;
 }
 
@@ -9180,6 +9207,7 @@ static GIM__UNUSED gim_result gim__gl_kmeans_step(gim_context *ctx, gim__GLuint 
         gl->Uniform1f(2, (float)((double)wx / scene_scale));
         gl->Uniform1f(3, ssvp ? wa : (float)(wa / 3.14159265358979323846));
         gl->Uniform1ui(4, ssvp ? 1u : 0u);
+        gl->Uniform1ui(5, 0u);   /* assign, not reset (gim__gl_clusters_reset) */
         gl->DispatchCompute((vpl_count + 63u) / 64u, 1u, 1u);
         gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
         /* update: the sums chunk by chunk, then the means */
@@ -10260,37 +10288,35 @@ static gim_result gim__gl_framebuffer(gim_context *ctx, gim__GLuint *fbo, const 
     if (*fbo) gl->DeleteFramebuffers(1, fbo);
     *fbo = 0;
     gl->GenFramebuffers(1, fbo);
-    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, *fbo);
+    gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, *fbo);   /* not the read framebuffer: the host's stays */
     for (i = 0; i < n; ++i) {
-        gl->FramebufferTexture2D(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, GIM__GL_TEXTURE_2D,
-                                 color[i], 0);
+        gl->FramebufferTexture2D(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i,
+                                 GIM__GL_TEXTURE_2D, color[i], 0);
         bufs[i] = GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i;
     }
-    gl->FramebufferTexture2D(GIM__GL_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, GIM__GL_TEXTURE_2D, depth, 0);
+    gl->FramebufferTexture2D(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, GIM__GL_TEXTURE_2D, depth, 0);
     gl->DrawBuffers(n, bufs);
-    status = gl->CheckFramebufferStatus(GIM__GL_FRAMEBUFFER);
+    status = gl->CheckFramebufferStatus(GIM__GL_DRAW_FRAMEBUFFER);
     if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "framebuffer incomplete (0x%04x)", (unsigned)status);
     return gim__gl_check(ctx, where);
 }
 
-/* Raster state of the RSM and G-buffer passes, everything from the state list. */
+/* Raster state of the RSM, G-buffer and paraboloid passes, everything from the state list.
+   Blend and colour mask per draw buffer of gimany's FBOs only: glDisable(GL_BLEND) and
+   glColorMask would change all eight, and the state list saves these four. */
 static void gim__gl_raster_state(const gim__gl *gl, gim__GLuint fbo, uint32_t w, uint32_t h) {
-    static const gim__GLenum off[] = {GIM__GL_BLEND, GIM__GL_CULL_FACE, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
-                                      GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD,
-                                      GIM__GL_POLYGON_OFFSET_FILL, GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
-                                      GIM__GL_CLIP_DISTANCE0, GIM__GL_CLIP_DISTANCE0 + 1, GIM__GL_CLIP_DISTANCE0 + 2,
-                                      GIM__GL_CLIP_DISTANCE0 + 3, GIM__GL_CLIP_DISTANCE0 + 4, GIM__GL_CLIP_DISTANCE0 + 5,
-                                      GIM__GL_CLIP_DISTANCE0 + 6, GIM__GL_CLIP_DISTANCE0 + 7, GIM__GL_POLYGON_SMOOTH,
-                                      GIM__GL_COLOR_LOGIC_OP, GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX};
     unsigned i;
-    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, fbo);
+    gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, fbo);
     gl->Viewport(0, 0, (gim__GLsizei)w, (gim__GLsizei)h);
-    for (i = 0; i < sizeof off / sizeof off[0]; ++i) gl->Disable(off[i]);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) gl->Disable(gim__gl_state_caps[i]);
     gl->Enable(GIM__GL_DEPTH_TEST);
     gl->DepthFunc(GIM__GL_LESS);
     gl->DepthMask(GIM__GL_TRUE);
-    gl->ColorMask(GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        gl->Disablei(GIM__GL_BLEND, i);
+        gl->ColorMaski(i, GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE, GIM__GL_TRUE);
+    }
     gl->PolygonMode(GIM__GL_FRONT_AND_BACK, GIM__GL_FILL);
     gl->DepthRange(0.0, 1.0);
 }
@@ -11514,10 +11540,11 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
     if (ctx->para_fbo) gl->DeleteFramebuffers(1, &ctx->para_fbo);
     ctx->para_fbo = 0;
     gl->GenFramebuffers(1, &ctx->para_fbo);
-    gl->BindFramebuffer(GIM__GL_FRAMEBUFFER, ctx->para_fbo);
+    gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, ctx->para_fbo);
     for (i = 0; i < 4; ++i) /* layered attachments: gl_Layer picks the map */
-        if (color[i]) gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
-    gl->FramebufferTexture(GIM__GL_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->para_depth, 0);
+        if (color[i])
+            gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i, color[i], 0);
+    gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->para_depth, 0);
     {   /* what the first pass draws (gim__gl_paraboloids sets each pass's) */
         gim__GLenum bufs[4] = {GIM__GL_COLOR_ATTACHMENT0, GIM__GL_NONE, GIM__GL_NONE, GIM__GL_NONE};
         if (what != GIM__PARA_DISTANCE)
@@ -11526,7 +11553,7 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
                                                                  : (gim__GLenum)(GIM__GL_COLOR_ATTACHMENT0 + (gim__GLenum)i);
         gl->DrawBuffers(4, bufs);
     }
-    status = gl->CheckFramebufferStatus(GIM__GL_FRAMEBUFFER);
+    status = gl->CheckFramebufferStatus(GIM__GL_DRAW_FRAMEBUFFER);
     if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
         return gim__fail(&ctx->env, GIM_ERROR_GL, where, "layered framebuffer incomplete (0x%04x)", (unsigned)status);
     if (gim__gl_check(ctx, where) != GIM_OK) return GIM_ERROR_GL;
@@ -11567,7 +11594,6 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
                                             GIM__GL_COLOR_ATTACHMENT0 + 3}};
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
-    gim__GLint max_layers = 0, max_fb_layers = 0;
     gim_result r = GIM_OK;
     uint32_t i;
     int k, pass;
@@ -11583,12 +11609,10 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
                          (unsigned)size);
     if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the SSBO limit", (unsigned)count);
+    if ((int64_t)count > (int64_t)ctx->max_layers[0] || (int64_t)count > (int64_t)ctx->max_layers[1])
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)",
+                         (unsigned)count, (int)ctx->max_layers[0], (int)ctx->max_layers[1]);
     gim__gl_enter(ctx, where);
-    gl->GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &max_layers);
-    gl->GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &max_fb_layers);
-    if ((int64_t)count > (int64_t)max_layers || (int64_t)count > (int64_t)max_fb_layers)
-        r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)", (unsigned)count,
-                      (int)max_layers, (int)max_fb_layers);
     for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
         if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
             r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
@@ -11918,13 +11942,26 @@ static gim_result gim__gl_clusters(gim_context *ctx, uint32_t vpl_count, uint32_
     return gim__gl_check(ctx, where);
 }
 
-/* Every VPL's cluster reset to none (0xffffffff): the k-means' first assignment, and the
-   second bounce's "no cluster" (their own ISMs shadow them); a GPU clear, no upload. */
-static gim_result gim__gl_clusters_reset(gim_context *ctx) {
-    static const uint32_t none = 0xffffffffu;
-    ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->vpl.cluster_of);
-    ctx->gl.ClearBufferData(GIM__GL_COPY_WRITE_BUFFER, GIM__GL_R32UI, GIM__GL_RED_INTEGER, GIM__GL_UNSIGNED_INT, &none);
-    ctx->gl.MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+/* Every VPL's cluster (count) reset to none (0xffffffff): the k-means' first assignment, and
+   the second bounce's "no cluster" (their own ISMs shadow them); on the GPU, no upload. A
+   dispatch of kmeans_assign.comp's reset mode, not glClearBufferData: that reads its clear
+   value from client memory under the host's unpack pixel store (Mesa applies the skips), which
+   gimany would then have to save and set (8 GL queries a call). */
+static gim_result gim__gl_clusters_reset(gim_context *ctx, uint32_t count) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0;
+    gim_result r;
+    if (count > 65535u * 64u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, "gim_update", "%u VPLs above the dispatch limit",
+                         (unsigned)count);
+    r = gim__gl_program(ctx, GIM__PROGRAM_KMEANS_ASSIGN, &program);
+    if (r != GIM_OK) return r;
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, ctx->vpl.cluster_of);
+    gl->UseProgram(program);
+    gl->Uniform1ui(0, count);
+    gl->Uniform1ui(5, 1u);
+    gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
     return gim__gl_check(ctx, "gim_update");
 }
 
@@ -11978,7 +12015,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
     warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
-    if (r == GIM_OK) r = gim__gl_clusters_reset(ctx);
+    if (r == GIM_OK) r = gim__gl_clusters_reset(ctx, total);
     if (r == GIM_OK && !warm) r = gim__gl_clusters(ctx, first, s.clusters, scale, 1u);
     iterations = warm || s.iterations >= 8u || f->vpl.kmeans_iterations ? s.iterations : 8u;   /* from seeds: 8 at least */
     for (it = 0; it < iterations && r == GIM_OK; ++it) {   /* each step, then the empty clusters repaired */
@@ -12856,6 +12893,10 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
     if (!out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create", "out is NULL");
+    if ((unsigned)desc->gl_state > (unsigned)GIM_GL_STATE_RESET)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
+                         "desc.gl_state %d is not a gim_gl_state (GIM_GL_STATE_RESTORE or GIM_GL_STATE_RESET)",
+                         (int)desc->gl_state);
 #ifndef GIMANY_EXTERNAL_GL
     if (!desc->get_proc_address)
         return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, "gim_create",
@@ -12889,6 +12930,7 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     if (!ctx) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, "gim_create", "context (%u bytes)", (unsigned)sizeof *ctx);
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
+    ctx->gl_state = desc->gl_state;
     if (major == 4 && minor < 5) gl.ClipControl = NULL, gl.GetTextureParameteriv = NULL; /* 4.5 core */
     ctx->gl = gl;
     ctx->gl_major = (int)major;
@@ -12896,6 +12938,8 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     gl.GetInteger64v(GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE, &ctx->max_ssbo_bytes);
     gl.GetIntegerv(GIM__GL_MAX_TEXTURE_SIZE, &ctx->max_texture_size);
     gl.GetIntegerv(GIM__GL_MAX_VIEWPORT_DIMS, ctx->max_viewport);
+    gl.GetIntegerv(GIM__GL_MAX_ARRAY_TEXTURE_LAYERS, &ctx->max_layers[0]);
+    gl.GetIntegerv(GIM__GL_MAX_FRAMEBUFFER_LAYERS, &ctx->max_layers[1]);
     ctx->proxy_chunk = GIM__PROXY_CHUNK;
     gl.GetIntegerv(GIM__GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT, &ctx->ssbo_align);
     if (ctx->ssbo_align < 1) ctx->ssbo_align = 256;

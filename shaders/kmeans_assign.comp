@@ -7,7 +7,9 @@
    The angle is 2 atan(|n - n_c|, |n + n_c|), not acos(n . n_c): the same angle, but accurate
    in float where the normals are nearly parallel (acos loses ~3e-4 rad there), the common
    case on a wall. A VPL of zero normal (the unlit VPLs of rsm_vpls.comp may have one) is
-   taken as perpendicular to every centre (n . n_c = 0); so is a centre of zero normal. */
+   taken as perpendicular to every centre (n . n_c = 0); so is a centre of zero normal.
+   Reset mode (reset = 1): every assignment [0, vpl_count) set to none, nothing read; gimany's
+   GPU clear that takes no clear value from client memory (no host pixel store applies). */
 #include "common.glsl"
 layout(local_size_x = 64) in;
 
@@ -22,6 +24,7 @@ layout(location = 1) uniform uint cluster_count;
 layout(location = 2) uniform float wx_s;
 layout(location = 3) uniform float wa;
 layout(location = 4) uniform uint ssvp;   /* 0: Dong's metric, 1: SSVP's */
+layout(location = 5) uniform uint reset;  /* 1: set every assignment to NONE */
 
 const uint NONE = 0xffffffffu;
 
@@ -38,6 +41,7 @@ float dist(vec3 x, vec3 n, uint j) {
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= vpl_count) return;
+    if (reset != 0u) { assignment[i] = NONE; return; }
     vec3 x = vpl[i].position.xyz, n = vpl[i].normal.xyz;
     float len = length(n);
     n = len > 0.0 ? n / len : vec3(0.0);

@@ -11,7 +11,9 @@
    (padding of at most ~half a texel, up to 16 samples), so a small triangle costs one or two
    samples per edge. The rasteriser draws the texels whose centres (the rays' texels) fall
    inside the quad, so margin only absorbs rounding (a quarter texel). A triangle through the
-   origin covers the whole map. */
+   origin covers the whole map. The last vertex stage: every clip distance GL 4.3 guarantees
+   (8) is written positive, so the planes a host left enabled clip nothing (gimany does not
+   save them). */
 #include "common.glsl"
 layout(triangles) in;
 layout(triangle_strip, max_vertices = 4) out;
@@ -38,6 +40,7 @@ flat out vec3 tri_n1;
 flat out vec3 tri_n2;
 flat out vec3 tri_albedo;
 flat out int tri_map;
+out float gl_ClipDistance[8];
 
 const int MAX_K = 16;
 
@@ -106,6 +109,7 @@ void main() {
         tri_map = m;
         gl_Layer = m;
         gl_Position = vec4((v & 1) == 0 ? lo.x : hi.x, v < 2 ? lo.y : hi.y, 0.5, 1.0);
+        for (int c = 0; c < 8; ++c) gl_ClipDistance[c] = 1.0;
         EmitVertex();
     }
     EndPrimitive();

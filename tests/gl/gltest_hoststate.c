@@ -1,8 +1,11 @@
 /* A host that leaves GL state away from its defaults around gim_update: ordinary texture-upload
    pixel store (row length, skips), glClipControl, a logic op, primitive restart, the provoking
-   vertex, polygon mode, scissor, masks, depth range, culling, blending, stencil, samplers. Every
-   method's image must equal the one made from GL's default state, and every item must be as the
-   host left it afterwards. And gim_update with no current context says so. */
+   vertex, polygon mode, scissor, masks, depth range, culling, blending, stencil, samplers, all 8
+   clip planes, and bindings gimany does not save (pixel pack/unpack, uniform and indirect
+   buffers, the read framebuffer, a VAO's element array, textures on every unit). Every method's
+   image must equal the one made from GL's default state, and every item must be as the host
+   left it afterwards; with GIM_GL_STATE_RESET the same image, and gimany's items at GL's
+   initial values. And gim_update with no current context says so. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
 #include "scene_gimany.h"
@@ -13,7 +16,17 @@
 
 typedef struct hostile {
     GLuint samplers[8], program;
+    GLuint buffers[7], vao, fbo, tex2d[8], tex2d_array[8];
 } hostile;
+
+/* Bindings gimany neither reads nor changes (so does not save): {target, binding query}; the
+   last is the host VAO's element array. */
+static const GLenum bound[][2] = {
+    {GL_PIXEL_PACK_BUFFER, GL_PIXEL_PACK_BUFFER_BINDING}, {GL_PIXEL_UNPACK_BUFFER, GL_PIXEL_UNPACK_BUFFER_BINDING},
+    {GL_UNIFORM_BUFFER, GL_UNIFORM_BUFFER_BINDING}, {GL_DISPATCH_INDIRECT_BUFFER, GL_DISPATCH_INDIRECT_BUFFER_BINDING},
+    {GL_DRAW_INDIRECT_BUFFER, GL_DRAW_INDIRECT_BUFFER_BINDING}, {GL_ARRAY_BUFFER, GL_ARRAY_BUFFER_BINDING},
+    {GL_ELEMENT_ARRAY_BUFFER, GL_ELEMENT_ARRAY_BUFFER_BINDING}};
+#define N_BOUND (sizeof bound / sizeof bound[0])
 
 static GLuint hostile_program(void) {
     static const char *src = "#version 430 core\nlayout(local_size_x = 1) in;\nvoid main() {}\n";
@@ -39,8 +52,10 @@ static const GLint pixel_store[][2] = {
 
 static const GLenum enabled[] = {GL_COLOR_LOGIC_OP, GL_PRIMITIVE_RESTART, GL_PRIMITIVE_RESTART_FIXED_INDEX,
                                  GL_SCISSOR_TEST, GL_CULL_FACE, GL_BLEND, GL_STENCIL_TEST, GL_POLYGON_OFFSET_FILL,
-                                 GL_DEPTH_CLAMP, GL_FRAMEBUFFER_SRGB, GL_CLIP_DISTANCE0, GL_RASTERIZER_DISCARD,
-                                 GL_DEPTH_TEST, GL_POLYGON_SMOOTH};
+                                 GL_DEPTH_CLAMP, GL_FRAMEBUFFER_SRGB, GL_CLIP_DISTANCE0, GL_CLIP_DISTANCE1,
+                                 GL_CLIP_DISTANCE2, GL_CLIP_DISTANCE3, GL_CLIP_DISTANCE4, GL_CLIP_DISTANCE5,
+                                 GL_CLIP_DISTANCE6, GL_CLIP_DISTANCE7, GL_RASTERIZER_DISCARD, GL_DEPTH_TEST,
+                                 GL_POLYGON_SMOOTH};
 #define N_ENABLED (sizeof enabled / sizeof enabled[0])
 
 static void set_hostile(hostile *h) {
@@ -73,9 +88,22 @@ static void set_hostile(hostile *h) {
         glSamplerParameteri(h->samplers[i], GL_TEXTURE_COMPARE_MODE, GL_COMPARE_REF_TO_TEXTURE);
         glBindSampler(i, h->samplers[i]);
     }
+    glGenTextures(8, h->tex2d);
+    glGenTextures(8, h->tex2d_array);
+    for (i = 0; i < 8; ++i) {
+        glActiveTexture(GL_TEXTURE0 + i);
+        glBindTexture(GL_TEXTURE_2D, h->tex2d[i]);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, h->tex2d_array[i]);
+    }
     glActiveTexture(GL_TEXTURE3);
     h->program = hostile_program();
     glUseProgram(h->program);
+    glGenVertexArrays(1, &h->vao);
+    glBindVertexArray(h->vao);
+    glGenBuffers((GLsizei)N_BOUND, h->buffers);
+    for (i = 0; i < N_BOUND; ++i) glBindBuffer(bound[i][0], h->buffers[i]);
+    glGenFramebuffers(1, &h->fbo);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, h->fbo);
     assert_int_equal(gltest_errors(), 0);
 }
 
@@ -92,6 +120,10 @@ static void check_hostile(const hostile *h) {
     glGetIntegerv(GL_CLIP_ORIGIN, &v); assert_int_equal(v, GL_UPPER_LEFT);
     glGetIntegerv(GL_CLIP_DEPTH_MODE, &v); assert_int_equal(v, GL_ZERO_TO_ONE);
     for (i = 0; i < N_ENABLED; ++i) assert_true(glIsEnabled(enabled[i]));
+    for (i = 0; i < 8; ++i) {   /* blending and colour masks of every draw buffer, not only gimany's */
+        assert_true(glIsEnabledi(GL_BLEND, i));
+        glGetBooleani_v(GL_COLOR_WRITEMASK, i, b4); assert_true(!b4[0] && !b4[1] && !b4[2] && !b4[3]);
+    }
     assert_false(glIsEnabled(GL_DITHER));
     glGetIntegerv(GL_LOGIC_OP_MODE, &v); assert_int_equal(v, GL_INVERT);
     glGetIntegerv(GL_PRIMITIVE_RESTART_INDEX, &v); assert_int_equal(v, 0);
@@ -113,9 +145,100 @@ static void check_hostile(const hostile *h) {
     for (i = 0; i < 8; ++i) {
         glActiveTexture(GL_TEXTURE0 + i);
         glGetIntegerv(GL_SAMPLER_BINDING, &v); assert_int_equal(v, h->samplers[i]);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D, &v); assert_int_equal(v, h->tex2d[i]);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &v); assert_int_equal(v, h->tex2d_array[i]);
     }
     glActiveTexture(GL_TEXTURE3);
     glGetIntegerv(GL_CURRENT_PROGRAM, &v); assert_int_equal(v, h->program);
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &v); assert_int_equal(v, h->vao);
+    for (i = 0; i < N_BOUND; ++i) {
+        glGetIntegerv(bound[i][1], &v); assert_int_equal(v, h->buffers[i]);
+    }
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, h->fbo);
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, 0);
+}
+
+/* After a GIM_GL_STATE_RESET call from the hostile state: every item of gim_gl_state's list at
+   GL's initial value (each asserted), everything else as the host left it (the viewport is
+   gimany's last pass's: not checked). */
+static void check_reset(const hostile *h) {
+    static const GLenum reset_caps[] = {GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_SCISSOR_TEST,
+                                        GL_PRIMITIVE_RESTART, GL_PRIMITIVE_RESTART_FIXED_INDEX, GL_RASTERIZER_DISCARD,
+                                        GL_POLYGON_OFFSET_FILL, GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH,
+                                        GL_COLOR_LOGIC_OP};
+    GLint v, v4[4];
+    GLint64 v64;
+    GLboolean b4[4];
+    GLfloat f4[4];
+    unsigned i;
+    /* the list, at GL's initial values */
+    glGetIntegerv(GL_CURRENT_PROGRAM, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_VERTEX_ARRAY_BINDING, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, 0);
+    for (i = 0; i < sizeof reset_caps / sizeof reset_caps[0]; ++i) assert_false(glIsEnabled(reset_caps[i]));
+    for (i = 0; i < 4; ++i) {
+        assert_false(glIsEnabledi(GL_BLEND, i));
+        glGetBooleani_v(GL_COLOR_WRITEMASK, i, b4); assert_true(b4[0] && b4[1] && b4[2] && b4[3]);
+    }
+    glGetBooleanv(GL_DEPTH_WRITEMASK, b4); assert_true(b4[0]);
+    glGetIntegerv(GL_DEPTH_FUNC, &v); assert_int_equal(v, GL_LESS);
+    glGetFloatv(GL_DEPTH_RANGE, f4); assert_true(f4[0] == 0.0f && f4[1] == 1.0f);
+    glGetIntegerv(GL_POLYGON_MODE, v4); assert_int_equal(v4[0], GL_FILL);
+    glGetIntegerv(GL_PROVOKING_VERTEX, &v); assert_int_equal(v, GL_LAST_VERTEX_CONVENTION);
+    glGetIntegerv(GL_CLIP_ORIGIN, &v); assert_int_equal(v, GL_LOWER_LEFT);
+    glGetIntegerv(GL_CLIP_DEPTH_MODE, &v); assert_int_equal(v, GL_NEGATIVE_ONE_TO_ONE);
+    glGetIntegerv(GL_ACTIVE_TEXTURE, &v); assert_int_equal(v, GL_TEXTURE0);
+    for (i = 0; i < 7; ++i) {
+        glActiveTexture(GL_TEXTURE0 + i);
+        glGetIntegerv(GL_SAMPLER_BINDING, &v); assert_int_equal(v, 0);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D, &v); assert_int_equal(v, 0);
+        glGetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &v);   /* units 3, 5, 6 gimany never binds as arrays */
+        assert_int_equal(v, i == 3 || i == 5 || i == 6 ? h->tex2d_array[i] : 0);
+    }
+    for (i = 0; i < 3; ++i) {
+        glGetIntegeri_v(GL_IMAGE_BINDING_NAME, i, &v); assert_int_equal(v, 0);
+        glGetIntegeri_v(GL_IMAGE_BINDING_ACCESS, i, &v); assert_int_equal(v, GL_READ_ONLY);
+        glGetIntegeri_v(GL_IMAGE_BINDING_FORMAT, i, &v); assert_int_equal(v, GL_R8);
+    }
+    for (i = 0; i < 8; ++i) {
+        glGetIntegeri_v(GL_SHADER_STORAGE_BUFFER_BINDING, i, &v); assert_int_equal(v, 0);
+        glGetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, i, &v64); assert_true(v64 == 0);
+    }
+    glGetIntegerv(GL_SHADER_STORAGE_BUFFER_BINDING, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_ARRAY_BUFFER_BINDING, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_COPY_READ_BUFFER_BINDING, &v); assert_int_equal(v, 0);
+    glGetIntegerv(GL_COPY_WRITE_BUFFER_BINDING, &v); assert_int_equal(v, 0);
+    /* the rest, the host's */
+    for (i = 0; i < N_PIXEL_STORE; ++i) {
+        glGetIntegerv((GLenum)pixel_store[i][0], &v);
+        assert_int_equal(v, pixel_store[i][1]);
+    }
+    for (i = 0; i < 8; ++i) assert_true(glIsEnabled(GL_CLIP_DISTANCE0 + i));
+    assert_false(glIsEnabled(GL_DITHER));
+    for (i = 4; i < 8; ++i) {
+        assert_true(glIsEnabledi(GL_BLEND, i));
+        glGetBooleani_v(GL_COLOR_WRITEMASK, i, b4); assert_true(!b4[0] && !b4[1] && !b4[2] && !b4[3]);
+    }
+    glGetIntegerv(GL_LOGIC_OP_MODE, &v); assert_int_equal(v, GL_INVERT);
+    glGetIntegerv(GL_SCISSOR_BOX, v4); assert_true(v4[0] == 0 && v4[1] == 0 && v4[2] == 1 && v4[3] == 1);
+    glGetIntegerv(GL_CULL_FACE_MODE, &v); assert_int_equal(v, GL_FRONT);
+    glGetIntegerv(GL_FRONT_FACE, &v); assert_int_equal(v, GL_CW);
+    glGetIntegerv(GL_BLEND_SRC_RGB, &v); assert_int_equal(v, GL_ONE);
+    glGetIntegerv(GL_STENCIL_FUNC, &v); assert_int_equal(v, GL_NEVER);
+    glGetFloatv(GL_POLYGON_OFFSET_UNITS, f4); assert_true(f4[0] == 1000.0f);
+    glGetFloatv(GL_DEPTH_CLEAR_VALUE, f4); assert_true(f4[0] == 0.0f);
+    glActiveTexture(GL_TEXTURE7);
+    glGetIntegerv(GL_SAMPLER_BINDING, &v); assert_int_equal(v, h->samplers[7]);
+    glGetIntegerv(GL_TEXTURE_BINDING_2D, &v); assert_int_equal(v, h->tex2d[7]);
+    glGetIntegerv(GL_TEXTURE_BINDING_2D_ARRAY, &v); assert_int_equal(v, h->tex2d_array[7]);
+    glActiveTexture(GL_TEXTURE0);
+    for (i = 0; i < N_BOUND - 2; ++i) {   /* not ARRAY_BUFFER (in the list) nor the VAO's element array */
+        glGetIntegerv(bound[i][1], &v); assert_int_equal(v, h->buffers[i]);
+    }
+    glGetIntegerv(GL_READ_FRAMEBUFFER_BINDING, &v); assert_int_equal(v, h->fbo);
+    glBindVertexArray(h->vao);   /* the host's VAO keeps its element array */
+    glGetIntegerv(GL_ELEMENT_ARRAY_BUFFER_BINDING, &v); assert_int_equal(v, h->buffers[N_BOUND - 1]);
+    glBindVertexArray(0);
 }
 
 /* Back to GL's defaults, so the test reads its images with its own known state. */
@@ -144,20 +267,34 @@ static void set_default(hostile *h) {
     glViewport(0, 0, W, H);
     glClearColor(0.0f, 0.0f, 0.0f, 0.0f);
     glClearDepth(1.0);
-    for (i = 0; i < 8; ++i) glBindSampler(i, 0);
+    for (i = 0; i < 8; ++i) {
+        glBindSampler(i, 0);
+        glActiveTexture(GL_TEXTURE0 + i);
+        glBindTexture(GL_TEXTURE_2D, 0);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+    }
     glActiveTexture(GL_TEXTURE0);
     glUseProgram(0);
+    for (i = 0; i < N_BOUND; ++i) glBindBuffer(bound[i][0], 0);
+    glBindVertexArray(0);
+    glBindFramebuffer(GL_FRAMEBUFFER, 0);
     if (h) {
         glDeleteSamplers(8, h->samplers);
         glDeleteProgram(h->program);
+        glDeleteTextures(8, h->tex2d);
+        glDeleteTextures(8, h->tex2d_array);
+        glDeleteVertexArrays(1, &h->vao);
+        glDeleteBuffers((GLsizei)N_BOUND, h->buffers);
+        glDeleteFramebuffers(1, &h->fbo);
     }
 }
 
 /* One frame of method m on the built-in Cornell box from the default state, then one from the
    hostile state: the same image, bit for bit (the same inputs on the same driver), and the
    host's state kept. The VPL methods restart k-means from the same seeds so that both frames
-   cluster alike. */
-static void same_image(gim_method m) {
+   cluster alike. reset: the context runs with GIM_GL_STATE_RESET (the same image; the list left
+   at GL's initial values, check_reset). */
+static void same_image(gim_method m, int reset) {
     frame_fixture ff;
     float a[W * H * 4], b[W * H * 4], peak = 0.0f;
     hostile h;
@@ -167,6 +304,7 @@ static void same_image(gim_method m) {
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
     frame_small(&ff, m);
     ff.fr.vpl.kmeans_restart = 1;
+    if (reset) ff.f.ctx->gl_state = GIM_GL_STATE_RESET;   /* as gim_create sets it from gim_desc.gl_state */
     set_default(NULL);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     o = gim_outputs(ff.f.ctx);
@@ -176,7 +314,8 @@ static void same_image(gim_method m) {
     set_hostile(&h);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     assert_int_equal(gltest_errors(), 0);
-    check_hostile(&h);
+    if (reset) check_reset(&h);
+    else check_hostile(&h);
     set_default(&h);
     o = gim_outputs(ff.f.ctx);
     read_indirect(&o, b);
@@ -187,11 +326,51 @@ static void same_image(gim_method m) {
     GLTEST_END();
 }
 
-static void lightskin_brsm(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_BRSM); }
-static void lightskin_full(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_FULL); }
-static void rsm_gather(void **state) { (void)state; same_image(GIM_METHOD_RSM_GATHER); }
-static void clustered(void **state) { (void)state; same_image(GIM_METHOD_CLUSTERED); }
-static void ssvp(void **state) { (void)state; same_image(GIM_METHOD_SSVP); }
+static void lightskin_brsm(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_BRSM, 0); }
+static void lightskin_full(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_FULL, 0); }
+static void rsm_gather(void **state) { (void)state; same_image(GIM_METHOD_RSM_GATHER, 0); }
+static void clustered(void **state) { (void)state; same_image(GIM_METHOD_CLUSTERED, 0); }
+static void ssvp(void **state) { (void)state; same_image(GIM_METHOD_SSVP, 0); }
+
+/* GIM_GL_STATE_RESET: every method's image from the hostile state equals the default state's,
+   bit for bit, and leaves GL's initial values */
+static void reset_every_method(void **state) {
+    (void)state;
+    same_image(GIM_METHOD_LIGHTSKIN_BRSM, 1);
+    same_image(GIM_METHOD_LIGHTSKIN_FULL, 1);
+    same_image(GIM_METHOD_RSM_GATHER, 1);
+    same_image(GIM_METHOD_CLUSTERED, 1);
+    same_image(GIM_METHOD_SSVP, 1);
+}
+
+/* gim_desc.gl_state: GIM_GL_STATE_RESET reaches the context; a value that is no gim_gl_state
+   is refused by gim_create with one message, *out untouched. */
+static void gl_state_desc(void **state) {
+    test_alloc_stats stats;
+    test_log log;
+    gim_desc d;
+    gim_context *ctx = NULL, *sentinel = (gim_context *)&d;
+    (void)state;
+    GLTEST_BEGIN();
+    memset(&d, 0, sizeof d);
+    d.get_proc_address = gltest_get_proc;
+    d.env = test_env(&stats, &log);
+    d.gl_state = GIM_GL_STATE_RESET;
+    assert_int_equal(gim_create(&d, &ctx), GIM_OK);
+    assert_int_equal(ctx->gl_state, GIM_GL_STATE_RESET);
+    gim_destroy(ctx);
+    d.gl_state = (gim_gl_state)2;
+    ctx = sentinel;
+    assert_int_equal(gim_create(&d, &ctx), GIM_ERROR_INVALID_ARGUMENT);
+    assert_true(ctx == sentinel);
+    assert_int_equal(log.errors, 1);
+    assert_non_null(strstr(log.last, "gl_state"));
+    d.gl_state = (gim_gl_state)-1;
+    assert_int_equal(gim_create(&d, &ctx), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(log.errors, 2);
+    assert_int_equal(stats.live, 0);
+    GLTEST_END();
+}
 
 /* gim_update on a thread with no current context says so, and nothing else happens. */
 static void no_current_context(void **state) {
@@ -241,7 +420,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
         cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context),
-        cmocka_unit_test(deleted_host_program)};
+        cmocka_unit_test(deleted_host_program), cmocka_unit_test(reset_every_method), cmocka_unit_test(gl_state_desc)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;

@@ -207,6 +207,8 @@ static void shader_failures(void **state) {
 
 /* --- the state-restore test ---------------------------------------------------------------- */
 
+#define HOST_UBO_BINDINGS 4   /* uniform buffer bindings the host sets (gimany uses none) */
+
 typedef struct host_objects {
     GLuint program, vao, buffers[16], fbo[2], tex2d[GIM__GL_TEXTURE_UNITS], tex2d_array[GIM__GL_TEXTURE_UNITS];
     GLuint samplers[GIM__GL_TEXTURE_UNITS], image_tex;
@@ -265,7 +267,7 @@ static void set_distinctive_state(host_objects *h) {
     glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, h->buffers[9]);
     for (i = 0; i < GIM__GL_SSBO_BINDINGS; ++i)
         glBindBufferRange(GL_SHADER_STORAGE_BUFFER, i, h->buffers[10], (GLintptr)(i + 1) * h->ssbo_align, 256 + 16 * i);
-    for (i = 0; i < GIM__GL_UBO_BINDINGS; ++i)
+    for (i = 0; i < HOST_UBO_BINDINGS; ++i)
         glBindBufferRange(GL_UNIFORM_BUFFER, i, h->buffers[11], (GLintptr)(i + 1) * h->ubo_align, 512 + 16 * i);
     for (i = 0; i < N_BUFFER_TARGETS; ++i) glBindBuffer(buffer_targets[i][0], h->buffers[i]);
     glGenFramebuffers(2, h->fbo);
@@ -388,7 +390,7 @@ static void check_distinctive_state(const host_objects *h) {
         glGetInteger64i_v(GL_SHADER_STORAGE_BUFFER_START, i, &v64); assert_true(v64 == (GLint64)(i + 1) * h->ssbo_align);
         glGetInteger64i_v(GL_SHADER_STORAGE_BUFFER_SIZE, i, &v64); assert_true(v64 == 256 + 16 * (GLint64)i);
     }
-    for (i = 0; i < GIM__GL_UBO_BINDINGS; ++i) {
+    for (i = 0; i < HOST_UBO_BINDINGS; ++i) {
         glGetIntegeri_v(GL_UNIFORM_BUFFER_BINDING, i, &v); assert_int_equal(v, h->buffers[11]);
         glGetInteger64i_v(GL_UNIFORM_BUFFER_START, i, &v64); assert_true(v64 == (GLint64)(i + 1) * h->ubo_align);
         glGetInteger64i_v(GL_UNIFORM_BUFFER_SIZE, i, &v64); assert_true(v64 == 512 + 16 * (GLint64)i);
@@ -434,6 +436,21 @@ static void set_default_unlisted(void) {
     glPixelStorei(GL_PACK_ROW_LENGTH, 0);
     for (i = 1; i < N_PIXEL_STORE; ++i) glPixelStorei(pixel_store[i][1], 0);
     glPixelStorei(GL_PACK_LSB_FIRST, GL_FALSE);
+    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
+    for (i = 1; i < N_PIXEL_STORE; ++i) glPixelStorei(pixel_store[i][0], 0);
+    glPixelStorei(GL_UNPACK_SWAP_BYTES, GL_FALSE);
+    for (i = 0; i < sizeof caps / sizeof caps[0]; ++i) glDisable(caps[i]);   /* blending and clip planes too */
+    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);                          /* every draw buffer's */
+    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
+    for (i = 0; i < HOST_UBO_BINDINGS; ++i) glBindBufferBase(GL_UNIFORM_BUFFER, i, 0);
+    for (i = 0; i < N_BUFFER_TARGETS; ++i) glBindBuffer(buffer_targets[i][0], 0);
+    glBindFramebuffer(GL_READ_FRAMEBUFFER, 0);
+    for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
+        glActiveTexture(GL_TEXTURE0 + i);
+        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+    }
+    glActiveTexture(GL_TEXTURE0);
     glScissor(0, 0, 1, 1);
     glBlendFuncSeparate(GL_ONE, GL_ZERO, GL_ONE, GL_ZERO);
     glBlendEquationSeparate(GL_FUNC_ADD, GL_FUNC_ADD);
@@ -444,35 +461,33 @@ static void set_default_unlisted(void) {
 }
 
 /* Every item of the save list back to GL's initial value (and every binding to 0), away from
-   the distinctive state. */
+   the distinctive state; the items as gimany sets them (its draw buffers one by one, the 2D
+   arrays of its array units), so what is outside the list keeps the distinctive state. */
 static void set_default_listed(void) {
     unsigned i;
     glUseProgram(0);
-    glBindBuffer(GL_ELEMENT_ARRAY_BUFFER, 0);
     glBindVertexArray(0);
     for (i = 0; i < GIM__GL_SSBO_BINDINGS; ++i) glBindBufferBase(GL_SHADER_STORAGE_BUFFER, i, 0);
-    for (i = 0; i < GIM__GL_UBO_BINDINGS; ++i) glBindBufferBase(GL_UNIFORM_BUFFER, i, 0);
-    for (i = 0; i < N_BUFFER_TARGETS; ++i) glBindBuffer(buffer_targets[i][0], 0);
-    glBindFramebuffer(GL_FRAMEBUFFER, 0);
+    for (i = 0; i < GIM__GL_STATE_BUFFERS; ++i) glBindBuffer(gim__gl_state_buffers[i][0], 0);
+    glBindFramebuffer(GL_DRAW_FRAMEBUFFER, 0);
     glViewport(0, 0, 1, 1);
-    for (i = 0; i < sizeof caps / sizeof caps[0]; ++i) glDisable(caps[i]);
+    for (i = 0; i < GIM__GL_STATE_CAPS; ++i) glDisable(gim__gl_state_caps[i]);
     glDepthFunc(GL_LESS);
     glDepthMask(GL_TRUE);
-    glColorMask(GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    for (i = 0; i < GIM__GL_DRAW_BUFFERS; ++i) {
+        glDisablei(GL_BLEND, i);
+        glColorMaski(i, GL_TRUE, GL_TRUE, GL_TRUE, GL_TRUE);
+    }
     glPolygonMode(GL_FRONT_AND_BACK, GL_FILL);
     glDepthRange(0.0, 1.0);
     for (i = 0; i < GIM__GL_TEXTURE_UNITS; ++i) {
         glActiveTexture(GL_TEXTURE0 + i);
         glBindTexture(GL_TEXTURE_2D, 0);
-        glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
+        if (GIM__GL_TEXTURE_ARRAY_UNITS >> i & 1u) glBindTexture(GL_TEXTURE_2D_ARRAY, 0);
         glBindSampler(i, 0);
     }
     glActiveTexture(GL_TEXTURE0);
     for (i = 0; i < GIM__GL_IMAGE_UNITS; ++i) glBindImageTexture(i, 0, 0, GL_FALSE, 0, GL_READ_ONLY, GL_R8);
-    glPixelStorei(GL_UNPACK_ALIGNMENT, 4);
-    glPixelStorei(GL_UNPACK_ROW_LENGTH, 0);
-    for (i = 1; i < N_PIXEL_STORE; ++i) glPixelStorei(pixel_store[i][0], 0);
-    glPixelStorei(GL_UNPACK_SWAP_BYTES, GL_FALSE);
     glProvokingVertex(GL_LAST_VERTEX_CONVENTION);
     glClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
 }
