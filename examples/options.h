@@ -25,7 +25,7 @@ typedef struct demo_options {
     uint32_t view_samples;
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
-    int ism;                 /* brsm, full: 1 turns on gim_frame.visibility.mode = ISM */
+    int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;
@@ -50,9 +50,10 @@ static const char demo_usage_text[] =
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
-    "  --ism                 brsm, full: imperfect shadow maps per cache, no light through walls (default: off);\n"
-    "                        --ism-size N their side, a power of two in 4..64 (default 64, smaller where\n"
-    "                        that exceeds a storage block); --ism-points N\n"
+    "  --ism                 imperfect shadow maps, no light through walls (default: off): brsm, full one per\n"
+    "                        cache, clustered, ssvp one per VPL; --ism-size N their side, a power of two in\n"
+    "                        4..64 (default 64; LightSkin halves it where the maps exceed 256 MiB);\n"
+    "                        --ism-points N\n"
     "                        the points splatted into each, 1..65536 (default 16384)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
