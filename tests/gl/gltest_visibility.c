@@ -78,6 +78,14 @@ static void setup(scene_fx *s) {
     s->fr.method = GIM_METHOD_LIGHTSKIN_FULL;
 }
 
+/* setup with the caches' ISMs of side size, points per map. */
+static void setup_ism(scene_fx *s, uint32_t size, uint32_t points) {
+    setup(s);
+    s->fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s->fr.visibility.ism_size = size;
+    s->fr.visibility.ism_points = points;
+}
+
 static void teardown(scene_fx *s) {
     gim_cache_set_free(&s->set);
     gltest_fixture_end(&s->f);
@@ -242,10 +250,7 @@ static void maps_are_the_twins(void **state) {
     uint64_t v0;
     (void)state;
     GLTEST_BEGIN();
-    setup(&s);
-    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
-    s.fr.visibility.ism_size = 16;
-    s.fr.visibility.ism_points = 2048;
+    setup_ism(&s, 16, 2048);
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     o = gim_outputs(s.f.ctx); od = gim_debug(s.f.ctx);
     assert_true(od.ism_maps != 0);
@@ -445,10 +450,7 @@ static void maps_split_over_blocks(void **state) {
     gim__GLint64 keep;
     (void)state;
     GLTEST_BEGIN();
-    setup(&s);
-    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
-    s.fr.visibility.ism_size = 16;
-    s.fr.visibility.ism_points = 2048;   /* a pool of 8192 points: 256 KiB */
+    setup_ism(&s, 16, 2048);   /* a pool of 8192 points: 256 KiB */
     keep = s.f.ctx->max_ssbo_bytes;
     for (k = 0; k < 2; ++k) {
         if (k == 1) {
