@@ -8732,7 +8732,9 @@ static GIM__UNUSED gim_result gim__gl_proxy_lights(gim_context *ctx, gim__GLuint
 }
 
 /* gim__gl_proxy_lights with each VAL's contribution to a cache times its visibility through
-   the cache's imperfect shadow map (gim_ism_visibility_twin's lookup; ism NULL or ism->maps 0: none). */
+   the cache's imperfect shadow map (gim_ism_visibility_twin's lookup; ism NULL or ism->maps 0: none).
+   The maps may exceed one storage block: the caches run in ranges of gim__ism_block_maps, each
+   with its maps' range bound. */
 static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
                                            uint32_t val_count, gim_vec3 eye, float exponent, gim__GLuint exponents,
                                            float scene_scale, gim__GLuint diffuse_out, gim__GLuint glossy_out,
