@@ -474,6 +474,24 @@ static void maps_split_over_blocks(void **state) {
     assert_memory_equal(maps[0], maps[1], (size_t)n * 256 * 4);
     assert_memory_equal(img[0], img[1], W * H * 16);
     for (k = 0; k < 2; ++k) { free(img[k]); free(maps[k]); }
+    {   /* an explicit side whose maps exceed GIM_ISM_MAX_BYTES is refused before any GL work:
+           105 instances of the room's 1268 caches at 64^2 are 1.09 GB */
+        gim_instance in[105];
+        uint32_t i;
+        for (i = 0; i < 105; ++i) {
+            in[i].mesh = s.mesh;
+            in[i].model = gim_mat4_identity();
+            in[i].model.m[12] = 10.0f * (float)i;
+        }
+        assert_int_equal(gim_set_instances(s.f.ctx, in, 105), GIM_OK);
+        gim__ism_release(s.f.ctx);
+        s.fr.visibility.ism_size = 64;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(s.f.log.errors, 1);
+        assert_non_null(strstr(s.f.log.last, "GIM_ISM_MAX_BYTES"));
+        assert_int_equal(s.f.ctx->ism_maps, 0);
+        s.f.log.errors = 0;
+    }
     {   /* the default side: 64^2 up to the budget, then halved */
         gim_frame f;
         memset(&f, 0, sizeof f);
