@@ -30,7 +30,8 @@
    brsm-temporal: BRSM at the default VAL count with gim_frame.lightskin.temporal_steps 32 (its flicker
    against brsm's at the same count).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
-   MIN_RSM^2 on), appended to the sweep's results.csv (to finish or redo part of a sweep); a
+   MIN_RSM^2 on), appended to the sweep's results.csv in place of their rows there from
+   MIN_RSM^2 on (to finish or redo part of a sweep); a
    prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery);
    the scenes of named_scenes (the courtyard) run only so. */
 #include "benchutil.h"
@@ -574,6 +575,53 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     free(sigma2);
 }
 
+/* Removes from the CSV at path the rows of sweep and scene_name whose RSM side is at least
+   min_rsm (columns sweep, scene, width, height, method, rsm, ...). 0 on success. */
+static int csv_drop_rows(const char *path, const char *sweep, const char *scene_name, uint32_t min_rsm) {
+    FILE *fp = fopen(path, "rb");
+    char *text, *line, *out;
+    long size;
+    size_t n = 0, dropped = 0;
+    if (!fp) return 1;
+    fseek(fp, 0, SEEK_END);
+    size = ftell(fp);
+    fseek(fp, 0, SEEK_SET);
+    text = (char *)malloc((size_t)size + 1);
+    out = (char *)malloc((size_t)size + 1);
+    if (!text || !out || size < 0 || fread(text, 1, (size_t)size, fp) != (size_t)size) {
+        fclose(fp); free(text); free(out);
+        return 1;
+    }
+    fclose(fp);
+    text[size] = 0;
+    for (line = text; *line;) {
+        char *end = strchr(line, '\n');
+        size_t len = end ? (size_t)(end - line) + 1 : strlen(line);
+        size_t ls = strlen(sweep), lc = strlen(scene_name);
+        int drop = 0;
+        if (len > ls + lc + 2 && strncmp(line, sweep, ls) == 0 && line[ls] == ',' && strncmp(line + ls + 1, scene_name, lc) == 0 &&
+            line[ls + 1 + lc] == ',') {
+            const char *f = line;
+            int k;
+            for (k = 0; k < 5 && f; ++k) { f = strchr(f, ','); if (f) ++f; }   /* the 6th column: rsm */
+            drop = f && (uint32_t)strtoul(f, NULL, 10) >= min_rsm;
+        }
+        if (drop) ++dropped;
+        else { memcpy(out + n, line, len); n += len; }
+        line += len;
+    }
+    fp = fopen(path, "wb");
+    if (!fp || fwrite(out, 1, n, fp) != n) {
+        if (fp) fclose(fp);
+        free(text); free(out);
+        return 1;
+    }
+    fclose(fp);
+    free(text); free(out);
+    if (dropped) printf("%s: %lu rows of %s / %s replaced\n", path, (unsigned long)dropped, sweep, scene_name);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     gim_desc d;
     gim_context *ctx = NULL;
@@ -612,6 +660,10 @@ int main(int argc, char **argv) {
                 run = 1;
                 if (colon) min_rsm = (uint32_t)atoi(colon + 1);
             }
+        }
+        if (run && append && csv) {   /* a scene run again replaces its rows of this sweep from min_rsm on */
+            fclose(csv);
+            csv = csv_drop_rows(path, sw->name, bs->name, min_rsm) == 0 ? fopen(path, "a") : NULL;
         }
         if (run) bench_scene_run(ctx, d.env, bs, min_rsm);
     }
