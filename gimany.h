@@ -1863,9 +1863,9 @@ typedef struct gim_ism_desc {
    occluder's depth into the holes around it: false shadow); push: an empty texel takes its
    parent's value, from the coarsest level down. A map no point reached stays empty (sees
    nothing: visibility 1). Float arithmetic in the order of ism.comp. Stored in 16 bits a
-   texel (the GPU packs two to a uint, so 64^2 maps of 16,000 caches fit a 128 MiB storage
-   block): the upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7
-   mantissa bits, relative error at most 2^-8, far below the bias); distance_out holds those
+   texel (the GPU packs two to a uint: Sponza's 24,863 caches at 64^2 take 204 MB): the
+   upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7 mantissa bits,
+   relative error at most 2^-8, far below the bias); distance_out holds those
    values as floats, bit for bit what the GPU's maps decode to. An empty texel stays
    >= GIM_PARABOLOID_EMPTY. */
 GIMANY_API gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *distance_out);
@@ -7531,7 +7531,6 @@ enum {
     X(void, BlendEquationSeparate, (gim__GLenum mode_rgb, gim__GLenum mode_alpha))               \
     X(void, DepthFunc, (gim__GLenum func))                                                       \
     X(void, DepthMask, (gim__GLboolean flag))                                                    \
-    X(void, ColorMask, (gim__GLboolean r, gim__GLboolean g, gim__GLboolean b, gim__GLboolean a)) \
     X(void, FrontFace, (gim__GLenum mode))                                                       \
     X(void, CullFace, (gim__GLenum mode))                                                        \
     X(void, PolygonMode, (gim__GLenum face, gim__GLenum mode))                                   \
@@ -8675,6 +8674,25 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    and short enough for a desktop GPU's watchdog */
 #define GIM__PROXY_CHUNK 32768u
 
+/* The scene's points the maps draw their subsets from: four times a map's, so the subsets
+   differ per map (at most GIM_ISM_MAX_POINTS). */
+static uint32_t gim__ism_pool(uint32_t points_per_map) {
+    return points_per_map <= GIM_ISM_MAX_POINTS / 4u ? 4u * points_per_map : GIM_ISM_MAX_POINTS;
+}
+
+/* Maps of side `size` that one shader storage block holds, a power of two at most cap: the
+   maps of every cache exceed one block at scale (Sponza's 24,863 caches at 64^2 take 204 MB,
+   llvmpipe's and Intel's blocks 128 MiB, GL's minimum 16 MiB), so the passes bind them a range
+   of this many maps at a time. 0 where the ranges' offsets would not be multiples of
+   GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT: never on a driver we know (a power of two up to
+   256, and a split range holds 128 KiB at least), refused by the callers before any GL work. */
+static uint32_t gim__ism_block_maps(const gim_context *ctx, uint32_t size, uint32_t cap) {
+    uint64_t map_bytes = (uint64_t)size * size * 2u;
+    uint32_t n = 1u;
+    while (n < cap && (uint64_t)n * 2u * map_bytes <= (uint64_t)ctx->max_ssbo_bytes) n *= 2u;
+    return n < cap && ((uint64_t)n * map_bytes) % (uint64_t)ctx->ssbo_align ? 0u : n;
+}
+
 /* Proxy lights on the GPU, the twin of gim_proxy_lights_twin (same formulas, guards and clamps;
    see there). caches: SSBO of cache_count gim_cache (32 bytes: vec4 position + area, vec4
    normal + reflectance; world space, unit normals). vals: SSBO of val_count gim_val (48 bytes;
@@ -8691,25 +8709,6 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
    a scratch buffer of 96 bytes a cache between them. */
-/* The scene's points the maps draw their subsets from: four times a map's, so the subsets
-   differ per map (at most GIM_ISM_MAX_POINTS). */
-static uint32_t gim__ism_pool(uint32_t points_per_map) {
-    return points_per_map <= GIM_ISM_MAX_POINTS / 4u ? 4u * points_per_map : GIM_ISM_MAX_POINTS;
-}
-
-/* Maps of side `size` that one shader storage block holds, a power of two at most cap: the
-   maps of every cache exceed one block at scale (Sponza's 24,863 caches at 64^2 take 204 MB,
-   llvmpipe's and Intel's blocks 128 MiB, GL's minimum 16 MiB), so the passes bind them a range
-   of this many maps at a time. A power of two times a map's bytes (32 at least) keeps each
-   range's offset a multiple of GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT (a power of two, at
-   most 256 on every GL 4.3 driver we know; checked where bound). */
-static uint32_t gim__ism_block_maps(const gim_context *ctx, uint32_t size, uint32_t cap) {
-    uint64_t map_bytes = (uint64_t)size * size * 2u;
-    uint32_t n = 1u;
-    while (n < cap && (uint64_t)n * 2u * map_bytes <= (uint64_t)ctx->max_ssbo_bytes) n *= 2u;
-    return n;
-}
-
 /* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
    gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
 typedef struct gim__gl_ism {
@@ -8770,6 +8769,11 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
                      !(ism->bias >= 0.0f && ism->bias <= 1.0f) || !(ism->slope >= 0.0f && ism->slope <= 64.0f)))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "ISM size %u, bias %g or slope %g out of range",
                          (unsigned)ism->size, (double)ism->bias, (double)ism->slope);
+    range = with_ism ? gim__ism_block_maps(ctx, ism->size, cache_count) : cache_count;
+    map_bytes = with_ism ? (uint64_t)ism->size * ism->size * 2u : 0u;
+    if (range == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
+                         (int)ctx->ssbo_align);
     coincident = GIM__TWINS_COINCIDENT * scene_scale;
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
@@ -8810,11 +8814,6 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
        sums over the VALs chunk by chunk (mode 0), the near VALs past a cache's first
        GIM__VAL_NEAR_CAP (mode 3), the dark caches' positions (mode 1), the proxy lights (mode 2);
        one dispatch each, the sums kept in proxy_state between them */
-    range = with_ism ? gim__ism_block_maps(ctx, ism->size, cache_count) : cache_count;
-    map_bytes = with_ism ? (uint64_t)ism->size * ism->size * 2u : 0u;
-    if (range < cache_count && (range * map_bytes) % (uint64_t)(ctx->ssbo_align > 0 ? ctx->ssbo_align : 1))
-        return gim__gl_leave(ctx, gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
-                                            "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d", (int)ctx->ssbo_align));
     for (cache_first = 0; cache_first < cache_count; cache_first += range) {
         uint32_t cache_end = cache_count - cache_first < range ? cache_count : cache_first + range;
         if (with_ism)
@@ -8847,7 +8846,6 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
 
 /* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
 #define GIM__ISM_CHUNK 4096u
-
 
 /* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render_twin (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
@@ -8901,7 +8899,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
                          (unsigned)cache_count, (unsigned)size);
     chunk = gim__ism_block_maps(ctx, size, GIM__ISM_CHUNK);
     map_bytes = (uint64_t)size * size * 2u;
-    if (chunk < cache_count && (chunk * map_bytes) % (uint64_t)(ctx->ssbo_align > 0 ? ctx->ssbo_align : 1))
+    if (chunk == 0)
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
                          (int)ctx->ssbo_align);
     take = points_per_map < point_count ? points_per_map : point_count;
