@@ -1122,6 +1122,9 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
    those few texels would soak up the selections (and flicker as the view samples move)
    without lighting the caches any better. */
 
+/* Largest tile side of the two-level map (gim_importance_tile_map, gim_frame_lightskin.importance_tile). */
+#define GIM_MAX_IMPORTANCE_TILE 32
+
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
     gim_vec3 position;
@@ -1149,6 +1152,25 @@ typedef struct gim_importance_desc {
    every output is finite and >= 0 (clamped at FLT_MAX). */
 GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float *out);
 
+/* Two-level importance (docs/methods.md, LightSkin): eq. 10-11 per tile of tile x tile texels
+   instead of per texel, so the sum over view samples runs (texels / tile^2) times. Writes
+   weight[width * height], each texel's weight inside its tile: the luminance of its flux (units
+   of flux) where the texel is valid as gim_importance_map counts it (rsm_valid > 0, finite, a
+   non-zero normal, luminance > 0), else 0; and tile_map[tiles_x * tiles_y], tiles_x =
+   ceil(width / tile), tiles_y = ceil(height / tile), row-major: tile (i, j) covers texels
+   [i tile, min((i+1) tile, width)) x [j tile, ...), with
+     I_tile = Phi_tile / N_VS * sum_j (n_T . d)+ (n_VS . -d)+ / max(|l|^2 / scene_scale^2, clamp^2)
+   where Phi_tile = sum of the tile's weights, x_T = their weighted mean position, n_T = the
+   normalised weighted sum of their unit normals, l = VS_j - x_T (eq. 10 of the tile's aggregate;
+   0 where Phi_tile = 0 or the normals cancel). I_tile is the per-texel map's sum over the tile where
+   the tile is flat and small against its distance to the view samples. gim_importance_cumsum of
+   tile_map and gim_importance_select with the desc's tile and weight pick a tile by I_tile, then a
+   texel by its weight: P = P(tile) weight / Phi_tile, exact and > 0 for every texel of a picked
+   tile with weight > 0. tile 1 is allowed (tile_map is then eq. 10 at every texel's own
+   position, equal to gim_importance_map to rounding); tile in 1..GIM_MAX_IMPORTANCE_TILE. */
+GIMANY_API gim_result gim_importance_tile_map(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
+                                              float *weight);
+
 /* The two tables of eq. 12, built in double so P stays exact at 4096^2:
    column[y * width + x] = sum over rows 0..y of map(x, .)   (vertical, per column),
    row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals).
@@ -1175,6 +1197,13 @@ typedef struct gim_select_desc {
     uint32_t seed;              /* the rotation's seed (e.g. the frame) where offsets is NULL */
     const float *offsets;       /* 4 values in [0,1): o_d = offsets[d] + offsets[d + 2] 2^-24 (gim_rotation_offsets'
                                    4 values of a seed, or gim_drift_offsets' of dims 2), or NULL: from seed */
+    uint32_t tile;              /* 0 or 1: the tables are per texel (width x height texels); T > 1: they are of
+                                   gim_importance_tile_map's tile map (width x height tiles of T x T texels) and
+                                   a texel is picked inside the tile by weight */
+    const float *weight;        /* tile > 1: rsm_width * rsm_height texel weights (gim_importance_tile_map's),
+                                   finite and >= 0 */
+    uint32_t rsm_width, rsm_height; /* tile > 1: the RSM's size in texels; width = ceil(rsm_width / tile),
+                                   height = ceil(rsm_height / tile) */
     gim_env env;
 } gim_select_desc;
 
@@ -1195,7 +1224,17 @@ typedef struct gim_select_desc {
    warning: the estimator stays unbiased. Tables that are not cumulative sums are
    GIM_ERROR_INVALID_ARGUMENT: the row and the column totals are checked (O(width): NaN/Inf,
    negative, decreasing); inside a column, a NaN a search meets or a picked texel with no
-   positive difference (out is then partly written). */
+   positive difference (out is then partly written).
+   Two levels (tile > 1): the search above picks a tile with P(tile); the texel inside it is then
+   picked by the residual of v_i in the tile's interval, r = (v_i c_y - c_(y-1)) / (c_y - c_(y-1))
+   with c the column's sums (uniform in [0,1) over the seeds wherever v_i is, so no third
+   random dimension is needed): the first texel of the tile, row-major, whose running weight sum
+   (double) exceeds r * Phi_tile. out's x, y are RSM texels and
+     pdf = P(tile) * weight(x, y) / Phi_tile,
+   Phi_tile the tile's weight sum in the same order. The offsets' 48 bits leave r at least
+   2^48 P(row | column) distinct values, plenty for tile^2 texels. An all-zero tile map selects texels
+   uniformly over the RSM, pdf 1 / (rsm_width * rsm_height). A picked tile whose weights sum to 0 or
+   NaN (weights that are not the tile map's) is GIM_ERROR_INVALID_ARGUMENT. */
 GIMANY_API gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out);
 
 /* @section twins ========================================================================== */
@@ -4434,20 +4473,13 @@ GIMANY_DEF gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
 
 #define GIM__IMPORTANCE_DEFAULT_CLAMP (1.0f / 64.0f)
 
-/* eq. 10-11 for one texel; vs holds 6 doubles per view sample: position / scene_scale and a
-   unit normal (zero for a sample that sees nothing). Per texel independent: a GPU thread. */
-static float gim__importance_texel(const float *p, const float *nrm, const float *flux,
-                                   const double *vs, uint32_t vs_count, double inv_scale, double clamp2) {
-    double nx, ny, nz, len, px, py, pz, phi, sum = 0.0, r;
+/* The sum of eq. 10 over the view samples for a point p (in scene scales) with unit normal n;
+   vs holds 6 doubles per view sample: position / scene_scale and a unit normal (zero for a
+   sample that sees nothing). */
+static double gim__importance_geometry(double px, double py, double pz, double nx, double ny, double nz,
+                                       const double *vs, uint32_t vs_count, double clamp2) {
+    double sum = 0.0;
     uint32_t j;
-    if (!gim__all_finite(p, 3) || !gim__all_finite(nrm, 3) || !gim__all_finite(flux, 3)) return 0.0f;
-    phi = gim__v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
-    if (!(phi > 0.0)) return 0.0f;                 /* black, or negative (non-physical) flux */
-    if (phi > FLT_MAX) phi = FLT_MAX;              /* the float luminance of huge rgb overflowed */
-    len = sqrt((double)nrm[0] * nrm[0] + (double)nrm[1] * nrm[1] + (double)nrm[2] * nrm[2]);
-    if (!(len > 0.0)) return 0.0f;
-    nx = nrm[0] / len; ny = nrm[1] / len; nz = nrm[2] / len;
-    px = p[0] * inv_scale; py = p[1] * inv_scale; pz = p[2] * inv_scale;
     for (j = 0; j < vs_count; ++j) {
         const double *s = vs + (size_t)j * 6u;
         double mx = s[0] - px, my = s[1] - py, mz = s[2] - pz;   /* l in scene scales */
@@ -4460,19 +4492,41 @@ static float gim__importance_texel(const float *p, const float *nrm, const float
            at the texel itself (d2 = 0, cl = cv = 0) gives 0 through the DBL_MIN guard */
         sum += cl * cv / ((d2 > clamp2 ? d2 : clamp2) * (d2 > DBL_MIN ? d2 : DBL_MIN));
     }
-    r = phi * sum / (double)vs_count;
+    return sum;
+}
+
+/* A texel's luminance where gim_importance_map counts it (finite position, normal and flux, a
+   non-zero normal, luminance > 0; clamped at FLT_MAX), else 0; its unit normal into n. */
+static double gim__importance_phi(const float *p, const float *nrm, const float *flux, double n[3]) {
+    double len, phi;
+    if (!gim__all_finite(p, 3) || !gim__all_finite(nrm, 3) || !gim__all_finite(flux, 3)) return 0.0;
+    phi = gim__v3_luminance(gim_v3(flux[0], flux[1], flux[2]));
+    if (!(phi > 0.0)) return 0.0;                  /* black, or negative (non-physical) flux */
+    if (phi > FLT_MAX) phi = FLT_MAX;              /* the float luminance of huge rgb overflowed */
+    len = sqrt((double)nrm[0] * nrm[0] + (double)nrm[1] * nrm[1] + (double)nrm[2] * nrm[2]);
+    if (!(len > 0.0)) return 0.0;
+    n[0] = nrm[0] / len; n[1] = nrm[1] / len; n[2] = nrm[2] / len;
+    return phi;
+}
+
+/* eq. 10-11 for one texel (vs as gim__importance_geometry's). Per texel independent: a GPU thread. */
+static float gim__importance_texel(const float *p, const float *nrm, const float *flux,
+                                   const double *vs, uint32_t vs_count, double inv_scale, double clamp2) {
+    double n[3], phi = gim__importance_phi(p, nrm, flux, n), r;
+    if (!(phi > 0.0)) return 0.0f;
+    r = phi * gim__importance_geometry(p[0] * inv_scale, p[1] * inv_scale, p[2] * inv_scale, n[0], n[1], n[2], vs,
+                                       vs_count, clamp2) / (double)vs_count;
     return r < FLT_MAX ? (float)r : FLT_MAX;
 }
 
-GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float *out) {
-    static const char fn[] = "gim_importance_map";
-    const gim_env *env;
-    size_t texels, i;
+/* The checks of gim_importance_map and gim_importance_tile_map, and the view samples as
+   gim__importance_geometry reads them into *vs_out (free with gim__free). */
+static gim_result gim__importance_prepare(const gim_importance_desc *desc, const char *fn, double **vs_out,
+                                          double *inv_scale_out, double *clamp_out) {
+    const gim_env *env = &desc->env;
+    size_t texels;
     uint32_t j, unusable = 0;
     double *vs, inv_scale, clamp;
-    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
-    env = &desc->env;
-    if (!out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
     if (!desc->rsm_position || !desc->rsm_normal || !desc->rsm_flux)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm_position, rsm_normal and rsm_flux are required");
     if (desc->width == 0 || desc->height == 0)
@@ -4511,13 +4565,79 @@ GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float 
     if (unusable)
         gim__log(env, GIM_LOG_WARNING, fn, "%u of %u view samples are NaN/Inf or have a zero normal; they see nothing",
                  (unsigned)unusable, (unsigned)desc->view_sample_count);
+    *vs_out = vs;
+    *inv_scale_out = inv_scale;
+    *clamp_out = clamp;
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float *out) {
+    static const char fn[] = "gim_importance_map";
+    size_t texels, i;
+    double *vs = NULL, inv_scale = 0.0, clamp = 0.0;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    if (!out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is NULL");
+    r = gim__importance_prepare(desc, fn, &vs, &inv_scale, &clamp);
+    if (r != GIM_OK) return r;
+    texels = (size_t)desc->width * desc->height;
     for (i = 0; i < texels; ++i) {
         if (desc->rsm_valid && !(desc->rsm_valid[i] > 0.0f)) { out[i] = 0.0f; continue; }
         out[i] = gim__importance_texel(desc->rsm_position + i * 3u, desc->rsm_normal + i * 3u,
                                        desc->rsm_flux + i * 3u, vs, desc->view_sample_count,
                                        inv_scale, clamp * clamp);
     }
-    gim__free(env, vs);
+    gim__free(&desc->env, vs);
+    return GIM_OK;
+}
+
+GIMANY_DEF gim_result gim_importance_tile_map(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
+                                              float *weight) {
+    static const char fn[] = "gim_importance_tile_map";
+    uint32_t tx, ty, tiles_x, tiles_y, x, y, w, h;
+    double *vs = NULL, inv_scale = 0.0, clamp = 0.0;
+    gim_result r;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    if (!tile_map || !weight) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "tile_map and weight are required");
+    if (tile == 0 || tile > GIM_MAX_IMPORTANCE_TILE)
+        return gim__fail(&desc->env, GIM_ERROR_OUT_OF_RANGE, fn, "tile %u outside 1..%d", (unsigned)tile,
+                         GIM_MAX_IMPORTANCE_TILE);
+    r = gim__importance_prepare(desc, fn, &vs, &inv_scale, &clamp);
+    if (r != GIM_OK) return r;
+    w = desc->width; h = desc->height;
+    tiles_x = (w - 1u) / tile + 1u;
+    tiles_y = (h - 1u) / tile + 1u;
+    /* one independent invocation per tile (a GPU thread): its aggregate, then eq. 10 once */
+    for (ty = 0; ty < tiles_y; ++ty)
+        for (tx = 0; tx < tiles_x; ++tx) {
+            double phi_t = 0.0, px = 0.0, py = 0.0, pz = 0.0, nx = 0.0, ny = 0.0, nz = 0.0, len, v;
+            uint32_t x1 = tx * tile + tile < w ? tx * tile + tile : w, y1 = ty * tile + tile < h ? ty * tile + tile : h;
+            for (y = ty * tile; y < y1; ++y)
+                for (x = tx * tile; x < x1; ++x) {
+                    size_t i = (size_t)y * w + x;
+                    const float *p = desc->rsm_position + i * 3u;
+                    double n[3], phi = 0.0;
+                    if (!desc->rsm_valid || desc->rsm_valid[i] > 0.0f)
+                        phi = gim__importance_phi(p, desc->rsm_normal + i * 3u, desc->rsm_flux + i * 3u, n);
+                    weight[i] = (float)phi;
+                    if (!(phi > 0.0)) continue;
+                    phi = (float)phi;   /* the weight as stored, as the GPU sums it */
+                    phi_t += phi;
+                    px += phi * p[0]; py += phi * p[1]; pz += phi * p[2];
+                    nx += phi * n[0]; ny += phi * n[1]; nz += phi * n[2];
+                }
+            len = sqrt(nx * nx + ny * ny + nz * nz);
+            if (!(phi_t > 0.0) || !(len > 0.0) || len > DBL_MAX || phi_t > DBL_MAX) {
+                tile_map[(size_t)ty * tiles_x + tx] = 0.0f;
+                continue;
+            }
+            /* the flux-weighted mean position (in scene scales) and normal of the tile */
+            v = phi_t * gim__importance_geometry(px / phi_t * inv_scale, py / phi_t * inv_scale, pz / phi_t * inv_scale,
+                                                 nx / len, ny / len, nz / len, vs, desc->view_sample_count,
+                                                 clamp * clamp) / (double)desc->view_sample_count;
+            tile_map[(size_t)ty * tiles_x + tx] = v < FLT_MAX ? (float)v : FLT_MAX;
+        }
+    gim__free(&desc->env, vs);
     return GIM_OK;
 }
 
@@ -4599,7 +4719,7 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
     const float *off;
     const double *totals; /* the last row of column: per-column totals */
     double total, prev, o0, o1;
-    uint32_t i, x;
+    uint32_t i, x, tile;
     gim_result r;
     if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
     column = desc->column; row = desc->row; width = desc->width; height = desc->height; count = desc->count;
@@ -4614,6 +4734,17 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
     if (count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
     r = gim__importance_tables_check(env, fn, width, height);
     if (r != GIM_OK) return r;
+    tile = desc->tile > 1u ? desc->tile : 1u;
+    if (tile > 1u) {
+        if (tile > GIM_MAX_IMPORTANCE_TILE)
+            return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "tile %u above %d", (unsigned)tile, GIM_MAX_IMPORTANCE_TILE);
+        if (!desc->weight) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "tile %u needs weight", (unsigned)tile);
+        if (desc->rsm_width == 0 || desc->rsm_height == 0 || (desc->rsm_width - 1u) / tile + 1u != width ||
+            (desc->rsm_height - 1u) / tile + 1u != height)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "a %ux%u RSM in tiles of %u is not %ux%u tiles",
+                             (unsigned)desc->rsm_width, (unsigned)desc->rsm_height, (unsigned)tile, (unsigned)width,
+                             (unsigned)height);
+    }
     totals = column + (size_t)(height - 1u) * width;
     /* O(width) check of what every search relies on; the interior of the columns is checked
        per sample (a NaN there shows as a non-positive difference) */
@@ -4640,24 +4771,65 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
         u = u < 1.0 ? u : u - 1.0;
         v = v < 1.0 ? v : v - 1.0;
         if (!(total > 0.0)) { /* documented fallback: uniform, pdf 1 / texels */
-            sx = (uint32_t)(u * width); sy = (uint32_t)(v * height);
-            out[i].x = sx < width ? sx : width - 1u;
-            out[i].y = sy < height ? sy : height - 1u;
-            out[i].pdf = (float)(1.0 / ((double)width * (double)height));
+            uint32_t tw = tile > 1u ? desc->rsm_width : width, th = tile > 1u ? desc->rsm_height : height;
+            sx = (uint32_t)(u * tw); sy = (uint32_t)(v * th);
+            out[i].x = sx < tw ? sx : tw - 1u;
+            out[i].y = sy < th ? sy : th - 1u;
+            out[i].pdf = (float)(1.0 / ((double)tw * (double)th));
             continue;
         }
         {
-            double col_total, p_col, p_row, p;
+            double col_total, p_col, p_row, p, t, lo, hi;
             sx = gim__first_above(row, 1u, width, gim__below(u * total, total));
             col_total = totals[sx];
-            sy = gim__first_above(column + sx, width, height, gim__below(v * col_total, col_total));
+            t = gim__below(v * col_total, col_total);
+            sy = gim__first_above(column + sx, width, height, t);
+            lo = sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0;
+            hi = column[(size_t)sy * width + sx];
             p_col = (row[sx] - (sx ? row[sx - 1u] : 0.0)) / total;
-            p_row = (column[(size_t)sy * width + sx] - (sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0)) / col_total;
+            p_row = (hi - lo) / col_total;
             p = p_col * p_row;
             if (!(p > 0.0 && p <= 1.0))
                 return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                                  "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
                                  (unsigned)sx, (unsigned)sy, p);
+            if (tile > 1u) {
+                /* second level: the residual of v in the tile's interval picks the texel by weight */
+                double res = (t - lo) / (hi - lo), sum = 0.0, acc = 0.0, w = 0.0;
+                uint32_t x0 = sx * tile, y0 = sy * tile, xx, yy, px = 0, py = 0;
+                uint32_t x1 = x0 + tile < desc->rsm_width ? x0 + tile : desc->rsm_width;
+                uint32_t y1 = y0 + tile < desc->rsm_height ? y0 + tile : desc->rsm_height;
+                int found = 0;
+                res = res < 1.0 ? (res > 0.0 ? res : 0.0) : 0.0;   /* NaN-safe; [0, 1) */
+                for (yy = y0; yy < y1; ++yy)
+                    for (xx = x0; xx < x1; ++xx) sum += (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
+                if (!(sum > 0.0 && sum <= DBL_MAX))
+                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                                     "tile (%u, %u) was picked but its weights sum to %g (not the tile map's weights)",
+                                     (unsigned)sx, (unsigned)sy, sum);
+                /* the first texel whose running sum exceeds res * sum; rounding past the end: the last
+                   texel of positive weight (so a picked texel always has weight > 0) */
+                for (yy = y0; yy < y1 && !found; ++yy)
+                    for (xx = x0; xx < x1 && !found; ++xx) {
+                        double wt = (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
+                        acc += wt;
+                        if (wt > 0.0) { px = xx; py = yy; w = wt; }
+                        found = acc > res * sum;
+                    }
+                if (!found) {   /* res * sum rounded to the tile's sum or past it: the last positive one */
+                    for (yy = y0; yy < y1; ++yy)
+                        for (xx = x0; xx < x1; ++xx) {
+                            double wt = (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
+                            if (wt > 0.0) { px = xx; py = yy; w = wt; }
+                        }
+                }
+                p *= w / sum;
+                if (!(p > 0.0 && p <= 1.0))
+                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "texel (%u, %u) has P = %g: weights not finite and >= 0",
+                                     (unsigned)px, (unsigned)py, p);
+                sx = px;
+                sy = py;
+            }
             out[i].x = sx;
             out[i].y = sy;
             out[i].pdf = p > FLT_MIN ? (float)p : FLT_MIN;

@@ -741,6 +741,196 @@ static void precision_4096(void **state) {
     free(map); free(colf); free(rowf); free(sel); free(obs); free(pb);
 }
 
+/* --- two-level importance (gim_importance_tile_map + gim_importance_select with tile > 1) --- */
+
+/* The tile map by hand: a 5x3 RSM in tiles of 2 (3x2 tiles, the last column and row partial).
+   Each tile's value is gim_importance_map of one texel at the tile's flux-weighted mean position
+   and normal carrying the tile's summed flux; the weights are the texels' flux luminances, 0 at
+   invalid ones; tile 1 is the per-texel map. */
+static void tile_map_aggregate(void **state) {
+    const uint32_t w = 5, h = 3, T = 2, tw = 3, th = 2, nvs = 24;
+    test_log lg;
+    gim_env env = test_env(NULL, &lg);
+    test_rsm r = rsm_new(w, h), one = rsm_new(1, 1);
+    gim_view_sample vs[24];
+    float tiles[6], weight[15], per[15], single, tiles1[15], weight1[15];
+    gim_importance_desc d;
+    uint32_t i, tx, ty, x, y;
+    (void)state;
+    random_scene(&r, vs, nvs, 3.0f);
+    r.valid[7] = 0.0f;                  /* an invalid texel: weight 0, out of the aggregate */
+    set3(r.flux, 11, 0, 0, 0);          /* a black one */
+    d = desc_for(&r, vs, nvs, 3.0f, env);
+    assert_int_equal(gim_importance_tile_map(&d, T, tiles, weight), GIM_OK);
+    for (i = 0; i < w * h; ++i) {
+        double lum = 0.2126f * r.flux[i * 3] + 0.7152f * r.flux[i * 3 + 1] + 0.0722f * r.flux[i * 3 + 2];
+        assert_true(i == 7 || i == 11 ? weight[i] == 0.0f : rel_close(weight[i], lum, 1e-6));
+    }
+    for (ty = 0; ty < th; ++ty)
+        for (tx = 0; tx < tw; ++tx) {
+            double phi = 0, p[3] = {0, 0, 0}, n[3] = {0, 0, 0}, f[3] = {0, 0, 0}, len;
+            gim_importance_desc d1;
+            for (y = ty * T; y < ty * T + T && y < h; ++y)
+                for (x = tx * T; x < tx * T + T && x < w; ++x) {
+                    uint32_t k = y * w + x, c;
+                    if (weight[k] == 0.0f) continue;
+                    phi += weight[k];
+                    for (c = 0; c < 3; ++c) {
+                        p[c] += weight[k] * r.pos[k * 3 + c];
+                        n[c] += weight[k] * r.nrm[k * 3 + c];
+                        f[c] += r.flux[k * 3 + c];
+                    }
+                }
+            len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+            set3(one.pos, 0, (float)(p[0] / phi), (float)(p[1] / phi), (float)(p[2] / phi));
+            set3(one.nrm, 0, (float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len));
+            set3(one.flux, 0, (float)f[0], (float)f[1], (float)f[2]);
+            one.valid[0] = 1.0f;
+            d1 = desc_for(&one, vs, nvs, 3.0f, env);
+            assert_int_equal(gim_importance_map(&d1, &single), GIM_OK);
+            assert_true(single > 0.0f);
+            assert_true(rel_close(tiles[ty * tw + tx], single, 1e-5));
+        }
+    /* tile 1: the per-texel map */
+    assert_int_equal(gim_importance_map(&d, per), GIM_OK);
+    assert_int_equal(gim_importance_tile_map(&d, 1, tiles1, weight1), GIM_OK);
+    for (i = 0; i < w * h; ++i) assert_true(rel_close(tiles1[i], per[i], 1e-6) || (per[i] == 0.0f && tiles1[i] == 0.0f));
+    /* errors: one log line each, nothing written past the checks */
+    assert_int_equal(gim_importance_tile_map(&d, 0, tiles, weight), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim_importance_tile_map(&d, GIM_MAX_IMPORTANCE_TILE + 1, tiles, weight), GIM_ERROR_OUT_OF_RANGE);
+    assert_int_equal(gim_importance_tile_map(&d, 2, NULL, weight), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_importance_tile_map(&d, 2, tiles, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    d.view_sample_count = 0;
+    assert_int_equal(gim_importance_tile_map(&d, 2, tiles, weight), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(lg.errors, 5);
+    rsm_free(&r); rsm_free(&one);
+}
+
+/* P(texel) = P(tile) * weight / Phi_tile from the tile tables, as the pick computes it. */
+static void two_level_p(const double *col, const double *row, const float *weight, uint32_t w, uint32_t h, uint32_t T,
+                        double *p) {
+    uint32_t tw = (w - 1) / T + 1, th = (h - 1) / T + 1, tx, ty, x, y;
+    double total = row[tw - 1];
+    for (ty = 0; ty < th; ++ty)
+        for (tx = 0; tx < tw; ++tx) {
+            double ct = col[(size_t)(th - 1) * tw + tx], pc = (row[tx] - (tx ? row[tx - 1] : 0.0)) / total;
+            double pr = ct > 0.0 ? (col[(size_t)ty * tw + tx] - (ty ? col[(size_t)(ty - 1) * tw + tx] : 0.0)) / ct : 0.0;
+            double sum = 0.0;
+            for (y = ty * T; y < ty * T + T && y < h; ++y)
+                for (x = tx * T; x < tx * T + T && x < w; ++x) sum += weight[y * w + x];
+            for (y = ty * T; y < ty * T + T && y < h; ++y)
+                for (x = tx * T; x < tx * T + T && x < w; ++x)
+                    p[y * w + x] = sum > 0.0 ? pc * pr * weight[y * w + x] / sum : 0.0;
+        }
+}
+
+static gim_result select_tiled(const test_tables *t, const float *weight, uint32_t w, uint32_t h, uint32_t T,
+                               uint32_t count, uint32_t seed, gim_selected_val *out, gim_env env) {
+    gim_select_desc d;
+    memset(&d, 0, sizeof d);
+    d.column = t->col; d.row = t->row; d.width = (w - 1) / T + 1; d.height = (h - 1) / T + 1;
+    d.count = count; d.seed = seed; d.tile = T; d.weight = weight; d.rsm_width = w; d.rsm_height = h; d.env = env;
+    return gim_importance_select(&d, out);
+}
+
+/* The two-level pick keeps its pdf exact: on a 22x13 RSM in tiles of 4 (6x4 tiles, partial
+   at the edges) with invalid and black texels, every pick reports P = P(tile) w / Phi_tile from
+   the tables (1e-6), the P of all texels sums to 1 (1e-12), and the frequencies over many seeds
+   pass chi-square per texel, both with many VALs a call (stratified) and one VAL a call over
+   20000 seeds (each sample alone is distributed as P). The same test rejects a pick whose
+   texel inside the tile ignored the weights (uniform in the tile) and a pdf of P(tile) alone. */
+static void two_level_frequencies(void **state) {
+    const uint32_t w = 22, h = 13, T = 4, tw = 6, th = 4, nvs = 40, count = 3000, seeds = 60, singles = 20000;
+    size_t n = (size_t)w * h, i;
+    test_log lg;
+    gim_env env = test_env(NULL, &lg);
+    test_rsm r = rsm_new(w, h);
+    gim_view_sample vs[40];
+    float tiles[24], weight[22 * 13], flat[22 * 13];
+    double p[22 * 13], pflat[22 * 13], sum = 0.0, x, dof, pv, pv_flat, pv_one;
+    long obs[22 * 13], obs_one[22 * 13];
+    gim_selected_val *sel = (gim_selected_val *)malloc(count * sizeof *sel);
+    gim_importance_desc d;
+    test_tables t;
+    uint32_t s, k;
+    (void)state;
+    random_scene(&r, vs, nvs, 2.0f);
+    for (i = 0; i < n; i += 7) r.valid[i] = 0.0f;
+    for (i = 3; i < n; i += 11) set3(r.flux, i, 0, 0, 0);
+    for (i = 0; i < n; ++i) set3(r.flux, i, r.flux[i * 3] * (float)(1 + i % 5), r.flux[i * 3 + 1], r.flux[i * 3 + 2]);
+    d = desc_for(&r, vs, nvs, 2.0f, env);
+    assert_int_equal(gim_importance_tile_map(&d, T, tiles, weight), GIM_OK);
+    t = tables_of(tiles, tw, th);
+    two_level_p(t.col, t.row, weight, w, h, T, p);
+    for (i = 0; i < n; ++i) { sum += p[i]; flat[i] = weight[i] > 0.0f ? 1.0f : 0.0f; obs[i] = obs_one[i] = 0; }
+    print_message("two levels: sum of P over the texels - 1 = %.3g\n", sum - 1.0);
+    assert_true(fabs(sum - 1.0) < 1e-12);
+    two_level_p(t.col, t.row, flat, w, h, T, pflat);   /* the wrong pdf: uniform inside the tile */
+    for (s = 0; s < seeds; ++s) {
+        assert_int_equal(select_tiled(&t, weight, w, h, T, count, 500u + s, sel, env), GIM_OK);
+        for (k = 0; k < count; ++k) {
+            size_t idx = (size_t)sel[k].y * w + sel[k].x;
+            assert_true(sel[k].x < w && sel[k].y < h);
+            assert_true(weight[idx] > 0.0f);                       /* P > 0 for every selected texel */
+            assert_true(rel_close(sel[k].pdf, p[idx], 1e-6));
+            obs[idx]++;
+        }
+    }
+    for (s = 0; s < singles; ++s) {
+        assert_int_equal(select_tiled(&t, weight, w, h, T, 1, s, sel, env), GIM_OK);
+        assert_true(rel_close(sel[0].pdf, p[(size_t)sel[0].y * w + sel[0].x], 1e-6));
+        obs_one[(size_t)sel[0].y * w + sel[0].x]++;
+    }
+    x = chi2_of(obs, p, n, (double)count * seeds, &dof);
+    pv = test_chi2_pvalue(x, dof);
+    print_message("two levels, %u x %u: chi2 %.1f (dof %.0f, p %.3f)", (unsigned)seeds, (unsigned)count, x, dof, pv);
+    x = chi2_of(obs, pflat, n, (double)count * seeds, &dof);
+    pv_flat = test_chi2_pvalue(x, dof);
+    x = chi2_of(obs_one, p, n, singles, &dof);
+    pv_one = test_chi2_pvalue(x, dof);
+    print_message("; one a call over %u seeds: chi2 %.1f (p %.3f); wrong pdf (uniform in the tile) p %.2g\n",
+                  (unsigned)singles, x, pv_one, pv_flat);
+    assert_true(pv > 1e-3);
+    assert_true(pv_one > 1e-3);
+    assert_true(pv_flat < 1e-9);
+    assert_int_equal(lg.errors + lg.warnings, 0);
+    tables_free(&t);
+    rsm_free(&r);
+    free(sel);
+}
+
+/* Two-level errors and the all-zero fallback: weights missing, an RSM size that is not the
+   tables' in tiles, a picked tile whose weights are all 0 (weights not the tile map's) are
+   refused with one log line; an all-zero tile map selects texels uniformly over the RSM. */
+static void two_level_errors(void **state) {
+    const uint32_t w = 10, h = 7, T = 4;
+    float tiles[6] = {1, 2, 0, 3, 0, 1}, weight[70], zero[6] = {0, 0, 0, 0, 0, 0};
+    gim_selected_val sel[256];
+    test_log lg;
+    gim_env env = test_env(NULL, &lg);
+    test_tables t = tables_of(tiles, 3, 2), tz = tables_of(zero, 3, 2);
+    gim_select_desc d;
+    uint32_t i;
+    (void)state;
+    for (i = 0; i < w * h; ++i) weight[i] = 1.0f + (float)(i % 3);
+    assert_int_equal(select_tiled(&t, weight, w, h, T, 256, 3, sel, env), GIM_OK);
+    memset(&d, 0, sizeof d);
+    d.column = t.col; d.row = t.row; d.width = 3; d.height = 2; d.count = 8; d.tile = T; d.rsm_width = w;
+    d.rsm_height = h; d.env = env;
+    assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_INVALID_ARGUMENT);       /* no weight */
+    d.weight = weight; d.rsm_width = 13;
+    assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_INVALID_ARGUMENT);       /* 13 / 4: 4 tiles */
+    d.rsm_width = w; d.tile = GIM_MAX_IMPORTANCE_TILE + 1;
+    assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_OUT_OF_RANGE);
+    for (i = 0; i < w * h; ++i) weight[i] = 0.0f;
+    assert_int_equal(select_tiled(&t, weight, w, h, T, 256, 3, sel, env), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(lg.errors, 4);
+    assert_int_equal(select_tiled(&tz, weight, w, h, T, 256, 3, sel, env), GIM_OK);
+    assert_non_null(strstr(lg.last, "all zero"));
+    for (i = 0; i < 256; ++i) assert_true(sel[i].x < w && sel[i].y < h && sel[i].pdf == 1.0f / 70.0f);
+    tables_free(&t); tables_free(&tz);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(eq10_hand_computed),
@@ -756,6 +946,9 @@ int main(void) {
         cmocka_unit_test(reproducible),
         cmocka_unit_test(argument_errors),
         cmocka_unit_test(precision_4096),
+        cmocka_unit_test(tile_map_aggregate),
+        cmocka_unit_test(two_level_frequencies),
+        cmocka_unit_test(two_level_errors),
     };
     return cmocka_run_group_tests_name("importance", tests, NULL, NULL);
 }
