@@ -562,6 +562,11 @@ typedef struct gim_frame_lightskin {
     int rotate_view_samples;    /* 1: Cranley-Patterson rotate them by gim_rotation_offsets(frame_index) */
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
+    uint32_t importance_tile;   /* BRSM: side T in RSM texels of the two-level importance map's tiles, 1..
+                                   GIM_MAX_IMPORTANCE_TILE (gim_importance_tile_map): eq. 10-11 once per T x T
+                                   tile, the VAL picked inside its tile by flux luminance, P exact, so the
+                                   pass costs texels / T^2 x view samples; 1: eq. 10-11 per texel (the paper's
+                                   map, the images of before); 0: GIM_DEFAULT_IMPORTANCE_TILE (docs/methods.md) */
 } gim_frame_lightskin;
 
 /* RSM_GATHER (gim_frame.gather). */
@@ -697,8 +702,13 @@ typedef struct gim_light_outputs {
     uint32_t rsm_flux;          /* RGBA32F: reflected flux Phi rgb (units in @section twins) */
     uint32_t rsm_depth;         /* DEPTH_COMPONENT32F */
     gim_mat4 view, proj;        /* the light's camera (gim_light_camera) */
-    uint32_t importance;        /* SSBO: rsm_size^2 floats, eq. 10-11, row-major, row 0 first */
-    uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's) */
+    uint32_t importance;        /* SSBO: rsm_size^2 floats, row-major, row 0 first: importance_tile 1: eq. 10-11 per
+                                   texel; T > 1: each texel's weight in its tile (gim_importance_tile_map's weight) */
+    uint32_t importance_tiles;  /* importance_tile > 1: SSBO of ceil(rsm_size / T)^2 floats, eq. 10-11 per tile
+                                   (gim_importance_tile_map's tile_map); 0 otherwise */
+    uint32_t importance_tile;   /* BRSM: the tile side T the frame used (1: per texel); 0 otherwise */
+    uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's), of the per-texel
+                                   map (T = 1) or of the tile map (ceil(rsm_size / T) square) */
     uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
     uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
     int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
@@ -1122,8 +1132,10 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
    those few texels would soak up the selections (and flicker as the view samples move)
    without lighting the caches any better. */
 
-/* Largest tile side of the two-level map (gim_importance_tile_map, gim_frame_lightskin.importance_tile). */
+/* Largest tile side of the two-level map (gim_importance_tile_map, gim_frame_lightskin.importance_tile),
+   and the frame's default side (docs/methods.md, LightSkin: the measurement behind it). */
 #define GIM_MAX_IMPORTANCE_TILE 32
+#define GIM_DEFAULT_IMPORTANCE_TILE 8
 
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
@@ -8127,6 +8139,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_ISM,                /* imperfect shadow maps of the caches (Ritschel et al. 2008) */
     GIM__PROGRAM_GBUFFER_DECODE,     /* the host's packed normals / view-space depth to gimany's layout */
     GIM__PROGRAM_CACHES_FOLLOW,      /* a deforming mesh's caches moved with their triangles; its bounds */
+    GIM__PROGRAM_IMPORTANCE_TILES,   /* eq. 10-11 per tile of the two-level map, texel weights */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -8154,7 +8167,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"geometry_blur.comp", NULL},
     {"ism.comp", NULL},
     {"gbuffer_decode.comp", NULL},
-    {"caches_follow.comp", NULL}};
+    {"caches_follow.comp", NULL},
+    {"importance_tiles.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -8188,6 +8202,9 @@ typedef struct gim__light_gpu {
     gim__GLuint position, normal, flux, depth, fbo;
     gim__GLuint map, column, row, selected;
     uint64_t map_bytes, column_bytes, row_bytes, selected_bytes;
+    gim__GLuint tiles;            /* two-level map (tile > 1): eq. 10-11 per tile; map then holds the texel weights */
+    uint64_t tiles_bytes;
+    uint32_t tile, table_side;    /* the tile side of the last BRSM frame, its tables' side (ceil(size / tile)) */
     gim_mat4 view, proj;
 } gim__light_gpu;
 
@@ -8700,6 +8717,71 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
+/* The two-level map's first level on the GPU, the twin of gim_importance_tile_map: textures and
+   view samples as gim__gl_importance_map's; tile_map: SSBO of ceil(width / tile) * ceil(height /
+   tile) floats, weight: SSBO of width * height floats, both written. tile in 1..GIM_MAX_IMPORTANCE_TILE.
+   Cost: (tiles * view_sample_count) terms + width * height texel reads, against
+   width * height * view_sample_count for the per-texel map. Float sums with running means; on
+   the twin's inputs the tile map agrees to ~1e-5 relative (tests/gl/gltest_importance.c). */
+static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim__GLuint rsm_position,
+                                                          gim__GLuint rsm_normal, gim__GLuint rsm_flux, uint32_t width,
+                                                          uint32_t height, uint32_t tile, gim__GLuint view_samples,
+                                                          uint32_t view_sample_count, float scene_scale, float clamp,
+                                                          gim__GLuint tile_map, gim__GLuint weight) {
+    static const char where[] = "importance tile map (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint program = 0, textures[3];
+    uint32_t tiles_x, tiles_y;
+    gim_result r;
+    unsigned i;
+    if (!rsm_position || !rsm_normal || !rsm_flux || !view_samples || !tile_map || !weight)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or buffer is 0");
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (tile == 0 || tile > GIM_MAX_IMPORTANCE_TILE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "tile %u outside 1..%d", (unsigned)tile,
+                         GIM_MAX_IMPORTANCE_TILE);
+    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (clamp == 0.0f) clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
+    if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
+    tiles_x = (width - 1u) / tile + 1u;
+    tiles_y = (height - 1u) / tile + 1u;
+    gim__gl_enter(ctx, where);
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "tile_map", tile_map, (uint64_t)tiles_x * tiles_y * 4u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "weight", weight, (uint64_t)width * height * 4u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_TILES, &program);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    for (i = 0; i < 3; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
+        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
+    }
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, tile_map);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, weight);
+    gl->UseProgram(program);
+    gl->Uniform2ui(0, width, height);
+    gl->Uniform1ui(1, view_sample_count);
+    gl->Uniform1f(2, (float)(1.0 / (double)scene_scale));
+    gl->Uniform1f(3, clamp * clamp);
+    gl->Uniform1ui(4, tile);
+    gl->DispatchCompute((tiles_x + 7u) / 8u, (tiles_y + 7u) / 8u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
 /* eq. 12 on the GPU, the twin of gim_importance_cumsum. map: SSBO of width * height floats
    (row-major, row 0 first); column: SSBO of width * height doubles, written with
    column[y * width + x] = sum of map(x, 0..y); row: SSBO of width doubles, written with
@@ -8780,6 +8862,10 @@ static GIM__UNUSED gim_result gim__gl_importance_cumsum(gim_context *ctx, gim__G
 static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuint column, gim__GLuint row,
                                                     uint32_t width, uint32_t height, uint32_t count, const float off[4],
                                                     gim__GLuint out);
+static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint column, gim__GLuint row, uint32_t width,
+                                                  uint32_t height, uint32_t count, const float off[4], uint32_t tile,
+                                                  gim__GLuint weight, uint32_t rsm_width, uint32_t rsm_height,
+                                                  gim__GLuint out);
 static GIM__UNUSED gim_result gim__gl_importance_select(gim_context *ctx, gim__GLuint column, gim__GLuint row,
                                                         uint32_t width, uint32_t height, uint32_t count,
                                                         uint32_t seed, gim__GLuint out) {
@@ -8807,24 +8893,47 @@ static void gim__select_offsets(const gim_frame *f, uint32_t light, uint32_t cou
 static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuint column, gim__GLuint row,
                                                     uint32_t width, uint32_t height, uint32_t count, const float off[4],
                                                     gim__GLuint out) {
+    return gim__gl_importance_select_tiles(ctx, column, row, width, height, count, off, 1u, 0u, width, height, out);
+}
+
+/* The two-level selection on the GPU, the twin of gim_importance_select with gim_select_desc's
+   tile, weight, rsm_width, rsm_height: column, row are the tile map's tables (width x height tiles),
+   weight an SSBO of rsm_width * rsm_height floats (gim__gl_importance_tile_map's); tile 1: the
+   per-texel selection (weight unused, may be 0). Same offsets, same picks and pdf as the twin;
+   pdf 0 marks a pick in a tile whose weights sum to 0 (the twin's error). */
+static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint column, gim__GLuint row, uint32_t width,
+                                                  uint32_t height, uint32_t count, const float off[4], uint32_t tile,
+                                                  gim__GLuint weight, uint32_t rsm_width, uint32_t rsm_height,
+                                                  gim__GLuint out) {
     static const char where[] = "importance select (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     gim_result r;
-    if (!column || !row || !out || !off) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (!column || !row || !out || !off || (tile > 1u && !weight))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
     if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
                          (unsigned)height, GIM__SCAN_MAX_SIZE);
     if (count > 65535u * 64u)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "count %u above %u", (unsigned)count, 65535u * 64u);
+    if (tile == 0 || tile > GIM_MAX_IMPORTANCE_TILE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "tile %u outside 1..%d", (unsigned)tile,
+                         GIM_MAX_IMPORTANCE_TILE);
+    if (tile > 1u && (rsm_width == 0 || rsm_height == 0 || (rsm_width - 1u) / tile + 1u != width ||
+                      (rsm_height - 1u) / tile + 1u != height))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a %ux%u RSM in tiles of %u is not %ux%u tiles",
+                         (unsigned)rsm_width, (unsigned)rsm_height, (unsigned)tile, (unsigned)width, (unsigned)height);
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "column", column, (uint64_t)width * height * 8u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "row", row, (uint64_t)width * 8u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "out", out, (uint64_t)count * 12u);
+    if (r == GIM_OK && tile > 1u)
+        r = gim__gl_check_buffer(ctx, where, "weight", weight, (uint64_t)rsm_width * rsm_height * 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     /* the twin's 48-bit rotation: two 24-bit offsets per dimension */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, tile > 1u ? weight : column);   /* per texel: unread */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, out);
@@ -8833,6 +8942,8 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
     gl->Uniform1ui(1, count);
     gl->Uniform2d(2, (double)off[0] + (double)off[2] * (1.0 / 16777216.0),
                   (double)off[1] + (double)off[3] * (1.0 / 16777216.0));
+    gl->Uniform1ui(3, tile);
+    gl->Uniform2ui(4, tile > 1u ? rsm_width : width, tile > 1u ? rsm_height : height);
     gl->DispatchCompute((count + 63u) / 64u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -10199,11 +10310,11 @@ GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
 /* Delete one light's GL objects. */
 static void gim__light_gpu_release(gim_context *ctx, gim__light_gpu *g) {
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint t[4], b[4];
+    gim__GLuint t[4], b[5];
     t[0] = g->position; t[1] = g->normal; t[2] = g->flux; t[3] = g->depth;
-    b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
+    b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected; b[4] = g->tiles;
     gl->DeleteTextures(4, t); /* 0 names are ignored */
-    gl->DeleteBuffers(4, b);
+    gl->DeleteBuffers(5, b);
     if (g->fbo) gl->DeleteFramebuffers(1, &g->fbo);
     memset(g, 0, sizeof *g);
 }
@@ -11930,6 +12041,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.lightskin.view_sample_count = GIM__DEFAULT_VIEW_SAMPLES;
     f.lightskin.importance_clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
     f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;
+    f.lightskin.importance_tile = GIM_DEFAULT_IMPORTANCE_TILE;
     f.gather.samples = GIM__GATHER_DEFAULT_SAMPLES;
     f.gather.radius = GIM__GATHER_DEFAULT_RADIUS;
     /* CLUSTERED: 2048 VPLs at interleave 4 (128 a pixel, a 4 x 4 blur) against 4096 at 8: the
@@ -11963,6 +12075,7 @@ static void gim__frame_resolve(const gim_frame *in, gim_frame *out) {
     GIM__RESOLVE(lightskin.view_sample_count);
     GIM__RESOLVE(lightskin.importance_clamp);
     GIM__RESOLVE(lightskin.neighbour_count);
+    GIM__RESOLVE(lightskin.importance_tile);
     GIM__RESOLVE(gather.samples);
     GIM__RESOLVE(gather.radius);
     GIM__RESOLVE(vpl.count);
@@ -12388,6 +12501,9 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const g
     if (f->timing < 0 || f->timing > 2)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "timing %d: 0 (off), 1 (GL timestamps) or 2 (glFinish and the CPU clock)", f->timing);
+    if (f->lightskin.importance_tile > GIM_MAX_IMPORTANCE_TILE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "importance_tile %u above %d",
+                         (unsigned)f->lightskin.importance_tile, GIM_MAX_IMPORTANCE_TILE);
     if (f->lightskin.neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->lightskin.neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
@@ -12547,7 +12663,7 @@ static gim_result gim__gl_val_budget(gim_context *ctx, int per_light, uint32_t v
         if (!ctx->light_on[i]) continue;
         ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_gpu[i].row);
         ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER,
-                                  (gim__GLintptr)((uint64_t)(ctx->light_gpu[i].size - 1u) * 8u), (gim__GLintptr)k * 8, 8);
+                                  (gim__GLintptr)((uint64_t)(ctx->light_gpu[i].table_side - 1u) * 8u), (gim__GLintptr)k * 8, 8);
         ++k;
     }
     ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->light_totals);
@@ -12651,11 +12767,11 @@ static void gim__release_other_methods(gim_context *ctx, gim_method method) {
     uint32_t i;
     for (i = 0; i < ctx->light_count && !brsm; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
-        gim__GLuint b[4];
-        b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected;
-        ctx->gl.DeleteBuffers(4, b);
-        g->map = g->column = g->row = g->selected = 0;
-        g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = 0;
+        gim__GLuint b[5];
+        b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected; b[4] = g->tiles;
+        ctx->gl.DeleteBuffers(5, b);
+        g->map = g->column = g->row = g->selected = g->tiles = 0;
+        g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = g->tiles_bytes = 0;
     }
     if (!lightskin) gim__lightskin_drop(ctx);
     if (!vplm) gim__vpl_release(ctx);
@@ -12723,33 +12839,50 @@ static gim_result gim__gl_shared_passes(gim_context *ctx, const gim_frame *f, co
 }
 
 /* BRSM's selection (Bischoff 2017 sec. 4), per rendered light: view samples -> importance map
-   (eq. 10-11) -> cumulative sums (eq. 12) -> its share of val_count (gim__gl_val_budget) ->
-   that many VALs drawn (none where no light reaches a view sample). */
+   (eq. 10-11; per tile of importance_tile^2 texels with the texels' weights when the tile is > 1)
+   -> cumulative sums (eq. 12) -> its share of val_count (gim__gl_val_budget) -> that many VALs
+   drawn (none where no light reaches a view sample). */
 static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
                                       float scale) {
     static const char where[] = "gim_update";
     uint32_t i, vs_count = f->lightskin.view_sample_count, val_count = f->lightskin.val_count;
+    uint32_t tile = f->lightskin.importance_tile;
     gim_result r = gim__gl_view_samples(ctx, f, depth, normal, vs_count);
     gim__stamp(ctx, f->timing, GIM_PASS_VIEW_SAMPLES);
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
-        uint64_t texels = (uint64_t)g->size * g->size;
+        uint64_t texels = (uint64_t)g->size * g->size, cells;
         if (!ctx->light_on[i]) continue;
-        if (texels * 8u > (uint64_t)ctx->max_ssbo_bytes)
+        /* the two-level map at tile T > 1: its tables are of ceil(size / T)^2 tiles */
+        g->tile = tile;
+        g->table_side = (g->size - 1u) / tile + 1u;
+        cells = (uint64_t)g->table_side * g->table_side;
+        if (cells * 8u > (uint64_t)ctx->max_ssbo_bytes || texels * 4u > (uint64_t)ctx->max_ssbo_bytes)
             r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "light %u: a %u^2 RSM's eq. 12 table exceeds "
                           "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", (unsigned)i, (unsigned)g->size);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->map, &g->map_bytes, texels * 4u, where);
-        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->column, &g->column_bytes, texels * 8u, where);
-        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->size * 8u, where);
-        if (r == GIM_OK)
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->column, &g->column_bytes, cells * 8u, where);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->table_side * 8u, where);
+        if (r == GIM_OK && tile > 1u) {
+            r = gim__gl_sized_buffer(ctx, &g->tiles, &g->tiles_bytes, cells * 4u, where);
+            if (r == GIM_OK)
+                r = gim__gl_importance_tile_map(ctx, g->position, g->normal, g->flux, g->size, g->size, tile,
+                                                ctx->view_samples, vs_count, scale, f->lightskin.importance_clamp,
+                                                g->tiles, g->map);
+        } else if (r == GIM_OK) {
+            if (g->tiles) ctx->gl.DeleteBuffers(1, &g->tiles);   /* per texel: no tile map */
+            g->tiles = 0;
+            g->tiles_bytes = 0;
             r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
                                        scale, f->lightskin.importance_clamp, g->map);
+        }
         gim__stamp(ctx, f->timing, GIM_PASS_IMPORTANCE_MAP);
     }
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) { /* apart, so the stamps of a pass merge */
         gim__light_gpu *g = &ctx->light_gpu[i];
         if (!ctx->light_on[i]) continue;
-        r = gim__gl_importance_cumsum(ctx, g->map, g->column, g->row, g->size, g->size, 0u);
+        r = gim__gl_importance_cumsum(ctx, tile > 1u ? g->tiles : g->map, g->column, g->row, g->table_side,
+                                      g->table_side, 0u);
         gim__stamp(ctx, f->timing, GIM_PASS_CUMSUM);
     }
     if (r == GIM_OK) r = gim__gl_val_budget(ctx, f->per_light_budget, val_count, where);
@@ -12768,8 +12901,8 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
             /* temporal_steps: the drift's step from the frame's total, so a split that changes
                by a VAL does not move the offsets */
             gim__select_offsets(f, i, val_count, off);
-            r = gim__gl_importance_select_offsets(ctx, g->column, g->row, g->size, g->size, ctx->light_vals[i], off,
-                                                  g->selected);
+            r = gim__gl_importance_select_tiles(ctx, g->column, g->row, g->table_side, g->table_side,
+                                                ctx->light_vals[i], off, tile, g->map, g->size, g->size, g->selected);
         }
         gim__stamp(ctx, f->timing, GIM_PASS_SELECT);
     }
@@ -12829,6 +12962,8 @@ static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint
         lo->view = g->view;
         lo->proj = g->proj;
         lo->importance = g->map;
+        lo->importance_tiles = brsm && g->tile > 1u ? g->tiles : 0u;
+        lo->importance_tile = brsm && g->map ? g->tile : 0u;
         lo->column = g->column;
         lo->row = g->row;
         lo->selected = g->selected;
@@ -12941,7 +13076,8 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
         if (ctx->meshes[i].used) b += ctx->meshes[i].bytes;
     for (i = 0; i < ctx->light_capacity; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
-        b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes;
+        b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes +
+             g->tiles_bytes;
     }
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u + (uint64_t)ctx->decoded_width * ctx->decoded_height * 12u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
@@ -12995,7 +13131,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     } else {
         if (f.method != GIM_METHOD_LIGHTSKIN_FULL) {
             ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
-            ids[n++] = GIM__PROGRAM_IMPORTANCE_MAP;
+            ids[n++] = f.lightskin.importance_tile > 1u ? GIM__PROGRAM_IMPORTANCE_TILES : GIM__PROGRAM_IMPORTANCE_MAP;
             ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
             ids[n++] = GIM__PROGRAM_SCAN_TOTALS;
             ids[n++] = GIM__PROGRAM_SCAN_OFFSETS;

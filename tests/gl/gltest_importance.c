@@ -1,5 +1,6 @@
 /* The GPU importance-sampling passes (Bischoff 2017 eq. 10-12 and the selection) against their CPU
-   twins gim_importance_map / gim_importance_cumsum / gim_importance_select, on small inputs,
+   twins gim_importance_map / gim_importance_cumsum / gim_importance_select, and the two-level map
+   against gim_importance_tile_map and the two-level selection, on small inputs,
    with zero GL errors and the GL state restored around every pass. */
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -449,6 +450,135 @@ static void chain_matches_twin(void **state) {
     GLTEST_END();
 }
 
+/* --- two-level map (gim_importance_tile_map, gim_importance_select with tile > 1) -------------- */
+
+/* The GPU tile map and texel weights against the twin's, then the GPU's two-level selection
+   from the same tables and weights against the twin's (exactly the same texels, pdf 1e-6), and
+   the whole GPU chain (tile map -> tables -> selection) against the CPU chain (at most 1 of 512
+   picks may move by float rounding). Returns the tile map's largest relative error. What breaks
+   it: a wrong aggregate (unweighted mean position or normal, the normal left unnormalised, the
+   invalid texels counted), the weights' validity, a wrong tile's texel range at the edges, the
+   residual or the running sum of the pick, P without weight / sum. */
+static double compare_tiles(gltest_fixture *f, const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
+                            uint32_t T) {
+    enum { N = 512 };
+    uint32_t w = (uint32_t)r->w, h = (uint32_t)r->h, tw = (w - 1) / T + 1, th = (h - 1) / T + 1;
+    size_t texels = (size_t)w * h, cells = (size_t)tw * th, i;
+    float *ct = (float *)malloc(cells * sizeof(float)), *gt = (float *)malloc(cells * sizeof(float));
+    float *cw = (float *)malloc(texels * sizeof(float)), *gw = (float *)malloc(texels * sizeof(float));
+    double *col = (double *)malloc(cells * sizeof(double)), *row = (double *)malloc(tw * sizeof(double));
+    double worst = 0.0, max_cpu = 0.0;
+    gim_selected_val cpu[N], gpu[N], chain_cpu[N];
+    gim_importance_desc d;
+    gim_select_desc sd;
+    GLuint tp, tn, tf, bvs, btiles, bweight, bc, br, bout;
+    float off[4];
+    int differ = 0;
+    memset(&d, 0, sizeof d);
+    d.rsm_position = r->position; d.rsm_normal = r->normal; d.rsm_flux = r->flux; d.rsm_valid = r->valid;
+    d.width = w; d.height = h; d.view_samples = vs; d.view_sample_count = (uint32_t)n;
+    d.scene_scale = scene_scale; d.env = f->env;
+    assert_int_equal(gim_importance_tile_map(&d, T, ct, cw), GIM_OK);
+    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
+    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
+    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
+    bvs = view_sample_buffer(vs, n);
+    btiles = gltest_ssbo(cells * sizeof(float), NULL);
+    bweight = gltest_ssbo(texels * sizeof(float), NULL);
+    assert_int_equal(gim__gl_importance_tile_map(f->ctx, tp, tn, tf, w, h, T, bvs, (uint32_t)n, scene_scale, 0.0f,
+                                                 btiles, bweight), GIM_OK);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(btiles, cells * sizeof(float), gt);
+    gltest_read_buffer(bweight, texels * sizeof(float), gw);
+    for (i = 0; i < texels; ++i) {
+        if (cw[i] == 0.0f) assert_true(gw[i] == 0.0f);
+        assert_true(fabs((double)gw[i] - cw[i]) <= 1e-6 * cw[i]);
+    }
+    for (i = 0; i < cells; ++i) max_cpu = ct[i] > max_cpu ? ct[i] : max_cpu;
+    assert_true(max_cpu > 0.0);
+    for (i = 0; i < cells; ++i) {
+        double e = fabs((double)gt[i] - ct[i]) / (ct[i] > 1e-3 * max_cpu ? ct[i] : 1e-3 * max_cpu);
+        assert_true(gt[i] >= 0.0f && gim__isfinitef(gt[i]));
+        if (ct[i] == 0.0f) assert_true(gt[i] == 0.0f);
+        if (e > worst) worst = e;
+    }
+    /* the selection from the GPU's map and weights: the twin's picks exactly */
+    gim_rotation_offsets(off, 4u, 5u);
+    memset(&sd, 0, sizeof sd);
+    sd.width = tw; sd.height = th; sd.count = N; sd.offsets = off; sd.tile = T; sd.rsm_width = w; sd.rsm_height = h;
+    sd.env = f->env;
+    assert_int_equal(gim_importance_cumsum(gt, tw, th, col, row, f->env), GIM_OK);
+    sd.column = col; sd.row = row; sd.weight = gw;
+    assert_int_equal(gim_importance_select(&sd, cpu), GIM_OK);
+    bc = gltest_ssbo(cells * sizeof(double), col);
+    br = gltest_ssbo(tw * sizeof(double), row);
+    bout = gltest_ssbo(sizeof gpu, NULL);
+    assert_int_equal(gim__gl_importance_select_tiles(f->ctx, bc, br, tw, th, N, off, T, bweight, w, h, bout), GIM_OK);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bout, sizeof gpu, gpu);
+    for (i = 0; i < N; ++i) {
+        assert_true(gpu[i].x == cpu[i].x && gpu[i].y == cpu[i].y);
+        assert_true(gpu[i].pdf > 0.0f && fabs((double)gpu[i].pdf - cpu[i].pdf) <= 1e-6 * cpu[i].pdf);
+        assert_true(cw[(size_t)gpu[i].y * w + gpu[i].x] > 0.0f);
+    }
+    /* the whole chain on each side */
+    assert_int_equal(gim_importance_cumsum(ct, tw, th, col, row, f->env), GIM_OK);
+    sd.weight = cw;
+    assert_int_equal(gim_importance_select(&sd, chain_cpu), GIM_OK);
+    assert_int_equal(gim__gl_importance_cumsum(f->ctx, btiles, bc, br, tw, th, 0), GIM_OK);
+    assert_int_equal(gim__gl_importance_select_tiles(f->ctx, bc, br, tw, th, N, off, T, bweight, w, h, bout), GIM_OK);
+    gltest_read_buffer(bout, sizeof gpu, gpu);
+    for (i = 0; i < N; ++i) {
+        if (gpu[i].x != chain_cpu[i].x || gpu[i].y != chain_cpu[i].y) { ++differ; continue; }
+        assert_true(fabs((double)gpu[i].pdf - chain_cpu[i].pdf) <= 1e-4 * chain_cpu[i].pdf);
+    }
+    assert_true(differ <= 1);
+    glDeleteTextures(1, &tp); glDeleteTextures(1, &tn); glDeleteTextures(1, &tf);
+    glDeleteBuffers(1, &bvs); glDeleteBuffers(1, &btiles); glDeleteBuffers(1, &bweight);
+    glDeleteBuffers(1, &bc); glDeleteBuffers(1, &br); glDeleteBuffers(1, &bout);
+    free(ct); free(gt); free(cw); free(gw); free(col); free(row);
+    return worst;
+}
+
+/* The two-level passes against their twins: tiles of 8 on the damaged 64x64 box (invalid, black,
+   NaN, Inf texels), tiles of 4 and 7 on a 40x26 RSM (partial edge tiles) with 300 view samples
+   (several shared-memory chunks of 64), tile 1, and the box 3e4 units from the origin. The tile
+   map is within 1e-4 of the twin's (floats against doubles), the selections as compare_tiles says. */
+static void tiles_match_twin(void **state) {
+    static const float zero[3] = {0.0f, 0.0f, 0.0f};
+    static const float far_away[3] = {2.0e4f, -1.0e4f, 3.0e4f};
+    gltest_fixture f;
+    rsm_data r;
+    gim_view_sample *vs;
+    double e;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_rsm(&r, 64, 64, 4.0f, zero, 1);
+    vs = make_view_samples(48, 4.0f, zero);
+    e = compare_tiles(&f, &r, vs, 48, 4.0f * 1.7320508f, 8);
+    print_message("tile map, 64x64 in tiles of 8 x 48 view samples: max relative error %.3g\n", e);
+    assert_true(e < 1e-4);
+    free(vs);
+    free_rsm(&r);
+    make_rsm(&r, 40, 26, 4.0f, zero, 0);
+    vs = make_view_samples(300, 4.0f, zero);
+    assert_true(compare_tiles(&f, &r, vs, 300, 7.0f, 4) < 1e-4);
+    assert_true(compare_tiles(&f, &r, vs, 300, 7.0f, 7) < 1e-4);
+    assert_true(compare_tiles(&f, &r, vs, 300, 7.0f, 1) < 1e-4);
+    free(vs);
+    free_rsm(&r);
+    make_rsm(&r, 32, 32, 50.0f, far_away, 0);
+    vs = make_view_samples(16, 50.0f, far_away);
+    e = compare_tiles(&f, &r, vs, 16, 87.0f, 8);
+    print_message("tile map, 3e4 from the origin: max relative error %.3g\n", e);
+    assert_true(e < 1e-4);
+    free(vs);
+    free_rsm(&r);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* Bad arguments: an error through the logger, no GL touched, no GL error. */
 static void pass_arguments(void **state) {
     gltest_fixture f;
@@ -464,7 +594,16 @@ static void pass_arguments(void **state) {
     assert_int_equal(gim__gl_importance_cumsum(f.ctx, 1, 0, 1, 4, 4, 0), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_importance_select(f.ctx, 1, 1, 4, 4, 0, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_importance_select(f.ctx, 1, 0, 4, 4, 8, 0, 1), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(f.log.errors, 9);
+    {   /* the two-level passes */
+        static const float off[4] = {0.0f, 0.0f, 0.0f, 0.0f};
+        assert_int_equal(gim__gl_importance_tile_map(f.ctx, 1, 1, 1, 4, 4, 0, 1, 1, 1.0f, 0.0f, 1, 1), GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(gim__gl_importance_tile_map(f.ctx, 1, 1, 1, 4, 4, GIM_MAX_IMPORTANCE_TILE + 1, 1, 1, 1.0f, 0.0f, 1, 1),
+                         GIM_ERROR_OUT_OF_RANGE);
+        assert_int_equal(gim__gl_importance_tile_map(f.ctx, 1, 1, 1, 4, 4, 2, 1, 1, 1.0f, 0.0f, 1, 0), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim__gl_importance_select_tiles(f.ctx, 1, 1, 2, 2, 8, off, 2, 0, 4, 4, 1), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim__gl_importance_select_tiles(f.ctx, 1, 1, 2, 2, 8, off, 2, 1, 5, 4, 1), GIM_ERROR_INVALID_ARGUMENT);
+    }
+    assert_int_equal(f.log.errors, 14);
     f.log.errors = 0;
     gltest_state_unchanged(&f);
     gltest_fixture_end(&f);
@@ -478,6 +617,7 @@ int main(void) {
         cmocka_unit_test(cumsum_keeps_small_texels),
         cmocka_unit_test(select_matches_twin),
         cmocka_unit_test(chain_matches_twin),
+        cmocka_unit_test(tiles_match_twin),
         cmocka_unit_test(pass_arguments),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);
