@@ -237,23 +237,29 @@ static void ex_read(ex *e, ex_out *out) {
         gltest_read_texture(lo->rsm_flux, GL_RGBA, t);
         for (i = 0; i < n * 4; ++i) assert_true(finite_nonneg(t[i]));
         if (lo->importance) {
+            /* the tables' side: texels, or tiles of the two-level map */
+            uint32_t side = (lo->rsm_size - 1u) / lo->importance_tile + 1u, cells = side * side;
             double *d = (double *)malloc((size_t)n * 8u), prev;
             gim_selected_val *s = (gim_selected_val *)malloc((size_t)lo->selected_count * sizeof *s);
             gltest_read_buffer(lo->importance, (size_t)n * 4u, t);
             for (i = 0; i < n; ++i) assert_true(finite_nonneg(t[i]));
-            gltest_read_buffer(lo->column, (size_t)n * 8u, d);   /* cumulative down each column */
-            for (i = 0; i < n; ++i) {
-                assert_true(isfinite(d[i]) && d[i] >= 0.0);
-                if (i >= lo->rsm_size) assert_true(d[i] >= d[i - lo->rsm_size]);
+            if (lo->importance_tiles) {
+                gltest_read_buffer(lo->importance_tiles, (size_t)cells * 4u, t);
+                for (i = 0; i < cells; ++i) assert_true(finite_nonneg(t[i]));
             }
-            gltest_read_buffer(lo->row, (size_t)lo->rsm_size * 8u, d);
-            for (i = 0, prev = 0.0; i < lo->rsm_size; ++i) {
+            gltest_read_buffer(lo->column, (size_t)cells * 8u, d);   /* cumulative down each column */
+            for (i = 0; i < cells; ++i) {
+                assert_true(isfinite(d[i]) && d[i] >= 0.0);
+                if (i >= side) assert_true(d[i] >= d[i - side]);
+            }
+            gltest_read_buffer(lo->row, (size_t)side * 8u, d);
+            for (i = 0, prev = 0.0; i < side; ++i) {
                 if (!(isfinite(d[i]) && d[i] >= prev))
                     fail_msg("light %u: row[%u] = %.17g after %.17g", (unsigned)l, (unsigned)i, d[i], prev);
                 prev = d[i];
             }
             if (lo->selected_count) gltest_read_buffer(lo->selected, (size_t)lo->selected_count * sizeof *s, s);
-            else assert_true(lo->selected == 0 && d[lo->rsm_size - 1u] == 0.0);   /* shared budget: none to a zero total */
+            else assert_true(lo->selected == 0 && d[side - 1u] == 0.0);   /* shared budget: none to a zero total */
             for (i = 0; i < lo->selected_count; ++i)
                 assert_true(s[i].x < lo->rsm_size && s[i].y < lo->rsm_size && isfinite(s[i].pdf) && s[i].pdf > 0.0f &&
                             s[i].pdf <= 1.0f);
@@ -1255,8 +1261,11 @@ static void light_unseen(void **state) {
         gim_selected_val sel[256];
         uint32_t i;
         double s = 0.0;
-        gltest_read_buffer(fo.lights[0].importance, sizeof map, map);
-        for (i = 0; i < 32 * 32; ++i) s += map[i];
+        /* the importance: per texel, or of the two-level map's tiles (its texel weights are fluxes) */
+        uint32_t side = 31u / fo.lights[0].importance_tile + 1u, cells = side * side;
+        gltest_read_buffer(fo.lights[0].importance_tiles ? fo.lights[0].importance_tiles : fo.lights[0].importance,
+                           cells * sizeof(float), map);
+        for (i = 0; i < cells; ++i) s += map[i];
         gltest_read_buffer(fo.lights[0].selected, sizeof sel, sel);
         print_message("unseen light: importance sum %g, pdf %g (uniform %g), VAL flux %g, image max %g\n", s,
                       (double)sel[0].pdf, 1.0 / 1024.0, o->val_flux, o->max);

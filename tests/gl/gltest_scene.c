@@ -510,6 +510,10 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
 
 /* --- the chain into the importance passes ------------------------------------------------- */
 
+/* The frame's importance passes on its own RSM and view samples against the twins: per texel
+   (importance_tile 1: gim_importance_map) and the two-level map of the default tile side
+   (gim_importance_tile_map: the tile map and the texel weights), every pick a texel of positive
+   importance (weight). */
 static void importance_chain_matches_twin(void **state) {
     static const float origin[3] = {0.0f, 0.0f, 0.0f};
     fixture f;
@@ -520,9 +524,10 @@ static void importance_chain_matches_twin(void **state) {
     enum { N = 32, VS = 64, VALS = 128 };
     float *pos = (float *)malloc(N * N * 16), *nrm = (float *)malloc(N * N * 16), *flux = (float *)malloc(N * N * 16);
     float p3[N * N * 3], n3[N * N * 3], f3[N * N * 3], valid[N * N], map_gpu[N * N], map_twin[N * N], vsb[VS * 8];
+    float tiles_gpu[N * N], tiles_twin[N * N];
     gim_view_sample vs[VS];
-    uint32_t sel[VALS * 3];
-    int i, k, bad = 0;
+    uint32_t sel[VALS * 3], pass, tile;
+    int i, k, bad = 0, cells;
     (void)state;
     GLTEST_BEGIN();
     fixture_begin(&f);
@@ -532,45 +537,56 @@ static void importance_chain_matches_twin(void **state) {
     l.direction = gim_v3(0.5f, 1.0f, -0.2f);
     l.rsm_size = N;
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
-    fr = default_frame(1.0f, origin, 32, 24);
-    fr.lightskin.view_sample_count = VS;
-    fr.lightskin.val_count = VALS;
-    assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
-    o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
-    read_texture(o.lights[0].rsm_position, GL_RGBA, 4, N, N, pos);
-    read_texture(o.lights[0].rsm_normal, GL_RGBA, 4, N, N, nrm);
-    read_texture(o.lights[0].rsm_flux, GL_RGBA, 4, N, N, flux);
-    gltest_read_buffer(od.view_samples, sizeof vsb, vsb);
-    gltest_read_buffer(o.lights[0].importance, sizeof map_gpu, map_gpu);
-    gltest_read_buffer(o.lights[0].selected, sizeof sel, sel);
-    for (i = 0; i < N * N; ++i) {
-        for (k = 0; k < 3; ++k) { p3[i * 3 + k] = pos[i * 4 + k]; n3[i * 3 + k] = nrm[i * 4 + k]; f3[i * 3 + k] = flux[i * 4 + k]; }
-        valid[i] = pos[i * 4 + 3];
+    for (pass = 0; pass < 2; ++pass) {
+        tile = pass == 0 ? 1u : GIM_DEFAULT_IMPORTANCE_TILE;
+        cells = (int)(((N - 1) / tile + 1) * ((N - 1) / tile + 1));
+        fr = default_frame(1.0f, origin, 32, 24);
+        fr.lightskin.view_sample_count = VS;
+        fr.lightskin.val_count = VALS;
+        fr.lightskin.importance_tile = pass == 0 ? 1u : 0u;   /* 0: the default */
+        assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
+        o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
+        assert_int_equal(o.lights[0].importance_tile, tile);
+        assert_true(pass == 0 ? o.lights[0].importance_tiles == 0 : o.lights[0].importance_tiles != 0);
+        read_texture(o.lights[0].rsm_position, GL_RGBA, 4, N, N, pos);
+        read_texture(o.lights[0].rsm_normal, GL_RGBA, 4, N, N, nrm);
+        read_texture(o.lights[0].rsm_flux, GL_RGBA, 4, N, N, flux);
+        gltest_read_buffer(od.view_samples, sizeof vsb, vsb);
+        gltest_read_buffer(o.lights[0].importance, sizeof map_gpu, map_gpu);
+        if (tile > 1u) gltest_read_buffer(o.lights[0].importance_tiles, (size_t)cells * sizeof(float), tiles_gpu);
+        gltest_read_buffer(o.lights[0].selected, sizeof sel, sel);
+        for (i = 0; i < N * N; ++i) {
+            for (k = 0; k < 3; ++k) { p3[i * 3 + k] = pos[i * 4 + k]; n3[i * 3 + k] = nrm[i * 4 + k]; f3[i * 3 + k] = flux[i * 4 + k]; }
+            valid[i] = pos[i * 4 + 3];
+        }
+        for (i = 0; i < VS; ++i) {
+            vs[i].position = gim_v3(vsb[i * 8], vsb[i * 8 + 1], vsb[i * 8 + 2]);
+            vs[i].normal = gim_v3(vsb[i * 8 + 4], vsb[i * 8 + 5], vsb[i * 8 + 6]);
+        }
+        {
+            gim_importance_desc d;
+            memset(&d, 0, sizeof d);
+            d.rsm_position = p3; d.rsm_normal = n3; d.rsm_flux = f3; d.rsm_valid = valid;
+            d.width = d.height = N;
+            d.view_samples = vs;
+            d.view_sample_count = VS;
+            d.scene_scale = o.scene_scale;
+            if (tile == 1u) assert_int_equal(gim_importance_map(&d, map_twin), GIM_OK);
+            else assert_int_equal(gim_importance_tile_map(&d, tile, tiles_twin, map_twin), GIM_OK);
+        }
+        for (i = 0; i < N * N; ++i)
+            if (!rel_close(map_gpu[i], map_twin[i], 1e-3f, 1e-30f)) bad++;
+        for (i = 0; tile > 1u && i < cells; ++i)
+            if (!rel_close(tiles_gpu[i], tiles_twin[i], 1e-3f, 1e-30f)) bad++;
+        assert_int_equal(bad, 0);
+        for (i = 0; i < VALS; ++i) { /* every pick a lit texel of positive importance (weight) */
+            float pdf;
+            memcpy(&pdf, &sel[i * 3 + 2], 4);
+            assert_true(sel[i * 3] < N && sel[i * 3 + 1] < N && pdf > 0.0f);
+            assert_true(map_gpu[sel[i * 3 + 1] * N + sel[i * 3]] > 0.0f);
+        }
+        assert_int_equal(o.lights[0].selected_count, VALS);
     }
-    for (i = 0; i < VS; ++i) {
-        vs[i].position = gim_v3(vsb[i * 8], vsb[i * 8 + 1], vsb[i * 8 + 2]);
-        vs[i].normal = gim_v3(vsb[i * 8 + 4], vsb[i * 8 + 5], vsb[i * 8 + 6]);
-    }
-    {
-        gim_importance_desc d;
-        memset(&d, 0, sizeof d);
-        d.rsm_position = p3; d.rsm_normal = n3; d.rsm_flux = f3; d.rsm_valid = valid;
-        d.width = d.height = N;
-        d.view_samples = vs;
-        d.view_sample_count = VS;
-        d.scene_scale = o.scene_scale;
-        assert_int_equal(gim_importance_map(&d, map_twin), GIM_OK);
-    }
-    for (i = 0; i < N * N; ++i)
-        if (!rel_close(map_gpu[i], map_twin[i], 1e-3f, 1e-30f)) bad++;
-    assert_int_equal(bad, 0);
-    for (i = 0; i < VALS; ++i) { /* every pick a lit texel of positive importance */
-        float pdf;
-        memcpy(&pdf, &sel[i * 3 + 2], 4);
-        assert_true(sel[i * 3] < N && sel[i * 3 + 1] < N && pdf > 0.0f);
-        assert_true(map_gpu[sel[i * 3 + 1] * N + sel[i * 3]] > 0.0f);
-    }
-    assert_int_equal(o.lights[0].selected_count, VALS);
     fixture_end(&f);
     free(pos); free(nrm); free(flux);
     GLTEST_END();

@@ -34,10 +34,12 @@ static void read_selected(gim_context *ctx, gim_selected_val *s, uint32_t n) {
 static void twin_selected(gim_context *ctx, uint32_t frame_index, uint32_t steps, gim_selected_val *s, uint32_t n,
                           gim_env env) {
     gim_frame_outputs oo = gim_outputs(ctx), *o = &oo;
-    uint32_t size = o->lights[0].rsm_size;
+    uint32_t rsm = o->lights[0].rsm_size, tile = o->lights[0].importance_tile;
+    uint32_t size = (rsm - 1u) / tile + 1u;   /* the tables' side: texels, or tiles of the two-level map */
     double *column = (double *)malloc((size_t)size * size * sizeof(double)), *row = (double *)malloc(size * sizeof(double));
-    float off[4];
+    float off[4], *weight = NULL;
     gim_select_desc sd;
+    assert_true(tile >= 1u);
     if (steps > 1)
         gim_drift_offsets(off, 2, gim__select_seed(0, 0), frame_index, 1.0 / ((double)n * steps));
     else
@@ -46,9 +48,15 @@ static void twin_selected(gim_context *ctx, uint32_t frame_index, uint32_t steps
     gltest_read_buffer(o->lights[0].row, size * sizeof(double), row);
     memset(&sd, 0, sizeof sd);
     sd.column = column; sd.row = row; sd.width = size; sd.height = size; sd.count = n; sd.offsets = off; sd.env = env;
+    if (tile > 1u) {   /* the two-level map: the texel weights too */
+        weight = (float *)malloc((size_t)rsm * rsm * sizeof(float));
+        gltest_read_buffer(o->lights[0].importance, (size_t)rsm * rsm * sizeof(float), weight);
+        sd.tile = tile; sd.weight = weight; sd.rsm_width = sd.rsm_height = rsm;
+    }
     assert_int_equal(gim_importance_select(&sd, s), GIM_OK);
     free(column);
     free(row);
+    free(weight);
 }
 
 static void indirect_of(gim_context *ctx, float *img) {
