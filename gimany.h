@@ -563,10 +563,11 @@ typedef struct gim_frame_lightskin {
     float importance_clamp;     /* eq. 11 clamp in scene scales; 0: 1/64 (see @section importance) */
     uint32_t neighbour_count;   /* caches interpolated per pixel (eq. 8-9), 1..GIM_MAX_NEIGHBOUR_CACHES; 0: 16 */
     uint32_t importance_tile;   /* BRSM: side T in RSM texels of the two-level importance map's tiles, 1..
-                                   GIM_MAX_IMPORTANCE_TILE (gim_importance_tile_map): eq. 10-11 once per T x T
-                                   tile, the VAL picked inside its tile by flux luminance, P exact, so the
-                                   pass costs texels / T^2 x view samples; 1: eq. 10-11 per texel (the paper's
-                                   map, the images of before); 0: GIM_DEFAULT_IMPORTANCE_TILE (docs/methods.md) */
+                                   GIM_MAX_IMPORTANCE_TILE (gim_importance_tile_map): eq. 10-11 once per plane
+                                   (at most 4) of each T x T tile, the VAL picked inside its tile by luminance x
+                                   its plane's term, P exact, so the pass costs <= 4 texels / T^2 x view samples;
+                                   1: eq. 10-11 per texel (the paper's map, the images of before); 0:
+                                   GIM_DEFAULT_IMPORTANCE_TILE (docs/methods.md) */
 } gim_frame_lightskin;
 
 /* RSM_GATHER (gim_frame.gather). */
@@ -1164,22 +1165,28 @@ typedef struct gim_importance_desc {
    every output is finite and >= 0 (clamped at FLT_MAX). */
 GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float *out);
 
-/* Two-level importance (docs/methods.md, LightSkin): eq. 10-11 per tile of tile x tile texels
-   instead of per texel, so the sum over view samples runs (texels / tile^2) times. Writes
-   weight[width * height], each texel's weight inside its tile: the luminance of its flux (units
-   of flux) where the texel is valid as gim_importance_map counts it (rsm_valid > 0, finite, a
-   non-zero normal, luminance > 0), else 0; and tile_map[tiles_x * tiles_y], tiles_x =
-   ceil(width / tile), tiles_y = ceil(height / tile), row-major: tile (i, j) covers texels
-   [i tile, min((i+1) tile, width)) x [j tile, ...), with
-     I_tile = Phi_tile / N_VS * sum_j (n_T . d)+ (n_VS . -d)+ / max(|l|^2 / scene_scale^2, clamp^2)
-   where Phi_tile = sum of the tile's weights, x_T = their weighted mean position, n_T = the
-   normalised weighted sum of their unit normals, l = VS_j - x_T (eq. 10 of the tile's aggregate;
-   0 where Phi_tile = 0 or the normals cancel). I_tile is the per-texel map's sum over the tile where
-   the tile is flat and small against its distance to the view samples. gim_importance_cumsum of
-   tile_map and gim_importance_select with the desc's tile and weight pick a tile by I_tile, then a
-   texel by its weight: P = P(tile) weight / Phi_tile, exact and > 0 for every texel of a picked
-   tile with weight > 0. tile 1 is allowed (tile_map is then eq. 10 at every texel's own
-   position, equal to gim_importance_map to rounding); tile in 1..GIM_MAX_IMPORTANCE_TILE. */
+/* Two-level importance (docs/methods.md, LightSkin): eq. 10-11 per plane of each tile of tile x
+   tile texels instead of per texel, so the sum over view samples runs at most 4 x (texels /
+   tile^2) times. tile_map[tiles_x * tiles_y], tiles_x = ceil(width / tile), tiles_y =
+   ceil(height / tile), row-major: tile (i, j) covers texels [i tile, min((i+1) tile, width)) x
+   [j tile, ...). A tile's VALs (valid as gim_importance_map counts them: rsm_valid > 0, finite,
+   a non-zero normal, flux luminance > 0), in raster order, split into at most 4 planes: a VAL
+   lies on a plane when its normal is within acos(0.9) = 26 degrees of the plane's first VAL's
+   and it is within 0.01 scene scales of that VAL's plane; a VAL on none starts a plane, the
+   fourth takes every VAL left. Per plane P, with Phi_P its luminance sum, x_P its flux-weighted
+   mean position and n_P the normalised flux-weighted mean of its normals, l = VS_j - x_P:
+     G_P = 1 / N_VS * sum_j (n_P . d)+ (n_VS . -d)+ / max(|l|^2 / scene_scale^2, clamp^2)
+   (eq. 10 at the plane's aggregate). weight[width * height]: each VAL's luminance x G of its
+   plane, 0 at the other texels; tile_map: the sum of the tile's weights. So a texel's weight is
+   its eq. 10 value with the geometry of its plane's aggregate: one aggregate per tile was not
+   enough (where a wall meets the ground or a roof edge lies over the street, its mean point floats
+   between the surfaces: on the street at RSM 1024^2, 10x the per-texel map's variance and texels
+   of P = 0 that light the view; with the planes +4% at tile 8 and none). gim_importance_cumsum of
+   tile_map and gim_importance_select with the desc's tile and weight pick a tile by its sum, then
+   a texel by its weight: P = P(tile) weight / (the tile's weight sum), exact and > 0 for every
+   picked texel. Units: weights and tile_map as gim_importance_map's out (flux); every output
+   finite and >= 0 (clamped at FLT_MAX). tile 1 gives gim_importance_map's map in both outputs (to
+   rounding); tile in 1..GIM_MAX_IMPORTANCE_TILE. */
 GIMANY_API gim_result gim_importance_tile_map(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
                                               float *weight);
 
@@ -4603,11 +4610,27 @@ GIMANY_DEF gim_result gim_importance_map(const gim_importance_desc *desc, float 
     return GIM_OK;
 }
 
+/* The two-level map's planes per tile (see gim_importance_tile_map): at most GIM__TILE_PLANES,
+   a texel on a seed's plane when its normal is within acos(0.9) = 26 degrees of the seed's and
+   it lies within GIM__TILE_PLANE_DISTANCE scene scales of the seed's plane. */
+#define GIM__TILE_PLANES 4
+#define GIM__TILE_PLANE_COS 0.9
+#define GIM__TILE_PLANE_DISTANCE 0.01
+
+/* Texel (unit normal n, position p) on the plane of seed (ns, ps); plane: the distance in world units. */
+static int gim__tile_on_plane(const double *n, const float *p, const double *ns, const float *ps, double plane) {
+    double dx = (double)p[0] - ps[0], dy = (double)p[1] - ps[1], dz = (double)p[2] - ps[2];
+    return n[0] * ns[0] + n[1] * ns[1] + n[2] * ns[2] >= GIM__TILE_PLANE_COS &&
+           fabs(ns[0] * dx + ns[1] * dy + ns[2] * dz) <= plane;
+}
+
 GIMANY_DEF gim_result gim_importance_tile_map(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
                                               float *weight) {
     static const char fn[] = "gim_importance_tile_map";
-    uint32_t tx, ty, tiles_x, tiles_y, x, y, w, h;
-    double *vs = NULL, inv_scale = 0.0, clamp = 0.0;
+    uint32_t tx, ty, tiles_x, tiles_y, w, h, k, i, count;
+    double *vs = NULL, inv_scale = 0.0, clamp = 0.0, plane, *tn, *tphi;
+    uint32_t *tidx;
+    int *cls;
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
     if (!tile_map || !weight) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "tile_map and weight are required");
@@ -4616,39 +4639,87 @@ GIMANY_DEF gim_result gim_importance_tile_map(const gim_importance_desc *desc, u
                          GIM_MAX_IMPORTANCE_TILE);
     r = gim__importance_prepare(desc, fn, &vs, &inv_scale, &clamp);
     if (r != GIM_OK) return r;
+    /* one tile's VALs: index, luminance, unit normal, plane */
+    tn = (double *)gim__alloc_array(&desc->env, (size_t)tile * tile, 4u * sizeof(double));
+    tidx = (uint32_t *)gim__alloc_array(&desc->env, (size_t)tile * tile, sizeof(uint32_t) + sizeof(int));
+    if (!tn || !tidx) {
+        gim__free(&desc->env, tn);
+        gim__free(&desc->env, tidx);
+        gim__free(&desc->env, vs);
+        return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, fn, "tile %u", (unsigned)tile);
+    }
+    tphi = tn + (size_t)tile * tile * 3u;
+    cls = (int *)(void *)(tidx + (size_t)tile * tile);
+    plane = GIM__TILE_PLANE_DISTANCE * (double)desc->scene_scale;
     w = desc->width; h = desc->height;
     tiles_x = (w - 1u) / tile + 1u;
     tiles_y = (h - 1u) / tile + 1u;
-    /* one independent invocation per tile (a GPU thread): its aggregate, then eq. 10 once */
+    /* one independent invocation per tile (a GPU thread): its VALs split into planes, eq. 10 once
+       per plane at the plane's aggregate, each texel's weight its luminance times its plane's term */
     for (ty = 0; ty < tiles_y; ++ty)
         for (tx = 0; tx < tiles_x; ++tx) {
-            double phi_t = 0.0, px = 0.0, py = 0.0, pz = 0.0, nx = 0.0, ny = 0.0, nz = 0.0, len, v;
-            uint32_t x1 = tx * tile + tile < w ? tx * tile + tile : w, y1 = ty * tile + tile < h ? ty * tile + tile : h;
-            for (y = ty * tile; y < y1; ++y)
+            uint32_t x1 = tx * tile + tile < w ? tx * tile + tile : w, y1 = ty * tile + tile < h ? ty * tile + tile : h, x, y;
+            uint32_t seed[GIM__TILE_PLANES];
+            double phi_c[GIM__TILE_PLANES], p_c[GIM__TILE_PLANES][3], n_c[GIM__TILE_PLANES][3], g_c[GIM__TILE_PLANES];
+            double sum = 0.0;
+            uint32_t seeds = 0;
+            count = 0;
+            for (y = ty * tile; y < y1; ++y)   /* the tile's VALs in raster order */
                 for (x = tx * tile; x < x1; ++x) {
-                    size_t i = (size_t)y * w + x;
-                    const float *p = desc->rsm_position + i * 3u;
-                    double n[3], phi = 0.0;
-                    if (!desc->rsm_valid || desc->rsm_valid[i] > 0.0f)
-                        phi = gim__importance_phi(p, desc->rsm_normal + i * 3u, desc->rsm_flux + i * 3u, n);
-                    weight[i] = (float)phi;
+                    size_t t = (size_t)y * w + x;
+                    double phi = 0.0;
+                    weight[t] = 0.0f;
+                    if (!desc->rsm_valid || desc->rsm_valid[t] > 0.0f)
+                        phi = gim__importance_phi(desc->rsm_position + t * 3u, desc->rsm_normal + t * 3u,
+                                                  desc->rsm_flux + t * 3u, tn + (size_t)count * 3u);
                     if (!(phi > 0.0)) continue;
-                    phi = (float)phi;   /* the weight as stored, as the GPU sums it */
-                    phi_t += phi;
-                    px += phi * p[0]; py += phi * p[1]; pz += phi * p[2];
-                    nx += phi * n[0]; ny += phi * n[1]; nz += phi * n[2];
+                    tidx[count] = (uint32_t)t;
+                    tphi[count] = (float)phi;   /* the luminance as the GPU holds it */
+                    ++count;
                 }
-            len = sqrt(nx * nx + ny * ny + nz * nz);
-            if (!(phi_t > 0.0) || !(len > 0.0) || len > DBL_MAX || phi_t > DBL_MAX) {
-                tile_map[(size_t)ty * tiles_x + tx] = 0.0f;
-                continue;
+            /* planes: seed k is the first VAL on none of the planes 0..k-1; a VAL belongs to the first
+               plane it lies on, the last plane takes the VALs on none */
+            for (i = 0; i < count; ++i) {
+                int c = -1;
+                for (k = 0; k < seeds && c < 0; ++k)
+                    if (k + 1u == GIM__TILE_PLANES ||
+                        gim__tile_on_plane(tn + (size_t)i * 3u, desc->rsm_position + (size_t)tidx[i] * 3u,
+                                           tn + (size_t)seed[k] * 3u, desc->rsm_position + (size_t)tidx[seed[k]] * 3u, plane))
+                        c = (int)k;
+                if (c < 0) { seed[seeds] = i; c = (int)seeds++; }
+                cls[i] = c;
             }
-            /* the flux-weighted mean position (in scene scales) and normal of the tile */
-            v = phi_t * gim__importance_geometry(px / phi_t * inv_scale, py / phi_t * inv_scale, pz / phi_t * inv_scale,
-                                                 nx / len, ny / len, nz / len, vs, desc->view_sample_count,
-                                                 clamp * clamp) / (double)desc->view_sample_count;
-            tile_map[(size_t)ty * tiles_x + tx] = v < FLT_MAX ? (float)v : FLT_MAX;
+            for (k = 0; k < seeds; ++k) {
+                phi_c[k] = 0.0;
+                p_c[k][0] = p_c[k][1] = p_c[k][2] = n_c[k][0] = n_c[k][1] = n_c[k][2] = 0.0;
+            }
+            for (i = 0; i < count; ++i) {   /* each plane's flux-weighted mean position and normal */
+                const float *p = desc->rsm_position + (size_t)tidx[i] * 3u;
+                double phi = tphi[i];
+                int c = cls[i];
+                phi_c[c] += phi;
+                p_c[c][0] += phi * p[0]; p_c[c][1] += phi * p[1]; p_c[c][2] += phi * p[2];
+                n_c[c][0] += phi * tn[i * 3u]; n_c[c][1] += phi * tn[i * 3u + 1u]; n_c[c][2] += phi * tn[i * 3u + 2u];
+            }
+            for (k = 0; k < seeds; ++k) {
+                double len = sqrt(n_c[k][0] * n_c[k][0] + n_c[k][1] * n_c[k][1] + n_c[k][2] * n_c[k][2]);
+                g_c[k] = 0.0;
+                if (!(phi_c[k] > 0.0) || !(len > 0.0) || phi_c[k] > DBL_MAX || len > DBL_MAX) continue;
+                g_c[k] = gim__importance_geometry(p_c[k][0] / phi_c[k] * inv_scale, p_c[k][1] / phi_c[k] * inv_scale,
+                                                  p_c[k][2] / phi_c[k] * inv_scale, n_c[k][0] / len, n_c[k][1] / len,
+                                                  n_c[k][2] / len, vs, desc->view_sample_count, clamp * clamp) /
+                         (double)desc->view_sample_count;
+            }
+            for (i = 0; i < count; ++i) {   /* weights, and the tile's importance: their sum */
+                double v = tphi[i] * g_c[cls[i]];
+                float f = v < FLT_MAX ? (float)v : FLT_MAX;
+                weight[tidx[i]] = f;
+                sum += (double)f;
+            }
+            tile_map[(size_t)ty * tiles_x + tx] = sum < FLT_MAX ? (float)sum : FLT_MAX;
         }
+    gim__free(&desc->env, tn);
+    gim__free(&desc->env, tidx);
     gim__free(&desc->env, vs);
     return GIM_OK;
 }
@@ -8720,9 +8791,9 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
 /* The two-level map's first level on the GPU, the twin of gim_importance_tile_map: textures and
    view samples as gim__gl_importance_map's; tile_map: SSBO of ceil(width / tile) * ceil(height /
    tile) floats, weight: SSBO of width * height floats, both written. tile in 1..GIM_MAX_IMPORTANCE_TILE.
-   Cost: (tiles * view_sample_count) terms + width * height texel reads, against
+   Cost: 4 planes x tiles x view_sample_count terms + 2 x width * height texel reads, against
    width * height * view_sample_count for the per-texel map. Float sums with running means; on
-   the twin's inputs the tile map agrees to ~1e-5 relative (tests/gl/gltest_importance.c). */
+   the twin's inputs the tile map and weights agree to ~6e-7 relative (tests/gl/gltest_importance.c). */
 static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim__GLuint rsm_position,
                                                           gim__GLuint rsm_normal, gim__GLuint rsm_flux, uint32_t width,
                                                           uint32_t height, uint32_t tile, gim__GLuint view_samples,
@@ -8777,6 +8848,7 @@ static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim_
     gl->Uniform1f(2, (float)(1.0 / (double)scene_scale));
     gl->Uniform1f(3, clamp * clamp);
     gl->Uniform1ui(4, tile);
+    gl->Uniform1f(5, (float)(GIM__TILE_PLANE_DISTANCE * (double)scene_scale));
     gl->DispatchCompute((tiles_x + 7u) / 8u, (tiles_y + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));

@@ -47,8 +47,8 @@ static const char demo_usage_text[] =
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
-    "  --importance-tile T   brsm: the importance map per T x T texel tile, the VAL picked inside its tile by\n"
-    "                        flux (1..32; 1: per texel; default: gimany's, GIM_DEFAULT_IMPORTANCE_TILE)\n"
+    "  --importance-tile T   brsm: the importance map per plane of each T x T texel tile, the VAL picked inside\n"
+    "                        its tile (1..32; 1: per texel; default: gimany's, GIM_DEFAULT_IMPORTANCE_TILE)\n"
     "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 2048, 30 clustered;\n"
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
@@ -199,7 +199,8 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
 
 /* A frame's work from the cost model, in terms (one VAL or VPL or texel
    evaluated for one cache, pixel or view sample) and bytes of GL and CPU memory:
-     brsm      importance rsm^2 x view samples + accumulation caches x VALs, per light
+     brsm      importance rsm^2 x 4 / T^2 x view samples (T > 1: --importance-tile, 4 planes a tile) + accumulation
+               caches x VALs, per light
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
      clustered, ssvp   pixels x VPLs / k^2 (interleaving: 4x4 clustered, 8x8 ssvp), second bounce included
@@ -213,7 +214,10 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
                                int bounces, double *terms, double *bytes) {
     double px = (double)width * height, texels = (double)d->rsm * d->rsm, L = lights ? lights : 1, t = 0.0;
     int ls = !strcmp(d->method, "brsm") || !strcmp(d->method, "full");
-    if (!strcmp(d->method, "brsm")) t = L * (texels * d->view_samples + (double)caches * d->vals);
+    if (!strcmp(d->method, "brsm")) {   /* the importance map per tile of T x T texels (T = 1: per texel) */
+        double tile = d->importance_tile ? d->importance_tile : GIM_DEFAULT_IMPORTANCE_TILE;
+        t = L * (texels * d->view_samples * (tile > 1.0 ? 4.0 : 1.0) / (tile * tile) + (double)caches * d->vals);
+    }
     else if (!strcmp(d->method, "full")) t = L * (double)caches * texels;
     else if (!strcmp(d->method, "gather")) t = L * px * 256.0;
     else if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp")) {

@@ -455,10 +455,12 @@ static void chain_matches_twin(void **state) {
 /* The GPU tile map and texel weights against the twin's, then the GPU's two-level selection
    from the same tables and weights against the twin's (exactly the same texels, pdf 1e-6), and
    the whole GPU chain (tile map -> tables -> selection) against the CPU chain (at most 1 of 512
-   picks may move by float rounding). Returns the tile map's largest relative error. What breaks
+   picks may move by float rounding). Returns the largest relative error of the tile map and the
+   weights. What breaks
    it: a wrong aggregate (unweighted mean position or normal, the normal left unnormalised, the
    invalid texels counted), the weights' validity, a wrong tile's texel range at the edges, the
-   residual or the running sum of the pick, P without weight / sum. */
+   residual or the running sum of the pick, P without weight / sum, a texel given the wrong
+   plane (the 40x26 box's tiles of 4 and 7 in the row where the floor meets the wall hold both). */
 static double compare_tiles(gltest_fixture *f, const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
                             uint32_t T) {
     enum { N = 512 };
@@ -490,9 +492,10 @@ static double compare_tiles(gltest_fixture *f, const rsm_data *r, const gim_view
     gltest_state_unchanged(f);
     gltest_read_buffer(btiles, cells * sizeof(float), gt);
     gltest_read_buffer(bweight, texels * sizeof(float), gw);
-    for (i = 0; i < texels; ++i) {
+    for (i = 0; i < texels; ++i) {   /* weights: luminance x eq. 10 of the texel's plane, float against double */
+        double e = fabs((double)gw[i] - cw[i]) / (cw[i] > 0.0f ? cw[i] : 1.0f);
         if (cw[i] == 0.0f) assert_true(gw[i] == 0.0f);
-        assert_true(fabs((double)gw[i] - cw[i]) <= 1e-6 * cw[i]);
+        if (e > worst) worst = e;
     }
     for (i = 0; i < cells; ++i) max_cpu = ct[i] > max_cpu ? ct[i] : max_cpu;
     assert_true(max_cpu > 0.0);
@@ -543,7 +546,8 @@ static double compare_tiles(gltest_fixture *f, const rsm_data *r, const gim_view
 /* The two-level passes against their twins: tiles of 8 on the damaged 64x64 box (invalid, black,
    NaN, Inf texels), tiles of 4 and 7 on a 40x26 RSM (partial edge tiles) with 300 view samples
    (several shared-memory chunks of 64), tile 1, and the box 3e4 units from the origin. The tile
-   map is within 1e-4 of the twin's (floats against doubles), the selections as compare_tiles says. */
+   map and the weights are within 1e-4 of the twin's (floats against doubles), the selections as
+   compare_tiles says. */
 static void tiles_match_twin(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
     static const float far_away[3] = {2.0e4f, -1.0e4f, 3.0e4f};

@@ -743,54 +743,67 @@ static void precision_4096(void **state) {
 
 /* --- two-level importance (gim_importance_tile_map + gim_importance_select with tile > 1) --- */
 
-/* The tile map by hand: a 5x3 RSM in tiles of 2 (3x2 tiles, the last column and row partial).
-   Each tile's value is gim_importance_map of one texel at the tile's flux-weighted mean position
-   and normal carrying the tile's summed flux; the weights are the texels' flux luminances, 0 at
-   invalid ones; tile 1 is the per-texel map. */
+/* The tile map by hand: a 7x5 RSM in tiles of 3 (3x2 tiles, the last column and row partial)
+   holding texels on a floor (y = 0), a wall (z = 0) and a shelf (y = 0.3 s, above the floor: the
+   same normal, another plane). Each texel's weight is its luminance times eq. 10 of its plane's
+   aggregate in its tile (gim_importance_map of one texel at the plane's flux-weighted mean
+   position and normal, luminance 1), 0 at invalid and black texels; the tile's value is the sum
+   of its weights; tile 1 is the per-texel map. Merging the shelf into the floor (one aggregate
+   in mid-air) or the wall into the floor changes the weights by far more than the tolerance. */
 static void tile_map_aggregate(void **state) {
-    const uint32_t w = 5, h = 3, T = 2, tw = 3, th = 2, nvs = 24;
+    const uint32_t w = 7, h = 5, T = 3, tw = 3, th = 2, nvs = 24;
+    const float s = 3.0f;
     test_log lg;
     gim_env env = test_env(NULL, &lg);
     test_rsm r = rsm_new(w, h), one = rsm_new(1, 1);
     gim_view_sample vs[24];
-    float tiles[6], weight[15], per[15], single, tiles1[15], weight1[15];
+    float tiles[6], weight[35], per[35], single, tiles1[35], weight1[35];
     gim_importance_desc d;
-    uint32_t i, tx, ty, x, y;
+    uint32_t i, tx, ty, x, y, c;
     (void)state;
-    random_scene(&r, vs, nvs, 3.0f);
+    random_scene(&r, vs, nvs, s);
+    for (i = 0; i < w * h; ++i)   /* planes: 0 floor, 1 wall, 2 shelf */
+        if (i % 3 == 2) { set3(r.pos, i, r.pos[i * 3], 0.3f * s, r.pos[i * 3 + 1]); set3(r.nrm, i, 0, 1, 0); }
     r.valid[7] = 0.0f;                  /* an invalid texel: weight 0, out of the aggregate */
     set3(r.flux, 11, 0, 0, 0);          /* a black one */
-    d = desc_for(&r, vs, nvs, 3.0f, env);
+    d = desc_for(&r, vs, nvs, s, env);
     assert_int_equal(gim_importance_tile_map(&d, T, tiles, weight), GIM_OK);
-    for (i = 0; i < w * h; ++i) {
-        double lum = 0.2126f * r.flux[i * 3] + 0.7152f * r.flux[i * 3 + 1] + 0.0722f * r.flux[i * 3 + 2];
-        assert_true(i == 7 || i == 11 ? weight[i] == 0.0f : rel_close(weight[i], lum, 1e-6));
-    }
     for (ty = 0; ty < th; ++ty)
         for (tx = 0; tx < tw; ++tx) {
-            double phi = 0, p[3] = {0, 0, 0}, n[3] = {0, 0, 0}, f[3] = {0, 0, 0}, len;
-            gim_importance_desc d1;
-            for (y = ty * T; y < ty * T + T && y < h; ++y)
-                for (x = tx * T; x < tx * T + T && x < w; ++x) {
-                    uint32_t k = y * w + x, c;
-                    if (weight[k] == 0.0f) continue;
-                    phi += weight[k];
-                    for (c = 0; c < 3; ++c) {
-                        p[c] += weight[k] * r.pos[k * 3 + c];
-                        n[c] += weight[k] * r.nrm[k * 3 + c];
-                        f[c] += r.flux[k * 3 + c];
+            double sum = 0.0;
+            for (c = 0; c < 3; ++c) {   /* each plane of the tile */
+                double phi = 0, p[3] = {0, 0, 0}, n[3] = {0, 0, 0}, len, g;
+                gim_importance_desc d1;
+                for (y = ty * T; y < ty * T + T && y < h; ++y)
+                    for (x = tx * T; x < tx * T + T && x < w; ++x) {
+                        uint32_t k = y * w + x, q;
+                        double lum = 0.2126f * r.flux[k * 3] + 0.7152f * r.flux[k * 3 + 1] + 0.0722f * r.flux[k * 3 + 2];
+                        if (k % 3 != c || k == 7 || k == 11) continue;
+                        phi += lum;
+                        for (q = 0; q < 3; ++q) { p[q] += lum * r.pos[k * 3 + q]; n[q] += lum * r.nrm[k * 3 + q]; }
                     }
-                }
-            len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            set3(one.pos, 0, (float)(p[0] / phi), (float)(p[1] / phi), (float)(p[2] / phi));
-            set3(one.nrm, 0, (float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len));
-            set3(one.flux, 0, (float)f[0], (float)f[1], (float)f[2]);
-            one.valid[0] = 1.0f;
-            d1 = desc_for(&one, vs, nvs, 3.0f, env);
-            assert_int_equal(gim_importance_map(&d1, &single), GIM_OK);
-            assert_true(single > 0.0f);
-            assert_true(rel_close(tiles[ty * tw + tx], single, 1e-5));
+                if (phi == 0.0) continue;
+                len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+                set3(one.pos, 0, (float)(p[0] / phi), (float)(p[1] / phi), (float)(p[2] / phi));
+                set3(one.nrm, 0, (float)(n[0] / len), (float)(n[1] / len), (float)(n[2] / len));
+                set3(one.flux, 0, 1, 1, 1);
+                one.valid[0] = 1.0f;
+                d1 = desc_for(&one, vs, nvs, s, env);
+                assert_int_equal(gim_importance_map(&d1, &single), GIM_OK);
+                g = single / (0.2126f + 0.7152f + 0.0722f);   /* eq. 10's sum / N_VS of the plane */
+                for (y = ty * T; y < ty * T + T && y < h; ++y)
+                    for (x = tx * T; x < tx * T + T && x < w; ++x) {
+                        uint32_t k = y * w + x;
+                        double lum = 0.2126f * r.flux[k * 3] + 0.7152f * r.flux[k * 3 + 1] + 0.0722f * r.flux[k * 3 + 2];
+                        if (k % 3 != c || k == 7 || k == 11) continue;
+                        assert_true(weight[k] > 0.0f);
+                        assert_true(rel_close(weight[k], lum * g, 1e-5));
+                        sum += weight[k];
+                    }
+            }
+            assert_true(rel_close(tiles[ty * tw + tx], sum, 1e-6));
         }
+    assert_true(weight[7] == 0.0f && weight[11] == 0.0f);
     /* tile 1: the per-texel map */
     assert_int_equal(gim_importance_map(&d, per), GIM_OK);
     assert_int_equal(gim_importance_tile_map(&d, 1, tiles1, weight1), GIM_OK);
