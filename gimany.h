@@ -7374,7 +7374,6 @@ enum {
     GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
     GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
     GIM__GL_VIEWPORT = 0x0BA2,
-    GIM__GL_SCISSOR_BOX = 0x0C10,
     GIM__GL_BLEND = 0x0BE2,
     GIM__GL_CULL_FACE = 0x0B44,
     GIM__GL_DEPTH_TEST = 0x0B71,
@@ -7385,17 +7384,9 @@ enum {
     GIM__GL_POLYGON_OFFSET_FILL = 0x8037,
     GIM__GL_FRAMEBUFFER_SRGB = 0x8DB9,
     GIM__GL_DEPTH_CLAMP = 0x864F,
-    GIM__GL_BLEND_SRC_RGB = 0x80C9,
-    GIM__GL_BLEND_DST_RGB = 0x80C8,
-    GIM__GL_BLEND_SRC_ALPHA = 0x80CB,
-    GIM__GL_BLEND_DST_ALPHA = 0x80CA,
-    GIM__GL_BLEND_EQUATION_RGB = 0x8009,
-    GIM__GL_BLEND_EQUATION_ALPHA = 0x883D,
     GIM__GL_DEPTH_FUNC = 0x0B74,
     GIM__GL_DEPTH_WRITEMASK = 0x0B72,
     GIM__GL_COLOR_WRITEMASK = 0x0C23,
-    GIM__GL_FRONT_FACE = 0x0B46,
-    GIM__GL_CULL_FACE_MODE = 0x0B45,
     GIM__GL_POLYGON_MODE = 0x0B40,
     GIM__GL_FRONT_AND_BACK = 0x0408,
     GIM__GL_ACTIVE_TEXTURE = 0x84E0,
@@ -7411,39 +7402,26 @@ enum {
     GIM__GL_IMAGE_BINDING_LAYER = 0x8F3D,
     GIM__GL_IMAGE_BINDING_ACCESS = 0x8F3E,
     GIM__GL_IMAGE_BINDING_FORMAT = 0x906E,
-    GIM__GL_PACK_ALIGNMENT = 0x0D05,
-    GIM__GL_PACK_ROW_LENGTH = 0x0D02,
-    GIM__GL_COLOR_CLEAR_VALUE = 0x0C22,
-    GIM__GL_DEPTH_CLEAR_VALUE = 0x0B73,
     GIM__GL_COMPUTE_SHADER = 0x91B9,
     GIM__GL_VERTEX_SHADER = 0x8B31,
     GIM__GL_FRAGMENT_SHADER = 0x8B30,
     GIM__GL_GEOMETRY_SHADER = 0x8DD9,
     GIM__GL_COMPILE_STATUS = 0x8B81,
     GIM__GL_LINK_STATUS = 0x8B82,
-    GIM__GL_MAX_COMPUTE_SHARED_MEMORY_SIZE = 0x8262,
-    GIM__GL_MAX_IMAGE_UNITS = 0x8F38,
-    GIM__GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS = 0x8B4D,
     GIM__GL_SHADER_STORAGE_BARRIER_BIT = 0x00002000,
     GIM__GL_TEXTURE_FETCH_BARRIER_BIT = 0x00000008,
     GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x00000020,
     GIM__GL_BUFFER_UPDATE_BARRIER_BIT = 0x00000200,
     GIM__GL_DYNAMIC_COPY = 0x88EA,
-    GIM__GL_STREAM_READ = 0x88E1,
     GIM__GL_R32F = 0x822E,
-    GIM__GL_R32UI = 0x8236,
-    GIM__GL_RED_INTEGER = 0x8D94,
     GIM__GL_RGBA32F = 0x8814,
     GIM__GL_READ_ONLY = 0x88B8,
     GIM__GL_R8 = 0x8229,
-    GIM__GL_RED = 0x1903,
-    GIM__GL_RGBA = 0x1908,
     GIM__GL_FLOAT = 0x1406,
     GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE = 0x90DE,
     GIM__GL_BUFFER_SIZE = 0x8764,
     GIM__GL_TEXTURE_WIDTH = 0x1000,
     GIM__GL_TEXTURE_HEIGHT = 0x1001,
-    GIM__GL_INVALID_ENUM = 0x0500,
     GIM__GL_TEXTURE_MIN_FILTER = 0x2801,
     GIM__GL_TEXTURE_MAG_FILTER = 0x2800,
     GIM__GL_NEAREST = 0x2600,
@@ -7480,12 +7458,6 @@ enum {
     GIM__GL_RGBA32UI = 0x8D70,
     GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
     GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317,
-    GIM__GL_PACK_SWAP_BYTES = 0x0D00,
-    GIM__GL_PACK_LSB_FIRST = 0x0D01,
-    GIM__GL_PACK_SKIP_ROWS = 0x0D03,
-    GIM__GL_PACK_SKIP_PIXELS = 0x0D04,
-    GIM__GL_PACK_IMAGE_HEIGHT = 0x806C,
-    GIM__GL_PACK_SKIP_IMAGES = 0x806B,
     GIM__GL_COLOR_LOGIC_OP = 0x0BF2,
     GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX = 0x8D69,
     GIM__GL_PROVOKING_VERTEX = 0x8E4F,
@@ -7525,17 +7497,9 @@ enum {
                               gim__GLintptr offset, gim__GLsizeiptr size))                       \
     X(void, BindFramebuffer, (gim__GLenum target, gim__GLuint framebuffer))                      \
     X(void, Viewport, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))     \
-    X(void, Scissor, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))      \
-    X(void, BlendFuncSeparate, (gim__GLenum src_rgb, gim__GLenum dst_rgb, gim__GLenum src_alpha, \
-                                gim__GLenum dst_alpha))                                          \
-    X(void, BlendEquationSeparate, (gim__GLenum mode_rgb, gim__GLenum mode_alpha))               \
     X(void, DepthFunc, (gim__GLenum func))                                                       \
     X(void, DepthMask, (gim__GLboolean flag))                                                    \
-    X(void, FrontFace, (gim__GLenum mode))                                                       \
-    X(void, CullFace, (gim__GLenum mode))                                                        \
     X(void, PolygonMode, (gim__GLenum face, gim__GLenum mode))                                   \
-    X(void, ClearColor, (gim__GLfloat r, gim__GLfloat g, gim__GLfloat b, gim__GLfloat a))        \
-    X(void, ClearDepth, (double depth))                                                          \
     X(void, ActiveTexture, (gim__GLenum texture))                                                \
     X(void, BindTexture, (gim__GLenum target, gim__GLuint texture))                              \
     X(void, BindSampler, (gim__GLuint unit, gim__GLuint sampler))                                \
@@ -7616,9 +7580,6 @@ enum {
     X(void, GetBooleani_v, (gim__GLenum target, gim__GLuint index, gim__GLboolean *data))        \
     X(void, ColorMaski, (gim__GLuint buf, gim__GLboolean r, gim__GLboolean g, gim__GLboolean b,  \
                          gim__GLboolean a))                                                      \
-    X(void, BlendFuncSeparatei, (gim__GLuint buf, gim__GLenum src_rgb, gim__GLenum dst_rgb,      \
-                                 gim__GLenum src_alpha, gim__GLenum dst_alpha))                  \
-    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha)) \
     X(void, GenQueries, (gim__GLsizei n, gim__GLuint *ids))                                      \
     X(void, DeleteQueries, (gim__GLsizei n, const gim__GLuint *ids))                             \
     X(void, QueryCounter, (gim__GLuint id, gim__GLenum target))                                  \
