@@ -624,6 +624,95 @@ static void full_over_dispatches_sees_the_maps(void **state) {
     GLTEST_END();
 }
 
+/* The indirect image, W x H RGBA floats (caller frees). */
+static float *image(scene_fx *s) {
+    float *img = (float *)malloc(W * H * 16);
+    gltest_read_texture(gim_outputs(s->f.ctx).indirect, GL_RGBA, img);
+    return img;
+}
+
+/* One frame; the maps it made. */
+static uint32_t frame_maps(scene_fx *s) {
+    gim_stats st;
+    assert_int_equal(gim_update(s->f.ctx, &s->fr), GIM_OK);
+    assert_int_equal(gim_frame_stats(s->f.ctx, &st), GIM_OK);
+    return st.ism_maps_made;
+}
+
+/* The first-bounce VPLs' maps are kept while the scene and the light stay (the reuse of
+   incremental instant radiosity, Laine et al. 2007): a second frame makes none (CLUSTERED) or only
+   the second bounce's and its clusters' (SSVP), with the same image bit for bit. A moved sun, a moved instance, or
+   a LightSkin frame between (its caches' maps take the buffer) makes them all again, and the
+   image is then the one of maps made from scratch (visibility off for a frame first: the maps
+   released, or SSVP's second-bounce maps written in their place). Fails when the key misses the RSM's camera (the moved sun keeps stale maps). */
+static void vpl_maps_kept(void **state) {
+    scene_fx s;
+    int m;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.vpl.count = 256;
+    s.fr.vpl.second_bounce_vpls = 64;
+    s.fr.vpl.paraboloid_size = 32;
+    s.fr.vpl.kmeans_restart = 1;   /* the same clusters every frame: images comparable across frames */
+    s.fr.vpl.cluster_count = 8;
+    for (m = 0; m < 2; ++m) {
+        gim_light sun;
+        gim_instance in;
+        float *a, *b;
+        /* SSVP: each second-bounce VPL's map and each of its 8 clusters' (their hits checked) every frame */
+        uint32_t all = m ? 256u + 64u + 8u : 256u, second = m ? 64u + 8u : 0u;
+        s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+        s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+        s.fr.visibility.ism_size = 8;
+        s.fr.visibility.ism_points = 512;
+        assert_int_equal(frame_maps(&s), all);
+        a = image(&s);
+        assert_int_equal(frame_maps(&s), second);   /* nothing moved */
+        b = image(&s);
+        assert_memory_equal(a, b, W * H * 16);
+        free(a); free(b);
+        /* the sun moves: every VPL stands elsewhere */
+        memset(&sun, 0, sizeof sun);
+        sun.type = GIM_LIGHT_DIRECTIONAL;
+        sun.irradiance = 1.0f;
+        sun.direction = gim_v3(m ? 0.3f : -0.3f, 1.0f, 0.5f);
+        sun.rsm_size = 48;
+        assert_int_equal(gim_set_lights(s.f.ctx, &sun, 1), GIM_OK);
+        assert_int_equal(frame_maps(&s), all);
+        a = image(&s);
+        s.fr.visibility.mode = GIM_VISIBILITY_OFF;   /* CLUSTERED: the maps released; SSVP: its second bounce's
+                                                        own maps written over the first bounce's */
+        assert_int_equal(frame_maps(&s), m ? 64u : 0u);
+        assert_int_equal(s.f.ctx->ism_maps != 0, m);
+        s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+        assert_int_equal(frame_maps(&s), all);
+        b = image(&s);
+        assert_memory_equal(a, b, W * H * 16);
+        free(a); free(b);
+        /* an instance moves (a little, and back for the next method) */
+        in.mesh = s.mesh;
+        in.model = gim_mat4_identity();
+        in.model.m[13] = m ? 0.0f : 0.01f;   /* column-major: y translation */
+        assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
+        assert_int_equal(frame_maps(&s), all);
+        assert_int_equal(frame_maps(&s), second);
+        /* a LightSkin frame with its caches' maps between */
+        s.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+        assert_true(frame_maps(&s) > 0u);
+        s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+        assert_int_equal(frame_maps(&s), all);
+        a = image(&s);
+        assert_int_equal(frame_maps(&s), second);
+        b = image(&s);
+        assert_memory_equal(a, b, W * H * 16);
+        free(a); free(b);
+    }
+    gltest_state_unchanged(&s.f);
+    teardown(&s);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(no_light_through_walls),
@@ -633,6 +722,7 @@ int main(void) {
         cmocka_unit_test(bad_settings),
         cmocka_unit_test(maps_split_over_blocks),
         cmocka_unit_test(full_over_dispatches_sees_the_maps),
+        cmocka_unit_test(vpl_maps_kept),
     };
     int r;
     (void)room_receiver;   /* room.h's, for the shading tests */
