@@ -570,7 +570,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl) off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
                     if (flick && si == 0) c = image_change(ctx, &g, fm);
-                    if (bm->vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
+                    if (bm->setup == setup_vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
                     row(bs->name, bm, rsm, fm.lightskin.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
                         error_vs(img, bm->bounces == 2 ? ref2 : ref), bm->bounces == 2 ? ref2_noise : ref_noise, c,
