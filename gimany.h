@@ -516,8 +516,10 @@ typedef enum gim_visibility {
                                        looked up per VAL in the proxy-light sum; made once per scene
                                        change (mesh, instance, a deforming mesh's vertices), not per frame. CLUSTERED, SSVP: one
                                        per VPL, both bounces (Keller's instant radiosity with Ritschel's
-                                       maps), made every frame, hard visibility per VPL in the shading
-                                       instead of the clusters' paraboloid maps */
+                                       maps), the first bounce's kept while the scene and the lights' RSM
+                                       cameras stay (gim_stats.ism_maps_made), the second bounce's made every
+                                       frame; hard visibility per VPL in the shading instead of the
+                                       clusters' paraboloid maps */
 } gim_visibility;
 
 /* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
@@ -668,8 +670,9 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls_twin)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
-   With visibility ISM the VPL methods make no depth maps: every frame one imperfect shadow map
-   per VPL of both bounces (gim_ism_render_twin with the VPLs as caches; SSVP's second-bounce hits
+   With visibility ISM the VPL methods make no depth maps: one imperfect shadow map per VPL of
+   both bounces (gim_ism_render_twin with the VPLs as caches; the first bounce's kept while the
+   scene and every rendered RSM's camera stay, as their VPLs then are; SSVP's second-bounce hits
    first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
    its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
@@ -817,6 +820,10 @@ typedef struct gim_stats {
     uint64_t gpu_bytes;         /* GL buffers and textures gimany owns now (meshes included) */
     uint32_t rsm_count;         /* RSMs rendered (light_count less the culled) */
     uint32_t val_light_count;   /* BRSM: RSMs given VALs (importance total > 0) */
+    uint32_t ism_maps_made;     /* visibility ISM: imperfect shadow maps rendered by this frame; the caches' are
+                                   kept while the scene stays, the first-bounce VPLs' while the scene and every
+                                   rendered RSM's camera stay (0 then for CLUSTERED; SSVP makes its second
+                                   bounce's every frame) */
 } gim_stats;
 
 /* Stats of the last successful gim_update; waits for the GPU when it was timed. */
@@ -1863,7 +1870,7 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
 #define GIM_ISM_MAX_POINTS 65536u
 #define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (docs/methods.md) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
-#define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made every frame: on the Cornell box
+#define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made whenever the light moves: on the Cornell box
                                              (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
                                              for the same error as 2048 at 3.7 s (docs/methods.md) */
 #define GIM_ISM_BUDGET_BYTES (256u << 20)  /* LightSkin's default side halves until the caches' maps fit */
@@ -7629,7 +7636,6 @@ enum {
     GIM__GL_DRAW_FRAMEBUFFER = 0x8CA9,
     GIM__GL_DRAW_FRAMEBUFFER_BINDING = 0x8CA6,
     GIM__GL_VIEWPORT = 0x0BA2,
-    GIM__GL_SCISSOR_BOX = 0x0C10,
     GIM__GL_BLEND = 0x0BE2,
     GIM__GL_CULL_FACE = 0x0B44,
     GIM__GL_DEPTH_TEST = 0x0B71,
@@ -7640,17 +7646,9 @@ enum {
     GIM__GL_POLYGON_OFFSET_FILL = 0x8037,
     GIM__GL_FRAMEBUFFER_SRGB = 0x8DB9,
     GIM__GL_DEPTH_CLAMP = 0x864F,
-    GIM__GL_BLEND_SRC_RGB = 0x80C9,
-    GIM__GL_BLEND_DST_RGB = 0x80C8,
-    GIM__GL_BLEND_SRC_ALPHA = 0x80CB,
-    GIM__GL_BLEND_DST_ALPHA = 0x80CA,
-    GIM__GL_BLEND_EQUATION_RGB = 0x8009,
-    GIM__GL_BLEND_EQUATION_ALPHA = 0x883D,
     GIM__GL_DEPTH_FUNC = 0x0B74,
     GIM__GL_DEPTH_WRITEMASK = 0x0B72,
     GIM__GL_COLOR_WRITEMASK = 0x0C23,
-    GIM__GL_FRONT_FACE = 0x0B46,
-    GIM__GL_CULL_FACE_MODE = 0x0B45,
     GIM__GL_POLYGON_MODE = 0x0B40,
     GIM__GL_FRONT_AND_BACK = 0x0408,
     GIM__GL_ACTIVE_TEXTURE = 0x84E0,
@@ -7666,39 +7664,26 @@ enum {
     GIM__GL_IMAGE_BINDING_LAYER = 0x8F3D,
     GIM__GL_IMAGE_BINDING_ACCESS = 0x8F3E,
     GIM__GL_IMAGE_BINDING_FORMAT = 0x906E,
-    GIM__GL_PACK_ALIGNMENT = 0x0D05,
-    GIM__GL_PACK_ROW_LENGTH = 0x0D02,
-    GIM__GL_COLOR_CLEAR_VALUE = 0x0C22,
-    GIM__GL_DEPTH_CLEAR_VALUE = 0x0B73,
     GIM__GL_COMPUTE_SHADER = 0x91B9,
     GIM__GL_VERTEX_SHADER = 0x8B31,
     GIM__GL_FRAGMENT_SHADER = 0x8B30,
     GIM__GL_GEOMETRY_SHADER = 0x8DD9,
     GIM__GL_COMPILE_STATUS = 0x8B81,
     GIM__GL_LINK_STATUS = 0x8B82,
-    GIM__GL_MAX_COMPUTE_SHARED_MEMORY_SIZE = 0x8262,
-    GIM__GL_MAX_IMAGE_UNITS = 0x8F38,
-    GIM__GL_MAX_COMBINED_TEXTURE_IMAGE_UNITS = 0x8B4D,
     GIM__GL_SHADER_STORAGE_BARRIER_BIT = 0x00002000,
     GIM__GL_TEXTURE_FETCH_BARRIER_BIT = 0x00000008,
     GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x00000020,
     GIM__GL_BUFFER_UPDATE_BARRIER_BIT = 0x00000200,
     GIM__GL_DYNAMIC_COPY = 0x88EA,
-    GIM__GL_STREAM_READ = 0x88E1,
     GIM__GL_R32F = 0x822E,
-    GIM__GL_R32UI = 0x8236,
-    GIM__GL_RED_INTEGER = 0x8D94,
     GIM__GL_RGBA32F = 0x8814,
     GIM__GL_READ_ONLY = 0x88B8,
     GIM__GL_R8 = 0x8229,
-    GIM__GL_RED = 0x1903,
-    GIM__GL_RGBA = 0x1908,
     GIM__GL_FLOAT = 0x1406,
     GIM__GL_MAX_SHADER_STORAGE_BLOCK_SIZE = 0x90DE,
     GIM__GL_BUFFER_SIZE = 0x8764,
     GIM__GL_TEXTURE_WIDTH = 0x1000,
     GIM__GL_TEXTURE_HEIGHT = 0x1001,
-    GIM__GL_INVALID_ENUM = 0x0500,
     GIM__GL_TEXTURE_MIN_FILTER = 0x2801,
     GIM__GL_TEXTURE_MAG_FILTER = 0x2800,
     GIM__GL_NEAREST = 0x2600,
@@ -7735,12 +7720,6 @@ enum {
     GIM__GL_RGBA32UI = 0x8D70,
     GIM__GL_MAX_ARRAY_TEXTURE_LAYERS = 0x88FF,
     GIM__GL_MAX_FRAMEBUFFER_LAYERS = 0x9317,
-    GIM__GL_PACK_SWAP_BYTES = 0x0D00,
-    GIM__GL_PACK_LSB_FIRST = 0x0D01,
-    GIM__GL_PACK_SKIP_ROWS = 0x0D03,
-    GIM__GL_PACK_SKIP_PIXELS = 0x0D04,
-    GIM__GL_PACK_IMAGE_HEIGHT = 0x806C,
-    GIM__GL_PACK_SKIP_IMAGES = 0x806B,
     GIM__GL_COLOR_LOGIC_OP = 0x0BF2,
     GIM__GL_PRIMITIVE_RESTART_FIXED_INDEX = 0x8D69,
     GIM__GL_PROVOKING_VERTEX = 0x8E4F,
@@ -7780,17 +7759,9 @@ enum {
                               gim__GLintptr offset, gim__GLsizeiptr size))                       \
     X(void, BindFramebuffer, (gim__GLenum target, gim__GLuint framebuffer))                      \
     X(void, Viewport, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))     \
-    X(void, Scissor, (gim__GLint x, gim__GLint y, gim__GLsizei width, gim__GLsizei height))      \
-    X(void, BlendFuncSeparate, (gim__GLenum src_rgb, gim__GLenum dst_rgb, gim__GLenum src_alpha, \
-                                gim__GLenum dst_alpha))                                          \
-    X(void, BlendEquationSeparate, (gim__GLenum mode_rgb, gim__GLenum mode_alpha))               \
     X(void, DepthFunc, (gim__GLenum func))                                                       \
     X(void, DepthMask, (gim__GLboolean flag))                                                    \
-    X(void, FrontFace, (gim__GLenum mode))                                                       \
-    X(void, CullFace, (gim__GLenum mode))                                                        \
     X(void, PolygonMode, (gim__GLenum face, gim__GLenum mode))                                   \
-    X(void, ClearColor, (gim__GLfloat r, gim__GLfloat g, gim__GLfloat b, gim__GLfloat a))        \
-    X(void, ClearDepth, (double depth))                                                          \
     X(void, ActiveTexture, (gim__GLenum texture))                                                \
     X(void, BindTexture, (gim__GLenum target, gim__GLuint texture))                              \
     X(void, BindSampler, (gim__GLuint unit, gim__GLuint sampler))                                \
@@ -7871,9 +7842,6 @@ enum {
     X(void, GetBooleani_v, (gim__GLenum target, gim__GLuint index, gim__GLboolean *data))        \
     X(void, ColorMaski, (gim__GLuint buf, gim__GLboolean r, gim__GLboolean g, gim__GLboolean b,  \
                          gim__GLboolean a))                                                      \
-    X(void, BlendFuncSeparatei, (gim__GLuint buf, gim__GLenum src_rgb, gim__GLenum dst_rgb,      \
-                                 gim__GLenum src_alpha, gim__GLenum dst_alpha))                  \
-    X(void, BlendEquationSeparatei, (gim__GLuint buf, gim__GLenum mode_rgb, gim__GLenum mode_alpha)) \
     X(void, GenQueries, (gim__GLsizei n, gim__GLuint *ids))                                      \
     X(void, DeleteQueries, (gim__GLsizei n, const gim__GLuint *ids))                             \
     X(void, QueryCounter, (gim__GLuint id, gim__GLenum target))                                  \
@@ -8380,6 +8348,9 @@ struct gim_context {
     uint64_t ism_cluster_maps_bytes;
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
+    uint64_t ism_vpl_key;         /* what the first-bounce VPLs' maps in ism_maps were made from (gim__vpl_ism_key);
+                                     0: ism_maps holds no VPL maps */
+    uint32_t ism_maps_made;       /* imperfect shadow maps rendered by this frame (gim_stats.ism_maps_made) */
     uint64_t scene_version;       /* bumped when meshes, instances or a deforming mesh's vertices change */
     gim__GLuint deform_box;       /* 28 bytes: a host-buffer deforming mesh's bounds (caches_follow.comp mode 0); 0: none such */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
@@ -9041,11 +9012,23 @@ static uint32_t gim__ism_pool(uint32_t points_per_map) {
    of this many maps at a time. 0 where the ranges' offsets would not be multiples of
    GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT: never on a driver we know (a power of two up to
    256, and a split range holds 128 KiB at least), refused by the callers before any GL work. */
+/* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
+#define GIM__ISM_CHUNK 4096u
+
 static uint32_t gim__ism_block_maps(const gim_context *ctx, uint32_t size, uint32_t cap) {
     uint64_t map_bytes = (uint64_t)size * size * 2u;
     uint32_t n = 1u;
     while (n < cap && (uint64_t)n * 2u * map_bytes <= (uint64_t)ctx->max_ssbo_bytes) n *= 2u;
     return n < cap && ((uint64_t)n * map_bytes) % (uint64_t)ctx->ssbo_align ? 0u : n;
+}
+
+/* The fewest maps (a power of two) whose bytes are a multiple of the SSBO offset alignment: a
+   range of maps may start at any multiple of it. */
+static uint32_t gim__ism_align_maps(const gim_context *ctx, uint32_t size) {
+    uint64_t map_bytes = (uint64_t)size * size * 2u;
+    uint32_t n = 1u;
+    while (n < GIM__ISM_CHUNK && ((uint64_t)n * map_bytes) % (uint64_t)ctx->ssbo_align) n *= 2u;
+    return n;
 }
 
 /* Proxy lights on the GPU, the twin of gim_proxy_lights_twin (same formulas, guards and clamps;
@@ -9199,9 +9182,6 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
-/* Maps per ISM dispatch: a desktop GPU's watchdog bounds one dispatch's time. */
-#define GIM__ISM_CHUNK 4096u
-
 /* The caches' imperfect shadow maps on the GPU, the twin of gim_ism_render_twin (same subsets,
    surfels, pull-push and float arithmetic; see there): one work group per map, the map and its
    pyramid in shared memory. caches: SSBO of cache_count gim_cache (32 bytes); points: SSBO of
@@ -9211,22 +9191,25 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
    work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
-                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
-                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
+                                        uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
+                                        uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
 static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint caches, uint32_t cache_count,
                                                  gim__GLuint points, uint32_t point_count, uint32_t size,
                                                  uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
-    return gim__gl_ism_render_of(ctx, caches, 2u, 0u, cache_count, points, point_count, size, points_per_map, scene_scale,
-                                 maps_out);
+    return gim__gl_ism_render_of(ctx, caches, 2u, 0u, 0u, cache_count, points, point_count, size, points_per_map,
+                                 scene_scale, maps_out);
 }
 
 /* ... with the maps' origins in any buffer of source_vec4s vec4 per map, the position in the
    first, the normal in the second: 2 for gim_cache, 3 for gim_vpl (one map per VPL, Keller's
    instant radiosity with Ritschel et al.'s maps; gim_ism_render_twin on the VPLs taken as caches);
-   map m from entry source_first + m (its point subset is m's). */
+   map m from entry source_first + m (its point subset is m's). Only the maps map_first ..
+   map_first + cache_count - 1 are made, each into its own place (maps_out holds map_first +
+   cache_count maps): the others keep what an earlier call wrote. map_first must be a multiple
+   of gim__ism_align_maps. */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
-                                        uint32_t cache_count, gim__GLuint points, uint32_t point_count, uint32_t size,
-                                        uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
+                                        uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
+                                        uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -9249,20 +9232,22 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
                          "%u points exceed GL_MAX_SHADER_STORAGE_BLOCK_SIZE (%lld bytes)", (unsigned)point_count,
                          (long long)ctx->max_ssbo_bytes);
-    if ((uint64_t)cache_count * size * size * 2u > (uint64_t)GIM_ISM_MAX_BYTES)
+    if (((uint64_t)map_first + cache_count) * size * size * 2u > (uint64_t)GIM_ISM_MAX_BYTES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps of %u^2 exceed GIM_ISM_MAX_BYTES",
-                         (unsigned)cache_count, (unsigned)size);
+                         (unsigned)(map_first + cache_count), (unsigned)size);
     chunk = gim__ism_block_maps(ctx, size, GIM__ISM_CHUNK);
     map_bytes = (uint64_t)size * size * 2u;
-    if (chunk == 0)
+    if (chunk == 0 || map_first % gim__ism_align_maps(ctx, size))
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
                          (int)ctx->ssbo_align);
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
-    r = gim__gl_check_buffer(ctx, where, "caches", caches, ((uint64_t)source_first + cache_count) * source_vec4s * 16u);
+    r = gim__gl_check_buffer(ctx, where, "caches", caches,
+                             ((uint64_t)source_first + map_first + cache_count) * source_vec4s * 16u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "points", points, (uint64_t)point_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, (uint64_t)cache_count * size * size * 2u);
+    if (r == GIM_OK)
+        r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, ((uint64_t)map_first + cache_count) * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
@@ -9278,14 +9263,15 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
-    for (first = 0; first < cache_count; first += chunk) {   /* each dispatch's maps within one storage block */
-        uint32_t n = cache_count - first < chunk ? cache_count - first : chunk;
+    for (first = map_first; first < map_first + cache_count; first += chunk) {   /* each dispatch within one block */
+        uint32_t n = map_first + cache_count - first < chunk ? map_first + cache_count - first : chunk;
         gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)(first * map_bytes),
                             (gim__GLsizeiptr)(n * map_bytes));
         gl->Uniform1ui(0, first);
         gl->Uniform1ui(9, first);
         gl->DispatchCompute(n, 1u, 1u);
     }
+    ctx->ism_maps_made += cache_count;
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
@@ -11234,6 +11220,7 @@ static void gim__ism_release(gim_context *ctx) {
     ctx->ism_maps_bytes = ctx->ism_points_bytes = ctx->ism_cluster_maps_bytes = 0;
     ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
     ctx->ism_version = 0;
+    ctx->ism_vpl_key = 0;
 }
 
 static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
@@ -11477,6 +11464,7 @@ vals:
             if (r == GIM_OK)
                 r = gim__gl_sized_buffer(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, (uint64_t)total * size * size * 2u,
                                          where);   /* may exceed one storage block: the passes bind ranges */
+            ctx->ism_vpl_key = 0;   /* the caches' maps take the buffer */
             if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
             if (r != GIM_OK) return r;
             ctx->ism_version = ctx->scene_version;
@@ -12322,6 +12310,36 @@ static gim_result gim__gl_clusters_reset(gim_context *ctx, uint32_t count) {
     return gim__gl_check(ctx, "gim_update");
 }
 
+/* FNV-1a over n bytes, continuing from h. */
+static uint64_t gim__fnv64(uint64_t h, const void *p, size_t n) {
+    const unsigned char *b = (const unsigned char *)p;
+    size_t i;
+    for (i = 0; i < n; ++i) h = (h ^ b[i]) * 1099511628211ull;
+    return h;
+}
+
+/* What the first-bounce VPLs' maps depend on: the scene (its version), every rendered RSM's
+   side and camera (the VPLs' texels, positions and normals; not the light's colour or power),
+   the VPL counts and sequence, and the maps' settings. Never 0. */
+static uint64_t gim__vpl_ism_key(const gim_context *ctx, uint32_t first, uint32_t total, uint32_t size, uint32_t per,
+                                 float scale, int ssvp) {
+    uint64_t h = 14695981039346656037ull;
+    uint32_t u[6], i;
+    u[0] = first; u[1] = total; u[2] = size; u[3] = per; u[4] = (uint32_t)ssvp; u[5] = ctx->light_count;
+    h = gim__fnv64(h, &ctx->scene_version, sizeof ctx->scene_version);
+    h = gim__fnv64(h, u, sizeof u);
+    h = gim__fnv64(h, &scale, sizeof scale);
+    for (i = 0; i < ctx->light_count; ++i) {
+        const gim__light_gpu *g = &ctx->light_gpu[i];
+        h = gim__fnv64(h, &ctx->light_on[i], sizeof ctx->light_on[i]);
+        if (!ctx->light_on[i]) continue;
+        h = gim__fnv64(h, &g->size, sizeof g->size);
+        h = gim__fnv64(h, g->view.m, sizeof g->view.m);
+        h = gim__fnv64(h, g->proj.m, sizeof g->proj.m);
+    }
+    return h ? h : 1u;
+}
+
 static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
                                     gim_frame_outputs *o, gim_debug_outputs *dbg) {
     static const char where[] = "gim_update";
@@ -12414,8 +12432,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
             r = gim__gl_upload(ctx, &ctx->ism_cluster_maps, &ctx->ism_cluster_maps_bytes, NULL,
                                (uint64_t)s.clusters * ism_size * ism_size * 2u, where);   /* 16 bits a texel */
             if (r == GIM_OK)
-                r = gim__gl_ism_render_of(ctx, v->maps, 3u, 0u, s.clusters, ctx->ism_points, ism_pool, ism_size, ism_per,
-                                          scale, ctx->ism_cluster_maps);
+                r = gim__gl_ism_render_of(ctx, v->maps, 3u, 0u, 0u, s.clusters, ctx->ism_points, ism_pool, ism_size,
+                                          ism_per, scale, ctx->ism_cluster_maps);
             gi.maps = ctx->ism_cluster_maps;
             gi.size = ism_size;
             gi.bias = GIM_ISM_VPL_BIAS;
@@ -12426,15 +12444,26 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     }
     if (r == GIM_OK && (ism || s.second_ism)) {
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
-           Ritschel et al.'s maps), every frame: the VPLs move with the light. With the clusters'
-           paraboloid maps (s.second_ism), only the second bounce's: no cluster's map sees from
-           where they lie. Their time is GIM_PASS_PARABOLOID's. */
-        uint32_t from = s.second_ism ? first : 0u;
+           Ritschel et al.'s maps). With the clusters' paraboloid maps (s.second_ism), only the
+           second bounce's: no cluster's map sees from where they lie. The first bounce's VPLs
+           stand on fixed RSM texels, so while the scene and every rendered RSM's camera stay
+           as they were, they are the same VPLs and their maps are kept (the reuse of incremental
+           instant radiosity, Laine et al. 2007, for a light that does not move); the second
+           bounce's follow the clusters and are made every frame. Their time is
+           GIM_PASS_PARABOLOID's. */
+        uint32_t from = s.second_ism ? first : 0u, make = from;
+        uint64_t key = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp) : 0u;
+        uint64_t had = ctx->ism_maps_bytes;
+        gim__GLuint name = ctx->ism_maps;
         r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
                            (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
-        if (r == GIM_OK)
-            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, from, total - from, ctx->ism_points, ism_pool, ism_size, ism_per,
-                                      scale, ctx->ism_maps);
+        if (r == GIM_OK && key && key == ctx->ism_vpl_key && name == ctx->ism_maps && had == ctx->ism_maps_bytes)
+            make = first - first % gim__ism_align_maps(ctx, ism_size);   /* kept: [0, make) */
+        ctx->ism_vpl_key = 0;
+        if (r == GIM_OK && make < total)
+            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, from, make - from, total - make, ctx->ism_points, ism_pool,
+                                      ism_size, ism_per, scale, ctx->ism_maps);
+        if (r == GIM_OK) ctx->ism_vpl_key = key;
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else if (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps) {
         gim__ism_release(ctx);
@@ -13056,6 +13085,7 @@ static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint
     ctx->stats.cluster_count = dbg->cluster_count;
     ctx->stats.pixel_count = f->width * f->height;
     ctx->stats.rsm_count = ctx->light_on_count;
+    ctx->stats.ism_maps_made = ctx->ism_maps_made;
     for (i = 0; i < ctx->light_count && brsm; ++i) ctx->stats.val_light_count += ctx->light_vals[i] > 0u;
 }
 
@@ -13101,6 +13131,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     /* the shared passes */
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
+    ctx->ism_maps_made = 0;
     gim__gl_enter(ctx, where);
     ctx->own_objects = 1;
     gim__stamp(ctx, f.timing, GIM_PASS_COUNT);

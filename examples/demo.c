@@ -334,6 +334,18 @@ done:
     return rc;
 }
 
+/* The outputs of an earlier run in the same folder go first, so a run that fails leaves none
+   behind to be taken for its own. */
+static void remove_outputs(const char *dir) {
+    static const char *names[] = {"final.png", "indirect.pfm", "direct.pfm", "stats.json"};
+    char path[4096];
+    size_t k;
+    for (k = 0; k < sizeof names / sizeof names[0]; ++k) {
+        snprintf(path, sizeof path, "%s/%s", dir, names[k]);
+        remove(path);   /* absent: nothing to do */
+    }
+}
+
 /* A scene with no triangles: black images, zero counts, and a warning. */
 static int demo_black(demo_run *r, const char *why, char *err, size_t cap) {
     size_t npx = (size_t)r->o.width * r->o.height;
@@ -372,6 +384,7 @@ int main(int argc, char **argv) {
     if (pr == 0) pr = scene_parse_args(rest_count, rest, 0, &r.o, err, sizeof err) == SCENE_ARGS_OK ? 0 : -1;
     free(rest);
     if (pr != 0) { fprintf(stderr, PROG ": %s\n", err); return 2; }
+    remove_outputs(r.o.out_dir);
     if (demo_bounces_unavailable(&r.d, r.o.bounces)) {
         fprintf(stderr, PROG ": --bounces %d %s\n", r.o.bounces, demo_bounces_unavailable(&r.d, r.o.bounces));
         return 2;

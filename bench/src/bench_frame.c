@@ -23,10 +23,11 @@
    relative difference to FULL's image (the paper's Fig. 3/5 comparison); the relative MAE
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
    standard error alone gives against the true image); flicker; for a row with visibility
-   (brsm-ism: imperfect shadow maps per cache) its frame over the same method's frame without
-   (visibility_over_off: the maps' lookups; the maps are reused while the scene stands still)
-   and the time of the frame that makes the maps' ISM pass (ism_build_ms, timing 2; on the
-   row of the first VAL count of each RSM size, the others reuse the maps).
+   (brsm-ism: imperfect shadow maps per cache; clustered-ism, ssvp-ism: one per VPL) its frame over
+   the same method's frame without (visibility_over_off: the maps' lookups; the maps are reused
+   while the scene and the light stand still) and the time of the frame that makes the maps'
+   pass (ism_build_ms, timing 2: GIM_PASS_ISM, the VPL methods' GIM_PASS_PARABOLOID; on the row of
+   the first VAL count of each RSM size, the others reuse the maps).
    brsm-temporal: BRSM at the default VAL count with gim_frame.lightskin.temporal_steps 32 (its flicker
    against brsm's at the same count).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
@@ -94,6 +95,13 @@ static void setup_ism(gim_frame *f, const bench_method *m) {
     f->visibility.mode = GIM_VISIBILITY_ISM;
 }
 
+/* the VPL methods with one imperfect shadow map per VPL (Keller's instant radiosity with
+   Ritschel's maps) instead of the clusters' paraboloid maps, right after the same row without */
+static void setup_vpl_ism(gim_frame *f, const bench_method *m) {
+    setup_vpl(f, m);
+    f->visibility.mode = GIM_VISIBILITY_ISM;
+}
+
 static void setup_temporal(gim_frame *f, const bench_method *m) {
     (void)m;
     f->lightskin.temporal_steps = 32;   /* the offsets move 1/32 of their spacing a frame */
@@ -108,6 +116,7 @@ static const bench_method methods[] = {
     /* Dong et al.: clusters 4 / 8 / 16 / 32 (30 is the library's default) */
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl, 1, 1},
+    {"clustered-ism", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism, 1, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 16, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 32, 0, 1, setup_vpl, 1, 1},
     /* SSVP Table I's grid: clusters 4 / 8 / 16 / 32 x second-bounce VPLs 64 / 256 / 1024, two bounces;
@@ -118,6 +127,7 @@ static const bench_method methods[] = {
     {"ssvp", GIM_METHOD_SSVP, 0, 4, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl, 1, 1},
+    {"ssvp-ism", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism, 1, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_vpl, 2, 1},
@@ -549,15 +559,18 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                             build.timing = 2;
                             update(ctx, &build);
                             gim_frame_stats(ctx, &st);
-                            ism_build = st.pass_ms[GIM_PASS_ISM];
+                            /* the VPL methods' maps are GIM_PASS_PARABOLOID's (SSVP's with its attribute maps) */
+                            ism_build = st.pass_ms[bm->vpl ? GIM_PASS_PARABOLOID : GIM_PASS_ISM];
                         }
-                        if (mi > 0 && methods[mi - 1].method == bm->method && !methods[mi - 1].setup) t_off = off_ms[vi][si];
+                        if (mi > 0 && methods[mi - 1].method == bm->method &&
+                            (!methods[mi - 1].setup || (bm->vpl && methods[mi - 1].setup == setup_vpl)))
+                            t_off = off_ms[vi][si];
                     }
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
-                    if (bm->per_val && !bm->setup) off_ms[vi][si] = m.frame_ms;
+                    if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl) off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
                     if (flick && si == 0) c = image_change(ctx, &g, fm);
-                    if (bm->vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
+                    if (bm->setup == setup_vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
                     row(bs->name, bm, rsm, fm.lightskin.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,
                         error_vs(img, bm->bounces == 2 ? ref2 : ref), bm->bounces == 2 ? ref2_noise : ref_noise, c,

@@ -441,11 +441,39 @@ static void cornell_gltf(void **state) {
     free(ind);
 }
 
+/* A run that fails after its options parsed leaves no output of an earlier run in its folder
+   (a stale image would pass for its own). */
+static void stale_outputs_removed(void **state) {
+    static const char *names[] = {"final.png", "indirect.pfm", "direct.pfm", "stats.json"};
+    char cmd[512], path[256], *out = NULL;
+    size_t k;
+    (void)state;
+    mkdir("build", 0777);
+    mkdir(OUT, 0777);
+    mkdir(OUT "/stale", 0777);
+    for (k = 0; k < 4; ++k) {
+        FILE *f;
+        snprintf(path, sizeof path, OUT "/stale/%s", names[k]);
+        f = fopen(path, "w");
+        assert_non_null(f);
+        fputs("stale", f);
+        fclose(f);
+    }
+    snprintf(cmd, sizeof cmd, "%s --scene /nonexistent/x.gltf --out " OUT "/stale", DEMO_BIN);
+    assert_int_equal(cli_run(cmd, &out), 1);
+    free(out);
+    for (k = 0; k < 4; ++k) {
+        snprintf(path, sizeof path, OUT "/stale/%s", names[k]);
+        assert_false(cli_exists(path));
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),   cmocka_unit_test(direct_closed_form),
         cmocka_unit_test(direct_glossy),   cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
         cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),
+        cmocka_unit_test(stale_outputs_removed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -140,12 +140,13 @@ static void maps_of_vpls_match(void **state) {
     d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);
     /* a buffer too small for NC VPLs of 48 bytes is refused, so is one too small for the maps
-       from source_first on */
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bp, 3u, 0u, NP * 2u / 3u + 1u, bp, NP, n, per, 6.0f, bm),
+       from source_first on, and a maps buffer too small for map_first + NC maps */
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bp, 3u, 0u, 0u, NP * 2u / 3u + 1u, bp, NP, n, per, 6.0f, bm),
                      GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 1u, NC, bp, NP, n, per, 6.0f, bm), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 1u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, 1u, NC, bp, NP, n, per, 6.0f, bm), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
     f.log.errors = 0;
     read_maps(bm, texels, gpu);
@@ -157,12 +158,38 @@ static void maps_of_vpls_match(void **state) {
     d.caches = s.caches + 3; d.cache_count = NC - 3;
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
-    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 3u, NC - 3u, bp, NP, n, per, 6.0f, bm), GIM_OK);
+    assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 3u, 0u, NC - 3u, bp, NP, n, per, 6.0f, bm), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
     read_maps(bm, (size_t)(NC - 3) * n * n, gpu);
     for (q = 0, off = 0; q < (NC - 3) * n * n; ++q) off += !(fabsf(gpu[q] - cpu[q]) <= 1e-4f * cpu[q]);
     print_message("maps from VPL 3 on: %u of %u texels differ from the twin\n", off, (NC - 3) * n * n);
     assert_true(off <= (NC - 3) * n * n / 200u);
+    /* only maps k.. made (map_first, the VPL maps kept while nothing moves): the maps before k
+       keep what the buffer held, the rest are the twin's maps k.. of all NC VPLs */
+    {
+        uint32_t k = gim__ism_align_maps(f.ctx, n) * 2u;
+        uint32_t *fill = (uint32_t *)malloc(texels * 2u);
+        assert_true(k < NC);
+        memset(fill, 0x5a, texels * 2u);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, bm);
+        glBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, (GLsizeiptr)(texels * 2u), fill);
+        d.caches = s.caches; d.cache_count = NC;
+        assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
+        gim__gl_enter(f.ctx, "test");
+        assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, k, NC - k, bp, NP, n, per, 6.0f, bm), GIM_OK);
+        assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, bm);
+        glGetBufferSubData(GL_SHADER_STORAGE_BUFFER, 0, (GLsizeiptr)(k * n * n * 2u), fill);
+        glBindBuffer(GL_SHADER_STORAGE_BUFFER, 0);
+        for (q = 0, off = 0; q < k * n * n / 2u; ++q) off += fill[q] != 0x5a5a5a5au;
+        assert_int_equal(off, 0);
+        read_maps(bm, texels, gpu);
+        for (q = k * n * n, off = 0; q < texels; ++q) off += !(fabsf(gpu[q] - cpu[q]) <= 1e-4f * cpu[q]);
+        print_message("maps %u.. made alone: %u of %zu texels differ from the twin; the %u before untouched\n", k, off,
+                      (size_t)(NC - k) * n * n, k);
+        assert_true(off <= (NC - k) * n * n / 200u);
+        free(fill);
+    }
     gltest_state_unchanged(&f);
     glDeleteBuffers(1, &bv); glDeleteBuffers(1, &bp); glDeleteBuffers(1, &bm);
     free(cpu); free(gpu); free(s.points);
