@@ -1141,9 +1141,11 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
    without lighting the caches any better. */
 
 /* Largest tile side of the two-level map (gim_importance_tile_map, gim_frame_lightskin.importance_tile),
-   and the frame's default side (docs/methods.md, LightSkin: the measurement behind it). */
+   and the frame's default side: 1 (the per-texel map) until the figures measured on BRSM (the
+   README's table, docs/benchmarks.md) are re-run with tiles; 8 measured best (docs/methods.md,
+   LightSkin: as good against FULL and the reference, the importance pass 7.5x cheaper). */
 #define GIM_MAX_IMPORTANCE_TILE 32
-#define GIM_DEFAULT_IMPORTANCE_TILE 8
+#define GIM_DEFAULT_IMPORTANCE_TILE 1
 
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {

@@ -511,7 +511,7 @@ static void gbuffer_and_view_samples_match_twin(void **state) {
 /* --- the chain into the importance passes ------------------------------------------------- */
 
 /* The frame's importance passes on its own RSM and view samples against the twins: per texel
-   (importance_tile 1: gim_importance_map) and the two-level map of the default tile side
+   (importance_tile 1: gim_importance_map) and the two-level map of tile side 8
    (gim_importance_tile_map: the tile map and the texel weights), every pick a texel of positive
    importance (weight). */
 static void importance_chain_matches_twin(void **state) {
@@ -538,12 +538,12 @@ static void importance_chain_matches_twin(void **state) {
     l.rsm_size = N;
     assert_int_equal(gim_set_lights(f.ctx, &l, 1), GIM_OK);
     for (pass = 0; pass < 2; ++pass) {
-        tile = pass == 0 ? 1u : GIM_DEFAULT_IMPORTANCE_TILE;
+        tile = pass == 0 ? 1u : 8u;
         cells = (int)(((N - 1) / tile + 1) * ((N - 1) / tile + 1));
         fr = default_frame(1.0f, origin, 32, 24);
         fr.lightskin.view_sample_count = VS;
         fr.lightskin.val_count = VALS;
-        fr.lightskin.importance_tile = pass == 0 ? 1u : 0u;   /* 0: the default */
+        fr.lightskin.importance_tile = pass == 0 ? 0u : 8u;   /* 0: the default, 1 */
         assert_int_equal(gim_update(f.ctx, &fr), GIM_OK);
         o = gim_outputs(f.ctx); od = gim_debug(f.ctx);
         assert_int_equal(o.lights[0].importance_tile, tile);

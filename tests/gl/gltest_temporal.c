@@ -84,11 +84,11 @@ static void selection_moves(void **state) {
     frame_small(&ff, GIM_METHOD_LIGHTSKIN_BRSM);
     ff.fr.lightskin.val_count = N;
     ff.fr.lightskin.rotate_view_samples = 1;
-    /* per texel, then the two-level map of the default tile (8: 4x4 tiles of this RSM), whose
+    /* per texel, then the two-level map of tile 8 (4x4 tiles of this RSM), whose
        pick inside a tile follows the residual of v that the drift moves by drift / P(tile | column):
        measured 32 and 66 changes with 32 steps, 314-315 with new offsets */
     for (tt = 0; tt < 2; ++tt) {
-    ff.fr.lightskin.importance_tile = tt ? 0u : 1u;
+    ff.fr.lightskin.importance_tile = tt ? 8u : 0u;   /* 0: the default, 1 */
     changed[0] = changed[1] = 0;
     for (q = 0; q < 2; ++q) {
         ff.fr.lightskin.temporal_steps = steps[q];
@@ -105,7 +105,7 @@ static void selection_moves(void **state) {
         }
     }
     print_message("tile %u: VALs on another texel than last frame's, over 5 frames of %u: %u with new offsets, %u with 32 steps\n",
-                  tt ? GIM_DEFAULT_IMPORTANCE_TILE : 1u, N, changed[0], changed[1]);
+                  tt ? 8u : 1u, N, changed[0], changed[1]);
     assert_true(changed[0] > 4 * N && changed[1] < (tt ? 5u * N / 4u : N));
     }
     ff.fr.lightskin.temporal_steps = GIM_MAX_TEMPORAL_STEPS + 1u;
