@@ -8706,6 +8706,51 @@ static gim_result gim__gl_check_host_gbuffer(gim_context *ctx, const char *where
     return GIM_OK;
 }
 
+/* The importance passes' shared argument checks (no GL): the RSM side, the view samples, the
+   scene scale and the eq. 11 clamp (0: the default, written back). */
+static GIM__UNUSED gim_result gim__importance_args(gim_context *ctx, const char *where, uint32_t width,
+                                                   uint32_t height, uint32_t view_sample_count, float scene_scale,
+                                                   float *clamp) {
+    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
+                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (*clamp == 0.0f) *clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
+    if (!(*clamp > 0.0f) || !gim__isfinitef(*clamp) || !gim__isfinitef(*clamp * *clamp))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)*clamp);
+    return GIM_OK;
+}
+
+/* The three RSM textures and the view samples of an importance pass checked (inside the enter),
+   then bound: textures on units 0-2 with no sampler, the view samples at binding 0. */
+static GIM__UNUSED gim_result gim__gl_importance_inputs(gim_context *ctx, const char *where, gim__GLuint rsm_position,
+                                                        gim__GLuint rsm_normal, gim__GLuint rsm_flux, uint32_t width,
+                                                        uint32_t height, gim__GLuint view_samples,
+                                                        uint32_t view_sample_count) {
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint textures[3];
+    gim_result r;
+    unsigned i;
+    textures[0] = rsm_position;
+    textures[1] = rsm_normal;
+    textures[2] = rsm_flux;
+    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
+    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
+    if (r != GIM_OK) return r;
+    for (i = 0; i < 3; ++i) {
+        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
+        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
+        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
+    }
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
+    return GIM_OK;
+}
+
 /* eq. 10-11 on the GPU, the twin of gim_importance_map. rsm_position, rsm_normal, rsm_flux:
    2D float textures of width x height (position.xyz with .w > 0 where the RSM saw a surface,
    the twin's rsm_valid; normal.xyz; flux.rgb), read with texelFetch on units 0-2.
@@ -8718,38 +8763,19 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
                                                      float scene_scale, float clamp, gim__GLuint map) {
     static const char where[] = "importance map (GL)";
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0, textures[3];
+    gim__GLuint program = 0;
     gim_result r;
-    unsigned i;
     if (!rsm_position || !rsm_normal || !rsm_flux || !view_samples || !map)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or buffer is 0");
-    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
-                         (unsigned)height, GIM__SCAN_MAX_SIZE);
-    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
-                         (double)scene_scale);
-    if (clamp == 0.0f) clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
-    if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
+    r = gim__importance_args(ctx, where, width, height, view_sample_count, scene_scale, &clamp);
+    if (r != GIM_OK) return r;
     gim__gl_enter(ctx, where);
-    textures[0] = rsm_position;
-    textures[1] = rsm_normal;
-    textures[2] = rsm_flux;
-    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
-    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
-    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
+    if (r == GIM_OK)
+        r = gim__gl_importance_inputs(ctx, where, rsm_position, rsm_normal, rsm_flux, width, height, view_samples,
+                                      view_sample_count);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    for (i = 0; i < 3; ++i) {
-        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
-        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
-        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
-    }
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, map);
     gl->UseProgram(program);
     gl->Uniform2ui(0, width, height);
@@ -8774,45 +8800,26 @@ static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim_
                                                           gim__GLuint tile_map, gim__GLuint weight) {
     static const char where[] = "importance tile map (GL)";
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint program = 0, textures[3];
+    gim__GLuint program = 0;
     uint32_t tiles_x, tiles_y;
     gim_result r;
-    unsigned i;
     if (!rsm_position || !rsm_normal || !rsm_flux || !view_samples || !tile_map || !weight)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a texture or buffer is 0");
-    if (width == 0 || height == 0 || width > GIM__SCAN_MAX_SIZE || height > GIM__SCAN_MAX_SIZE)
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "size %ux%u outside 1..%u", (unsigned)width,
-                         (unsigned)height, GIM__SCAN_MAX_SIZE);
+    r = gim__importance_args(ctx, where, width, height, view_sample_count, scene_scale, &clamp);
+    if (r != GIM_OK) return r;
     if (tile == 0 || tile > GIM_MAX_IMPORTANCE_TILE)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "tile %u outside 1..%d", (unsigned)tile,
                          GIM_MAX_IMPORTANCE_TILE);
-    if (view_sample_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no view samples");
-    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
-                         (double)scene_scale);
-    if (clamp == 0.0f) clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
-    if (!(clamp > 0.0f) || !gim__isfinitef(clamp) || !gim__isfinitef(clamp * clamp))
-        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp %g must be finite and > 0", (double)clamp);
     tiles_x = (width - 1u) / tile + 1u;
     tiles_y = (height - 1u) / tile + 1u;
     gim__gl_enter(ctx, where);
-    textures[0] = rsm_position;
-    textures[1] = rsm_normal;
-    textures[2] = rsm_flux;
-    r = gim__gl_check_texture(ctx, where, "rsm_position", rsm_position, width, height);
-    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_normal", rsm_normal, width, height);
-    if (r == GIM_OK) r = gim__gl_check_texture(ctx, where, "rsm_flux", rsm_flux, width, height);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "view_samples", view_samples, (uint64_t)view_sample_count * 32u);
-    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "tile_map", tile_map, (uint64_t)tiles_x * tiles_y * 4u);
+    r = gim__gl_check_buffer(ctx, where, "tile_map", tile_map, (uint64_t)tiles_x * tiles_y * 4u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "weight", weight, (uint64_t)width * height * 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_TILES, &program);
+    if (r == GIM_OK)
+        r = gim__gl_importance_inputs(ctx, where, rsm_position, rsm_normal, rsm_flux, width, height, view_samples,
+                                      view_sample_count);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    for (i = 0; i < 3; ++i) {
-        gl->ActiveTexture(GIM__GL_TEXTURE0 + i);
-        gl->BindTexture(GIM__GL_TEXTURE_2D, textures[i]);
-        gl->BindSampler(i, 0); /* a host sampler with mip filtering would make the texture incomplete */
-    }
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, view_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, tile_map);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, weight);
     gl->UseProgram(program);
