@@ -79,8 +79,8 @@ static void setup_gather(gim_frame *f, const bench_method *m) {
 }
 
 /* the VPL methods: clusters, second-bounce VPLs and bounces of the row, the rest at
-   the library's defaults (1024 Halton VPLs for clustered, 256 Hammersley for SSVP; 256^2
-   paraboloid maps; 8 x 8 interleaving) */
+   the library's defaults (2048 Halton VPLs at 4 x 4 interleaving for clustered, 4096
+   Hammersley at 8 x 8 for SSVP; 256^2 paraboloid maps) */
 static void setup_vpl(gim_frame *f, const bench_method *m) {
     f->vpl.cluster_count = m->clusters;
     f->vpl.second_bounce_vpls = m->second_bounce_vpls;
