@@ -9246,9 +9246,14 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
                          (unsigned)(map_first + cache_count), (unsigned)size);
     chunk = gim__ism_block_maps(ctx, size, GIM__ISM_CHUNK);
     map_bytes = (uint64_t)size * size * 2u;
-    if (chunk == 0 || map_first % gim__ism_align_maps(ctx, size))
+    if (chunk == 0)
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
                          (int)ctx->ssbo_align);
+    if (map_first % gim__ism_align_maps(ctx, size))
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                         "map_first %u is not a multiple of the %u maps that "
+                         "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d allows",
+                         (unsigned)map_first, (unsigned)gim__ism_align_maps(ctx, size), (int)ctx->ssbo_align);
     take = points_per_map < point_count ? points_per_map : point_count;
     stride = point_count / take;
     gim__gl_enter(ctx, where);
