@@ -7620,6 +7620,8 @@ enum {
     GIM__GL_RENDERER = 0x1F01,
     GIM__GL_VERSION = 0x1F02,
     GIM__GL_SHADING_LANGUAGE_VERSION = 0x8B8C,
+    GIM__GL_EXTENSIONS = 0x1F03,
+    GIM__GL_NUM_EXTENSIONS = 0x821D,
     GIM__GL_MAJOR_VERSION = 0x821B,
     GIM__GL_MINOR_VERSION = 0x821C,
     GIM__GL_CURRENT_PROGRAM = 0x8B8D,
@@ -7744,6 +7746,7 @@ enum {
 #define GIM__GL_FUNCS(X)                                                                          \
     X(gim__GLenum, GetError, (void))                                                              \
     X(const unsigned char *, GetString, (gim__GLenum name))                                      \
+    X(const unsigned char *, GetStringi, (gim__GLenum name, gim__GLuint index))                  \
     X(void, GetIntegerv, (gim__GLenum pname, gim__GLint *data))                                  \
     X(void, GetIntegeri_v, (gim__GLenum target, gim__GLuint index, gim__GLint *data))            \
     X(void, GetInteger64i_v, (gim__GLenum target, gim__GLuint index, gim__GLint64 *data))        \
@@ -7867,10 +7870,11 @@ typedef struct gim__gl {
 #define GIM__X(ret, name, args) ret(GIM__APIENTRY *name) args;
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
-    /* GL 4.5 (NULL before): a host's GL_ZERO_TO_ONE or GL_UPPER_LEFT would move or flip every
-       draw, so gimany sets the default around its passes when it can */
+    /* GL 4.5 or GL_ARB_clip_control (NULL without): a host's GL_ZERO_TO_ONE or GL_UPPER_LEFT
+       would move or flip every draw, so gimany sets the default around its passes when it can */
     void(GIM__APIENTRY *ClipControl)(gim__GLenum origin, gim__GLenum depth);
-    /* GL 4.5: asks a host texture's target without a failing bind (a GL error for the host) */
+    /* GL 4.5 or GL_ARB_direct_state_access: asks a host texture's target without a failing bind
+       (a GL error for the host) */
     void(GIM__APIENTRY *GetTextureParameteriv)(gim__GLuint texture, gim__GLenum pname, gim__GLint *params);
     int unused_; /* keeps the struct non-empty whatever the list holds */
 } gim__gl;
@@ -7890,7 +7894,8 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
 #endif
     GIM__GL_FUNCS(GIM__X)
 #undef GIM__X
-    /* optional: kept by gim_create only on a 4.5 context */
+    /* optional: kept by gim_create only on a 4.5 context or where the extension is listed (a
+       driver that creates the 4.3 context asked for gives exactly 4.3 and lists them: NVIDIA) */
     if (get_proc_address) {
         gl->ClipControl = (void(GIM__APIENTRY *)(gim__GLenum, gim__GLenum))get_proc_address("glClipControl");
         gl->GetTextureParameteriv = (void(GIM__APIENTRY *)(gim__GLuint, gim__GLenum, gim__GLint *))get_proc_address(
@@ -7908,6 +7913,17 @@ static gim_result gim__gl_load(gim__gl *gl, gim_gl_proc (*get_proc_address)(cons
                          "gl%s not found (%d GL function%s missing): gimany needs OpenGL 4.3", first, missing,
                          missing == 1 ? "" : "s");
     return GIM_OK;
+}
+
+/* 1 if the context lists the extension (glGetStringi: once per name at gim_create). */
+static int gim__gl_has_extension(const gim__gl *gl, const char *name) {
+    gim__GLint count = 0, i;
+    gl->GetIntegerv(GIM__GL_NUM_EXTENSIONS, &count);
+    for (i = 0; i < count; ++i) {
+        const char *e = (const char *)gl->GetStringi(GIM__GL_EXTENSIONS, (gim__GLuint)i);
+        if (e && strcmp(e, name) == 0) return 1;
+    }
+    return 0;
 }
 
 /* --- GL state save/restore ----------------------------------------------------------------
@@ -8290,6 +8306,7 @@ struct gim_context {
     gim_env env;
     gim__gl gl;
     int gl_major, gl_minor;
+    int clip_control;           /* the context has glClipControl's state (4.5, GL_ARB_clip_control) */
     int gl_depth;               /* nesting of gim__gl_enter: only the outermost saves/restores */
     gim_gl_state gl_state;      /* gim_desc.gl_state: restore the host's state, or reset to GL's */
     int own_objects;            /* 1 inside gim_update's passes: every object is the context's own, made to
@@ -8354,7 +8371,7 @@ struct gim_context {
                                      0: ism_maps holds no VPL maps */
     uint32_t ism_maps_made;       /* imperfect shadow maps rendered by this frame (gim_stats.ism_maps_made) */
     uint64_t scene_version;       /* bumped when meshes, instances or a deforming mesh's vertices change */
-    gim__GLuint deform_box;       /* 28 bytes: a host-buffer deforming mesh's bounds (caches_follow.comp mode 0); 0: none such */
+    gim__GLuint deform_box;       /* 28 bytes: a host-buffer deforming mesh's bounds (caches_follow.comp mode 0; bound in mode 1 too); 0: none yet */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
     float ls_scale;               /* and the scene scale */
     gim__grid ls_grid;
@@ -10160,11 +10177,15 @@ GIMANY_DEF gim_result gim_update_mesh_vertices(gim_context *ctx, gim_mesh mesh, 
         if (!nrm) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "normals of %u vertices", (unsigned)vertex_count);
         gim__vertex_normals(positions, vertex_count, m->tri_vertex, GIM_INDEX_U32, m->triangle_count, nrm);
     }
+    /* new storage (glBufferData), not glBufferSubData into the old: no wait on frames in flight
+       that still draw the last vertices, and on NVIDIA 580 a glBufferSubData before the mesh's
+       first frame left the buffer as gim_add_mesh filled it (gltest_deform twin) */
     gim__gl_enter(ctx, where);
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, m->positions);
-    ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)vertex_count * 12, positions);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)vertex_count * 12, positions, GIM__GL_DYNAMIC_DRAW);
     ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, m->normals);
-    ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)vertex_count * 12, normals ? normals : nrm);
+    ctx->gl.BufferData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLsizeiptr)vertex_count * 12, normals ? normals : nrm,
+                       GIM__GL_DYNAMIC_DRAW);
     gim__free(&ctx->env, nrm);
     r = gim__gl_check(ctx, where);
     if (r == GIM_OK) {
@@ -10207,23 +10228,26 @@ static gim_result gim__deform_prepare(gim_context *ctx, const gim_frame *f) {
         if (j < i) continue;   /* done for an earlier instance of the same mesh */
         follow = lightskin && m->cache_count > 0 && (m->host_buffers || m->follow_dirty);
         if (!m->host_buffers && !follow) continue;
+        /* every storage block of the program bound whatever the mode uses: NVIDIA skips a
+           dispatch whose program names a block with nothing bound (mode 1 then left the caches
+           where they were); the box stands in for the blocks a mode does not read */
+        if (!ctx->deform_box) {
+            for (j = 0; j < 7; ++j) words[j] = 0u;
+            ctx->deform_box = gim__gl_buffer_with(ctx, words, 28u, GIM__GL_DYNAMIC_COPY);
+            if (!ctx->deform_box) {
+                r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers returned 0");
+                break;
+            }
+        }
+        for (j = 1; j <= 3; ++j) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, j, ctx->deform_box);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, m->positions);
         gl->Uniform1ui(2, m->position_offset / 4u);
         gl->Uniform1ui(3, m->position_stride / 4u);
         if (m->host_buffers) {   /* the bounds of what the host's buffer holds now */
             for (j = 0; j < 3; ++j) { words[j] = 0xFFFFFFFFu; words[3 + j] = 0u; }
             words[6] = 0u;
-            if (!ctx->deform_box) {
-                ctx->deform_box = gim__gl_buffer_with(ctx, words, 28u, GIM__GL_DYNAMIC_COPY);
-                if (!ctx->deform_box) {
-                    r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "glGenBuffers returned 0");
-                    break;
-                }
-            } else {
-                gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->deform_box);
-                gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 28, words);
-            }
-            gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->deform_box);
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->deform_box);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 28, words);
             gl->Uniform1ui(0, 0u);
             gl->Uniform1ui(1, m->vertex_count);
             gl->DispatchCompute((m->vertex_count + 63u) / 64u, 1u, 1u);
@@ -11726,7 +11750,8 @@ static GIM__UNUSED gim_result gim__gl_geometry_blur(gim_context *ctx, const gim_
     gl->Uniform1f(6, ncos);
     gl->Uniform1f(7, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->Uniform1ui(8, host ? 0u : ctx->material_count);
-    if (!host) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
+    /* bound in host mode too, unread there: NVIDIA may skip a dispatch with a block unbound */
+    if (ctx->materials) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials);
     gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
@@ -13125,7 +13150,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
         r = gim__gl_leave(ctx, r);
         if (r != GIM_OK) return r;
     }
-    if (!ctx->gl.ClipControl && (ctx->gl_major > 4 || ctx->gl_minor >= 5)) {
+    if (!ctx->gl.ClipControl && ctx->clip_control) {
         gim__GLint origin = GIM__GL_LOWER_LEFT, mode = GIM__GL_NEGATIVE_ONE_TO_ONE;
         ctx->gl.GetIntegerv(GIM__GL_CLIP_ORIGIN, &origin);
         ctx->gl.GetIntegerv(GIM__GL_CLIP_DEPTH_MODE, &mode);
@@ -13356,7 +13381,13 @@ GIMANY_DEF gim_result gim_create(const gim_desc *desc, gim_context **out) {
     memset(ctx, 0, sizeof *ctx);
     ctx->env = desc->env;
     ctx->gl_state = desc->gl_state;
-    if (major == 4 && minor < 5) gl.ClipControl = NULL, gl.GetTextureParameteriv = NULL; /* 4.5 core */
+    if (major == 4 && minor < 5) { /* 4.5 core, or the extensions on an older context */
+        ctx->clip_control = gim__gl_has_extension(&gl, "GL_ARB_clip_control");
+        if (!ctx->clip_control) gl.ClipControl = NULL;
+        if (!gim__gl_has_extension(&gl, "GL_ARB_direct_state_access")) gl.GetTextureParameteriv = NULL;
+    } else {
+        ctx->clip_control = 1;
+    }
     ctx->gl = gl;
     ctx->gl_major = (int)major;
     ctx->gl_minor = (int)minor;

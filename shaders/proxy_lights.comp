@@ -132,8 +132,12 @@ void add_position(inout Sums a, vec3 d, float w) {
     float w1 = a.w + w;
     if (w1 > 0.0) {
         vec3 delta = d - a.mean;
-        a.mean += delta * (w / w1);
-        a.m2 += w * delta * (d - a.mean);
+        /* m2 grows by w a.w / w1 delta^2 (West 1979), not by w delta (d - mean'): (d - mean') is
+           delta (1 - w / w1), and a GPU's w / w1 (NVIDIA: w times an approximate reciprocal)
+           may miss 1 by an ulp, so a cache lit by one VAL got sigma = sqrt(ulp) |d|, 3e-4 of its
+           offset (H100); this way the first VAL adds exactly 0 */
+        a.mean = a.w > 0.0 ? a.mean + delta * (w / w1) : d;
+        a.m2 += (w * (a.w / w1)) * delta * delta;
     }
     a.w = w1;
 }

@@ -393,8 +393,9 @@ static void no_current_context(void **state) {
 
 /* A host that deleted its program while it was current (GL keeps it until it stops being
    current): gimany's passes bind their own, which frees it, so the restore must not bind the
-   dead name (GL_INVALID_VALUE left for the host); no program is current afterwards. Shown to
-   fail without the glIsProgram guard in gim__gl_state_restore (1 GL error). */
+   dead name (GL_INVALID_VALUE left for the host); no program is current afterwards, or, where
+   the driver still has it (NVIDIA 580), it is current again. Shown to fail without the
+   glIsProgram guard in gim__gl_state_restore (1 GL error). */
 static void deleted_host_program(void **state) {
     frame_fixture ff;
     GLuint p;
@@ -409,9 +410,15 @@ static void deleted_host_program(void **state) {
     assert_true(glIsProgram(p));   /* flagged, alive while current */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     assert_int_equal(glGetError(), GL_NO_ERROR);
-    assert_false(glIsProgram(p));
     glGetIntegerv(GL_CURRENT_PROGRAM, &current);
-    assert_int_equal(current, 0);
+    if (glIsProgram(p)) {
+        /* NVIDIA 580 keeps the flagged program alive after gimany's passes made their own
+           current, so the guard finds it and makes it current again: the host's own state */
+        print_message("this driver kept the deleted program alive: it is current again\n");
+        assert_int_equal(current, (GLint)p);
+    } else {
+        assert_int_equal(current, 0);
+    }
     frame_end(&ff);
     GLTEST_END();
 }

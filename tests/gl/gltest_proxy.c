@@ -132,11 +132,23 @@ static void compare(const config *c, const gim_proxy_light *cpu, const gim_proxy
         assert_true(q->visibility == 1.0f);
         for (a = 0; a < 3; ++a) smax = p->sigma[a] > smax ? p->sigma[a] : smax;
         ref = off + smax + 1e-6 * scale;
-        err = dist3(p->position, q->position) / ref;
+        {   /* less one float spacing of the stored position per axis: far from the origin c + o
+               rounds to floats 2.4e-4 apart (3000 units), and a GPU sum a hair off the twin's
+               rounds to the next one (H100: 1.3e-4 of a unit offset) */
+            double ulp2 = 0.0, dd;
+            for (a = 0; a < 3; ++a) {
+                double ax = fabs((double)p->position[a]), u = (double)nextafterf((float)ax, INFINITY) - ax;
+                ulp2 += u * u;
+            }
+            dd = dist3(p->position, q->position) - sqrt(ulp2);
+            err = (dd > 0.0 ? dd : 0.0) / ref;
+        }
         if (err > e->position) e->position = err;
         for (a = 0; a < 3; ++a) {
             err = fabs((double)p->sigma[a] - q->sigma[a]) / ref;
             if (err > e->sigma) e->sigma = err;
+            if (getenv("PROXY_DEBUG") && err > 1e-4)
+                fprintf(stderr, "cache %u sigma %d cpu %g gpu %g off %g smax %g\n", i, a, p->sigma[a], q->sigma[a], off, smax);
             assert_true(q->flux[a] >= 0.0f && q->sigma[a] >= 0.0f);
             if (p->flux[a] == 0.0f) assert_true(q->flux[a] == 0.0f);
             err = fabs((double)p->flux[a] - q->flux[a]) / (p->flux[a] > 1e-6 * fmax ? p->flux[a] : 1e-6 * fmax);
@@ -418,6 +430,7 @@ static void edges(void **state) {
     assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
     assert_true(eg.position < TOL_POS && eg.sigma < TOL_POS && eg.flux < 1e-3);
     run_both(&f, &c, eye, 50.0f, &ed, &eg);
+    print_message("edges, k = 50: glossy position %.3g sigma %.3g flux %.3g (%u lit)\n", eg.position, eg.sigma, eg.flux, eg.lit);
     assert_true(eg.flux < 1e-2);
     c.val_count = 0;
     run_both(&f, &c, eye, 20.0f, &ed, &eg);

@@ -60,6 +60,7 @@ static void add_quad(gim_context *ctx, gim_vec3 origin, gim_vec3 u, gim_vec3 v, 
     md.data.vertex_count = 4;
     md.data.indices = idx;
     md.data.index_count = 6;
+    memset(&set, 0, sizeof set);   /* gim_add_mesh reads the set's other fields too */
     set.caches = caches;
     set.count = GRID * GRID;
     md.caches = &set;
