@@ -342,7 +342,8 @@ typedef enum gim_gl_state {
        GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH, GL_COLOR_LOGIC_OP, and GL_BLEND
        of draw buffers 0-3; colour masks of draw buffers 0-3 all GL_TRUE; depth mask GL_TRUE,
        depth func GL_LESS, depth range 0..1; polygon mode GL_FILL; provoking vertex
-       GL_LAST_VERTEX_CONVENTION; clip control GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE (GL 4.5).
+       GL_LAST_VERTEX_CONVENTION; clip control GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE (GL 4.5 or
+       GL_ARB_clip_control).
        The viewport is left as gimany's last pass set it (GL's initial viewport is the size of
        the first surface made current, which a library cannot know): set yours before you draw. */
     GIM_GL_STATE_RESET
