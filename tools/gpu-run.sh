@@ -4,8 +4,9 @@
 # machine's), then bench_gpu at game sizes (its table to $OUT/gpu_table.md), then every GL test
 # against its CPU twin on the vendor's driver, 8 at a time, each bounded (one log, $OUT/gltests.log,
 # and a line per test in $OUT/gltests.txt). $OUT: where the files go (default out/gpu).
-# Usage: tools/gpu-run.sh [BENCH_BUDGET_S [TESTS_BUDGET_S [BENCH_ONLY]]]   (budget 0: that part
-# skipped; BENCH_ONLY: bench_gpu's --only)
+# Usage: [DUMP_PROGRAMS=1] tools/gpu-run.sh [BENCH_BUDGET_S [TESTS_BUDGET_S [BENCH_ONLY]]]   (budget
+# 0: that part skipped; BENCH_ONLY: bench_gpu's --only; DUMP_PROGRAMS: every program's driver
+# binary into $OUT/programs.tar first, NVIDIA's with the assembly it compiled to)
 set -u
 OUT=${OUT:-out/gpu}
 mkdir -p "$OUT"
@@ -23,6 +24,10 @@ ldd .gl/bin/bench_gpu | grep -i "not found"
 mkdir -p ../shared/scenes/sponza_lod4
 cp -r .gl/scenes/cornell_box ../shared/scenes/ 2>/dev/null
 cp .gl/scenes/sponza_lod4.glb ../shared/scenes/sponza_lod4/ 2>/dev/null
+if [ -n "${DUMP_PROGRAMS:-}" ]; then   # every program's driver binary, one tar ($OUT/programs.tar)
+  mkdir -p /tmp/programs && .gl/bin/bench_gpu --only none --dump-programs /tmp/programs 2>&1 | tail -3
+  tar -C /tmp -cf "$OUT/programs.tar" programs
+fi
 t0=$(date +%s)
 if [ "$bench_budget" != 0 ]; then
   .gl/bin/bench_gpu --sponza ../shared/scenes/sponza_lod4/sponza_lod4.glb --budget-s "$bench_budget" \

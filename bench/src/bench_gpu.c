@@ -11,8 +11,10 @@
    bench_frame uses timing = 2 and why --small's per-pass figures mean nothing). A row whose
    frame is slow measures fewer frames (about 3 s of frames, at least 3), and --budget-s S skips the
    rows that would start after S seconds (each skipped row says so), so one call fits a lease.
-   --only TEXT measures only the rows whose "scene, method" holds TEXT.
-   Usage: bench_gpu [--small] [--out FILE] [--sponza GLB] [--budget-s S] [--only TEXT] */
+   --only TEXT measures only the rows whose "scene, method" holds TEXT. --dump-programs DIR first
+   writes every program's driver binary (glGetProgramBinary) to DIR/NAME.bin: NVIDIA's holds the
+   assembly it compiled to, with its temporaries and local-memory arrays, to read offline.
+   Usage: bench_gpu [--small] [--out FILE] [--sponza GLB] [--budget-s S] [--only TEXT] [--dump-programs DIR] */
 #include "benchutil.h"
 #define GIMANY_IMPLEMENTATION
 #include "gltest.h"
@@ -113,6 +115,34 @@ static int measure(gim_context *ctx, const gim_frame *f, double *first_ms, doubl
 }
 
 static double budget_s = 0.0, start_s;
+
+/* Every program gimany has, built, and its binary as the driver gives it, one file each. */
+static void dump_programs(gim_context *ctx, const char *dir) {
+    int id;
+    for (id = 0; id < GIM__PROGRAM_COUNT; ++id) {
+        GLuint p = 0;
+        GLint len = 0, got = 0;
+        GLenum format = 0;
+        char path[512];
+        void *buf;
+        FILE *fp;
+        if (gim__gl_program(ctx, (gim__program_id)id, &p) != GIM_OK) continue;
+        glGetProgramiv(p, GL_PROGRAM_BINARY_LENGTH, &len);
+        if (len <= 0 || !(buf = malloc((size_t)len))) {
+            fprintf(stderr, "bench_gpu: %s: no program binary\n", gim__program_files[id][0]);
+            continue;
+        }
+        glGetProgramBinary(p, len, &got, &format, buf);
+        snprintf(path, sizeof path, "%s/%s%s.bin", dir, gim__program_files[id][0],
+                 gim__program_files[id][1] ? gim__program_files[id][1] : "");
+        if ((fp = fopen(path, "wb")) != NULL) {
+            fwrite(buf, 1, (size_t)got, fp);
+            fclose(fp);
+        }
+        fprintf(stderr, "bench_gpu: %s: %d bytes, format 0x%x\n", path, (int)got, (unsigned)format);
+        free(buf);
+    }
+}
 static const char *only = NULL;   /* --only: rows whose "scene, method" holds it */
 
 static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *out) {
@@ -122,6 +152,14 @@ static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *
     gim_frame f;
     char err[256];
     size_t mi;
+    if (only) {   /* no row of this scene asked for: not even loaded */
+        char row[160];
+        for (mi = 0; mi < METHOD_COUNT; ++mi) {
+            snprintf(row, sizeof row, "%s, %s", gs->name, methods[mi].name);
+            if (strstr(row, only)) break;
+        }
+        if (mi == METHOD_COUNT) return;
+    }
     if (strchr(source, '.')) {
         FILE *fp = fopen(source, "rb");
         if (!fp) {
@@ -197,7 +235,7 @@ int main(int argc, char **argv) {
     gim_desc d;
     gim_context *ctx = NULL;
     FILE *out = stdout;
-    const char *out_path = NULL;
+    const char *out_path = NULL, *dump_dir = NULL;
     int a, small = 0;
     size_t i;
     for (a = 1; a < argc; ++a) {
@@ -206,8 +244,9 @@ int main(int argc, char **argv) {
         else if (strcmp(argv[a], "--sponza") == 0 && a + 1 < argc) scenes[0].source = argv[++a];
         else if (strcmp(argv[a], "--budget-s") == 0 && a + 1 < argc) budget_s = atof(argv[++a]);
         else if (strcmp(argv[a], "--only") == 0 && a + 1 < argc) only = argv[++a];
+        else if (strcmp(argv[a], "--dump-programs") == 0 && a + 1 < argc) dump_dir = argv[++a];
         else {
-            fprintf(stderr, "usage: bench_gpu [--small] [--out FILE] [--sponza GLB] [--budget-s S] [--only TEXT]\n");
+            fprintf(stderr, "usage: bench_gpu [--small] [--out FILE] [--sponza GLB] [--budget-s S] [--only TEXT] [--dump-programs DIR]\n");
             return 2;
         }
     }
@@ -233,6 +272,7 @@ int main(int argc, char **argv) {
     d.get_proc_address = gltest_get_proc;
     d.env.logger.func = gim_log_stderr;
     if (gim_create(&d, &ctx) != GIM_OK) return 1;
+    if (dump_dir) dump_programs(ctx, dump_dir);
     if (out_path && !(out = fopen(out_path, "w"))) {
         fprintf(stderr, "bench_gpu: cannot write %s\n", out_path);
         return 1;
