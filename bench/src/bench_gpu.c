@@ -135,15 +135,23 @@ static void dump_programs(gim_context *ctx, const char *dir) {
         glGetProgramBinary(p, len, &got, &format, buf);
         snprintf(path, sizeof path, "%s/%s%s.bin", dir, gim__program_files[id][0],
                  gim__program_files[id][1] ? gim__program_files[id][1] : "");
-        if ((fp = fopen(path, "wb")) != NULL) {
-            fwrite(buf, 1, (size_t)got, fp);
-            fclose(fp);
-        }
-        fprintf(stderr, "bench_gpu: %s: %d bytes, format 0x%x\n", path, (int)got, (unsigned)format);
+        if ((fp = fopen(path, "wb")) != NULL && fwrite(buf, 1, (size_t)got, fp) == (size_t)got)
+            fprintf(stderr, "bench_gpu: %s: %d bytes, format 0x%x\n", path, (int)got, (unsigned)format);
+        else
+            fprintf(stderr, "bench_gpu: cannot write %s\n", path);
+        if (fp) fclose(fp);
         free(buf);
     }
 }
 static const char *only = NULL;   /* --only: rows whose "scene, method" holds it */
+
+/* 1 if --only asks for method mi of scene gs (every row without --only) */
+static int wanted(const gpu_scene *gs, size_t mi) {
+    char row[160];
+    if (!only) return 1;
+    snprintf(row, sizeof row, "%s, %s", gs->name, methods[mi].name);
+    return strstr(row, only) != NULL;
+}
 
 static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *out) {
     const char *source = gs->source;
@@ -152,14 +160,8 @@ static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *
     gim_frame f;
     char err[256];
     size_t mi;
-    if (only) {   /* no row of this scene asked for: not even loaded */
-        char row[160];
-        for (mi = 0; mi < METHOD_COUNT; ++mi) {
-            snprintf(row, sizeof row, "%s, %s", gs->name, methods[mi].name);
-            if (strstr(row, only)) break;
-        }
-        if (mi == METHOD_COUNT) return;
-    }
+    for (mi = 0; mi < METHOD_COUNT && !wanted(gs, mi); ++mi) {}
+    if (mi == METHOD_COUNT) return;   /* no row of this scene asked for: not even loaded */
     if (strchr(source, '.')) {
         FILE *fp = fopen(source, "rb");
         if (!fp) {
@@ -199,11 +201,7 @@ static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *
         char passes[512];
         size_t used = 0;
         int k, n;
-        {
-            char row[160];
-            snprintf(row, sizeof row, "%s, %s", gs->name, methods[mi].name);
-            if (only && !strstr(row, only)) continue;
-        }
+        if (!wanted(gs, mi)) continue;
         if (budget_s > 0.0 && now_s() - start_s > budget_s) {
             fprintf(out, "| %s | %s | skipped: past --budget-s %.0f | | | | |\n", gs->name, methods[mi].name, budget_s);
             continue;
