@@ -571,6 +571,11 @@ typedef struct gim_frame_lightskin {
                                    its plane's term, P exact, so the pass costs <= 4 texels / T^2 x view samples;
                                    1: eq. 10-11 per texel (the paper's map, the images of before); 0:
                                    GIM_DEFAULT_IMPORTANCE_TILE (docs/methods.md) */
+    uint32_t shade_block;       /* B: the shading pass finds the neighbours and interpolates (eq. 8-9) once per
+                                   B x B block of pixels, at its first receiver, and every pixel of the block on
+                                   that receiver's surface (gim_shade_sources) takes that light times its own
+                                   albedo; the others of the block their own. 1: per pixel; 2: 2 x 2 blocks;
+                                   0: GIM_DEFAULT_SHADE_BLOCK */
 } gim_frame_lightskin;
 
 /* RSM_GATHER (gim_frame.gather). */
@@ -762,6 +767,8 @@ typedef struct gim_debug_outputs {
     uint32_t neighbour_count;   /* n of the interpolation */
     float neighbour_cos;        /* cosine of the normal compatibility angle */
     float neighbour_radius;     /* farthest distance a neighbour cache may have (3 grid cells) */
+    float neighbour_cell;       /* the hash grid's cell side h (gim_shade_blocks_desc.cell) */
+    uint32_t shade_block;       /* the frame's gim_frame_lightskin.shade_block, resolved (1 or 2) */
     /* VPL methods (0 otherwise) */
     uint32_t vpls;              /* SSBO: vpl_count gim_vpl: the lights' first-bounce VPLs, then the second bounce */
     uint32_t vpl_count;
@@ -1148,6 +1155,10 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
 #define GIM_MAX_IMPORTANCE_TILE 32
 #define GIM_DEFAULT_IMPORTANCE_TILE 1
 
+/* The shading pass's default block (gim_frame_lightskin.shade_block): 2 x 2 pixels, the pass
+   2x cheaper on llvmpipe at the same error against the reference (docs/methods.md). */
+#define GIM_DEFAULT_SHADE_BLOCK 2
+
 /* One view sample: a visible surface point and its normal (from the G-buffer). */
 typedef struct gim_view_sample {
     gim_vec3 position;
@@ -1408,6 +1419,10 @@ typedef struct gim_shade_desc {
     uint32_t neighbour_stride;        /* n of gim_cache_neighbours, 1..GIM_MAX_NEIGHBOUR_CACHES */
     const float *d_cmax;              /* receiver_count: d_c,max of eq. 8 (>= 0) */
     float scene_scale;                /* > 0 */
+    const uint32_t *source;           /* receiver_count, or NULL (each its own): receiver i takes the light
+                                         interpolated at receiver source[i] (its position, normal, view,
+                                         exponent, neighbours and d_c,max) times its own albedo and glossy
+                                         colour: the shading pass's blocks, from gim_shade_sources */
     gim_env env;
 } gim_shade_desc;
 
@@ -1435,6 +1450,29 @@ typedef struct gim_shade_desc {
    (other than the UINT32_MAX pad), NaN/Inf or out-of-range inputs (the first is logged). */
 GIMANY_API gim_result gim_lightskin_shade_twin(const gim_shade_desc *desc, float *radiance_out);
 
+/* Input of gim_shade_sources: the receivers of an image's pixels. */
+typedef struct gim_shade_blocks_desc {
+    const gim_receiver *receivers;
+    uint32_t receiver_count;
+    const uint32_t *pixels;           /* receiver_count (x, y) pairs, inside the image, each pixel at most once */
+    uint32_t width, height;           /* the image */
+    uint32_t block;                   /* B, 1 or 2; 0: GIM_DEFAULT_SHADE_BLOCK */
+    float cell;                       /* the cache grid's cell side h (gim_debug_outputs.neighbour_cell), > 0 */
+    gim_env env;
+} gim_shade_blocks_desc;
+
+/* Which receiver's interpolated light each receiver takes in the shading pass's B x B blocks
+   (gim_frame_lightskin.shade_block): the pixels (B floor(x / B), B floor(y / B)) + (0,0), (1,0),
+   (0,1), (1,1) form a block, its first receiver r in that order finds its neighbours, and a
+   receiver x of the block takes r's light where it lies on r's surface near r, in float:
+     n_x . n_r >= 0.995 (5.7 degrees),  |n_r . (x - r)| <= 0.05 |x - r| (2.9 degrees off r's
+     plane),  |x - r| <= h / 4,  and the same Phong exponent,
+   else its own. The light changes over a grid cell (the caches' spacing), so a block of one
+   surface shares it with an error of the order of its gradient over h / 4; a depth or normal
+   edge inside a block keeps each side its own. source_out[receiver_count]: the index of that
+   receiver (its own index where it takes its own light), for gim_shade_desc.source. */
+GIMANY_API gim_result gim_shade_sources(const gim_shade_blocks_desc *desc, uint32_t *source_out);
+
 /* Input of gim_lightskin_frame_twin: one LightSkin frame, everything of the two descs above. */
 typedef struct gim_lightskin_desc {
     const gim_cache *caches;
@@ -1451,6 +1489,7 @@ typedef struct gim_lightskin_desc {
     const uint32_t *neighbour_count;
     uint32_t neighbour_stride;
     const float *d_cmax;
+    const uint32_t *source;           /* as gim_shade_desc.source */
     float scene_scale;                /* > 0; 0: diagonal of the bounds of caches and VALs */
     const float *visibility;          /* as gim_proxy_desc.visibility, or NULL */
     gim_env env;
@@ -5455,6 +5494,8 @@ static gim_result gim__check_shade(const gim_shade_desc *d, const char *fn, int 
                              "receiver %u: not finite, normal or view not unit, negative colour, or k outside [0, 1e6]", i);
         if (cnt > d->neighbour_stride)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "neighbour_count[%u] = %u exceeds the stride %u", i, cnt, d->neighbour_stride);
+        if (d->source && d->source[i] >= d->receiver_count)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "source[%u] = %u: not a receiver (of %u)", i, d->source[i], d->receiver_count);
         if (!gim__isfinitef(d->d_cmax[i]) || !(d->d_cmax[i] >= 0.0f))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "d_cmax[%u] must be finite and >= 0", i);
         for (j = 0; j < cnt; ++j)
@@ -5474,16 +5515,17 @@ GIMANY_DEF gim_result gim_lightskin_shade_twin(const gim_shade_desc *desc, float
     if ((r = gim__check_shade(desc, fn, 1)) != GIM_OK) return r;
     near_ = GIM__TWINS_COINCIDENT * desc->scene_scale;
     for (i = 0; i < desc->receiver_count; ++i) {
-        const gim_receiver *rc = desc->receivers + i;
-        const uint32_t *idx = desc->neighbour_index + (size_t)i * desc->neighbour_stride;
-        uint32_t cnt = desc->neighbour_count ? desc->neighbour_count[i] : desc->neighbour_stride;
+        uint32_t s = desc->source ? desc->source[i] : i;   /* whose light: its own or its block's */
+        const gim_receiver *rc = desc->receivers + s, *own = desc->receivers + i;
+        const uint32_t *idx = desc->neighbour_index + (size_t)s * desc->neighbour_stride;
+        uint32_t cnt = desc->neighbour_count ? desc->neighbour_count[s] : desc->neighbour_stride;
         double ed[3], eg[3], out[3];
         int a;
-        gim__interp_light(desc, desc->diffuse, 0, rc, idx, cnt, desc->d_cmax[i], near_, ed);
-        for (a = 0; a < 3; ++a) out[a] = rc->albedo[a] / GIM__PI * ed[a];
+        gim__interp_light(desc, desc->diffuse, 0, rc, idx, cnt, desc->d_cmax[s], near_, ed);
+        for (a = 0; a < 3; ++a) out[a] = own->albedo[a] / GIM__PI * ed[a];
         if (desc->glossy) {
-            gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[i], near_, eg);
-            for (a = 0; a < 3; ++a) out[a] += rc->glossy[a] * eg[a];
+            gim__interp_light(desc, desc->glossy, 1, rc, idx, cnt, desc->d_cmax[s], near_, eg);
+            for (a = 0; a < 3; ++a) out[a] += own->glossy[a] * eg[a];
         }
         for (a = 0; a < 3; ++a) radiance_out[(size_t)i * 3 + (size_t)a] = gim__clamp_flt(out[a]);
     }
@@ -5520,6 +5562,7 @@ GIMANY_DEF gim_result gim_lightskin_frame_twin(const gim_lightskin_desc *desc, f
     sd.receivers = desc->receivers; sd.receiver_count = desc->receiver_count;
     sd.neighbour_index = desc->neighbour_index; sd.neighbour_count = desc->neighbour_count;
     sd.neighbour_stride = desc->neighbour_stride; sd.d_cmax = desc->d_cmax;
+    sd.source = desc->source;
     sd.scene_scale = scale; sd.env = desc->env;
     if ((r = gim__check_shade(&sd, fn, 0)) != GIM_OK) return r;   /* before the costly passes */
     n = (size_t)desc->cache_count * (desc->glossy ? 2u : 1u);
@@ -5533,6 +5576,60 @@ GIMANY_DEF gim_result gim_lightskin_frame_twin(const gim_lightskin_desc *desc, f
     return r;
 }
 
+
+/* lightskin_shade.comp's shares(), in the same float steps */
+static int gim__shares_light(const gim_receiver *x, const gim_receiver *r, float cell) {
+    float d[3], dl, nn = 0.0f, nd = 0.0f;
+    int a;
+    for (a = 0; a < 3; ++a) d[a] = x->position[a] - r->position[a];
+    dl = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (a = 0; a < 3; ++a) { nn += x->normal[a] * r->normal[a]; nd += r->normal[a] * d[a]; }
+    return nn >= 0.995f && fabsf(nd) <= 0.05f * dl && dl <= 0.25f * cell && x->exponent == r->exponent;
+}
+
+GIMANY_DEF gim_result gim_shade_sources(const gim_shade_blocks_desc *desc, uint32_t *source_out) {
+    static const char fn[] = "gim_shade_sources";
+    const gim_env *env;
+    uint32_t i, b, bw, bh, *first;
+    size_t blocks;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    b = desc->block ? desc->block : GIM_DEFAULT_SHADE_BLOCK;
+    if (!source_out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "source_out is NULL");
+    if (desc->receiver_count > 0 && (!desc->receivers || !desc->pixels))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "receivers and pixels are required");
+    if (b > 2) return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "block %u: 1 or 2", (unsigned)b);
+    if (desc->width == 0 || desc->height == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "empty image");
+    if (!gim__isfinitef(desc->cell) || !(desc->cell > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "cell must be finite and > 0");
+    bw = (desc->width + b - 1u) / b;
+    bh = (desc->height + b - 1u) / b;
+    blocks = (size_t)bw * bh;
+    first = (uint32_t *)gim__alloc_array(env, blocks, sizeof *first);
+    if (!first) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, fn, "%zu blocks", blocks);
+    for (i = 0; i < blocks; ++i) first[i] = UINT32_MAX;
+    /* each block's first receiver: the least position (x mod B) + B (y mod B) */
+    for (i = 0; i < desc->receiver_count; ++i) {
+        uint32_t x = desc->pixels[2 * i], y = desc->pixels[2 * i + 1], q, k;
+        size_t blk;
+        if (x >= desc->width || y >= desc->height) {
+            gim__free(env, first);
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "receiver %u: pixel (%u, %u) outside %ux%u", i, x, y,
+                             desc->width, desc->height);
+        }
+        blk = (size_t)(y / b) * bw + x / b;
+        q = x % b + b * (y % b);
+        k = first[blk];
+        if (k == UINT32_MAX || q < desc->pixels[2 * k] % b + b * (desc->pixels[2 * k + 1] % b)) first[blk] = i;
+    }
+    for (i = 0; i < desc->receiver_count; ++i) {
+        uint32_t x = desc->pixels[2 * i], y = desc->pixels[2 * i + 1];
+        uint32_t r = first[(size_t)(y / b) * bw + x / b];
+        source_out[i] = r != i && gim__shares_light(desc->receivers + i, desc->receivers + r, desc->cell) ? r : i;
+    }
+    gim__free(env, first);
+    return GIM_OK;
+}
 
 /* Sample j of the gather pattern: its texel offset (r cos phi, r sin phi), r = radius u,
    phi = 2 pi v, and its weight 1 / (N pdf) = 2 pi r radius / N, as floats: the GPU pass reads
@@ -11162,6 +11259,7 @@ typedef struct gim__shade_args {
     uint32_t list_limit;         /* caches a tile's shared list may hold; 0: GIM__SHADE_LIST_CAP (tests
                                     set fewer to send tiles to the per pixel search) */
     int neighbours_out;          /* tests: write each pixel's (d_cmax, count, sum of indices) instead */
+    uint32_t block;              /* B of gim_frame_lightskin.shade_block: 1 or 2 (0: 1) */
     gim__GLuint indirect;        /* width x height texture of format */
     gim__GLenum format;          /* RGBA16F or RGBA32F */
 } gim__shade_args;
@@ -11169,15 +11267,18 @@ typedef struct gim__shade_args {
 /* Per pixel neighbours (the n nearest compatible caches within GIM__NEIGHBOUR_RINGS h),
    interpolation (eq. 8-9) and shading: the twin is gim_cache_neighbours (max_distance =
    rings h) then gim_lightskin_shade_twin, on receivers unprojected from the G-buffer (see
-   lightskin_shade.comp). One work group per 8 x 8 tile gathers the caches its pixels could take
-   into shared memory once, then each pixel picks its n nearest from that list (the same choice
-   as a search per pixel, which a tile whose list overflows does instead). Cost: tiles x cells
-   of the tile's box grown by the radius, + pixels x (the tile's list + 2 n). */
+   lightskin_shade.comp), in B x B blocks (gim_shade_sources). One work group per 8B x 8B tile
+   gathers the caches its pixels could take into shared memory once, then each block's first
+   receiver picks its n nearest from that list (the same choice as a search per pixel, which a
+   tile whose list overflows does instead), and the block's pixels off its surface search for
+   themselves. Cost: tiles x cells of the tile's box grown by the radius, + searches x (the
+   tile's list + 2 n), searches = the blocks + the pixels that do not share. */
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     int host = a->albedo == 0;
+    uint32_t block = a->block == 2u ? 2u : 1u;
     gim_result r = gim__gl_program(ctx, GIM__PROGRAM_LIGHTSKIN_SHADE, &program);
     if (r != GIM_OK) return r;
     if (!host && ctx->material_count == 0)
@@ -11202,7 +11303,8 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1ui(12, host ? 1u : ctx->material_count);
     gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->Uniform1ui(14, a->list_limit && a->list_limit < GIM__SHADE_LIST_CAP ? a->list_limit : GIM__SHADE_LIST_CAP);
-    gl->DispatchCompute((a->width + 7u) / 8u, (a->height + 7u) / 8u, 1u);
+    gl->Uniform1ui(15, block);
+    gl->DispatchCompute((a->width + 8u * block - 1u) / (8u * block), (a->height + 8u * block - 1u) / (8u * block), 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
     return gim__gl_check(ctx, where);
@@ -11539,6 +11641,7 @@ vals:
     sa.scene_scale = scale;
     sa.indirect = ctx->indirect;
     sa.format = format;
+    sa.block = f->lightskin.shade_block;
     r = gim__gl_lightskin_shade(ctx, &sa);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
@@ -11554,6 +11657,8 @@ vals:
     dbg->neighbour_count = n;
     dbg->neighbour_cos = sa.cos_theta;
     dbg->neighbour_radius = (float)GIM__NEIGHBOUR_RINGS * grid.h;
+    dbg->neighbour_cell = grid.h;
+    dbg->shade_block = sa.block;
     dbg->ism_maps = ism.maps;
     dbg->ism_size = ism.maps ? ism.size : 0u;
     return GIM_OK;
@@ -12142,6 +12247,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.lightskin.importance_clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
     f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;
     f.lightskin.importance_tile = GIM_DEFAULT_IMPORTANCE_TILE;
+    f.lightskin.shade_block = GIM_DEFAULT_SHADE_BLOCK;
     f.gather.samples = GIM__GATHER_DEFAULT_SAMPLES;
     f.gather.radius = GIM__GATHER_DEFAULT_RADIUS;
     /* CLUSTERED: 2048 VPLs at interleave 4 (128 a pixel, a 4 x 4 blur) against 4096 at 8: the
@@ -12176,6 +12282,7 @@ static void gim__frame_resolve(const gim_frame *in, gim_frame *out) {
     GIM__RESOLVE(lightskin.importance_clamp);
     GIM__RESOLVE(lightskin.neighbour_count);
     GIM__RESOLVE(lightskin.importance_tile);
+    GIM__RESOLVE(lightskin.shade_block);
     GIM__RESOLVE(gather.samples);
     GIM__RESOLVE(gather.radius);
     GIM__RESOLVE(vpl.count);
@@ -12648,6 +12755,9 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const g
     if (f->lightskin.neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->lightskin.neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
+    if (f->lightskin.shade_block > 2)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "shade_block %u: 1 (per pixel) or 2 (2 x 2 blocks)",
+                         (unsigned)f->lightskin.shade_block);
     if (ctx->instance_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no instances");
     for (i = 0; i < 3; ++i) { bmin[i] = FLT_MAX; bmax[i] = -FLT_MAX; }
     for (i = 0; i < ctx->instance_count; ++i) {

@@ -1,26 +1,32 @@
 /* LightSkin interpolation and shading per pixel (Bischoff 2017 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
-   gim_lightskin_shade_twin: one invocation per G-buffer pixel, one work group per 8 x 8 tile.
-   1. finds its n nearest caches whose normal is within the compatibility angle, within
-      `radius`, ties by cache index, as the twin. The tile searches together: the work group
-      gathers once into shared memory every cache that any of its pixels could take (within
-      radius of the box around the tile's receivers, its normal within the compatibility
-      angle of the cone around their normals), each cell of the hash grid over that box read
-      by one invocation; then every pixel picks its n nearest from that list, all pixels
-      reading the same entry at a time, the list sorted into rings of distance from the box
-      so that a pixel stops at the first ring beyond its n-th nearest. The list holds every
-      cache the pixel's own search accepts, so the choice is the same. A tile whose list would not fit (a depth edge
-      spans the scene, a box over too many cells) searches per pixel instead: shells of cells
-      around the pixel's cell, nearest first, until the n-th found is nearer than any
-      unvisited cell;
-   2. interpolates the diffuse (and glossy) proxy lights of those caches and shades the pixel
-      with them, with the formulas, weights and guards of gim_lightskin_shade_twin (read there).
+   gim_lightskin_shade_twin with gim_shade_sources' blocks: one invocation per B x B block of
+   pixels (B = `block`, 1 or 2), one work group per 8B x 8B tile.
+   1. finds the n nearest caches whose normal is within the compatibility angle, within
+      `radius`, ties by cache index, as the twin, for the block's first receiver. The tile
+      searches together: the work group gathers once into shared memory every cache that any
+      of its pixels could take (within radius of the box around the tile's receivers, its
+      normal within the compatibility angle of the cone around their normals), each cell of the
+      hash grid over that box read by one invocation; then every search picks its n nearest
+      from that list, all invocations reading the same entry at a time, the list sorted into
+      rings of distance from the box so that a search stops at the first ring beyond its n-th
+      nearest. The list holds every cache the pixel's own search accepts, so the choice is the
+      same. A tile whose list would not fit (a depth edge spans the scene, a box over too many
+      cells) searches per pixel instead: shells of cells around the pixel's cell, nearest
+      first, until the n-th found is nearer than any unvisited cell;
+   2. interpolates the diffuse (and glossy) proxy lights of those caches there, with the
+      formulas, weights and guards of gim_lightskin_shade_twin (read there);
+   3. shades every pixel of the block on that receiver's surface with that light and its own
+      albedo (shares(), gim_shade_sources); the block's other pixels go to a list that the
+      whole work group then searches and interpolates for, one pixel per invocation. The light
+      changes over a grid cell, so a block costs about a quarter of its pixels' searches.
    Sums in float (double in the twin). Writes rgb radiance, a = 1 where a surface is. */
 #include "common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 
 #define MAX_N 16
-#define TILE 64u          /* invocations per work group */
+#define TILE 64u          /* invocations per work group, each a block of B x B pixels */
+#define FALLBACK_CAP 192u /* a tile's pixels that cannot take their block's light (3 per block) */
 #define LIST_CAP 768u     /* caches a tile's list holds (24 KiB of shared memory) */
 #define CELL_CAP 4096     /* cells a tile's box may cover */
 #define RINGS 8u          /* the list in rings of distance from the tile's box */
@@ -57,47 +63,48 @@ layout(location = 11) uniform uint flags;       /* 1: glossy proxy lights; 2: ho
 layout(location = 12) uniform uint material_count;
 layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
 layout(location = 14) uniform uint list_limit;  /* caches a tile's list may hold, <= LIST_CAP (0: every tile per pixel) */
+layout(location = 15) uniform uint block;       /* B: each invocation a B x B block of pixels, 1 or 2 */
 
 uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */
     return (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
 }
 
-float best_d[MAX_N];
-uint best_i[MAX_N];
-uint found;
+/* a receiver's nearest caches so far: local to each search (a private array that lived across
+   a barrier would be kept in memory) */
+struct Near { float d[MAX_N]; uint i[MAX_N]; uint found; };
 
 /* Keep the MAX_N nearest (distance, index) pairs, sorted (the first n are the n nearest): an
    insertion unrolled into compares and selects at constant indices, so the arrays live in
    registers (a loop that shifts at a varying index puts them in memory: local memory on GPUs,
    a scatter per lane on llvmpipe). Empty slots hold (FLT_MAX, ~0). */
 bool before(float d, uint idx, float bd, uint bi) { return d < bd || (d == bd && idx < bi); }
-void offer(float d, uint idx) {
+void offer(inout Near b, float d, uint idx) {
     for (int j = MAX_N - 1; j > 0; --j) {
-        bool here = before(d, idx, best_d[j], best_i[j]), above = before(d, idx, best_d[j - 1], best_i[j - 1]);
-        best_d[j] = above ? best_d[j - 1] : (here ? d : best_d[j]);
-        best_i[j] = above ? best_i[j - 1] : (here ? idx : best_i[j]);
+        bool here = before(d, idx, b.d[j], b.i[j]), above = before(d, idx, b.d[j - 1], b.i[j - 1]);
+        b.d[j] = above ? b.d[j - 1] : (here ? d : b.d[j]);
+        b.i[j] = above ? b.i[j - 1] : (here ? idx : b.i[j]);
     }
-    bool first = before(d, idx, best_d[0], best_i[0]);
-    best_d[0] = first ? d : best_d[0];
-    best_i[0] = first ? idx : best_i[0];
-    found = min(found + 1u, n);
+    bool first = before(d, idx, b.d[0], b.i[0]);
+    b.d[0] = first ? d : b.d[0];
+    b.i[0] = first ? idx : b.i[0];
+    b.found = min(b.found + 1u, n);
 }
 
-/* best_d[i] for a varying i, by selects */
-float best_at(uint i) {
+/* b.d[i] for a varying i, by selects */
+float best_at(Near b, uint i) {
     float v = FLT_MAX;
-    for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? best_d[j] : v;
+    for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? b.d[j] : v;
     return v;
 }
 
-void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
-    uint b = cell_hash(c) & bucket_mask;
-    for (uint k = bucket_start[b]; k < bucket_start[b + 1u]; ++k) {
+void visit(inout Near b, ivec3 c, vec3 x, vec3 nx, float radius) {
+    uint bucket = cell_hash(c) & bucket_mask;
+    for (uint k = bucket_start[bucket]; k < bucket_start[bucket + 1u]; ++k) {
         if (cache_cell[k].xyz != c) continue;   /* another cell in the same bucket */
         vec3 p = cache[k].position_area.xyz;
         if (dot(nx, cache[k].normal_reflectance.xyz) < cos_theta) continue;
         float d = length(x - p);
-        if (d <= radius) offer(d, k);
+        if (d <= radius) offer(b, d, k);
     }
 }
 
@@ -105,12 +112,12 @@ void visit(ivec3 c, vec3 x, vec3 nx, float radius) {
    weights, of what each neighbour's proxy light delivers at x when it moves along with the
    surface point (seen at x + its offset from its cache); for the glossy set each term carries
    the receiver's lobe in that proxy's direction (k, view). */
-vec3 interp_light(bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
+vec3 interp_light(Near b, bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
     float sw[2] = float[2](0.0, 0.0);
     vec3 se[2] = vec3[2](vec3(0.0), vec3(0.0));
     for (int j = 0; j < MAX_N; ++j) {   /* constant indices into best_i (see offer) */
-        if (uint(j) >= found) break;
-        uint i = best_i[j];
+        if (uint(j) >= b.found) break;
+        uint i = b.i[j];
         vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
         Proxy p = is_glossy ? glossy[i] : diffuse[i];
         vec3 op = p.position_radius.xyz - c;             /* the proxy's offset */
@@ -149,16 +156,19 @@ shared vec4 list_n[LIST_CAP];   /* normal, w = distance from the receivers' box 
 shared uint list_count;
 shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first */
 shared uint ring_start[RINGS + 1u], ring_fill[RINGS];
-shared vec4 tile_x[TILE];       /* each pixel's receiver: position, w = 1 where there is one */
-shared vec3 tile_n[TILE];
+shared vec4 part_lo[TILE];      /* each block's receivers: box lo, w = their count */
+shared vec4 part_hi[TILE];      /* box hi, w = the least cosine of a normal to the cone's axis */
+shared vec3 part_n[TILE];       /* sum of normals */
 shared vec4 box_lo, box_hi;     /* the receivers' box; lo.w: cos of the cone's bound, hi.w: the radius grown */
 shared vec3 cone_axis;
 shared ivec3 cell_lo, cell_n;   /* the cells over the box */
 shared int mode;                /* 0: no receiver in the tile; 1: the tile's list; 2: per pixel */
+shared uint fallback[FALLBACK_CAP];   /* pixels (x | y << 16) that search for themselves */
+shared uint fallback_count;
 
 /* The per pixel search: shell r holds the cells at Chebyshev distance r from the pixel's;
    every cache outside shells 0..r is farther than r h. */
-void search_pixel(vec3 x, vec3 nx, float radius) {
+void search_pixel(inout Near b, vec3 x, vec3 nx, float radius) {
     float h = grid.w;
     ivec3 pc = ivec3(floor((x - grid.xyz) / h));
     for (int r = 0; r <= rings; ++r) {
@@ -167,51 +177,55 @@ void search_pixel(vec3 x, vec3 nx, float radius) {
             for (int cy = lo.y; cy <= hi.y; ++cy) {
                 bool face = abs(cz - pc.z) == r || abs(cy - pc.y) == r;
                 if (face) {
-                    for (int cx = lo.x; cx <= hi.x; ++cx) visit(ivec3(cx, cy, cz), x, nx, radius);
+                    for (int cx = lo.x; cx <= hi.x; ++cx) visit(b, ivec3(cx, cy, cz), x, nx, radius);
                 } else {   /* inside the shell's faces in y and z: only its two x ends */
-                    if (pc.x - r >= 0 && pc.x - r < dims.x) visit(ivec3(pc.x - r, cy, cz), x, nx, radius);
-                    if (r > 0 && pc.x + r >= 0 && pc.x + r < dims.x) visit(ivec3(pc.x + r, cy, cz), x, nx, radius);
+                    if (pc.x - r >= 0 && pc.x - r < dims.x) visit(b, ivec3(pc.x - r, cy, cz), x, nx, radius);
+                    if (r > 0 && pc.x + r >= 0 && pc.x + r < dims.x) visit(b, ivec3(pc.x + r, cy, cz), x, nx, radius);
                 }
             }
-        if (found == n && best_at(n - 1u) <= float(r) * h) break;
+        if (b.found == n && best_at(b, n - 1u) <= float(r) * h) break;
     }
 }
 
-/* The tile's box, cone and cells (invocation 0), from the receivers in tile_x, tile_n. The box
+/* The tile's box, cone and cells (invocation 0), from each block's part (part_*). The box
    and the cone are grown a little beyond float rounding: the list may hold a few caches no
    pixel takes, never miss one a pixel's own search would. */
 void plan_tile(float radius) {
     vec3 lo = vec3(FLT_MAX), hi = vec3(-FLT_MAX), axis = vec3(0.0);
-    uint count = 0u;
+    float count = 0.0;
     for (uint i = 0u; i < TILE; ++i) {
-        if (tile_x[i].w == 0.0) continue;
-        lo = min(lo, tile_x[i].xyz);
-        hi = max(hi, tile_x[i].xyz);
-        axis += tile_n[i];
-        ++count;
+        if (part_lo[i].w == 0.0) continue;
+        lo = min(lo, part_lo[i].xyz);
+        hi = max(hi, part_hi[i].xyz);
+        axis += part_n[i];
+        count += part_lo[i].w;
     }
     list_count = 0u;
+    fallback_count = 0u;
     for (uint r = 0u; r < RINGS; ++r) ring_fill[r] = 0u;
-    if (count == 0u) { mode = 0; return; }
-    float grow = radius * 1.001 + 1e-5 * max(max(abs(lo.x), abs(lo.y)), max(max(abs(lo.z), abs(hi.x)), max(abs(hi.y), abs(hi.z))));
-    /* the cone: its axis, and the widest angle between it and a receiver's normal; a cache
-       within theta of some normal lies within theta + that angle of the axis */
-    float cos_bound = -2.0, la = length(axis);
-    if (la > 1e-3 * float(count) && cos_theta > -1.0) {
-        axis /= la;
+    box_lo = vec4(lo, -2.0);
+    box_hi = vec4(hi, radius * 1.001 + 1e-5 * max(max(abs(lo.x), abs(lo.y)), max(max(abs(lo.z), abs(hi.x)), max(abs(hi.y), abs(hi.z)))));
+    float la = length(axis);
+    cone_axis = la > 1e-3 * count && cos_theta > -1.0 ? axis / la : vec3(0.0);
+    mode = count == 0.0 ? 0 : 1;
+}
+
+/* The cone (the widest angle between its axis and a receiver's normal: a cache within theta
+   of some normal lies within theta + that angle of the axis) and the cells over the box. */
+void plan_cells() {
+    vec3 lo = box_lo.xyz, hi = box_hi.xyz;
+    float grow = box_hi.w;
+    if (cone_axis != vec3(0.0)) {
         float spread = 1.0;
         for (uint i = 0u; i < TILE; ++i)
-            if (tile_x[i].w != 0.0) spread = min(spread, dot(axis, tile_n[i]));
+            if (part_lo[i].w != 0.0) spread = min(spread, part_hi[i].w);
         float angle = acos(clamp(cos_theta, -1.0, 1.0)) + acos(clamp(spread, -1.0, 1.0)) + 2e-3;
-        if (angle < PI) cos_bound = cos(angle);
+        if (angle < PI) box_lo.w = cos(angle);
     }
     /* clamped as floats first: a receiver far off the grid would overflow an int */
     ivec3 clo = ivec3(clamp(floor((lo - grow - grid.xyz) / grid.w), vec3(0.0), vec3(dims)));
     ivec3 chi = ivec3(clamp(floor((hi + grow - grid.xyz) / grid.w), vec3(-1.0), vec3(dims - 1)));
     ivec3 cn = max(chi - clo + 1, ivec3(0));
-    box_lo = vec4(lo, cos_bound);
-    box_hi = vec4(hi, grow);
-    cone_axis = axis;
     cell_lo = clo;
     cell_n = cn;
     /* the extent first: a box past CELL_CAP cells on one axis would overflow the product */
@@ -241,26 +255,127 @@ void gather_cell(ivec3 c) {
     }
 }
 
-void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    uint lid = gl_LocalInvocationIndex;
-    bool receiver = false;
-    vec3 x = vec3(0.0), nx = vec3(0.0), view = vec3(0.0);
-    if (px.x < int(size.x) && px.y < int(size.y)) {
-        float depth = texelFetch(gbuffer_depth, px, 0).r;
-        vec4 nw = texelFetch(gbuffer_normal, px, 0);
-        receiver = depth < 1.0 && finite3(nw.xyz) && dot(nw.xyz, nw.xyz) > 0.0;
-        if (receiver) {
-            x = unproject(px, depth, size, inv_proj, inv_view);
-            nx = normalize(nw.xyz);
-            view = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+/* The receiver at pixel px: its position and unit normal, false where nothing is drawn. */
+bool receiver_at(ivec2 px, out vec3 x, out vec3 nx) {
+    x = vec3(0.0);
+    nx = vec3(0.0);
+    if (px.x >= int(size.x) || px.y >= int(size.y)) return false;
+    float depth = texelFetch(gbuffer_depth, px, 0).r;
+    vec4 nw = texelFetch(gbuffer_normal, px, 0);
+    if (!(depth < 1.0 && finite3(nw.xyz) && dot(nw.xyz, nw.xyz) > 0.0)) return false;
+    x = unproject(px, depth, size, inv_proj, inv_view);
+    nx = normalize(nw.xyz);
+    return true;
+}
+
+/* The Phong exponent of pixel px's material (0 with the host's G-buffer). */
+float exponent_at(ivec2 px) {
+    if ((flags & 2u) != 0u) return 0.0;
+    uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
+    return material[id].glossy.w;
+}
+
+/* best_* := the n nearest compatible caches to (x, nx): from the tile's list or per pixel. */
+void neighbours(out Near b, bool listed, vec3 x, vec3 nx, float radius) {
+    b.found = 0u;
+    for (int j = 0; j < MAX_N; ++j) { b.d[j] = FLT_MAX; b.i[j] = 0xffffffffu; }
+    if (listed) {
+        float step = box_hi.w / float(RINGS);
+        /* the slack of box_hi.w over the radius bounds the float rounding of both distances */
+        float slack = box_hi.w - radius + 1e-3 * step;
+        uint j = 0u;
+        for (uint r = 0u; r < RINGS; ++r) {
+            if (b.found == n && float(r) * step - slack > best_at(b, n - 1u)) break;
+            for (; j < ring_start[r + 1u]; ++j) {
+                uint e = list_order[j];
+                vec4 p = list_p[e];
+                if (dot(nx, list_n[e].xyz) < cos_theta) continue;
+                float d = length(x - p.xyz);
+                if (d <= radius) offer(b, d, floatBitsToUint(p.w));
+            }
         }
+    } else {
+        search_pixel(b, x, nx, radius);
     }
-    tile_x[lid] = vec4(x, receiver ? 1.0 : 0.0);
-    tile_n[lid] = nx;
+}
+
+/* The light at receiver (x, nx, view, k) from its neighbours: diffuse irradiance in dl, the
+   glossy lobe's in gl (0 without glossy proxies); tests (flags 4): the neighbours themselves,
+   (d_cmax, count, sum of indices) in dl. */
+void light_at(Near b, vec3 x, vec3 nx, vec3 view, float k, out vec3 dl, out vec3 gl) {
+    float dcmax = b.found > 0u ? best_at(b, b.found - 1u) : 0.0;
+    gl = vec3(0.0);
+    if ((flags & 4u) != 0u) {
+        uint sum = 0u;
+        for (int j = 0; j < MAX_N; ++j) sum += uint(j) < b.found ? b.i[j] : 0u;
+        dl = vec3(dcmax, float(b.found), float(sum));
+        return;
+    }
+    dl = interp_light(b, false, x, nx, view, k, dcmax);
+    if ((flags & 1u) != 0u) gl = interp_light(b, true, x, nx, view, k, dcmax);
+}
+
+/* Pixel px's radiance from the light at its receiver (or its block's): its albedo and glossy
+   colour (1 and 0 with the host's G-buffer); clamped to the format (GL leaves a float beyond
+   RGBA16F's range to the implementation: llvmpipe stores 65504, others Inf). */
+void shade(ivec2 px, vec3 dl, vec3 gl) {
+    if ((flags & 4u) != 0u) { imageStore(indirect, px, vec4(dl, 1.0)); return; }
+    vec3 albedo = vec3(1.0), gcol = vec3(0.0);
+    if ((flags & 2u) == 0u) {
+        albedo = texelFetch(gbuffer_albedo, px, 0).rgb;
+        uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
+        gcol = material[id].glossy.rgb;
+    }
+    vec3 outc = albedo / PI * dl + gcol * gl;
+    imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
+}
+
+/* A pixel of a block takes the light found at the block's first receiver r when it lies on
+   the same surface near it: normals within ~5.7 degrees, the offset within ~2.9 degrees of
+   r's plane and under a quarter of a grid cell, the same Phong exponent (gim_shade_sources). */
+bool shares(vec3 x, vec3 nx, float k, vec3 xr, vec3 nr, float kr) {
+    vec3 d = x - xr;
+    float dl = length(d);
+    return dot(nx, nr) >= 0.995 && abs(dot(nr, d)) <= 0.05 * dl && dl <= 0.25 * grid.w && k == kr;
+}
+
+void main() {
+    uint lid = gl_LocalInvocationIndex;
+    int B = int(block);
+    ivec2 base = ivec2(gl_WorkGroupID.xy * 8u + gl_LocalInvocationID.xy) * B;
+    /* the block's receivers, at constant indices (q < B^2) */
+    vec3 bx[4], bn[4];
+    bool br[4];
+    vec3 lo = vec3(FLT_MAX), hi = vec3(-FLT_MAX), ns = vec3(0.0);
+    float count = 0.0;
+    for (int q = 0; q < 4; ++q) {
+        br[q] = q < B * B && receiver_at(base + ivec2(q % B, q / B), bx[q], bn[q]);
+        if (!br[q]) continue;
+        lo = min(lo, bx[q]);
+        hi = max(hi, bx[q]);
+        ns += bn[q];
+        count += 1.0;
+    }
+    part_lo[lid] = vec4(lo, count);
+    part_hi[lid] = vec4(hi, 1.0);
+    part_n[lid] = ns;
     float radius = float(rings) * grid.w;
     barrier();
     if (lid == 0u) plan_tile(radius);
+    barrier();
+    if (mode == 0) {   /* nothing drawn in the tile */
+        for (int q = 0; q < 4; ++q) {
+            ivec2 px = base + ivec2(q % B, q / B);
+            if (q < B * B && px.x < int(size.x) && px.y < int(size.y)) imageStore(indirect, px, vec4(0.0));
+        }
+        return;
+    }
+    float spread = 1.0;
+    for (int q = 0; q < 4; ++q)
+        if (br[q]) spread = min(spread, dot(cone_axis, bn[q]));
+    part_hi[lid].w = spread;
+    barrier();
+    if (lid == 0u) plan_cells();
     barrier();
     if (mode == 1) {   /* the tile's list: the box's cells, one invocation each */
         uint cells = uint(cell_n.x * cell_n.y * cell_n.z);
@@ -290,52 +405,43 @@ void main() {
         for (uint j = lid; j < list_count; j += TILE)
             list_order[atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u)] = j;
     barrier();
-    if (!(px.x < int(size.x) && px.y < int(size.y))) return;
-    if (!receiver) {
-        imageStore(indirect, px, vec4(0.0));
-        return;
-    }
 
-    /* 1. neighbours */
-    found = 0u;
-    for (int j = 0; j < MAX_N; ++j) { best_d[j] = FLT_MAX; best_i[j] = 0xffffffffu; }
-    if (listed) {
-        /* the slack of box_hi.w over the radius bounds the float rounding of both distances */
-        float slack = box_hi.w - radius + 1e-3 * step;
-        uint j = 0u;
-        for (uint r = 0u; r < RINGS; ++r) {
-            if (found == n && float(r) * step - slack > best_at(n - 1u)) break;
-            for (; j < ring_start[r + 1u]; ++j) {
-                uint e = list_order[j];
-                vec4 p = list_p[e];
-                if (dot(nx, list_n[e].xyz) < cos_theta) continue;
-                float d = length(x - p.xyz);
-                if (d <= radius) offer(d, floatBitsToUint(p.w));
-            }
-        }
-    } else {
-        search_pixel(x, nx, radius);
+    /* 1. the light at the block's first receiver r (eq. 8-9 over its n nearest caches) */
+    vec3 xr = vec3(0.0), nr = vec3(0.0);
+    bool any = false;
+    int r = 0;
+    for (int q = 3; q >= 0; --q)
+        if (br[q]) { xr = bx[q]; nr = bn[q]; r = q; any = true; }
+    vec3 dl = vec3(0.0), gl = vec3(0.0), view = vec3(0.0);
+    float kr = 0.0;
+    if (any) {
+        ivec2 pr = base + ivec2(r % B, r / B);
+        kr = exponent_at(pr);
+        view = normalize(eye.w > 0.0 ? eye.xyz - xr : eye.xyz);
+        Near b;
+        neighbours(b, listed, xr, nr, radius);
+        light_at(b, xr, nr, view, kr, dl, gl);
     }
-    float dcmax = found > 0u ? best_at(found - 1u) : 0.0;
-    if ((flags & 4u) != 0u) {
-        uint sum = 0u;
-        for (int j = 0; j < MAX_N; ++j) sum += uint(j) < found ? best_i[j] : 0u;
-        imageStore(indirect, px, vec4(dcmax, float(found), float(sum), 1.0));
-        return;
+    /* 2. the block's pixels: r's light where they share it, else each its own later */
+    for (int q = 0; q < 4; ++q) {   /* constant indices into bx, bn, br (see offer) */
+        ivec2 px = base + ivec2(q % B, q / B);
+        if (q >= B * B || px.x >= int(size.x) || px.y >= int(size.y)) continue;
+        if (!br[q]) { imageStore(indirect, px, vec4(0.0)); continue; }
+        if (q == r || shares(bx[q], bn[q], exponent_at(px), xr, nr, kr)) shade(px, dl, gl);
+        else fallback[atomicAdd(fallback_count, 1u)] = uint(px.x) | (uint(px.y) << 16);
     }
-
-    /* 2. interpolation (eq. 8-9) and shading */
-    vec3 albedo = vec3(1.0), gcol = vec3(0.0);
-    float k = 0.0;
-    if ((flags & 2u) == 0u) {
-        albedo = texelFetch(gbuffer_albedo, px, 0).rgb;
-        uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
-        gcol = material[id].glossy.rgb;
-        k = material[id].glossy.w;
+    barrier();
+    /* 3. the pixels that did not share, spread over the work group */
+    for (uint e = lid; e < fallback_count; e += TILE) {
+        ivec2 px = ivec2(int(fallback[e] & 0xffffu), int(fallback[e] >> 16));
+        vec3 x, nx;
+        receiver_at(px, x, nx);
+        float k = exponent_at(px);
+        vec3 v = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
+        vec3 d2, g2;
+        Near b;
+        neighbours(b, listed, x, nx, radius);
+        light_at(b, x, nx, v, k, d2, g2);
+        shade(px, d2, g2);
     }
-    vec3 outc = albedo / PI * interp_light(false, x, nx, view, k, dcmax);
-    if ((flags & 1u) != 0u) outc += gcol * interp_light(true, x, nx, view, k, dcmax);
-    /* clamped to the format: GL leaves a float beyond RGBA16F's range to the implementation
-       (llvmpipe stores 65504, others Inf) */
-    imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
 }

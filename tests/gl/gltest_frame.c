@@ -19,7 +19,7 @@
 static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, double tol, double *max_rel) {
     gim_frame_outputs o = gim_outputs(ff->f.ctx);
     gim_debug_outputs od = gim_debug(ff->f.ctx);
-    uint32_t n = od.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt;
+    uint32_t n = od.neighbour_count, nrec, i, bad, *map = (uint32_t *)malloc(W * H * 4), *nb_idx, *nb_cnt, *src;
     gim_receiver *rec = (gim_receiver *)calloc(W * H, sizeof *rec);
     gim_cache *caches = (gim_cache *)malloc(od.cache_count * sizeof *caches);
     gim_val *vals = (gim_val *)malloc((size_t)od.val_count * sizeof *vals);
@@ -67,12 +67,15 @@ static uint32_t compare_with_cpu_frame(frame_fixture *ff, const float *gpu, doub
     }
     ld.receivers = rec; ld.receiver_count = nrec;
     ld.neighbour_index = nb_idx; ld.neighbour_count = nb_cnt; ld.neighbour_stride = n; ld.d_cmax = dcmax;
+    src = (uint32_t *)malloc(nrec * 4);
+    frame_sources(ff, rec, map, nrec, src);   /* the pass's blocks */
+    ld.source = src;
     ld.scene_scale = o.scene_scale;
     ld.env = ff->f.env;
     assert_int_equal(gim_lightskin_frame_twin(&ld, cpu), GIM_OK);
     bad = compare_pixels(gpu, cpu, map, nrec, tol, max_rel);
     free(pos_nrm); free(rec); free(caches); free(vals); free(map); free(nb_idx); free(nb_cnt); free(dcmax); free(cpu);
-    free(kc);
+    free(kc); free(src);
     return bad;
 }
 

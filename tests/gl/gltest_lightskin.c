@@ -174,6 +174,7 @@ typedef struct shade_case {
     int glossy;
     int host;            /* the host's G-buffer: albedo 1, no glossy */
     uint32_t list_limit; /* caches a tile's list may hold; 0: the pass's; 1: every tile per pixel */
+    uint32_t block;      /* the pass's shade_block: 1 or 2 */
 } shade_case;
 
 static void run_shade_case(const shade_case *sc, float L, const float origin[3]) {
@@ -190,7 +191,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     gim_frame_outputs o;
     gim_cache *world, *sorted;
     int32_t *cells;
-    uint32_t *buckets, i, nrec = 0, *pix, *nb_idx, *nb_cnt;
+    uint32_t *buckets, i, nrec = 0, *pix, *nb_idx, *nb_cnt, *src, *rpix, shared_n = 0;
     float *depth, *nrm, *alb, *mat, *gpu, *cpu, *dcmax, *pos_nrm;
     gim_view_sample *vs;
     gim_receiver *rec;
@@ -211,7 +212,10 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     for (i = 0; i < r.quads * 4; ++i) { r.pos[i * 3] += origin[0]; r.pos[i * 3 + 1] += origin[1]; r.pos[i * 3 + 2] += origin[2]; }
     memset(&cd, 0, sizeof cd);
     cd.mesh = room_mesh(&r);
-    cd.d_eps = L / 12.0f;
+    /* blocks share where a pixel lies within a quarter of a grid cell of its block's first receiver:
+       at 80 x 60 a pixel spans ~L / 30 on the back wall, so the blocks' cases space the caches
+       twice as far (the cell is twice their spacing) */
+    cd.d_eps = sc->block == 2 ? L / 6.0f : L / 12.0f;
     assert_int_equal(gim_cache_generate(&cd, &set), GIM_OK);
     memset(&md, 0, sizeof md);
     md.data = room_mesh(&r);
@@ -270,6 +274,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     sa.cache_count = set.count; sa.grid = g; sa.n = sc->n; sa.cos_theta = (float)cos_t;
     sa.scene_scale = pdesc.scene_scale; sa.indirect = t_ind; sa.format = GL_RGBA32F;
     sa.list_limit = sc->list_limit;
+    sa.block = sc->block;
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
@@ -340,6 +345,23 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             nb_cnt[i] = keep;
             dcmax[i] = far_;
         }
+        {   /* whose light each receiver takes in the pass's blocks */
+            gim_shade_blocks_desc bd;
+            src = (uint32_t *)malloc(nrec * 4);
+            rpix = (uint32_t *)malloc(nrec * 8);
+            for (i = 0; i < nrec; ++i) { rpix[i * 2] = map[i] % W; rpix[i * 2 + 1] = map[i] / W; }
+            memset(&bd, 0, sizeof bd);
+            bd.receivers = rec; bd.receiver_count = nrec; bd.pixels = rpix;
+            bd.width = W; bd.height = H; bd.block = sc->block; bd.cell = g.h; bd.env = f.env;
+            assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+            for (i = 0; i < nrec; ++i) shared_n += src[i] != i;
+            /* blocks of one surface share, every receiver's source is its block's first */
+            if (sc->block == 1) assert_int_equal(shared_n, 0);
+            else assert_true(shared_n > nrec / 4);
+            for (i = 0; i < nrec; ++i)
+                assert_true(src[i] == i || (rpix[src[i] * 2] / 2 == rpix[i * 2] / 2 && rpix[src[i] * 2 + 1] / 2 == rpix[i * 2 + 1] / 2));
+            free(rpix);
+        }
         cpu = (float *)malloc(nrec * 12);
         memset(&sdesc, 0, sizeof sdesc);
         sdesc.caches = sorted; sdesc.cache_count = set.count;
@@ -347,6 +369,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
         sdesc.receivers = rec; sdesc.receiver_count = nrec;
         sdesc.neighbour_index = nb_idx; sdesc.neighbour_count = nb_cnt; sdesc.neighbour_stride = sc->n;
         sdesc.d_cmax = dcmax; sdesc.scene_scale = pdesc.scene_scale; sdesc.env = f.env;
+        sdesc.source = src;
         assert_int_equal(gim_lightskin_shade_twin(&sdesc, cpu), GIM_OK);
         for (i = 0; i < nrec * 3; ++i) if (cpu[i] > ref_max) ref_max = cpu[i];
         assert_true(ref_max > 0.0);
@@ -366,8 +389,10 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             if (e > 2e-3) bad++;
             else if (e > max_rel) max_rel = e;
         }
-        print_message("shade n=%u glossy=%d host=%d list %u scale %g: %u receivers, %u lit, %u caches, max rel err %.2e, %u above 2e-3\n",
-                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (double)L, nrec, lit, set.count, max_rel, bad);
+        print_message("shade n=%u glossy=%d host=%d list %u block %u scale %g: %u receivers (%u share), %u lit, %u caches, max rel "
+                      "err %.2e, %u above 2e-3\n",
+                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (unsigned)sc->block, (double)L, nrec, shared_n, lit,
+                      set.count, max_rel, bad);
         assert_true(lit > nrec / 2);
         /* a float distance that ties or crosses the radius where the twin's double does not
            swaps a neighbour whose tent weight is ~0: a handful of pixels at most */
@@ -380,14 +405,14 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
             assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
             gltest_read_texture(t_ind, GL_RGBA, nb);
-            for (i = 0; i < nrec; ++i) {
+            for (i = 0; i < nrec; ++i) {   /* each pixel writes its source's */
                 const float *q = nb + map[i] * 4;
-                uint32_t k;
+                uint32_t k, s_ = src[i];
                 double sum = 0.0;
-                for (k = 0; k < nb_cnt[i]; ++k) sum += nb_idx[i * sc->n + k];
-                if (q[1] != (float)nb_cnt[i] || q[2] != (float)sum || fabs((double)q[0] - dcmax[i]) > 2e-4 * (double)dcmax[i])
+                for (k = 0; k < nb_cnt[s_]; ++k) sum += nb_idx[s_ * sc->n + k];
+                if (q[1] != (float)nb_cnt[s_] || q[2] != (float)sum || fabs((double)q[0] - dcmax[s_]) > 2e-4 * (double)dcmax[s_])
                 {
-                    if (differ < 3) print_message("  px %u: gpu %.9g %g %g twin %.9g %u %g\n", i, q[0], q[1], q[2], dcmax[i], nb_cnt[i], sum);
+                    if (differ < 3) print_message("  px %u: gpu %.9g %g %g twin %.9g %u %g\n", i, q[0], q[1], q[2], dcmax[s_], nb_cnt[s_], sum);
                     differ++;
                 }
             }
@@ -399,7 +424,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
         free(map);
     }
     free(depth); free(nrm); free(alb); free(mat); free(gpu); free(pix); free(vs); free(rec); free(pos_nrm);
-    free(nb_idx); free(nb_cnt); free(dcmax); free(cpu); free(pd); free(pg); free(vals); free(world);
+    free(nb_idx); free(nb_cnt); free(dcmax); free(cpu); free(pd); free(pg); free(vals); free(world); free(src);
     gim__free(&f.env, sorted);
     gim__free(&f.env, cells);
     gim__free(&f.env, buckets);
@@ -416,13 +441,19 @@ static void shade_matches_twin(void **state) {
     shade_case sc;
     (void)state;
     GLTEST_BEGIN();
-    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0;
+    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0; sc.block = 2;
+    run_shade_case(&sc, 4.0f, o0);
+    sc.block = 1;                               /* per pixel */
     run_shade_case(&sc, 4.0f, o0);
     sc.list_limit = 1;                          /* every tile searches per pixel */
     run_shade_case(&sc, 4.0f, o0);
+    sc.block = 2;
+    run_shade_case(&sc, 4.0f, o0);
     sc.list_limit = 60;                         /* some tiles by their list, some per pixel */
     run_shade_case(&sc, 4.0f, o0);
-    sc.n = 4; sc.glossy = 0; sc.host = 0; sc.list_limit = 0;
+    sc.block = 1;
+    run_shade_case(&sc, 4.0f, o0);
+    sc.n = 4; sc.glossy = 0; sc.host = 0; sc.list_limit = 0; sc.block = 2;
     run_shade_case(&sc, 4.0f, o0);
     sc.n = 16; sc.glossy = 1; sc.host = 1;     /* glossy proxies given, but no materials: diffuse, albedo 1 */
     run_shade_case(&sc, 4.0f, o0);

@@ -117,6 +117,23 @@ static FRAMEFIX_UNUSED uint32_t frame_receivers(frame_fixture *ff, gim_receiver 
 
 /* Largest relative difference of gpu (RGBA pixels) against cpu (rgb per receiver), floored at
    1e-3 of cpu's largest value, and how many receivers exceed tol. */
+/* Whose light each receiver takes in the frame's shading blocks (gim_shade_sources), for
+   gim_lightskin_desc.source. */
+static FRAMEFIX_UNUSED void frame_sources(frame_fixture *ff, const gim_receiver *rec, const uint32_t *map, uint32_t nrec,
+                                          uint32_t *source) {
+    gim_debug_outputs od = gim_debug(ff->f.ctx);
+    uint32_t *pix = (uint32_t *)malloc((size_t)nrec * 8 + 8), i;
+    gim_shade_blocks_desc bd;
+    for (i = 0; i < nrec; ++i) { pix[i * 2] = map[i] % W; pix[i * 2 + 1] = map[i] / W; }
+    memset(&bd, 0, sizeof bd);
+    bd.receivers = rec; bd.receiver_count = nrec; bd.pixels = pix;
+    bd.width = W; bd.height = H; bd.block = od.shade_block; bd.cell = od.neighbour_cell;
+    bd.env = ff->f.env;
+    assert_true(od.shade_block == 1u || od.shade_block == 2u);
+    assert_int_equal(gim_shade_sources(&bd, source), GIM_OK);
+    free(pix);
+}
+
 static FRAMEFIX_UNUSED uint32_t compare_pixels(const float *gpu, const float *cpu, const uint32_t *map, uint32_t nrec, double tol,
                                double *max_rel) {
     double ref_max = 0.0;

@@ -598,6 +598,90 @@ static void energy_wall(void **state) {
     free(v);
 }
 
+/* gim_shade_sources: the shading pass's 2 x 2 blocks share their first receiver's light only on
+   its surface, near it, with its exponent; gim_lightskin_shade_twin's source gives a receiver
+   that light times its own albedo. A 4 x 2 image, two blocks, cell 1. */
+static void shade_blocks(void **state) {
+    test_alloc_stats as; test_log lg;
+    gim_env env = test_env(&as, &lg);
+    gim_cache c[2];
+    gim_val v = mk_val(-0.5f, 0.2f, 1, 0, 0, -1, 0.5f, 1, 1, 1);
+    gim_proxy_light pd[2];
+    gim_proxy_desc d;
+    gim_receiver r[7];
+    gim_shade_blocks_desc bd;
+    gim_shade_desc sd;
+    /* block 0: (0,0) (1,0) (0,1) (1,1); block 1: (3,0) first ((2,0) has no receiver), (2,1), (3,1) */
+    uint32_t pix[14] = {1, 0, 0, 0, 0, 1, 1, 1, 3, 0, 2, 1, 3, 1}, src[7], idx[14], cnt[7], i, k;
+    float dc[7], L[21], own[21];
+    (void)state;
+    c[0] = mk_cache(0, 0, 0, 0, 0, 1, 1);
+    c[1] = mk_cache(0.6f, 0, 0, 0, 0, 1, 1);
+    for (i = 0; i < 7; ++i) r[i] = mk_recv(c, 0, 0, 1, 0.5f + 0.05f * (float)i, 0, 1);
+    r[0].position[0] = 0.2f;                        /* (1,0), within cell / 4 */
+    r[2].position[1] = 0.01f;                       /* (0,1) */
+    r[3].position[0] = 0.01f; r[3].position[1] = 0.01f;
+    r[4].position[0] = 0.5f;                        /* block 1's first, (3,0) */
+    r[5].position[0] = 0.45f; r[5].normal[2] = 0.0f; r[5].normal[0] = 1.0f;   /* another surface */
+    r[6].position[0] = 0.5f; r[6].position[1] = 0.3f;                          /* beyond cell / 4 */
+    memset(&bd, 0, sizeof bd);
+    bd.receivers = r; bd.receiver_count = 7; bd.pixels = pix; bd.width = 4; bd.height = 2; bd.block = 2; bd.cell = 1.0f;
+    bd.env = env;
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+    assert_int_equal(src[0], 1);   /* (0,0) is receiver 1, block 0's first */
+    assert_int_equal(src[1], 1);
+    assert_int_equal(src[2], 1);
+    assert_int_equal(src[3], 1);
+    assert_int_equal(src[4], 4);
+    assert_int_equal(src[5], 5);
+    assert_int_equal(src[6], 6);
+    r[2].exponent = 2.0f;                           /* another lobe: its own */
+    r[3].position[2] = 0.002f;                      /* 8 degrees off the plane: its own */
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+    assert_int_equal(src[0], 1);
+    assert_int_equal(src[2], 2);
+    assert_int_equal(src[3], 3);
+    r[2].exponent = 1.0f;
+    r[3].position[2] = 0.0f;
+    bd.block = 1;                                   /* per pixel */
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+    for (i = 0; i < 7; ++i) assert_int_equal(src[i], i);
+    bd.block = 0;                                   /* the default, GIM_DEFAULT_SHADE_BLOCK */
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+    assert_int_equal(src[0], GIM_DEFAULT_SHADE_BLOCK == 2 ? 1u : 0u);
+    bd.block = 3;
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_ERROR_OUT_OF_RANGE);
+    bd.block = 2; bd.cell = 0.0f;
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_ERROR_INVALID_ARGUMENT);
+    bd.cell = 1.0f; pix[8] = 4;                     /* outside the image */
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_ERROR_INVALID_ARGUMENT);
+    pix[8] = 3;
+    assert_int_equal(lg.errors, 3);
+    assert_int_equal(gim_shade_sources(&bd, src), GIM_OK);
+    /* the twin: each receiver its own light, then its block's */
+    d = proxy_desc(c, 2, &v, 1, env);
+    assert_int_equal(gim_proxy_lights_twin(&d, pd, NULL), GIM_OK);
+    for (i = 0; i < 7; ++i) { idx[2 * i] = 0; idx[2 * i + 1] = 1; cnt[i] = 2; dc[i] = 0.7f; }
+    memset(&sd, 0, sizeof sd);
+    sd.caches = c; sd.cache_count = 2; sd.diffuse = pd;
+    sd.receivers = r; sd.receiver_count = 7; sd.neighbour_index = idx; sd.neighbour_count = cnt;
+    sd.neighbour_stride = 2; sd.d_cmax = dc; sd.scene_scale = 2.0f; sd.env = env;
+    assert_int_equal(gim_lightskin_shade_twin(&sd, own), GIM_OK);
+    sd.source = src;
+    assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_OK);
+    for (i = 0; i < 7; ++i)
+        for (k = 0; k < 3; ++k) {
+            double want = (double)own[src[i] * 3 + k] * r[i].albedo[k] / r[src[i]].albedo[k];
+            assert_true(own[i * 3 + k] > 0.0f || i == 5);   /* 5 faces along the plane: no light */
+            assert_true(fabs(L[i * 3 + k] - want) <= 1e-6 * want);
+        }
+    assert_true(fabs(L[0] - own[0]) > 1e-4 * own[0]);   /* (1,0) took (0,0)'s light, not its own */
+    src[0] = 7;
+    assert_int_equal(gim_lightskin_shade_twin(&sd, L), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(lg.errors, 4);
+    assert_int_equal(as.live, 0);
+}
+
 static void argument_errors(void **state) {
     test_alloc_stats as; test_log lg;
     gim_env env = test_env(&as, &lg);
@@ -871,6 +955,7 @@ int main(void) {
         cmocka_unit_test(guards_finite),
         cmocka_unit_test(extreme_values),
         cmocka_unit_test(interpolation_at_cache),
+        cmocka_unit_test(shade_blocks),
         cmocka_unit_test(scale_invariance),
         cmocka_unit_test(energy_wall),
         cmocka_unit_test(argument_errors),
