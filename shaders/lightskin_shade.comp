@@ -268,11 +268,11 @@ bool receiver_at(ivec2 px, out vec3 x, out vec3 nx) {
     return true;
 }
 
-/* The Phong exponent of pixel px's material (0 with the host's G-buffer). */
-float exponent_at(ivec2 px) {
-    if ((flags & 2u) != 0u) return 0.0;
+/* The glossy lobe of pixel px's material: rgb, w = Phong exponent (0 with the host's G-buffer). */
+vec4 lobe_at(ivec2 px) {
+    if ((flags & 2u) != 0u) return vec4(0.0);
     uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
-    return material[id].glossy.w;
+    return material[id].glossy;
 }
 
 /* best_* := the n nearest compatible caches to (x, nx): from the tile's list or per pixel. */
@@ -318,14 +318,9 @@ void light_at(Near b, vec3 x, vec3 nx, vec3 view, float k, out vec3 dl, out vec3
 /* Pixel px's radiance from the light at its receiver (or its block's): its albedo and glossy
    colour (1 and 0 with the host's G-buffer); clamped to the format (GL leaves a float beyond
    RGBA16F's range to the implementation: llvmpipe stores 65504, others Inf). */
-void shade(ivec2 px, vec3 dl, vec3 gl) {
+void shade(ivec2 px, vec3 gcol, vec3 dl, vec3 gl) {
     if ((flags & 4u) != 0u) { imageStore(indirect, px, vec4(dl, 1.0)); return; }
-    vec3 albedo = vec3(1.0), gcol = vec3(0.0);
-    if ((flags & 2u) == 0u) {
-        albedo = texelFetch(gbuffer_albedo, px, 0).rgb;
-        uint id = min(uint(max(texelFetch(gbuffer_material, px, 0).r, 0.0)), material_count - 1u);
-        gcol = material[id].glossy.rgb;
-    }
+    vec3 albedo = (flags & 2u) == 0u ? texelFetch(gbuffer_albedo, px, 0).rgb : vec3(1.0);
     vec3 outc = albedo / PI * dl + gcol * gl;
     imageStore(indirect, px, vec4(min(outc, vec3(max_value)), 1.0));
 }
@@ -345,12 +340,15 @@ void main() {
     ivec2 base = ivec2(gl_WorkGroupID.xy * 8u + gl_LocalInvocationID.xy) * B;
     /* the block's receivers, at constant indices (q < B^2) */
     vec3 bx[4], bn[4];
+    vec4 bg[4];   /* glossy lobes */
     bool br[4];
     vec3 lo = vec3(FLT_MAX), hi = vec3(-FLT_MAX), ns = vec3(0.0);
     float count = 0.0;
     for (int q = 0; q < 4; ++q) {
         br[q] = q < B * B && receiver_at(base + ivec2(q % B, q / B), bx[q], bn[q]);
+        bg[q] = vec4(0.0);
         if (!br[q]) continue;
+        bg[q] = lobe_at(base + ivec2(q % B, q / B));
         lo = min(lo, bx[q]);
         hi = max(hi, bx[q]);
         ns += bn[q];
@@ -408,15 +406,13 @@ void main() {
 
     /* 1. the light at the block's first receiver r (eq. 8-9 over its n nearest caches) */
     vec3 xr = vec3(0.0), nr = vec3(0.0);
+    float kr = 0.0;
     bool any = false;
     int r = 0;
     for (int q = 3; q >= 0; --q)
-        if (br[q]) { xr = bx[q]; nr = bn[q]; r = q; any = true; }
+        if (br[q]) { xr = bx[q]; nr = bn[q]; kr = bg[q].w; r = q; any = true; }
     vec3 dl = vec3(0.0), gl = vec3(0.0), view = vec3(0.0);
-    float kr = 0.0;
     if (any) {
-        ivec2 pr = base + ivec2(r % B, r / B);
-        kr = exponent_at(pr);
         view = normalize(eye.w > 0.0 ? eye.xyz - xr : eye.xyz);
         Near b;
         neighbours(b, listed, xr, nr, radius);
@@ -427,7 +423,7 @@ void main() {
         ivec2 px = base + ivec2(q % B, q / B);
         if (q >= B * B || px.x >= int(size.x) || px.y >= int(size.y)) continue;
         if (!br[q]) { imageStore(indirect, px, vec4(0.0)); continue; }
-        if (q == r || shares(bx[q], bn[q], exponent_at(px), xr, nr, kr)) shade(px, dl, gl);
+        if (q == r || shares(bx[q], bn[q], bg[q].w, xr, nr, kr)) shade(px, bg[q].rgb, dl, gl);
         else fallback[atomicAdd(fallback_count, 1u)] = uint(px.x) | (uint(px.y) << 16);
     }
     barrier();
@@ -436,12 +432,12 @@ void main() {
         ivec2 px = ivec2(int(fallback[e] & 0xffffu), int(fallback[e] >> 16));
         vec3 x, nx;
         receiver_at(px, x, nx);
-        float k = exponent_at(px);
+        vec4 g = lobe_at(px);
         vec3 v = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
         vec3 d2, g2;
         Near b;
         neighbours(b, listed, x, nx, radius);
-        light_at(b, x, nx, v, k, d2, g2);
-        shade(px, d2, g2);
+        light_at(b, x, nx, v, g.w, d2, g2);
+        shade(px, g.rgb, d2, g2);
     }
 }
