@@ -119,8 +119,9 @@ vec3 interp_light(Near b, bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, f
         if (uint(j) >= b.found) break;
         uint i = b.i[j];
         vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
-        Proxy p = is_glossy ? glossy[i] : diffuse[i];
-        vec3 op = p.position_radius.xyz - c;             /* the proxy's offset */
+        /* the two fields used, not the whole Proxy (its sigma is not read here) */
+        vec3 op = (is_glossy ? glossy[i].position_radius.xyz : diffuse[i].position_radius.xyz) - c;   /* the proxy's offset */
+        vec4 fv = is_glossy ? glossy[i].flux_visibility : diffuse[i].flux_visibility;
         float dp2 = dot(op, op);
         float dist = length(x - c);
         float tent = dcmax > near_ ? max(1.0 - dist / dcmax, 0.0) : 1.0;   /* eq. 8 distance term */
@@ -138,7 +139,7 @@ vec3 interp_light(Near b, bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, f
         nterm = nterm > 0.0 ? sqrt(nterm) : 0.0;
         /* E_j at x, the proxy never nearer than 1e-6 scene scales; the division first keeps
            flux / distance^2 (an irradiance) in range at any scale */
-        vec3 ej = cos_x > 0.0 ? p.flux_visibility.xyz / (4.0 * PI * max(dp2, near_ * near_)) * (p.flux_visibility.w * cos_x * f)
+        vec3 ej = cos_x > 0.0 ? fv.xyz / (4.0 * PI * max(dp2, near_ * near_)) * (fv.w * cos_x * f)
                               : vec3(0.0);
         for (int pass = 0; pass < 2; ++pass) {
             float wt = pass == 0 ? tent * nterm : nterm;
