@@ -666,7 +666,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    exponent for all caches: the smallest of those materials, the widest lobe) -> per pixel: the n nearest caches whose normal is within 2 theta_eps (at most 90
    degrees) of the pixel's, within 3 grid cells (the cell is twice the mean spacing of the
    caches, sqrt of their mean area), interpolated (eq. 8-9) and shaded into the indirect
-   texture (gim_lightskin_shade_twin is the twin). A scene without caches gets no LightSkin passes
+   texture, once per 2 x 2 block where its pixels lie on one surface (lightskin.shade_block;
+   gim_lightskin_shade_twin with gim_shade_sources is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
    after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the

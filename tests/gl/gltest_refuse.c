@@ -40,6 +40,11 @@ static void timing_and_scale(void **state) {
     fr.timing = 2;
     assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
     fr = ff.fr;
+    fr.lightskin.shade_block = 3;   /* 1 or 2 */
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE, "shade_block 3: 1 (per pixel) or 2");
+    fr.lightskin.shade_block = 1;
+    assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
+    fr = ff.fr;
     fr.scene_scale = 1e30f;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE, "valid within 0.001..1000 diagonals");
     fr.scene_scale = 1e-6f;   /* the box is about 1.7 across */
