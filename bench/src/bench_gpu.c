@@ -30,25 +30,28 @@ typedef struct gpu_method {
     uint32_t bounces;
     uint32_t importance_tile;   /* 0: the library's default */
     uint32_t neighbours;        /* LightSkin's caches per pixel; 0: the default (16) */
+    uint32_t shade_block;       /* LightSkin's shading blocks; 0: the default (2 x 2) */
 } gpu_method;
 
 /* every method at its library defaults but for the sizes above, each with imperfect shadow maps
    right after it (the cost of visibility: the ISM row over the row before); LightSkin + BRSM is
-   the default method, also with the two-level importance map's measured tile (8) and with fewer
-   caches per pixel (what the shading pass's neighbour search costs) */
+   the default method, also with the two-level importance map's measured tile (8), with fewer
+   caches per pixel (what the shading pass's neighbour search costs) and shaded per pixel
+   instead of in 2 x 2 blocks */
 static const gpu_method methods[] = {
-    {"RSM gather", GIM_METHOD_RSM_GATHER, GIM_VISIBILITY_OFF, 0, 0, 0},
-    {"LightSkin + BRSM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 0},
-    {"LightSkin + BRSM, ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 0, 0, 0},
-    {"LightSkin + BRSM, tile 8", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 8, 0},
-    {"LightSkin + BRSM, 4 caches a pixel", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 4},
-    {"LightSkin + BRSM, 1 cache a pixel", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 1},
-    {"LightSkin FULL", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_OFF, 0, 0, 0},
-    {"LightSkin FULL, ISM", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_ISM, 0, 0, 0},
-    {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0, 0},
-    {"clustered, ISM", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_ISM, 1, 0, 0},
-    {"SSVP, 2 bounces", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0, 0},
-    {"SSVP, 2 bounces, ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0, 0},
+    {"RSM gather", GIM_METHOD_RSM_GATHER, GIM_VISIBILITY_OFF, 0, 0, 0, 0},
+    {"LightSkin + BRSM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 0, 0},
+    {"LightSkin + BRSM, ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 0, 0, 0, 0},
+    {"LightSkin + BRSM, tile 8", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 8, 0, 0},
+    {"LightSkin + BRSM, 4 caches a pixel", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 4, 0},
+    {"LightSkin + BRSM, 1 cache a pixel", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 1, 0},
+    {"LightSkin + BRSM, shaded per pixel", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 0, 0, 0, 1},
+    {"LightSkin FULL", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_OFF, 0, 0, 0, 0},
+    {"LightSkin FULL, ISM", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_ISM, 0, 0, 0, 0},
+    {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0, 0, 0},
+    {"clustered, ISM", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_ISM, 1, 0, 0, 0},
+    {"SSVP, 2 bounces", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0, 0, 0},
+    {"SSVP, 2 bounces, ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0, 0, 0},
 };
 #define METHOD_COUNT (sizeof methods / sizeof methods[0])
 
@@ -211,6 +214,7 @@ static void run_scene(gim_context *ctx, gim_env env, const gpu_scene *gs, FILE *
         f.vpl.bounces = methods[mi].bounces;
         f.lightskin.importance_tile = methods[mi].importance_tile;
         f.lightskin.neighbour_count = methods[mi].neighbours;
+        f.lightskin.shade_block = methods[mi].shade_block;
         fprintf(stderr, "bench_gpu: %.0f s: %s, %s\n", now_s() - start_s, gs->name, methods[mi].name);
         if (!measure(ctx, &f, &first_ms, &frame_ms, pass_ms, &mib, &n)) {
             fprintf(out, "| %s | %s | refused (see the log line above) | | | | |\n", gs->name, methods[mi].name);
