@@ -115,7 +115,7 @@ void visit(inout Near b, ivec3 c, vec3 x, vec3 nx, float radius) {
 vec3 interp_light(Near b, bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, float dcmax) {
     float sw[2] = float[2](0.0, 0.0);
     vec3 se[2] = vec3[2](vec3(0.0), vec3(0.0));
-    for (int j = 0; j < MAX_N; ++j) {   /* constant indices into best_i (see offer) */
+    for (int j = 0; j < MAX_N; ++j) {   /* constant indices into b.i (see offer) */
         if (uint(j) >= b.found) break;
         uint i = b.i[j];
         vec3 c = cache[i].position_area.xyz, nc = cache[i].normal_reflectance.xyz;
@@ -269,6 +269,9 @@ bool receiver_at(ivec2 px, out vec3 x, out vec3 nx) {
     return true;
 }
 
+/* The direction from x towards the eye (perspective) or the eye's direction (orthographic). */
+vec3 view_at(vec3 x) { return normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz); }
+
 /* The glossy lobe of pixel px's material: rgb, w = Phong exponent (0 with the host's G-buffer). */
 vec4 lobe_at(ivec2 px) {
     if ((flags & 2u) != 0u) return vec4(0.0);
@@ -276,7 +279,7 @@ vec4 lobe_at(ivec2 px) {
     return material[id].glossy;
 }
 
-/* best_* := the n nearest compatible caches to (x, nx): from the tile's list or per pixel. */
+/* b := the n nearest compatible caches to (x, nx): from the tile's list or per pixel. */
 void neighbours(out Near b, bool listed, vec3 x, vec3 nx, float radius) {
     b.found = 0u;
     for (int j = 0; j < MAX_N; ++j) { b.d[j] = FLT_MAX; b.i[j] = 0xffffffffu; }
@@ -412,12 +415,11 @@ void main() {
     int r = 0;
     for (int q = 3; q >= 0; --q)
         if (br[q]) { xr = bx[q]; nr = bn[q]; kr = bg[q].w; r = q; any = true; }
-    vec3 dl = vec3(0.0), gl = vec3(0.0), view = vec3(0.0);
+    vec3 dl = vec3(0.0), gl = vec3(0.0);
     if (any) {
-        view = normalize(eye.w > 0.0 ? eye.xyz - xr : eye.xyz);
         Near b;
         neighbours(b, listed, xr, nr, radius);
-        light_at(b, xr, nr, view, kr, dl, gl);
+        light_at(b, xr, nr, view_at(xr), kr, dl, gl);
     }
     /* 2. the block's pixels: r's light where they share it, else each its own later */
     for (int q = 0; q < 4; ++q) {   /* constant indices into bx, bn, br (see offer) */
@@ -434,11 +436,10 @@ void main() {
         vec3 x, nx;
         receiver_at(px, x, nx);
         vec4 g = lobe_at(px);
-        vec3 v = normalize(eye.w > 0.0 ? eye.xyz - x : eye.xyz);
         vec3 d2, g2;
         Near b;
         neighbours(b, listed, x, nx, radius);
-        light_at(b, x, nx, v, g.w, d2, g2);
+        light_at(b, x, nx, view_at(x), g.w, d2, g2);
         shade(px, g.rgb, d2, g2);
     }
 }
