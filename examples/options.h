@@ -25,6 +25,7 @@ typedef struct demo_options {
     uint32_t view_samples;
     uint32_t importance_tile; /* brsm: the two-level importance map's tile side (0: gimany's default; 1: per texel) */
     uint32_t shade_block;    /* brsm, full: the shading pass's block side (0: gimany's default; 1: per pixel) */
+    uint32_t neighbours;     /* brsm, full: caches interpolated per pixel (0: gimany's default, 16) */
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM */
@@ -52,6 +53,7 @@ static const char demo_usage_text[] =
     "                        its tile (1..32; 1: per texel; default: gimany's, GIM_DEFAULT_IMPORTANCE_TILE)\n"
     "  --shade-block B       brsm, full: neighbours and interpolation once per B x B pixel block, shared by\n"
     "                        the block's pixels on one surface (1: per pixel; 2; default: GIM_DEFAULT_SHADE_BLOCK)\n"
+    "  --neighbours N        brsm, full: nearest caches interpolated per pixel (1..16; default 16)\n"
     "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 2048, 30 clustered;\n"
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
@@ -98,7 +100,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
     static const struct { const char *name; uint32_t lo, hi; } nums[] = {
         {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
         {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64},
-        {"--ism-points", 1, 65536}, {"--importance-tile", 1, 32}, {"--shade-block", 1, 2}};
+        {"--ism-points", 1, 65536}, {"--importance-tile", 1, 32}, {"--shade-block", 1, 2},
+        {"--neighbours", 1, GIM_MAX_NEIGHBOUR_CACHES}};
     int i, n = 0;
     rest[n++] = argv[0];
     for (i = 1; i < argc; ++i) {
@@ -134,10 +137,10 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (i + 1 < argc) v = argv[++i];
         else { snprintf(err, cap, "option %.*s needs a value (see --help)", (int)len, a); return -1; }
         if (num >= 0) {
-            uint32_t x, *dst[10];
+            uint32_t x, *dst[11];
             dst[0] = &d->rsm; dst[1] = &d->vals; dst[2] = &d->view_samples;
             dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size; dst[7] = &d->ism_points;
-            dst[8] = &d->importance_tile; dst[9] = &d->shade_block;
+            dst[8] = &d->importance_tile; dst[9] = &d->shade_block; dst[10] = &d->neighbours;
             if (!demo_parse_u32(v, nums[num].lo, nums[num].hi, &x)) {
                 snprintf(err, cap, "%s wants an integer in %u..%u, got '%.200s'", nums[num].name, (unsigned)nums[num].lo,
                          (unsigned)nums[num].hi, v);
@@ -195,6 +198,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->lightskin.view_sample_count = d->view_samples;
     f->lightskin.importance_tile = d->importance_tile;
     f->lightskin.shade_block = d->shade_block;
+    f->lightskin.neighbour_count = d->neighbours;
     f->lightskin.rotate_view_samples = 1;
     f->visibility.mode = d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
     f->visibility.ism_size = d->ism_size;

@@ -172,6 +172,26 @@ static void sky_is_zero(void **state) {
     free(dir);
 }
 
+/* --neighbours reaches the frame: one cache per pixel lights the box otherwise than 16 (the
+   same draw: frame 1 of the same settings). */
+static void neighbours_option(void **state) {
+    char *out = NULL;
+    float *a, *b;
+    uint32_t i, differ = 0;
+    (void)state;
+    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", OUT "/n16", &out), 0);
+    free(out);
+    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64 --neighbours 1", OUT "/n1", &out), 0);
+    free(out);
+    a = read_image(OUT "/n16", "indirect.pfm", 32, 24);
+    b = read_image(OUT "/n1", "indirect.pfm", 32, 24);
+    for (i = 0; i < 32 * 24 * 3; ++i) differ += a[i] != b[i];
+    print_message("--neighbours 1 against 16: %u of %u values differ\n", differ, 32 * 24 * 3);
+    assert_true(differ > 32 * 24);
+    free(a);
+    free(b);
+}
+
 /* The direct light against its closed form: a spot of our own at p = (0.12, 0.5, -0.12) (away
    from the blocks) pointing down, and a camera at p looking straight down: the middle pixels see
    the white floor under it lit at normal incidence from d = 0.5 m, L = rho / pi I / d^2. A
@@ -297,6 +317,8 @@ static void bad_input(void **state) {
         {"--rsm 3", "--rsm"},
         {"--frames 0", "--frames"},
         {"--view-samples -4", "--view-samples"},
+        {"--neighbours 0", "--neighbours"},
+        {"--neighbours 17", "--neighbours"},
         {"--method nope", "--method"},
         {"--bounces 2", "--bounces 2 needs --method clustered or ssvp"},
         {"--method gather --bounces 2", "--bounces 2 needs"},
@@ -470,7 +492,7 @@ static void stale_outputs_removed(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),   cmocka_unit_test(direct_closed_form),
+        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero), cmocka_unit_test(neighbours_option), cmocka_unit_test(direct_closed_form),
         cmocka_unit_test(direct_glossy),   cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
         cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),
         cmocka_unit_test(stale_outputs_removed),
