@@ -422,7 +422,7 @@ void main() {
         light_at(b, xr, nr, view_at(xr), kr, dl, gl);
     }
     /* 2. the block's pixels: r's light where they share it, else each its own later */
-    for (int q = 0; q < 4; ++q) {   /* constant indices into bx, bn, br (see offer) */
+    for (int q = 0; q < 4; ++q) {   /* constant indices into bx, bn, bg, br (see offer) */
         ivec2 px = base + ivec2(q % B, q / B);
         if (q >= B * B || px.x >= int(size.x) || px.y >= int(size.y)) continue;
         if (!br[q]) { imageStore(indirect, px, vec4(0.0)); continue; }

@@ -492,10 +492,10 @@ static void stale_outputs_removed(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero), cmocka_unit_test(neighbours_option), cmocka_unit_test(direct_closed_form),
-        cmocka_unit_test(direct_glossy),   cmocka_unit_test(methods),         cmocka_unit_test(bad_input),     cmocka_unit_test(no_triangles),
-        cmocka_unit_test(hostile_gltf),    cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),
-        cmocka_unit_test(stale_outputs_removed),
+        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),     cmocka_unit_test(neighbours_option),
+        cmocka_unit_test(direct_closed_form), cmocka_unit_test(direct_glossy), cmocka_unit_test(methods),
+        cmocka_unit_test(bad_input),       cmocka_unit_test(no_triangles),    cmocka_unit_test(hostile_gltf),
+        cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),        cmocka_unit_test(stale_outputs_removed),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
