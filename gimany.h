@@ -1282,7 +1282,8 @@ GIMANY_API gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
 /* LightSkin cache lighting, CPU twins of its GPU passes (Bischoff 2017 sec. 3 "Cache Lighting",
    "Proxy Lights Generation", "Interpolation using the Proxy Lights"; sec. 4 eq. 13-15).
    Each function has the structure of its pass: one independent invocation per cache
-   (gim_proxy_lights_twin) or per receiver pixel (gim_lightskin_shade_twin),
+   (gim_proxy_lights_twin; the GPU pass also splits a cache's VALs over lanes and merges
+   their sums, gim__proxy_lanes) or per receiver pixel (gim_lightskin_shade_twin),
    each a loop in a fixed order, so the results are deterministic.
 
    Units (docs/design.md sec. 5): a VAL is an RSM texel, a Lambertian disk of area A_l with
@@ -8415,9 +8416,10 @@ struct gim_context {
     gim__GLuint programs[GIM__PROGRAM_COUNT];
     gim__GLuint scan_blocks;      /* eq. 12 scratch: per-block column totals, then offsets */
     size_t scan_blocks_bytes;
-    gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache */
+    gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache's lane */
     uint64_t proxy_state_bytes;
     uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
+    uint32_t proxy_lanes;         /* invocations per cache in the proxy pass; 0: gim__proxy_lanes (tests set it) */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
     gim__GLint max_layers[2];     /* GL_MAX_ARRAY_TEXTURE_LAYERS, GL_MAX_FRAMEBUFFER_LAYERS (asked once, not a frame) */
@@ -9124,6 +9126,24 @@ static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint 
    bound of Mesa's llvmpipe over all loops of one invocation (it stops them silently there),
    and short enough for a desktop GPU's watchdog */
 #define GIM__PROXY_CHUNK 32768u
+/* Lanes per cache of the proxy pass (proxy_lights.comp), a power of two up to
+   GIM__PROXY_MAX_LANES: doubled while the pass stays within GIM__PROXY_INVOCATIONS invocations,
+   about what a large GPU keeps in flight (an H100: 132 multiprocessors x 2048), so a scene of
+   few caches still fills it (one invocation per cache left 98% of it idle on Sponza's 24,863),
+   and while every lane keeps GIM__PROXY_LANE_VALS VALs, against each lane's fixed cost (its
+   cache, its sums read and written per dispatch). Each lane sums its own VALs, mode 2 merges
+   them; their sums cost 96 bytes a lane (at most 12 MiB at the bound). */
+#define GIM__PROXY_MAX_LANES 16u
+#define GIM__PROXY_INVOCATIONS (1u << 17)
+#define GIM__PROXY_LANE_VALS 512u
+static uint32_t gim__proxy_lanes(const gim_context *ctx, uint32_t cache_count, uint32_t val_count) {
+    uint32_t l = 1u;
+    if (ctx->proxy_lanes) return ctx->proxy_lanes;
+    while (l < GIM__PROXY_MAX_LANES && (uint64_t)cache_count * l * 2u <= GIM__PROXY_INVOCATIONS &&
+           (uint64_t)val_count >= (uint64_t)l * 2u * GIM__PROXY_LANE_VALS)
+        l *= 2u;
+    return l;
+}
 
 /* The scene's points the maps draw their subsets from: four times a map's, so the subsets
    differ per map (at most GIM_ISM_MAX_POINTS). */
@@ -9171,7 +9191,7 @@ static uint32_t gim__ism_align_maps(const gim_context *ctx, uint32_t size) {
    and a sum that overflows float gives the proxy x_p = c and zero flux, so every output is
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
-   a scratch buffer of 96 bytes a cache between them. */
+   a scratch buffer of 96 bytes a lane of a cache between them (gim__proxy_lanes). */
 /* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
    gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
 typedef struct gim__gl_ism {
@@ -9206,12 +9226,13 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
-    uint32_t step, range, cache_first;
+    uint32_t step, range, cache_first, lanes;
     uint64_t map_bytes;
     gim_result r;
     if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
     if (cache_count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "cache_count is 0");
     if (val_count > 0 && !vals) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "vals is 0");
+    lanes = gim__proxy_lanes(ctx, cache_count, val_count);
     if (cache_count > 65535u * GIM__PROXY_GROUP)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "cache_count %u above %u", (unsigned)cache_count,
                          65535u * GIM__PROXY_GROUP);
@@ -9257,7 +9278,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, val_count > 0 ? vals : caches); /* never read then */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, diffuse_out);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, glossy_out ? glossy_out : diffuse_out); /* never written then */
-    r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)cache_count * 96u, where);
+    r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)cache_count * lanes * 96u, where);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, ctx->proxy_state);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, glossy_out && exponents ? exponents : caches); /* read only then */
@@ -9269,6 +9290,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->Uniform1f(4, coincident * coincident);
     gl->Uniform1ui(5, glossy_out ? 1u : 0u);
     gl->Uniform1ui(9, glossy_out && exponents ? 1u : 0u);
+    gl->Uniform1ui(10, lanes);
     gl->Uniform1ui(12, with_ism ? ism->size : 0u);
     gl->Uniform1f(13, with_ism ? (ism->bias > 0.0f ? ism->bias : GIM_ISM_BIAS) : 0.0f);
     gl->Uniform1f(14, with_ism ? (ism->slope > 0.0f ? ism->slope : GIM_ISM_SLOPE) * 2.0f / (float)ism->size : 0.0f);
@@ -9297,7 +9319,8 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
                 gl->Uniform1ui(6, first);
                 gl->Uniform1ui(7, n);
                 gl->Uniform1ui(8, mode);
-                gl->DispatchCompute((cache_end - cache_first + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP, 1u, 1u);
+                gl->DispatchCompute((cache_end - cache_first + GIM__PROXY_GROUP - 1u) / GIM__PROXY_GROUP,
+                                    mode == 0u || mode == 3u ? lanes : 1u, 1u);   /* lane 0 alone merges */
                 gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
                 first += n;
             } while (mode != 2u && first < val_count);

@@ -1,6 +1,13 @@
 /* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights_twin:
-   one invocation per cache looping over every VAL in a fixed order, the VAL list passed
-   through shared memory in tiles of TILE (one VAL loaded per invocation). The formulas,
+   one invocation per cache and lane looping over the lane's VALs in a fixed order, the VAL
+   list passed through shared memory in tiles of TILE (one VAL loaded per invocation). The VALs'
+   tiles (VALs [T TILE, (T + 1) TILE)) are dealt to `lanes` lanes, T to lane T mod lanes
+   (gl_WorkGroupID.y), each summed apart in every dispatch, and the last dispatch (mode 2) merges a cache's lanes (Chan et al.'s pairwise form of the
+   weighted mean and sum of squares) and writes its proxy lights. Lanes exist for a large GPU:
+   one invocation per cache left an H100 under 2% busy on Sponza's 24,863 caches; the host picks
+   them so the pass has about 2^17 invocations (gim__proxy_lanes), 1 where the caches alone
+   give that many. The lane is the work group's, so every invocation reads the same tile entry
+   at a time (a broadcast). The formulas,
    guards and clamps are the twin's (see gim_proxy_lights_twin in gimany.h); the sums are in float
    here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
@@ -28,11 +35,13 @@ layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out 
 layout(location = 6) uniform uint first;         /* this dispatch's VALs: [first, first + chunk) */
 layout(location = 7) uniform uint chunk;
 layout(location = 9) uniform uint per_cache_k;  /* 1: each cache's k from cache_k (its material's lobe) */
+layout(location = 10) uniform uint lanes;        /* runs of VALs per cache (modes 0 and 3; 1 and 2 run lane 0 only) */
 layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 3: the
                                                     near VALs past the first NEAR_CAP; 1: the
                                                     form-factor positions of dark caches; 2: write
                                                     the proxy lights */
-/* The sums of every cache between dispatches, 6 vec4 each: (s, w), (mean, E_n), (m2, aux) of
+/* The sums of every lane of every cache between dispatches (lane l of cache i at (i lanes + l) 6),
+   6 vec4 each: (s, w), (mean, E_n), (m2, aux) of
    the diffuse sums, (s, w), (mean, shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in
    chunks, each its own dispatch: a driver may bound the loop iterations of one invocation
    (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
@@ -156,6 +165,19 @@ void rescale(inout Sums a, inout float shift, float to) {
     shift = to;
 }
 
+/* a += b: the sums of two disjoint sets of VALs (Chan et al. 1979's pairwise update of the
+   weighted mean and sum of squared deviations, in West's form as add_position) */
+void merge(inout Sums a, Sums b) {
+    a.s += b.s;
+    float w1 = a.w + b.w;
+    if (w1 > 0.0) {
+        vec3 delta = b.mean - a.mean;
+        a.mean = a.w > 0.0 ? a.mean + delta * (b.w / w1) : b.mean;
+        a.m2 += b.m2 + (b.w * (a.w / w1)) * delta * delta;
+    }
+    a.w = w1;
+}
+
 /* eq. 5/13 position, sigma, eq. 7 flux with the guard (normal irradiance <= E_n); the sums
    (not E_n) scaled by 2^-shift */
 Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float shift, float k) {
@@ -187,11 +209,12 @@ Proxy finish(Sums a, float en, vec3 c, vec3 n, vec3 v, bool glossy_lobe, float s
     return p;
 }
 
-/* load VAL j into the tile slot; a broken VAL gets weight 0 */
-void load(uint j, uint slot) {
+/* load VAL j (of the dispatch's [first, end)) into the tile slot; a broken VAL, or none, gets
+   weight 0 and adds nothing */
+void load(uint j, uint end, uint slot) {
     vec4 pa = vec4(0.0), nw = vec4(0.0);
     vec3 f = vec3(0.0);
-    if (j < val_count) {
+    if (j < val_count && j >= first && j < end) {
         pa = val[j].position_area;
         nw = val[j].normal_weight;
         f = val[j].flux.rgb;
@@ -230,6 +253,7 @@ void accumulate(inout Sums sd, inout Sums sg, inout float en, inout float shift,
 void main() {
     uint i = cache_first + gl_GlobalInvocationID.x;
     uint local = gl_LocalInvocationIndex;
+    uint lane = gl_WorkGroupID.y;
     bool inside = i < cache_count;
     uint ii = min(i, cache_count - 1u);
     Cache cc = cache[ii];
@@ -248,7 +272,7 @@ void main() {
     uint near_list[NEAR_CAP];
     uint near_n = 0u;
     if (mode != 0u || first != 0u) {
-        uint b = ii * 6u;
+        uint b = (ii * lanes + lane) * 6u;
         vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
         sd = Sums(a0.xyz, a0.w, a1.xyz, a2.xyz);
         en = a1.w;
@@ -257,16 +281,23 @@ void main() {
         shift = g1.w;
         near_seen = g2.w;
     }
+    /* the dispatch's VALs [first, end) in the tiles T0 <= T < T1 that touch them: this lane's
+       are T = lane mod lanes (modes 0 and 3; the same tiles whatever the chunks, so mode 3
+       counts the near VALs of mode 0 again); mode 1 runs lane 0 over all of them */
     uint end = first + chunk;
+    uint deal = mode == 1u ? 1u : lanes;
+    uint tile0 = first / uint(TILE), tile1 = (end + uint(TILE) - 1u) / uint(TILE);
+    uint mine = tile0 + (lane + deal - tile0 % deal) % deal;
     vec3 ism_o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z), ism_t = vec3(0.0), ism_b = vec3(0.0);
     if (ism_size != 0u) basis(n, ism_t, ism_b);
     if (mode == 0u) {
-        for (uint base = first; base < end; base += uint(TILE)) {
-            load(base + local, local);
+        for (uint tile = mine; tile < tile1; tile += deal) {
+            uint base = tile * uint(TILE);
+            load(base + local, end, local);
             barrier();
             uint count = min(uint(TILE), end - base);
             if (inside)
-                for (uint t = 0u; t < count; ++t) {
+                for (uint t = base < first ? first - base : 0u; t < count; ++t) {
                     vec3 d = tile_pa[t].xyz - c;
                     float d2 = dot(d, d);
                     float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;   /* no direction: no light */
@@ -313,14 +344,15 @@ void main() {
         if (over) any_work = 1u;
         barrier();
         if (any_work != 0u) {
-            for (uint base = first; base < end; base += uint(TILE)) {
-                load(base + local, local);
+            for (uint tile = mine; tile < tile1; tile += deal) {
+                uint base = tile * uint(TILE);
+                load(base + local, end, local);
                 barrier();
                 uint count = min(uint(TILE), end - base);
                 uint late[TILE / 4];
                 uint late_n = 0u;
                 if (over)
-                    for (uint t = 0u; t < count; ++t) {
+                    for (uint t = base < first ? first - base : 0u; t < count; ++t) {
                         vec3 d = tile_pa[t].xyz - c;
                         float d2 = dot(d, d);
                         float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
@@ -353,18 +385,23 @@ void main() {
         /* a dark cache (no VAL lit it: decided at the first chunk): the form-factor weights of
            eq. 6 place the proxy; the loop runs in the work groups that hold one (barrier()
            needs the whole group) */
-        if (first == 0u) aux = inside && !(sd.w > 0.0) ? 1.0 : 0.0;
+        if (first == 0u) {   /* dark: no lane of the cache lit (lane 0 alone runs here) */
+            bool lit = sd.w > 0.0;
+            for (uint l = 1u; l < lanes; ++l) lit = lit || state[(ii * lanes + l) * 6u].w > 0.0;
+            aux = inside && !lit ? 1.0 : 0.0;
+        }
         if (local == 0u) any_work = 0u;
         barrier();
         if (aux > 0.0) any_work = 1u;
         barrier();
         if (any_work != 0u) {
-            for (uint base = first; base < end; base += uint(TILE)) {
-                load(base + local, local);
+            for (uint tile = mine; tile < tile1; tile += deal) {
+                uint base = tile * uint(TILE);
+                load(base + local, end, local);
                 barrier();
                 uint count = min(uint(TILE), end - base);
                 if (aux > 0.0)
-                    for (uint t = 0u; t < count; ++t) {
+                    for (uint t = base < first ? first - base : 0u; t < count; ++t) {
                         vec3 d = tile_pa[t].xyz - c;
                         float d2 = dot(d, d);
                         float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
@@ -381,7 +418,7 @@ void main() {
     }
     if (!inside) return;
     if (mode != 2u) {
-        uint b = i * 6u;
+        uint b = (i * lanes + lane) * 6u;
         state[b] = vec4(sd.s, sd.w);
         state[b + 1u] = vec4(sd.mean, en);
         state[b + 2u] = vec4(sd.m2, aux);
@@ -389,6 +426,19 @@ void main() {
         state[b + 4u] = vec4(sg.mean, shift);
         state[b + 5u] = vec4(sg.m2, near_seen);
         return;
+    }
+    /* mode 2 (lane 0): the cache's lanes merged into its own sums (loaded above), the glossy
+       ones first brought to the larger shift */
+    for (uint l = 1u; l < lanes; ++l) {
+        uint b = (i * lanes + l) * 6u;
+        vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
+        merge(sd, Sums(a0.xyz, a0.w, a1.xyz, a2.xyz));
+        en += a1.w;
+        Sums gl = Sums(g0.xyz, g0.w, g1.xyz, g2.xyz);
+        float gshift = g1.w;
+        if (gshift > shift) rescale(sg, shift, gshift);
+        else if (gshift < shift) rescale(gl, gshift, shift);
+        merge(sg, gl);
     }
     diffuse_out[i] = finish(sd, en, c, n, v, false, 0.0, k);
     if (glossy) {

@@ -82,11 +82,14 @@ def pass_ms(threads, parts, gpu, e, w):
 def mem(bytes_, gpu, e):
     return bytes_ / (gpu[4] * 1e9 * EFF[e]["bw"]) * 1e3
 
+# the VAL loop of proxy_lights.comp's modes 0 and 1 (the first line holding it: mode 0's)
+T_PROXY = "for (uint t = base < first ? first - base : 0u; t < count; ++t)"
+
 # --- instructions per iteration. Both scenes are diffuse only (the street's materials are
 # make_material's, diffuse; sponza_lod4.glb has no materials: the loader's grey 0.8), so the
 # frame runs the diffuse variants (with_glossy = 0, flags = 0); the glossy ones are printed too.
-proxy_g = loop("proxy_lights-glossy", "proxy_lights.comp", "for (uint t = 0u; t < count; ++t)", nth=0)
-proxy = loop("proxy_lights-diffuse", "proxy_lights.comp", "for (uint t = 0u; t < count; ++t)", nth=0)
+proxy_g = loop("proxy_lights-glossy", "proxy_lights.comp", T_PROXY, nth=0)
+proxy = loop("proxy_lights-diffuse", "proxy_lights.comp", T_PROXY, nth=0)
 # mode 1: the form-factor positions of dark caches (no VAL lit them), a second pass over the VALs
 # in every work group that holds one; pessimistic: every group does
 T_DARK = "float f = den > 0.0 ? tile_nw[t].w * tile_pa[t].w * cos_l * cos_x / den : 0.0;"
@@ -97,7 +100,7 @@ sv = "lightskin_shade-diffuse"
 cand_it = loop(sv, "lightskin_shade.comp", "for (; j < ring_start[r + 1u]; ++j)")
 offer_it = loop(sv, "lightskin_shade.comp", "for (int j = MAX_N - 1; j > 0; --j)", nth=0)
 ring_it = loop(sv, "lightskin_shade.comp", "for (uint r = 0u; r < RINGS; ++r) {", after="float slack")
-best_it = loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? best_d[j] : v;", nth=0)
+best_it = loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? b.d[j] : v;", nth=0)
 interp_it = loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) {   /* constant indices")   # one copy: the diffuse set
 pass_it = loop(sv, "lightskin_shade.comp", "for (int pass = 0; pass < 2; ++pass)")                  # its weight passes
 plan_it = lin((1, loop(sv, "lightskin_shade.comp", "for (uint i = 0u; i < TILE; ++i) {")),
@@ -125,7 +128,7 @@ T_CAND = 'for (; j < ring_start[r + 1u]; ++j)'
 T_OFFER = 'for (int j = MAX_N - 1; j > 0; --j)'
 T_INTERP = 'for (int j = 0; j < MAX_N; ++j) {   /* constant indices'
 T_PASS = 'for (int pass = 0; pass < 2; ++pass)'
-T_BEST = 'for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? best_d[j] : v;'
+T_BEST = 'for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? b.d[j] : v;'
 T_PLAN1, T_PLAN2 = 'for (uint i = 0u; i < TILE; ++i) {', '        for (uint i = 0u; i < TILE; ++i)'
 SH = "lightskin_shade.comp"
 
@@ -144,20 +147,36 @@ def shade_parts(sc):
 def shade_per_pixel(sc):
     return sum(n * slots(c) for n, c, _ in shade_parts(sc))
 
-PL = lat("proxy_lights-diffuse", "proxy_lights.comp", "for (uint t = 0u; t < count; ++t)")
+PL = lat("proxy_lights-diffuse", "proxy_lights.comp", T_PROXY)
 IL = lat("importance_map-all", "importance_map.comp", "for (uint k = 0u; k < n; ++k)")
 print("  latency of one iteration of one warp, critical path / in-order (cycles): proxy %d / %d, importance %d / %d"
       % (PL["critical_path"], PL["in_order"], IL["critical_path"], IL["in_order"]))
 
-def proxy_ms(caches, vals, gpu, e):
-    """one thread per cache, 64 per work group: the busiest scheduler holds w warps"""
+def proxy_lanes(caches, vals):
+    """gimany.h's gim__proxy_lanes: doubled up to 16 while caches x lanes stays <= 2^17 and every
+    lane keeps 512 VALs"""
+    l = 1
+    while l < 16 and caches * l * 2 <= 1 << 17 and vals >= l * 2 * 512:
+        l *= 2
+    return l
+
+def proxy_ms(caches, vals, gpu, e, lanes=None):
+    """one thread per cache and lane, 64 per work group, each lane over vals / lanes VALs (mode
+    1, the dark caches, in lane 0 over all of them): the busiest scheduler holds w warps"""
     _, sms, _, ghz, _, maxw, _ = gpu
-    groups = math.ceil(caches / 64)
+    lanes = proxy_lanes(caches, vals) if lanes is None else lanes
+    groups = math.ceil(caches / 64) * lanes
     per_sm = min(math.ceil(groups / sms), maxw // 2)
-    rounds = math.ceil(groups / (per_sm * sms))
+    # groups beyond what is resident start as others finish: a fraction of a round, not a whole
+    rounds = max(1.0, groups / (per_sm * sms))
     w = math.ceil(2 * per_sm / 4)
-    parts = [(vals, proxy, PL)] + ([(vals, dark["max"], dark)] if e == "pess" else [])
-    return rounds * cycles(parts, w, e) / (ghz * 1e9) * 1e3, groups, 2 * groups, w
+    parts = [(math.ceil(vals / lanes), proxy, PL)]
+    t = rounds * cycles(parts, w, e)
+    if e == "pess":   # mode 1 in every group of lane 0
+        g0 = math.ceil(caches / 64)
+        p0 = min(math.ceil(g0 / sms), maxw // 2)
+        t += max(1.0, g0 / (p0 * sms)) * cycles([(vals, dark["max"], dark)], math.ceil(2 * p0 / 4), e)
+    return t / (ghz * 1e9) * 1e3, groups, 2 * groups, w
 
 rows = []
 for gpu in GPUS:
@@ -167,6 +186,7 @@ for gpu in GPUS:
         for e in ("opt", "pess"):
             t = {}
             t["proxy"], groups, warps, w = proxy_ms(caches, VALS, gpu, e)
+            one_lane = proxy_ms(caches, VALS, gpu, e, 1)[0]   # the pass before 2026-11-28
             w_imp = gpu[5] / 4.0 if e == "opt" else 8.0
             t["importance"] = max(pass_ms(TEX, [(VS, imp, IL)], gpu, e, w_imp), mem(TEX * (3 * 16 + 4), gpu, e))
             t["shade"] = pass_ms(PIX, shade_parts(sc), gpu, e, w_shade)
@@ -177,6 +197,7 @@ for gpu in GPUS:
             t["frame"] = sum(t.values())
             t["FULL proxy"] = proxy_ms(caches, TEX, gpu, e)[0]
             r[e] = t
+            r[e + " one lane"] = one_lane
         rows.append((gpu[0], sc, caches, groups, warps, w, r))
 
 print("\nbench-gpu frame (1920x1080, RSM 2048^2, 8,192 VALs, 256 view samples), LightSkin + BRSM, ms, optimistic .. pessimistic:")
@@ -189,6 +210,9 @@ for g, sc, caches, groups, warps, w, r in rows:
                      "%.0f .. %.0f" % (r["opt"][k], r["pess"][k]) for k in keys) + " |")
 print("\nproxy occupancy: " + "; ".join("%s %s: %d groups of 64, %d warps, busiest scheduler %d warp(s)" %
                                         (g, sc, groups, warps, w) for g, sc, caches, groups, warps, w, r in rows))
+print("proxy lanes: " + "; ".join("%s %s: %d lanes, %.2f .. %.2f ms (one lane: %.2f .. %.2f)" %
+                                   (g, sc, proxy_lanes(caches, VALS), r["opt"]["proxy"], r["pess"]["proxy"],
+                                    r["opt one lane"], r["pess one lane"]) for g, sc, caches, groups, warps, w, r in rows))
 print("shading: %d bytes of shared memory per 8x8 tile -> %s warps per scheduler; lane slots per pixel: %s" %
       (SHADE_SHARED, ", ".join("%s %.1f" % (g[0], min(g[6] * 1024 // SHADE_SHARED * 2, g[5]) / 4.0) for g in GPUS),
        ", ".join("%s %.0f" % (sc, shade_per_pixel(sc)) for sc in SCENES)))
@@ -200,7 +224,7 @@ def cpu_ms(lane_ops):
     return lane_ops / (2 * 8 * ghz * 1e9) * 1e3
 def ops(c, sfu=4):
     return c["alu"] + sfu * c["sfu"] + c["ld_s"] + c["ld_g"] + c["ld_t"] + c["st"]
-pe = loop("proxy_lights-diffuse", "proxy_lights.comp", "for (uint t = 0u; t < count; ++t)", path="every", nth=0)
+pe = loop("proxy_lights-diffuse", "proxy_lights.comp", T_PROXY, path="every", nth=0)
 ce = loop(sv, "lightskin_shade.comp", "for (; j < ring_start[r + 1u]; ++j)", path="every")
 oe = loop(sv, "lightskin_shade.comp", "for (int j = MAX_N - 1; j > 0; --j)", path="every", nth=0)
 ie = lin((1, loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) {   /* constant indices", path="every")),

@@ -284,31 +284,38 @@ static void matches_twin(void **state) {
 }
 
 /* The VALs in several dispatches: chunks of 100 and of 64 (a whole number of tiles), FULL and
-   BRSM, with glossy, give the twin's answer; and 70000 VALs at the default chunk (32768: three
+   BRSM, with glossy, each summed in 1, 4 and 16 lanes (the VAL tiles dealt to the lanes; 16
+   leaves lanes with no tile, and a chunk of 100 starts dispatches inside a tile), give the
+   twin's answer; and 70000 VALs at the default chunk (32768: three
    dispatches), past the 65535 loop iterations after which llvmpipe silently stops every loop
-   of an invocation (one dispatch over them read only the first 65536 VALs). */
+   of an invocation (one dispatch over them read only the first 65536 VALs), in the 16 lanes
+   that gim__proxy_lanes gives 64 caches. */
 static void chunked(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
-    static const uint32_t chunks[2] = {100, 64};
+    static const uint32_t chunks[2] = {100, 64}, lanes[3] = {1, 4, 16};
     gltest_fixture f;
     config c;
     errors ed, eg;
-    int k;
+    int k, l;
     (void)state;
     GLTEST_BEGIN();
     gltest_fixture_begin(&f);
     make_config(&c, 130, 500, 4.0f, zero, 1);
-    for (k = 0; k < 2; ++k) {
-        f.ctx->proxy_chunk = chunks[k];
-        run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
-        print_message("chunks of %u VALs: diffuse position %.3g flux %.3g; glossy flux %.3g\n", chunks[k], ed.position,
-                      ed.flux, eg.flux);
-        assert_true(ed.lit > 60);
-        assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
-        assert_true(eg.position < 1e-4 && eg.sigma < 1e-4 && eg.flux < 1e-3);
-    }
+    for (k = 0; k < 2; ++k)
+        for (l = 0; l < 3; ++l) {
+            f.ctx->proxy_chunk = chunks[k];
+            f.ctx->proxy_lanes = lanes[l];
+            run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
+            print_message("chunks of %u VALs, %u lanes: diffuse position %.3g flux %.3g; glossy flux %.3g\n", chunks[k],
+                          lanes[l], ed.position, ed.flux, eg.flux);
+            assert_true(ed.lit > 60);
+            assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+            assert_true(eg.position < 1e-4 && eg.sigma < 1e-4 && eg.flux < 1e-3);
+        }
     free_config(&c);
     f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    f.ctx->proxy_lanes = 0;
+    assert_int_equal(gim__proxy_lanes(f.ctx, 64, 70000), 16);
     make_config(&c, 64, 70000, 4.0f, zero, 0);
     run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), -1.0f, &ed, &eg);
     print_message("70000 VALs: diffuse position %.3g flux %.3g (%u lit)\n", ed.position, ed.flux, ed.lit);
@@ -322,7 +329,8 @@ static void chunked(void **state) {
 /* Crowded near fields: caches 4 and 8 each under 120 VALs within the near-field radius
    (2 sqrt(A)), 100 of cache 4's on one spot (BRSM's repeated picks of one texel, weight 1/100
    each), in chunks of 64 VALs: the first 16 near VALs of a cache go through mode 0's list,
-   the rest through mode 3, whose count runs across the chunks. The twin's answer, and the 100
+   the rest through mode 3, whose count runs across the chunks (and across mode 3's half chunks,
+   which deal the same tiles to the same lanes: with 1 and 4 lanes). The twin's answer, and the 100
    copies give what one VAL of weight 1 gives (in the twin and on the GPU). */
 static void crowded_near_field(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
@@ -367,12 +375,17 @@ static void crowded_near_field(void **state) {
     print_message("cache 4: %u VALs in its near field\n", near4);
     assert_true(near4 >= 100);
     f.ctx->proxy_chunk = 64;
-    run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
-    print_message("crowded, chunks of 64: diffuse position %.3g sigma %.3g flux %.3g; glossy position %.3g flux %.3g\n",
-                  ed.position, ed.sigma, ed.flux, eg.position, eg.flux);
-    assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
-    assert_true(eg.position < 5e-4 && eg.sigma < 5e-4 && eg.flux < 1e-3);
+    for (pass = 1; pass <= 4; pass *= 4) {
+        f.ctx->proxy_lanes = (uint32_t)pass;
+        run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
+        print_message("crowded, chunks of 64, %d lane(s): diffuse position %.3g sigma %.3g flux %.3g; glossy position %.3g "
+                      "flux %.3g\n",
+                      pass, ed.position, ed.sigma, ed.flux, eg.position, eg.flux);
+        assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+        assert_true(eg.position < 5e-4 && eg.sigma < 5e-4 && eg.flux < 1e-3);
+    }
     f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
+    f.ctx->proxy_lanes = 0;
     /* the 100 copies against one VAL of weight 1 on the spot (the other 99 weight 0) */
     for (pass = 0; pass < 2; ++pass) {
         gim_proxy_light *twin = pass ? one : many, *gpu = twin + 130;
@@ -413,8 +426,9 @@ static void crowded_near_field(void **state) {
 }
 
 /* More than one work group and one VAL tile with partial last ones (caches 130 = 2 groups of
-   64 + 2, VALs 200 = 3 tiles of 64 + 8), k = 0 (the constant lobe), an eye at a cache, and no
-   VALs at all (every cache dark: x_p = c, flux 0). */
+   64 + 2, VALs 200 = 3 tiles of 64 + 8), k = 0 (the constant lobe), an eye at a cache, the same
+   in 8 lanes (4 of them without a tile: merged as empty sums; the dark caches' form-factor
+   positions from lane 0), and no VALs at all (every cache dark: x_p = c, flux 0). */
 static void edges(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
     gltest_fixture f;
@@ -429,6 +443,14 @@ static void edges(void **state) {
     run_both(&f, &c, eye, 0.0f, &ed, &eg);
     assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
     assert_true(eg.position < TOL_POS && eg.sigma < TOL_POS && eg.flux < 1e-3);
+    f.ctx->proxy_lanes = 8;
+    run_both(&f, &c, eye, 0.0f, &ed, &eg);
+    print_message("edges, 8 lanes: diffuse position %.3g sigma %.3g flux %.3g (%u lit of 130)\n", ed.position, ed.sigma,
+                  ed.flux, ed.lit);
+    assert_true(ed.lit > 0 && ed.lit < 130);   /* lit and dark caches */
+    assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+    assert_true(eg.position < TOL_POS && eg.sigma < TOL_POS && eg.flux < 1e-3);
+    f.ctx->proxy_lanes = 0;
     run_both(&f, &c, eye, 50.0f, &ed, &eg);
     print_message("edges, k = 50: glossy position %.3g sigma %.3g flux %.3g (%u lit)\n", eg.position, eg.sigma, eg.flux, eg.lit);
     assert_true(eg.flux < 1e-2);
