@@ -1,13 +1,13 @@
 /* LightSkin proxy lights (Bischoff 2017 eq. 3-7, eq. 13-15), the GPU twin of gim_proxy_lights_twin:
    one invocation per cache and lane looping over the lane's VALs in a fixed order, the VAL
-   list passed through shared memory in tiles of TILE (one VAL loaded per invocation). The VALs'
-   tiles (VALs [T TILE, (T + 1) TILE)) are dealt to `lanes` lanes, T to lane T mod lanes
-   (gl_WorkGroupID.y), each summed apart in every dispatch, and the last dispatch (mode 2) merges a cache's lanes (Chan et al.'s pairwise form of the
-   weighted mean and sum of squares) and writes its proxy lights. Lanes exist for a large GPU:
-   one invocation per cache left an H100 under 2% busy on Sponza's 24,863 caches; the host picks
-   them so the pass has about 2^17 invocations (gim__proxy_lanes), 1 where the caches alone
-   give that many. The lane is the work group's, so every invocation reads the same tile entry
-   at a time (a broadcast). The formulas,
+   list passed through shared memory in tiles of TILE (one VAL loaded per invocation). The
+   VALs' tiles (VALs [T TILE, (T + 1) TILE)) are dealt to `lanes` lanes, tile T to lane T mod
+   lanes (gl_WorkGroupID.y), each lane with sums of its own, and the last dispatch (mode 2)
+   merges a cache's lanes (Chan et al.'s pairwise form of the weighted mean and sum of squares)
+   and writes its proxy lights. Lanes exist for a large GPU: one invocation per cache left an
+   H100 under 2% busy on Sponza's 24,863 caches; the host picks them so the pass has about 2^17
+   invocations (gim__proxy_lanes), 1 where the caches alone give that many. The lane is the
+   work group's, so every invocation reads the same tile entry at a time (a broadcast). The formulas,
    guards and clamps are the twin's (see gim_proxy_lights_twin in gimany.h); the sums are in float
    here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
@@ -35,15 +35,15 @@ layout(location = 5) uniform uint with_glossy;   /* 0: diffuse only, glossy_out 
 layout(location = 6) uniform uint first;         /* this dispatch's VALs: [first, first + chunk) */
 layout(location = 7) uniform uint chunk;
 layout(location = 9) uniform uint per_cache_k;  /* 1: each cache's k from cache_k (its material's lobe) */
-layout(location = 10) uniform uint lanes;        /* runs of VALs per cache (modes 0 and 3; 1 and 2 run lane 0 only) */
+layout(location = 10) uniform uint lanes;        /* lanes per cache (modes 0 and 3; 1 and 2 run lane 0 alone) */
 layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 starts them); 3: the
                                                     near VALs past the first NEAR_CAP; 1: the
                                                     form-factor positions of dark caches; 2: write
                                                     the proxy lights */
-/* The sums of every lane of every cache between dispatches (lane l of cache i at (i lanes + l) 6),
-   6 vec4 each: (s, w), (mean, E_n), (m2, aux) of
-   the diffuse sums, (s, w), (mean, shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in
-   chunks, each its own dispatch: a driver may bound the loop iterations of one invocation
+/* The sums of every lane of every cache between dispatches, 6 vec4 each (lane l of cache i from
+   vec4 (i lanes + l) 6 on): (s, w), (mean, E_n), (m2, aux) of the diffuse sums, (s, w), (mean,
+   shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in chunks, each its own
+   dispatch: a driver may bound the loop iterations of one invocation
    (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
    length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
 layout(std430, binding = 4) buffer State { vec4 state[]; };
