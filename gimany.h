@@ -11444,15 +11444,18 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
     return r;
 }
 
-/* The LightSkin buffers and the caches' materials (a frame of another method keeps none). */
+/* The LightSkin buffers, the proxy pass's sums and the caches' materials (a frame of another
+   method keeps none). */
 static void gim__lightskin_drop(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
-    gim__GLuint b[7];
+    gim__GLuint b[8];
     b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
-    b[6] = ls->exponents;
-    ctx->gl.DeleteBuffers(7, b);
+    b[6] = ls->exponents; b[7] = ctx->proxy_state;
+    ctx->gl.DeleteBuffers(8, b);
     gim__free(&ctx->env, ls->material);
     memset(ls, 0, sizeof *ls);
+    ctx->proxy_state = 0;
+    ctx->proxy_state_bytes = 0;
 }
 
 /* ... and the indirect texture (a LightSkin frame with nothing to light). */

@@ -345,6 +345,7 @@ static void glossy_sizes_and_no_caches(void **state) {
     assert_int_equal(o.indirect, 0);
     assert_int_equal(ff.f.ctx->ls.vals, 0);
     assert_int_equal(ff.f.ctx->ls.diffuse, 0);
+    assert_int_equal(ff.f.ctx->proxy_state, 0);   /* the proxy pass's sums, 96 bytes a cache and lane */
     /* bad frame settings */
     ff.fr.method = (gim_method)7;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_INVALID_ARGUMENT);
