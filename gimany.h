@@ -8419,7 +8419,7 @@ struct gim_context {
     gim__GLuint proxy_state;      /* the proxy-light sums between chunk dispatches, 96 bytes a cache's lane */
     uint64_t proxy_state_bytes;
     uint32_t proxy_chunk;         /* VALs per proxy-light dispatch */
-    uint32_t proxy_lanes;         /* invocations per cache in the proxy pass; 0: gim__proxy_lanes (tests set it) */
+    uint32_t proxy_lanes;         /* lanes per cache in the proxy pass; 0: gim__proxy_lanes's choice (tests set it) */
     gim__GLint ssbo_align;        /* GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT */
     gim__GLint max_texture_size, max_viewport[2];
     gim__GLint max_layers[2];     /* GL_MAX_ARRAY_TEXTURE_LAYERS, GL_MAX_FRAMEBUFFER_LAYERS (asked once, not a frame) */
@@ -9132,7 +9132,7 @@ static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint 
    few caches still fills it (one invocation per cache left 98% of it idle on Sponza's 24,863),
    and while every lane keeps GIM__PROXY_LANE_VALS VALs, against each lane's fixed cost (its
    cache, its sums read and written per dispatch). Each lane sums its own VALs, mode 2 merges
-   them; their sums cost 96 bytes a lane (at most 12 MiB at the bound). */
+   them; their sums cost 96 bytes a lane (beyond one lane, at most 2^17 x 96 bytes = 12 MiB). */
 #define GIM__PROXY_MAX_LANES 16u
 #define GIM__PROXY_INVOCATIONS (1u << 17)
 #define GIM__PROXY_LANE_VALS 512u
