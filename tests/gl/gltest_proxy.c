@@ -428,7 +428,8 @@ static void crowded_near_field(void **state) {
 /* More than one work group and one VAL tile with partial last ones (caches 130 = 2 groups of
    64 + 2, VALs 200 = 3 tiles of 64 + 8), k = 0 (the constant lobe), an eye at a cache, the same
    in 8 lanes (4 of them without a tile: merged as empty sums; the dark caches' form-factor
-   positions from lane 0), and no VALs at all (every cache dark: x_p = c, flux 0). */
+   positions from lane 0, also with lane 0's tile black), and no VALs at all (every cache dark:
+   x_p = c, flux 0). */
 static void edges(void **state) {
     static const float zero[3] = {0.0f, 0.0f, 0.0f};
     gltest_fixture f;
@@ -450,6 +451,18 @@ static void edges(void **state) {
     assert_true(ed.lit > 0 && ed.lit < 130);   /* lit and dark caches */
     assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
     assert_true(eg.position < TOL_POS && eg.sigma < TOL_POS && eg.flux < 1e-3);
+    {   /* lane 0's tile (VALs 0-63) black: every cache is lit from other lanes only, and lane 0,
+           which alone runs the dark caches' pass, must still see them lit */
+        float w[64];
+        uint32_t j;
+        for (j = 0; j < 64; ++j) { w[j] = c.vals[j].weight; c.vals[j].weight = 0.0f; }
+        run_both(&f, &c, eye, 0.0f, &ed, &eg);
+        print_message("edges, 8 lanes, lane 0 black: diffuse position %.3g flux %.3g (%u lit)\n", ed.position, ed.flux,
+                      ed.lit);
+        assert_true(ed.lit > 0 && ed.lit < 130);
+        assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+        for (j = 0; j < 64; ++j) c.vals[j].weight = w[j];
+    }
     f.ctx->proxy_lanes = 0;
     run_both(&f, &c, eye, 50.0f, &ed, &eg);
     print_message("edges, k = 50: glossy position %.3g sigma %.3g flux %.3g (%u lit)\n", eg.position, eg.sigma, eg.flux, eg.lit);
