@@ -137,7 +137,10 @@ float log2_lobe(float c, float k) {
     return l >= -149.0 ? l : NO_LOBE;
 }
 
-void add_position(inout Sums a, vec3 d, float w) {
+/* The position sums of a joined by a set of weight w, mean d and squared deviations m2 (one VAL:
+   m2 = 0; a lane's sums in mode 2: Chan et al. 1979's pairwise form, of which West's update is
+   the one-VAL case) */
+void merge_position(inout Sums a, vec3 d, float w, vec3 m2) {
     float w1 = a.w + w;
     if (w1 > 0.0) {
         vec3 delta = d - a.mean;
@@ -146,10 +149,12 @@ void add_position(inout Sums a, vec3 d, float w) {
            may miss 1 by an ulp, so a cache lit by one VAL got sigma = sqrt(ulp) |d|, 3e-4 of its
            offset (H100); this way the first VAL adds exactly 0 */
         a.mean = a.w > 0.0 ? a.mean + delta * (w / w1) : d;
-        a.m2 += (w * (a.w / w1)) * delta * delta;
+        a.m2 += m2 + (w * (a.w / w1)) * delta * delta;
     }
     a.w = w1;
 }
+
+void add_position(inout Sums a, vec3 d, float w) { merge_position(a, d, w, vec3(0.0)); }
 
 void add(inout Sums a, vec3 d, float w, vec3 phi, float e) {
     a.s += phi * e;
@@ -165,17 +170,10 @@ void rescale(inout Sums a, inout float shift, float to) {
     shift = to;
 }
 
-/* a += b: the sums of two disjoint sets of VALs (Chan et al. 1979's pairwise update of the
-   weighted mean and sum of squared deviations, in West's form as add_position) */
+/* a += b: the sums of two disjoint sets of VALs */
 void merge(inout Sums a, Sums b) {
     a.s += b.s;
-    float w1 = a.w + b.w;
-    if (w1 > 0.0) {
-        vec3 delta = b.mean - a.mean;
-        a.mean = a.w > 0.0 ? a.mean + delta * (b.w / w1) : b.mean;
-        a.m2 += b.m2 + (b.w * (a.w / w1)) * delta * delta;
-    }
-    a.w = w1;
+    merge_position(a, b.mean, b.w, b.m2);
 }
 
 /* eq. 5/13 position, sigma, eq. 7 flux with the guard (normal irradiance <= E_n); the sums
