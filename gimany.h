@@ -9145,6 +9145,17 @@ static uint32_t gim__proxy_lanes(const gim_context *ctx, uint32_t cache_count, u
     return l;
 }
 
+/* Caches of `lanes` lanes whose sums one storage block holds (the proxy pass's ranges), all of
+   cache_count where they fit, else a power of two; 0 where not even one cache fits. */
+static uint32_t gim__proxy_sums_range(const gim_context *ctx, uint32_t lanes, uint32_t cache_count) {
+    uint64_t cap = (uint64_t)ctx->max_ssbo_bytes / ((uint64_t)lanes * 96u);
+    uint32_t n = 1u;
+    if (cap >= cache_count) return cache_count;
+    if (cap == 0) return 0u;
+    while ((uint64_t)n * 2u <= cap) n *= 2u;
+    return n;
+}
+
 /* The scene's points the maps draw their subsets from: four times a map's, so the subsets
    differ per map (at most GIM_ISM_MAX_POINTS). */
 static uint32_t gim__ism_pool(uint32_t points_per_map) {
@@ -9191,7 +9202,8 @@ static uint32_t gim__ism_align_maps(const gim_context *ctx, uint32_t size) {
    and a sum that overflows float gives the proxy x_p = c and zero flux, so every output is
    finite. Cost: cache_count * val_count terms (twice in the work groups holding a cache that
    no VAL lights), in dispatches of ctx->proxy_chunk VALs (GIM__PROXY_CHUNK) with the sums in
-   a scratch buffer of 96 bytes a lane of a cache between them (gim__proxy_lanes). */
+   a scratch buffer of 96 bytes a lane of a cache between them (gim__proxy_lanes), a range of
+   caches at a time where one storage block would not hold them all (gim__proxy_sums_range). */
 /* The caches' imperfect shadow maps for the proxy pass: maps (cache_count size^2 floats,
    gim__gl_ism_render's), 0 for none; bias and slope as gim_ism_desc's (0: defaults). */
 typedef struct gim__gl_ism {
@@ -9226,7 +9238,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     float coincident;
-    uint32_t step, range, cache_first, lanes;
+    uint32_t step, range, sums_range, cache_first, lanes;
     uint64_t map_bytes;
     gim_result r;
     if (!caches || !diffuse_out) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
@@ -9255,9 +9267,17 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
                          (unsigned)ism->size, (double)ism->bias, (double)ism->slope);
     range = with_ism ? gim__ism_block_maps(ctx, ism->size, cache_count) : cache_count;
     map_bytes = with_ism ? (uint64_t)ism->size * ism->size * 2u : 0u;
+    /* the sums of a range's lanes are one storage block too (96 bytes a cache's lane: a range
+       of caches at a time past about 1.4 M caches in one lane at 128 MiB, 175 k at GL's 16 MiB) */
+    sums_range = gim__proxy_sums_range(ctx, lanes, cache_count);
+    if (sums_range < range) {
+        range = sums_range;
+        if (with_ism && range > 0 && (range * map_bytes) % (uint64_t)ctx->ssbo_align) range = 0;
+    }
     if (range == 0)
-        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
-                         (int)ctx->ssbo_align);
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where,
+                         "GL_MAX_SHADER_STORAGE_BLOCK_SIZE %lld or GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
+                         (long long)ctx->max_ssbo_bytes, (int)ctx->ssbo_align);
     coincident = GIM__TWINS_COINCIDENT * scene_scale;
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "caches", caches, (uint64_t)cache_count * 32u);
@@ -9278,7 +9298,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, val_count > 0 ? vals : caches); /* never read then */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, diffuse_out);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, glossy_out ? glossy_out : diffuse_out); /* never written then */
-    r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)cache_count * lanes * 96u, where);
+    r = gim__gl_sized_buffer(ctx, &ctx->proxy_state, &ctx->proxy_state_bytes, (uint64_t)range * lanes * 96u, where);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, ctx->proxy_state);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, glossy_out && exponents ? exponents : caches); /* read only then */

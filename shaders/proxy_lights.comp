@@ -40,8 +40,9 @@ layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 star
                                                     near VALs past the first NEAR_CAP; 1: the
                                                     form-factor positions of dark caches; 2: write
                                                     the proxy lights */
-/* The sums of every lane of every cache between dispatches, 6 vec4 each (lane l of cache i from
-   vec4 (i lanes + l) 6 on): (s, w), (mean, E_n), (m2, aux) of the diffuse sums, (s, w), (mean,
+/* The sums of every lane of every cache of this range between dispatches, 6 vec4 each (lane l
+   of cache i from vec4 ((i - cache_first) lanes + l) 6 on: the ranges run one after another
+   and share the buffer, which the host sizes to one storage block): (s, w), (mean, E_n), (m2, aux) of the diffuse sums, (s, w), (mean,
    shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in chunks, each its own
    dispatch: a driver may bound the loop iterations of one invocation
    (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
@@ -270,7 +271,7 @@ void main() {
     uint near_list[NEAR_CAP];
     uint near_n = 0u;
     if (mode != 0u || first != 0u) {
-        uint b = (ii * lanes + lane) * 6u;
+        uint b = ((ii - cache_first) * lanes + lane) * 6u;
         vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
         sd = Sums(a0.xyz, a0.w, a1.xyz, a2.xyz);
         en = a1.w;
@@ -385,7 +386,7 @@ void main() {
            needs the whole group) */
         if (first == 0u) {   /* dark: no lane of the cache lit (lane 0 alone runs here) */
             bool lit = sd.w > 0.0;
-            for (uint l = 1u; l < lanes; ++l) lit = lit || state[(ii * lanes + l) * 6u].w > 0.0;
+            for (uint l = 1u; l < lanes; ++l) lit = lit || state[((ii - cache_first) * lanes + l) * 6u].w > 0.0;
             aux = inside && !lit ? 1.0 : 0.0;
         }
         if (local == 0u) any_work = 0u;
@@ -416,7 +417,7 @@ void main() {
     }
     if (!inside) return;
     if (mode != 2u) {
-        uint b = (i * lanes + lane) * 6u;
+        uint b = ((i - cache_first) * lanes + lane) * 6u;
         state[b] = vec4(sd.s, sd.w);
         state[b + 1u] = vec4(sd.mean, en);
         state[b + 2u] = vec4(sd.m2, aux);
@@ -428,7 +429,7 @@ void main() {
     /* mode 2 (lane 0): the cache's lanes merged into its own sums (loaded above), the glossy
        ones first brought to the larger shift */
     for (uint l = 1u; l < lanes; ++l) {
-        uint b = (i * lanes + l) * 6u;
+        uint b = ((i - cache_first) * lanes + l) * 6u;
         vec4 a0 = state[b], a1 = state[b + 1u], a2 = state[b + 2u], g0 = state[b + 3u], g1 = state[b + 4u], g2 = state[b + 5u];
         merge(sd, Sums(a0.xyz, a0.w, a1.xyz, a2.xyz));
         en += a1.w;

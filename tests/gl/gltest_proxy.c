@@ -312,6 +312,29 @@ static void chunked(void **state) {
             assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
             assert_true(eg.position < 1e-4 && eg.sigma < 1e-4 && eg.flux < 1e-3);
         }
+    /* a GL whose storage blocks hold the sums of only part of the caches' lanes: the pass runs
+       the caches in ranges (32 caches of 4 lanes, 8 of 16; the 130 end in a partial range) */
+    {
+        gim__GLint64 keep = f.ctx->max_ssbo_bytes;
+        f.ctx->max_ssbo_bytes = 24000;   /* 500 VALs of 48 bytes fit, 130 x 4 x 96 bytes of sums do not */
+        f.ctx->proxy_chunk = 100;
+        assert_int_equal(gim__proxy_sums_range(f.ctx, 1, 130), 130);
+        assert_int_equal(gim__proxy_sums_range(f.ctx, 4, 130), 32);
+        assert_int_equal(gim__proxy_sums_range(f.ctx, 16, 130), 8);
+        for (l = 1; l < 3; ++l) {
+            f.ctx->proxy_lanes = lanes[l];
+            run_both(&f, &c, gim_v3(2.0f, 2.5f, 6.0f), 20.0f, &ed, &eg);
+            print_message("sums in ranges, %u lanes: diffuse position %.3g flux %.3g; glossy flux %.3g\n", lanes[l],
+                          ed.position, ed.flux, eg.flux);
+            assert_true(ed.lit > 60);
+            assert_true(ed.position < TOL_POS && ed.sigma < TOL_POS && ed.flux < TOL_FLUX_D);
+            assert_true(eg.position < 1e-4 && eg.sigma < 1e-4 && eg.flux < 1e-3);
+            assert_true(f.ctx->proxy_state_bytes <= 24000u);
+        }
+        f.ctx->max_ssbo_bytes = 50;   /* not one cache's sums */
+        assert_int_equal(gim__proxy_sums_range(f.ctx, 1, 130), 0);
+        f.ctx->max_ssbo_bytes = keep;
+    }
     free_config(&c);
     f.ctx->proxy_chunk = GIM__PROXY_CHUNK;
     f.ctx->proxy_lanes = 0;
