@@ -13057,8 +13057,8 @@ static gim_result gim__frame_scene_check(gim_context *ctx, const gim_frame *fram
 }
 
 /* The buffers of the methods this frame does not run, freed (a feature not used costs no
-   memory): BRSM's importance tables unless BRSM, LightSkin's unless LightSkin, the VPL
-   methods' unless one of them, the gather's unless RSM_GATHER. */
+   memory): BRSM's importance tables, view samples and scan scratch unless BRSM, LightSkin's
+   unless LightSkin, the VPL methods' unless one of them, the gather's unless RSM_GATHER. */
 static void gim__release_other_methods(gim_context *ctx, gim_method method) {
     int brsm = method == GIM_METHOD_LIGHTSKIN_BRSM, lightskin = brsm || method == GIM_METHOD_LIGHTSKIN_FULL;
     int gather = method == GIM_METHOD_RSM_GATHER, vplm = method == GIM_METHOD_CLUSTERED || method == GIM_METHOD_SSVP;
@@ -13070,6 +13070,15 @@ static void gim__release_other_methods(gim_context *ctx, gim_method method) {
         ctx->gl.DeleteBuffers(5, b);
         g->map = g->column = g->row = g->selected = g->tiles = 0;
         g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = g->tiles_bytes = 0;
+    }
+    if (!brsm) {   /* and the view samples and the scan's scratch, BRSM's only */
+        gim__GLuint b[3];
+        b[0] = ctx->view_samples; b[1] = ctx->view_sample_pixels; b[2] = ctx->scan_blocks;
+        ctx->gl.DeleteBuffers(3, b);
+        ctx->view_samples = ctx->view_sample_pixels = ctx->scan_blocks = 0;
+        ctx->view_samples_bytes = ctx->view_sample_pixels_bytes = 0;
+        ctx->scan_blocks_bytes = 0;
+        ctx->view_sample_key[0] = 0;
     }
     if (!lightskin) gim__lightskin_drop(ctx);
     if (!vplm) gim__vpl_release(ctx);

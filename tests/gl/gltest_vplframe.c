@@ -358,6 +358,17 @@ static void only_what_is_enabled(void **state) {
     /* the VPL buffers gone: BRSM's frame without its proxy pass's sums (96 bytes a cache and
        lane, up to 16 lanes on these few caches) holds less than the two-bounce VPL frame */
     assert_true(st.gpu_bytes - ff.f.ctx->proxy_state_bytes < two);
+    assert_true(ff.f.ctx->view_samples != 0 && ff.f.ctx->view_sample_pixels != 0 && ff.f.ctx->scan_blocks != 0);
+    /* and back: BRSM's view samples and scan scratch go with its importance tables */
+    ff.fr.method = GIM_METHOD_CLUSTERED;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    assert_true(ff.f.ctx->view_samples == 0 && ff.f.ctx->view_sample_pixels == 0 && ff.f.ctx->scan_blocks == 0);
+    assert_true(ff.f.ctx->view_samples_bytes == 0 && ff.f.ctx->scan_blocks_bytes == 0);
+    assert_true(ff.f.ctx->ls.caches == 0 && ff.f.ctx->proxy_state == 0);
+    /* and BRSM again makes them anew */
+    ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    assert_true(ff.f.ctx->view_samples != 0 && ff.f.ctx->view_sample_pixels != 0 && ff.f.ctx->scan_blocks != 0);
     gltest_state_unchanged(&ff.f);
     frame_end(&ff);
     GLTEST_END();
