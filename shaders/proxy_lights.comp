@@ -42,11 +42,12 @@ layout(location = 8) uniform uint mode;          /* 0: the sums (first == 0 star
                                                     the proxy lights */
 /* The sums of every lane of every cache of this range between dispatches, 6 vec4 each (lane l
    of cache i from vec4 ((i - cache_first) lanes + l) 6 on: the ranges run one after another
-   and share the buffer, which the host sizes to one storage block): (s, w), (mean, E_n), (m2, aux) of the diffuse sums, (s, w), (mean,
-   shift), (m2, near VALs seen) of the glossy ones. The VALs are taken in chunks, each its own
-   dispatch: a driver may bound the loop iterations of one invocation
-   (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations in all) or the
-   length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has ~10^6 VALs. */
+   and share the buffer, which the host sizes to one storage block): (s, w), (mean, E_n),
+   (m2, aux) of the diffuse sums, (s, w), (mean, shift), (m2, near VALs seen) of the glossy ones.
+   The VALs are taken in chunks, each its own dispatch: a driver may bound the loop iterations
+   of one invocation (Mesa's llvmpipe stops every loop of an invocation after 65535 iterations
+   in all) or the length of one dispatch (a desktop's GPU watchdog), and FULL LightSkin has
+   ~10^6 VALs. */
 layout(std430, binding = 4) buffer State { vec4 state[]; };
 
 /* Visibility per VAL through each cache's imperfect shadow map (gim_ism_visibility_twin's lookup,
