@@ -11304,6 +11304,8 @@ typedef struct gim__shade_args {
                                     set fewer to send tiles to the per pixel search) */
     int neighbours_out;          /* tests: write each pixel's (d_cmax, count, sum of indices) instead */
     uint32_t block;              /* B of gim_frame_lightskin.shade_block: 1 or 2 (0: 1) */
+    uint32_t slabs;              /* a tile's list in slabs where its box is long (0); tests: 1 in slabs, 2 in rings
+                                    in every tile */
     gim__GLuint indirect;        /* width x height texture of format */
     gim__GLenum format;          /* RGBA16F or RGBA32F */
 } gim__shade_args;
@@ -11316,7 +11318,8 @@ typedef struct gim__shade_args {
    receiver picks its n nearest from that list (the same choice as a search per pixel, which a
    tile whose list overflows does instead), and the block's pixels off its surface search for
    themselves. Cost: tiles x cells of the tile's box grown by the radius, + searches x (the
-   tile's list + 2 n), searches = the blocks + the pixels that do not share. */
+   part of the tile's list in the rings or slabs a search visits + 2 n), searches = the blocks
+   + the pixels that do not share. */
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -11348,6 +11351,7 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->Uniform1ui(14, a->list_limit && a->list_limit < GIM__SHADE_LIST_CAP ? a->list_limit : GIM__SHADE_LIST_CAP);
     gl->Uniform1ui(15, block);
+    gl->Uniform1ui(16, a->slabs <= 2u ? a->slabs : 0u);
     gl->DispatchCompute((a->width + 8u * block - 1u) / (8u * block), (a->height + 8u * block - 1u) / (8u * block), 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);

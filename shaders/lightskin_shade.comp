@@ -8,12 +8,14 @@
       of its pixels could take (within radius of the box around the tile's receivers, its
       normal within the compatibility angle of the cone around their normals), each cell of the
       hash grid over that box read by one invocation; then every search picks its n nearest
-      from that list, all invocations reading the same entry at a time, the list sorted into
-      rings of distance from the box so that a search stops at the first ring beyond its n-th
-      nearest. The list holds every cache the pixel's own search accepts, so the choice is the
-      same. A tile whose list would not fit (a depth edge spans the scene, a box over too many
-      cells) searches per pixel instead: shells of cells around the pixel's cell, nearest
-      first, until the n-th found is nearer than any unvisited cell;
+      from that list, the list sorted into rings of distance from the box so that a search
+      stops at the first ring beyond its n-th nearest, or, in a tile whose box is much longer
+      than the search is wide (it reaches far into the scene), into slabs across the box's
+      long axis, searched outward from the pixel's own until the next on both sides lie beyond
+      its n-th nearest. The list holds every cache the pixel's own search accepts, so the
+      choice is the same. A tile whose list would not fit (a depth edge spans the scene, a box
+      over too many cells) searches per pixel instead: shells of cells around the pixel's
+      cell, nearest first, until the n-th found is nearer than any unvisited cell;
    2. interpolates the diffuse (and glossy) proxy lights of those caches there, with the
       formulas, weights and guards of gim_lightskin_shade_twin (read there);
    3. shades every pixel of the block on that receiver's surface with that light and its own
@@ -30,6 +32,8 @@ layout(local_size_x = 8, local_size_y = 8) in;
 #define LIST_CAP 768u     /* caches a tile's list holds (24 KiB of shared memory) */
 #define CELL_CAP 4096     /* cells a tile's box may cover */
 #define RINGS 8u          /* the list in rings of distance from the tile's box */
+#define SLABS 32u         /* or, in a tile whose box is long, in slabs across its long axis */
+#define SLAB_LENGTH 4.0   /* long: over this many times the search's radius */
 
 layout(binding = 0) uniform sampler2D gbuffer_depth;
 layout(binding = 1) uniform sampler2D gbuffer_normal;    /* world normal in xyz, w = 1 where drawn */
@@ -64,6 +68,8 @@ layout(location = 12) uniform uint material_count;
 layout(location = 13) uniform float max_value;  /* largest value of the output format (65504 for RGBA16F) */
 layout(location = 14) uniform uint list_limit;  /* caches a tile's list may hold, <= LIST_CAP (0: every tile per pixel) */
 layout(location = 15) uniform uint block;       /* B: each invocation a B x B block of pixels, 1 or 2 */
+layout(location = 16) uniform uint slabs;       /* 0: a tile's list in slabs where its box is long (SLAB_LENGTH), else
+                                                   in rings; tests: 1 slabs, 2 rings in every tile */
 
 uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */
     return (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
@@ -156,7 +162,9 @@ shared vec4 list_p[LIST_CAP];   /* a tile's caches: position, w = cache index (b
 shared vec4 list_n[LIST_CAP];   /* normal, w = distance from the receivers' box */
 shared uint list_count;
 shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first */
-shared uint ring_start[RINGS + 1u], ring_fill[RINGS];
+shared uint ring_start[SLABS + 1u], ring_fill[SLABS];   /* the rings' (or slabs') starts in list_order */
+shared int slab_axis;           /* -1: rings; else the axis of the slabs */
+shared float slab_lo, slab_w;   /* the slabs' first edge and width along it */
 shared vec4 part_lo[TILE];      /* each block's receivers: box lo, w = their count */
 shared vec4 part_hi[TILE];      /* box hi, w = the least cosine of a normal to the cone's axis */
 shared vec3 part_n[TILE];       /* sum of normals */
@@ -203,7 +211,7 @@ void plan_tile(float radius) {
     }
     list_count = 0u;
     fallback_count = 0u;
-    for (uint r = 0u; r < RINGS; ++r) ring_fill[r] = 0u;
+    for (uint r = 0u; r < SLABS; ++r) ring_fill[r] = 0u;
     box_lo = vec4(lo, -2.0);
     box_hi = vec4(hi, radius * 1.001 + 1e-5 * max(max(abs(lo.x), abs(lo.y)), max(max(abs(lo.z), abs(hi.x)), max(abs(hi.y), abs(hi.z)))));
     float la = length(axis);
@@ -229,6 +237,14 @@ void plan_cells() {
     ivec3 cn = max(chi - clo + 1, ivec3(0));
     cell_lo = clo;
     cell_n = cn;
+    /* a box much longer than the search is wide (a tile that reaches far into the scene):
+       every pixel's nearest lie in a few slabs across its long axis, where the rings of
+       distance from the box would send each search over most of the list */
+    vec3 ext = hi - lo;
+    int k = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
+    slab_axis = slabs == 1u || (slabs == 0u && ext[k] > SLAB_LENGTH * grow) ? k : -1;
+    slab_lo = lo[k] - grow;
+    slab_w = (ext[k] + 2.0 * grow) / float(SLABS);
     /* the extent first: a box past CELL_CAP cells on one axis would overflow the product */
     mode = list_limit > 0u && all(lessThanEqual(cn, ivec3(CELL_CAP))) && cn.x * cn.y * cn.z <= CELL_CAP ? 1 : 2;
 }
@@ -279,24 +295,43 @@ vec4 lobe_at(ivec2 px) {
     return material[id].glossy;
 }
 
+/* The list entries list_order[j0 .. j1) offered to b. */
+void scan_list(inout Near b, uint j0, uint j1, vec3 x, vec3 nx, float radius) {
+    for (uint j = j0; j < j1; ++j) {
+        uint e = list_order[j];
+        vec4 p = list_p[e];
+        if (dot(nx, list_n[e].xyz) < cos_theta) continue;
+        float d = length(x - p.xyz);
+        if (d <= radius) offer(b, d, floatBitsToUint(p.w));
+    }
+}
+
 /* b := the n nearest compatible caches to (x, nx): from the tile's list or per pixel. */
 void neighbours(out Near b, bool listed, vec3 x, vec3 nx, float radius) {
     b.found = 0u;
     for (int j = 0; j < MAX_N; ++j) { b.d[j] = FLT_MAX; b.i[j] = 0xffffffffu; }
-    if (listed) {
+    if (listed && slab_axis < 0) {
         float step = box_hi.w / float(RINGS);
         /* the slack of box_hi.w over the radius bounds the float rounding of both distances */
         float slack = box_hi.w - radius + 1e-3 * step;
-        uint j = 0u;
         for (uint r = 0u; r < RINGS; ++r) {
             if (b.found == n && float(r) * step - slack > best_at(b, n - 1u)) break;
-            for (; j < ring_start[r + 1u]; ++j) {
-                uint e = list_order[j];
-                vec4 p = list_p[e];
-                if (dot(nx, list_n[e].xyz) < cos_theta) continue;
-                float d = length(x - p.xyz);
-                if (d <= radius) offer(b, d, floatBitsToUint(p.w));
-            }
+            scan_list(b, ring_start[r], ring_start[r + 1u], x, nx, radius);
+        }
+    } else if (listed) {
+        /* the pixel's slab, then the nearer of the next slabs on either side, until the n-th
+           nearest is nearer than both: a cache of a slab not yet seen lies at least the gap
+           to its edge along the axis from x */
+        float xk = x[slab_axis], slack = box_hi.w - radius + 1e-3 * slab_w;
+        int lo = clamp(int(floor((xk - slab_lo) / slab_w)), 0, int(SLABS) - 1), hi = lo;
+        scan_list(b, ring_start[lo], ring_start[lo + 1], x, nx, radius);
+        for (;;) {
+            float gl = lo > 0 ? xk - (slab_lo + float(lo) * slab_w) : FLT_MAX;
+            float gh = hi < int(SLABS) - 1 ? slab_lo + float(hi + 1) * slab_w - xk : FLT_MAX;
+            float g = min(gl, gh);
+            if (g == FLT_MAX || (b.found == n && g - slack > best_at(b, n - 1u))) break;
+            if (gl <= gh) { --lo; scan_list(b, ring_start[lo], ring_start[lo + 1], x, nx, radius); }
+            else { ++hi; scan_list(b, ring_start[hi], ring_start[hi + 1], x, nx, radius); }
         }
     } else {
         search_pixel(b, x, nx, radius);
@@ -336,6 +371,12 @@ bool shares(vec3 x, vec3 nx, float k, vec3 xr, vec3 nr, float kr) {
     vec3 d = x - xr;
     float dl = length(d);
     return dot(nx, nr) >= 0.995 && abs(dot(nr, d)) <= 0.05 * dl && dl <= 0.25 * grid.w && k == kr;
+}
+
+/* List entry j's ring (of width step from the receivers' box) or slab. */
+uint bucket_of(uint j, float step) {
+    if (slab_axis < 0) return min(uint(list_n[j].w / step), RINGS - 1u);
+    return uint(clamp(int(floor((list_p[j][slab_axis] - slab_lo) / slab_w)), 0, int(SLABS) - 1));
 }
 
 void main() {
@@ -393,11 +434,11 @@ void main() {
     bool listed = mode == 1 && list_count <= list_limit;
     float step = box_hi.w / float(RINGS);
     if (listed)
-        for (uint j = lid; j < list_count; j += TILE) atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u);
+        for (uint j = lid; j < list_count; j += TILE) atomicAdd(ring_fill[bucket_of(j, step)], 1u);
     barrier();
     if (listed && lid == 0u) {
         ring_start[0] = 0u;
-        for (uint r = 0u; r < RINGS; ++r) {
+        for (uint r = 0u; r < (slab_axis < 0 ? RINGS : SLABS); ++r) {
             ring_start[r + 1u] = ring_start[r] + ring_fill[r];
             ring_fill[r] = ring_start[r];
         }
@@ -405,7 +446,7 @@ void main() {
     barrier();
     if (listed)
         for (uint j = lid; j < list_count; j += TILE)
-            list_order[atomicAdd(ring_fill[min(uint(list_n[j].w / step), RINGS - 1u)], 1u)] = j;
+            list_order[atomicAdd(ring_fill[bucket_of(j, step)], 1u)] = j;
     barrier();
 
     /* 1. the light at the block's first receiver r (eq. 8-9 over its n nearest caches) */

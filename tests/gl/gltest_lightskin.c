@@ -175,6 +175,7 @@ typedef struct shade_case {
     int host;            /* the host's G-buffer: albedo 1, no glossy */
     uint32_t list_limit; /* caches a tile's list may hold; 0: the pass's; 1: every tile per pixel */
     uint32_t block;      /* the pass's shade_block: 1 or 2 */
+    uint32_t slabs;      /* the tiles' lists: 0 by their box, 1 in slabs, 2 in rings */
 } shade_case;
 
 static void run_shade_case(const shade_case *sc, float L, const float origin[3]) {
@@ -275,6 +276,7 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     sa.scene_scale = pdesc.scene_scale; sa.indirect = t_ind; sa.format = GL_RGBA32F;
     sa.list_limit = sc->list_limit;
     sa.block = sc->block;
+    sa.slabs = sc->slabs;
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
@@ -389,9 +391,10 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             if (e > 2e-3) bad++;
             else if (e > max_rel) max_rel = e;
         }
-        print_message("shade n=%u glossy=%d host=%d list %u block %u scale %g: %u receivers (%u share), %u lit, %u caches, max rel "
+        print_message("shade n=%u glossy=%d host=%d list %u block %u slabs %u scale %g: %u receivers (%u share), %u lit, %u caches, max rel "
                       "err %.2e, %u above 2e-3\n",
-                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (unsigned)sc->block, (double)L, nrec, shared_n, lit,
+                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (unsigned)sc->block, (unsigned)sc->slabs, (double)L,
+                      nrec, shared_n, lit,
                       set.count, max_rel, bad);
         assert_true(lit > nrec / 2);
         /* a float distance that ties or crosses the radius where the twin's double does not
@@ -441,8 +444,17 @@ static void shade_matches_twin(void **state) {
     shade_case sc;
     (void)state;
     GLTEST_BEGIN();
-    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0; sc.block = 2;
+    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0; sc.block = 2; sc.slabs = 0;
     run_shade_case(&sc, 4.0f, o0);
+    sc.slabs = 1;                               /* every tile's list in slabs across its box's long axis */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.block = 1;
+    run_shade_case(&sc, 4.0f, o0);
+    sc.list_limit = 60;                         /* and some tiles per pixel */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.slabs = 2;                               /* every tile's list in rings */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.list_limit = 0; sc.slabs = 0;
     sc.block = 1;                               /* per pixel */
     run_shade_case(&sc, 4.0f, o0);
     sc.list_limit = 1;                          /* every tile searches per pixel */
@@ -458,6 +470,9 @@ static void shade_matches_twin(void **state) {
     sc.n = 16; sc.glossy = 1; sc.host = 1;     /* glossy proxies given, but no materials: diffuse, albedo 1 */
     run_shade_case(&sc, 4.0f, o0);
     sc.n = 8; sc.glossy = 1; sc.host = 0;      /* millimetres, far from the origin */
+    run_shade_case(&sc, 0.004f, o0);
+    run_shade_case(&sc, 40.0f, ofar);
+    sc.slabs = 1;                               /* the slabs' edges at those scales */
     run_shade_case(&sc, 0.004f, o0);
     run_shade_case(&sc, 40.0f, ofar);
     GLTEST_END();
