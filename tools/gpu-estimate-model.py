@@ -97,7 +97,10 @@ dark_line = line_of("proxy_lights.comp", T_DARK)
 dark = next(l for l in reversed(loops("proxy_lights-dark")) if l["line"] < dark_line and l["innermost"])
 imp = loop("importance_map-all", "importance_map.comp", "for (uint k = 0u; k < n; ++k)")
 sv = "lightskin_shade-diffuse"
-cand_it = loop(sv, "lightskin_shade.comp", "for (; j < ring_start[r + 1u]; ++j)")
+# a list entry: scan_list is inlined at each of neighbours()'s four scans (the rings', the slabs'
+# first and both sides), in the block's search and the fallback's; a search runs the rings' or
+# the slabs' (the tile's choice, uniform in its work group), so one copy per search site counts
+cand_it = lin((2, loop(sv, "lightskin_shade.comp", "for (uint j = j0; j < j1; ++j) {", nth=0)))
 offer_it = loop(sv, "lightskin_shade.comp", "for (int j = MAX_N - 1; j > 0; --j)", nth=0)
 ring_it = loop(sv, "lightskin_shade.comp", "for (uint r = 0u; r < RINGS; ++r) {", after="float slack")
 best_it = loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) v = uint(j) == i ? b.d[j] : v;", nth=0)
@@ -124,7 +127,7 @@ show("shade: ring check (+16 best_at steps)", lin((1, ring_it), (16, best_it)))
 show("rsm.frag (whole)", rsm_frag)
 show("gbuffer.frag (whole)", gb_frag)
 
-T_CAND = 'for (; j < ring_start[r + 1u]; ++j)'
+T_CAND = 'for (uint j = j0; j < j1; ++j) {'
 T_OFFER = 'for (int j = MAX_N - 1; j > 0; --j)'
 T_INTERP = 'for (int j = 0; j < MAX_N; ++j) {   /* constant indices'
 T_PASS = 'for (int pass = 0; pass < 2; ++pass)'
@@ -225,7 +228,7 @@ def cpu_ms(lane_ops):
 def ops(c, sfu=4):
     return c["alu"] + sfu * c["sfu"] + c["ld_s"] + c["ld_g"] + c["ld_t"] + c["st"]
 pe = loop("proxy_lights-diffuse", "proxy_lights.comp", T_PROXY, path="every", nth=0)
-ce = loop(sv, "lightskin_shade.comp", "for (; j < ring_start[r + 1u]; ++j)", path="every")
+ce = lin((2, loop(sv, "lightskin_shade.comp", "for (uint j = j0; j < j1; ++j) {", path="every", nth=0)))
 oe = loop(sv, "lightskin_shade.comp", "for (int j = MAX_N - 1; j > 0; --j)", path="every", nth=0)
 ie = lin((1, loop(sv, "lightskin_shade.comp", "for (int j = 0; j < MAX_N; ++j) {   /* constant indices", path="every")),
          (2, loop(sv, "lightskin_shade.comp", "for (int pass = 0; pass < 2; ++pass)", path="every")))
