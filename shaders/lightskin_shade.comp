@@ -161,7 +161,7 @@ vec3 interp_light(Near b, bool is_glossy, vec3 x, vec3 nx, vec3 view, float k, f
 shared vec4 list_p[LIST_CAP];   /* a tile's caches: position, w = cache index (bits) */
 shared vec4 list_n[LIST_CAP];   /* normal, w = distance from the receivers' box */
 shared uint list_count;
-shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first */
+shared uint list_order[LIST_CAP];        /* the list by ring, nearest ring first (or by slab) */
 shared uint ring_start[SLABS + 1u], ring_fill[SLABS];   /* the rings' (or slabs') starts in list_order */
 shared int slab_axis;           /* -1: rings; else the axis of the slabs */
 shared float slab_lo, slab_w;   /* the slabs' first edge and width along it */
