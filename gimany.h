@@ -97,8 +97,8 @@
                            shadowed by one imperfect shadow map [5] per second-bounce VPL; f.vpl
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
-     off by default, and off costs nothing. f.lightskin.temporal_steps keeps the VALs
-     coherent from frame to frame (the aim of incremental instant radiosity [7]).
+     off by default, and off costs nothing. f.lightskin.temporal_steps (32 by default) keeps
+     the VALs coherent from frame to frame (the aim of incremental instant radiosity [7]).
      Measured speed and error of each: README.md, docs/methods.md.
 
    BIBLIOGRAPHY
@@ -255,6 +255,8 @@ typedef enum gim_light_type {
 } gim_light_type;
 
 #define GIM_MAX_TEMPORAL_STEPS 65536u /* gim_frame.lightskin.temporal_steps */
+#define GIM_DEFAULT_TEMPORAL_STEPS 32u /* its default: the street's frame-to-frame change 1.2-1.4x
+                                          FULL's at 1024-4096 VALs, 2.0x drawn anew (docs/methods.md) */
 #define GIM_MAX_LIGHTS 4096           /* RSMs per context (a point light takes six, others one): a bound
                                          on the arrays, not on memory; each RSM the frame renders has
                                          its own textures (52 bytes a texel), one it culls has none */
@@ -557,8 +559,10 @@ typedef struct gim_frame_lightskin {
                                    rotate_view_samples, of the view samples) drift by 1/L of their points'
                                    spacing a frame (gim_drift_offsets) instead of being drawn anew, so each
                                    VAL moves to a nearby texel or stays (the aim of Laine et al. 2007); each
-                                   frame is still unbiased and as stratified. 0 or 1: new offsets every
-                                   frame; at most GIM_MAX_TEMPORAL_STEPS */
+                                   frame is still unbiased and as stratified, and frame 0 is the frame
+                                   drawn anew. 1: new offsets every frame (independent frames, for a host
+                                   that averages them itself); 0: GIM_DEFAULT_TEMPORAL_STEPS (32); at most
+                                   GIM_MAX_TEMPORAL_STEPS */
     uint32_t view_sample_count; /* Halton view samples over the G-buffer; 0: 256; at most 32768 (one
                                    importance-map invocation loops over them all; llvmpipe stops
                                    a loop after 65535 iterations) */
@@ -12293,7 +12297,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.visibility.ism_size = GIM_ISM_DEFAULT_SIZE;   /* the VPL methods' too (their frame has always used it) */
     f.visibility.ism_points = vplm ? GIM_ISM_DEFAULT_VPL_POINTS : GIM_ISM_DEFAULT_POINTS;
     f.lightskin.val_count = GIM__DEFAULT_VAL_COUNT;
-    f.lightskin.temporal_steps = 1u;               /* no drift: new offsets every frame */
+    f.lightskin.temporal_steps = GIM_DEFAULT_TEMPORAL_STEPS;   /* VALs kept from frame to frame */
     f.lightskin.view_sample_count = GIM__DEFAULT_VIEW_SAMPLES;
     f.lightskin.importance_clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
     f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;

@@ -142,6 +142,7 @@ static void cornell_frame(const char *gltf) {
     /* BRSM converges to FULL as N_sVAL grows (each error the mean of two frames) */
     ff.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
     ff.fr.timing = 0;
+    ff.fr.lightskin.temporal_steps = 1;   /* two independent frames */
     for (k = 0; k < 3; ++k) {
         err[k] = 0.0;
         for (seed = 0; seed < 2; ++seed) {
@@ -378,7 +379,7 @@ static void frame_defaults_render_as_zero(void **state) {
     assert_int_equal(d.visibility.ism_size, 64);
     assert_int_equal(d.visibility.ism_points, 16384);
     assert_int_equal(d.lightskin.val_count, 2048);
-    assert_int_equal(d.lightskin.temporal_steps, 1);
+    assert_int_equal(d.lightskin.temporal_steps, 32);
     assert_int_equal(d.lightskin.view_sample_count, 256);
     assert_true(d.lightskin.importance_clamp == 1.0f / 64.0f);
     assert_int_equal(d.lightskin.neighbour_count, 16);
