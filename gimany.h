@@ -329,7 +329,7 @@ typedef void (*gim_gl_proc)(void);
    Either way a call sets, for itself, every item its passes depend on, so its results do not
    depend on the host's state; and either way it leaves alone what is not listed below. */
 typedef enum gim_gl_state {
-    /* The default: the outermost call saves the items it may change (about 65 GL queries, each
+    /* The default: the outermost call saves the items it may change (about 63 GL queries, each
        a round trip on threaded drivers such as NVIDIA's threaded optimisation or Mesa's
        glthread) and restores them on return. */
     GIM_GL_STATE_RESTORE = 0,
@@ -339,9 +339,9 @@ typedef enum gim_gl_state {
        GL_TEXTURE0; image units 0-2 unbound (level 0, layer 0, not layered, GL_READ_ONLY,
        GL_R8); shader storage bindings 0-7 and the generic GL_SHADER_STORAGE_BUFFER,
        GL_ARRAY_BUFFER, GL_COPY_READ_BUFFER, GL_COPY_WRITE_BUFFER bindings 0; disabled:
-       GL_CULL_FACE, GL_DEPTH_TEST, GL_STENCIL_TEST, GL_SCISSOR_TEST, GL_PRIMITIVE_RESTART,
+       GL_CULL_FACE, GL_DEPTH_TEST, GL_SCISSOR_TEST, GL_PRIMITIVE_RESTART,
        GL_PRIMITIVE_RESTART_FIXED_INDEX, GL_RASTERIZER_DISCARD, GL_POLYGON_OFFSET_FILL,
-       GL_FRAMEBUFFER_SRGB, GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH, GL_COLOR_LOGIC_OP, and GL_BLEND
+       GL_DEPTH_CLAMP, GL_POLYGON_SMOOTH, GL_COLOR_LOGIC_OP, and GL_BLEND
        of draw buffers 0-3; colour masks of draw buffers 0-3 all GL_TRUE; depth mask GL_TRUE,
        depth func GL_LESS, depth range 0..1; polygon mode GL_FILL; provoking vertex
        GL_LAST_VERTEX_CONVENTION; clip control GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE (GL 4.5 or
@@ -7747,12 +7747,10 @@ enum {
     GIM__GL_BLEND = 0x0BE2,
     GIM__GL_CULL_FACE = 0x0B44,
     GIM__GL_DEPTH_TEST = 0x0B71,
-    GIM__GL_STENCIL_TEST = 0x0B90,
     GIM__GL_SCISSOR_TEST = 0x0C11,
     GIM__GL_PRIMITIVE_RESTART = 0x8F9D,
     GIM__GL_RASTERIZER_DISCARD = 0x8C89,
     GIM__GL_POLYGON_OFFSET_FILL = 0x8037,
-    GIM__GL_FRAMEBUFFER_SRGB = 0x8DB9,
     GIM__GL_DEPTH_CLAMP = 0x864F,
     GIM__GL_DEPTH_FUNC = 0x0B74,
     GIM__GL_DEPTH_WRITEMASK = 0x0B72,
@@ -8067,11 +8065,14 @@ static int gim__gl_has_extension(const gim__gl *gl, const char *name) {
 #define GIM__GL_DRAW_BUFFERS 4   /* gimany's FBOs' colour attachments: 3 (RSM, G-buffer), 4 (paraboloids) */
 
 /* glEnable/glDisable capabilities, all off in GL's initial state; every draw turns them off but
-   the depth test (gim__gl_raster_state) */
+   the depth test (gim__gl_raster_state). Not listed, because they cannot change a draw of gimany's:
+   the stencil test (its FBOs have no stencil buffer, so the test passes: GL 4.5, "Stencil Test")
+   and GL_FRAMEBUFFER_SRGB (it encodes only sRGB attachments, and gimany's are float: "sRGB
+   Conversion"); each item left out is a query fewer a call */
 static const gim__GLenum gim__gl_state_caps[] = {
-    GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_STENCIL_TEST, GIM__GL_SCISSOR_TEST,
+    GIM__GL_CULL_FACE, GIM__GL_DEPTH_TEST, GIM__GL_SCISSOR_TEST,
     GIM__GL_PRIMITIVE_RESTART, GIM__GL_RASTERIZER_DISCARD, GIM__GL_POLYGON_OFFSET_FILL,
-    GIM__GL_FRAMEBUFFER_SRGB, GIM__GL_DEPTH_CLAMP,
+    GIM__GL_DEPTH_CLAMP,
     /* polygon smoothing would scale the RSM's alpha (the lit flag) at edges */
     GIM__GL_POLYGON_SMOOTH,
     /* a logic op replaces the writes to integer targets (the G-buffer's material); a fixed
