@@ -519,9 +519,9 @@ typedef enum gim_visibility {
                                        looked up per VAL in the proxy-light sum; made once per scene
                                        change (mesh, instance, a deforming mesh's vertices), not per frame. CLUSTERED, SSVP: one
                                        per VPL, both bounces (Keller's instant radiosity with Ritschel's
-                                       maps), the first bounce's kept while the scene and the lights' RSM
-                                       cameras stay (gim_stats.ism_maps_made), the second bounce's made every
-                                       frame; hard visibility per VPL in the shading instead of the
+                                       maps), a first-bounce VPL's kept with the VPL while its light moves
+                                       (gim_frame_vpl.redraw; gim_stats.ism_maps_made), the second bounce's
+                                       made every frame; hard visibility per VPL in the shading instead of the
                                        clusters' paraboloid maps */
 } gim_visibility;
 
@@ -610,6 +610,11 @@ typedef struct gim_frame_vpl {
                                    every pixel, no blur (docs/methods.md: the trade) */
     float clamp_distance;       /* d_c in scene scales: 1 / d^2 floored at 1 / d_c^2; 0: 0.01; < 0: none */
     float blur_distance;        /* blur's position tolerance in scene scales; 0: 0.1 (Dong sec. 6) */
+    int redraw;                 /* 0: incremental instant radiosity (Laine et al. 2007): a first-bounce VPL of
+                                   the last frame stays, with its imperfect shadow map, while its light still
+                                   sees its point and it stays near its slot's texel (gim_rsm_vpls_desc.
+                                   previous); the others are drawn anew. 1: every VPL drawn at its texel
+                                   every frame (the frame of a light that moves depends on that frame only) */
 } gim_frame_vpl;
 
 /* Input of gim_update: the settings every method shares, then one sub-struct per method family
@@ -673,7 +678,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    texture, once per 2 x 2 block where its pixels lie on one surface (lightskin.shade_block;
    gim_lightskin_shade_twin with gim_shade_sources is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
-   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin) -> k-means
+   after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin; the
+   last frame's kept where their light still sees them near their slot, gim_frame_vpl.redraw) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
@@ -682,8 +688,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
    With visibility ISM the VPL methods make no depth maps: one imperfect shadow map per VPL of
-   both bounces (gim_ism_render_twin with the VPLs as caches; the first bounce's kept while the
-   scene and every rendered RSM's camera stay, as their VPLs then are; SSVP's second-bounce hits
+   both bounces (gim_ism_render_twin with the VPLs as caches; a first-bounce VPL's kept with the
+   VPL, incremental instant radiosity after Laine et al. 2007; SSVP's second-bounce hits
    first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
    its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
@@ -834,9 +840,10 @@ typedef struct gim_stats {
     uint32_t rsm_count;         /* RSMs rendered (light_count less the culled) */
     uint32_t val_light_count;   /* BRSM: RSMs given VALs (importance total > 0) */
     uint32_t ism_maps_made;     /* visibility ISM: imperfect shadow maps rendered by this frame; the caches' are
-                                   kept while the scene stays, the first-bounce VPLs' while the scene and every
-                                   rendered RSM's camera stay (0 then for CLUSTERED; SSVP makes its second
-                                   bounce's every frame) */
+                                   kept while the scene stays, a first-bounce VPL's with the VPL (gim_frame_vpl.
+                                   redraw; 0 for CLUSTERED while nothing moves; SSVP makes its second bounce's
+                                   every frame). Counted on the GPU while VPLs are kept: gim_frame_stats then
+                                   waits for the frame */
 } gim_stats;
 
 /* Stats of the last successful gim_update; waits for the GPU when it was timed. */
@@ -1576,6 +1583,17 @@ typedef struct gim_rsm_vpls_desc {
     uint32_t count;                 /* VPLs, > 0 */
     gim_vpl_sequence sequence;
     const float *offsets;           /* 2 values in [0,1), or NULL: no rotation */
+    /* Incremental instant radiosity (Laine et al. 2007): the last frame's count VPLs of this RSM,
+       slot for slot (gim_vpl layout), or NULL: every VPL drawn at its texel. VPL i keeps its
+       previous position and normal where it is lit, view_proj (the RSM's camera now, clip =
+       view_proj (x, 1)) puts it on a texel inside the RSM within gim__rsm_vpl_radius of its slot's
+       texel (so the VPLs stay one per stratum of the sequence and the weights stay equal), that
+       texel is lit, holds a point within 2 sqrt(its footprint) of the VPL (the light still sees
+       it) and a normal within acos 0.9 of its own; it takes that texel's flux and footprint, and
+       T / S counts that texel. The float steps are the GPU pass's, in its order. */
+    const struct gim_vpl *previous;
+    gim_mat4 view_proj;
+    unsigned char *kept;            /* out: count flags, 1 where VPL i was kept (0 without previous), or NULL */
     gim_env env;
 } gim_rsm_vpls_desc;
 
@@ -1818,7 +1836,8 @@ typedef struct gim_vpl {
                                texels it stands for (gim_rsm_vpls_twin), which its near field spreads it
                                over; 0: a point (far field and clamp only) */
     float flux[3];          /* Phi, rgb, >= 0 */
-    float unused1;
+    float kept;             /* 1: a first-bounce VPL kept from the last frame (gim_rsm_vpls_desc.previous),
+                               its imperfect shadow map with it; 0: drawn this frame */
 } gim_vpl;
 
 /* The paraboloid map of one cluster (a virtual area light, VAL): three vec4 (48 bytes). */
@@ -5758,6 +5777,48 @@ static int gim__rsm_vpl_lit(const gim_rsm_data *m, size_t t) {
     return f[0] >= 0.0f && f[1] >= 0.0f && f[2] >= 0.0f;
 }
 
+/* How far (in texels, Chebyshev) a kept VPL of slot i may stand from its slot's texel: half the
+   sequence's spacing sqrt(w h / count) at most, a quarter at least, the share frac(i phi) in
+   24 bits between, so that the VPLs of one light do not all reach their bound in the same
+   frame (a burst of new ones). Computed on the CPU for both twins and uploaded with the texels. */
+static float gim__rsm_vpl_radius(uint32_t i, uint32_t count, uint32_t width, uint32_t height) {
+    double spacing = sqrt((double)width * (double)height / (double)count);
+    double j = (double)((uint32_t)(i * 2654435769u) >> 8) / 16777216.0;
+    return (float)(spacing * (0.25 + 0.25 * j));
+}
+
+/* The texel that the previous VPL p of a slot at texel (sx, sy) with radius r stands on now, or -1
+   when it is not kept (gim_rsm_vpls_desc.previous; rsm_vpls.comp's follow(), step for step). */
+static long gim__rsm_vpl_follow(const gim_rsm_data *m, const gim_vpl *p, const float *vp, uint32_t sx, uint32_t sy,
+                                float r) {
+    float x = p->position[0], y = p->position[1], z = p->position[2], cx, cy, cw, u, v, fx, fy, dx, dy, d2, a, c;
+    const float *q, *n;
+    size_t t;
+    if (!(p->lit == 1.0f) || !gim__all_finite(p->position, 3) || !gim__all_finite(p->normal, 3)) return -1;
+    cx = vp[0] * x; cx += vp[4] * y; cx += vp[8] * z; cx += vp[12];
+    cy = vp[1] * x; cy += vp[5] * y; cy += vp[9] * z; cy += vp[13];
+    cw = vp[3] * x; cw += vp[7] * y; cw += vp[11] * z; cw += vp[15];
+    if (!(cw > 0.0f)) return -1;
+    u = cx / cw; u = u * 0.5f + 0.5f; u = u * (float)m->width;
+    v = cy / cw; v = v * 0.5f + 0.5f; v = v * (float)m->height;
+    fx = (float)floor((double)u);
+    fy = (float)floor((double)v);
+    if (!(fx >= 0.0f && fy >= 0.0f && fx < (float)m->width && fy < (float)m->height)) return -1;
+    dx = fx - (float)sx; dy = fy - (float)sy;
+    if (!(fabsf(dx) <= r && fabsf(dy) <= r)) return -1;
+    t = (size_t)fy * m->width + (size_t)fx;
+    if (!gim__rsm_vpl_lit(m, t)) return -1;
+    q = m->position + t * 3; n = m->normal + t * 3;
+    dx = q[0] - x; dy = q[1] - y; cw = q[2] - z;
+    d2 = dx * dx; d2 += dy * dy; d2 += cw * cw;
+    a = m->area ? m->area[t] : 0.0f;
+    a = 4.0f * a;
+    if (!(d2 <= a)) return -1;   /* a footprint that is NaN or < 0 keeps nothing */
+    c = n[0] * p->normal[0]; c += n[1] * p->normal[1]; c += n[2] * p->normal[2];
+    if (!(c >= 0.9f)) return -1;
+    return (long)t;
+}
+
 GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *positions, float *normals, float *flux,
                                         float *area) {
     static const char fn[] = "gim_rsm_vpls_twin";
@@ -5767,6 +5828,8 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
     const gim_rsm_data *rsm;
     gim_vpl_sequence sequence;
     const float *offsets;
+    size_t *texel;
+    unsigned char *kept;
     gim_env env;
     if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
     rsm = desc->rsm; count = desc->count; sequence = desc->sequence; offsets = desc->offsets; env = desc->env;
@@ -5781,6 +5844,8 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "offsets must be in [0,1)");
     if ((unsigned)sequence > (unsigned)GIM_VPL_SEQUENCE_HAMMERSLEY)
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "unknown sequence %d", (int)sequence);
+    if (desc->previous && !gim__mat4_isfinite(desc->view_proj))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "view_proj is not finite");
     /* T: each row in x order, then the rows (the GPU's per-row invocations) */
     for (y = 0; y < rsm->height; ++y) {
         double row[3] = {0.0, 0.0, 0.0};
@@ -5793,17 +5858,26 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
     }
     if (total[0] > FLT_MAX || total[1] > FLT_MAX || total[2] > FLT_MAX)
         return gim__fail(&env, GIM_ERROR_OUT_OF_RANGE, fn, "the RSM's total flux exceeds the float range");
+    /* each VPL's texel: its slot's, or the one its previous VPL stands on now */
+    texel = (size_t *)gim__alloc_array(&env, count, sizeof *texel + 1u);   /* then a kept flag each */
+    if (!texel) return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u VPL texels", (unsigned)count);
+    kept = (unsigned char *)(texel + count);
+    for (i = 0; i < count; ++i) {
+        long k = -1;
+        gim__rsm_vpl_texel(i, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
+        if (desc->previous)
+            k = gim__rsm_vpl_follow(rsm, desc->previous + i, desc->view_proj.m, x, y,
+                                    gim__rsm_vpl_radius(i, count, rsm->width, rsm->height));
+        texel[i] = k >= 0 ? (size_t)k : (size_t)y * rsm->width + x;
+        kept[i] = (unsigned char)(k >= 0);
+    }
     /* S: blocks of GIM_RSM_VPL_BLOCK VPLs, then the blocks */
     for (i = 0; i < count; i += GIM_RSM_VPL_BLOCK) {
         double block[3] = {0.0, 0.0, 0.0};
         uint32_t e = count - i < GIM_RSM_VPL_BLOCK ? count : i + GIM_RSM_VPL_BLOCK, k;
-        for (k = i; k < e; ++k) {
-            size_t t;
-            gim__rsm_vpl_texel(k, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
-            t = (size_t)y * rsm->width + x;
-            if (gim__rsm_vpl_lit(rsm, t))
-                for (a = 0; a < 3; ++a) block[a] += rsm->flux[t * 3 + (size_t)a];
-        }
+        for (k = i; k < e; ++k)
+            if (gim__rsm_vpl_lit(rsm, texel[k]))
+                for (a = 0; a < 3; ++a) block[a] += rsm->flux[texel[k] * 3 + (size_t)a];
         for (a = 0; a < 3; ++a) sampled[a] += block[a];
     }
     for (a = 0; a < 3; ++a) scale[a] = sampled[a] > 0.0 ? total[a] / sampled[a] : 0.0;
@@ -5811,26 +5885,26 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
     ss = sampled[0] + sampled[1] + sampled[2];
     area_scale = ss > 0.0 ? ts / ss : 0.0;
     for (i = 0; i < count; ++i) {
-        size_t t;
-        int lit;
-        gim__rsm_vpl_texel(i, count, sequence, rsm->width, rsm->height, offsets, &x, &y);
-        t = (size_t)y * rsm->width + x;
-        lit = gim__rsm_vpl_lit(rsm, t);
+        size_t t = texel[i];
+        int lit = gim__rsm_vpl_lit(rsm, t);
+        const gim_vpl *p = kept[i] ? desc->previous + i : NULL;
         if (area) {
             float at = rsm->area && lit ? rsm->area[t] : 0.0f;
             double av = at > 0.0f && at <= FLT_MAX ? (double)at * area_scale : 0.0;
             area[i] = (float)(av < FLT_MAX ? av : FLT_MAX);
         }
-        {   /* position and normal copied where finite (an unlit texel may hold anything) */
+        {   /* position and normal copied where finite (an unlit texel may hold anything); a kept VPL's its own */
             int pok = gim__all_finite(rsm->position + t * 3, 3), nok = gim__all_finite(rsm->normal + t * 3, 3);
             for (a = 0; a < 3; ++a) {
                 double f = lit ? (double)rsm->flux[t * 3 + (size_t)a] * scale[a] : 0.0;
-                positions[(size_t)i * 3 + (size_t)a] = pok ? rsm->position[t * 3 + (size_t)a] : 0.0f;
-                normals[(size_t)i * 3 + (size_t)a] = nok ? rsm->normal[t * 3 + (size_t)a] : 0.0f;
+                positions[(size_t)i * 3 + (size_t)a] = p ? p->position[a] : pok ? rsm->position[t * 3 + (size_t)a] : 0.0f;
+                normals[(size_t)i * 3 + (size_t)a] = p ? p->normal[a] : nok ? rsm->normal[t * 3 + (size_t)a] : 0.0f;
                 flux[(size_t)i * 3 + (size_t)a] = (float)(f < FLT_MAX ? f : FLT_MAX); /* a share of T <= T: never clamps */
             }
         }
     }
+    if (desc->kept) memcpy(desc->kept, kept, count);
+    gim__free(&env, texel);
     return GIM_OK;
 }
 
@@ -8403,6 +8477,9 @@ typedef struct gim__vpl_gpu {
     uint64_t kmeans_acc_bytes;
     uint32_t texels_key[3];       /* count, sequence, size of the list in texels; count 0: none */
     float texels_offsets[3];      /* offsets[0..1], [2] = 1 when offsets were given */
+    uint64_t follow_key;          /* gim__vpl_follow_key of the first-bounce VPLs in vpls; 0: none to follow */
+    gim__GLuint made;             /* one uint: the VPLs' imperfect shadow maps made this frame (ism.comp) */
+    uint64_t made_bytes;
 } gim__vpl_gpu;
 
 #define GIM__MAX_STAMPS 96   /* timestamps a frame may take (a pass run per light merges into one) */
@@ -8473,9 +8550,12 @@ struct gim_context {
     uint64_t ism_cluster_maps_bytes;
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
-    uint64_t ism_vpl_key;         /* what the first-bounce VPLs' maps in ism_maps were made from (gim__vpl_ism_key);
-                                     0: ism_maps holds no VPL maps */
+    uint64_t ism_vpl_key;         /* what the first-bounce VPLs' maps in ism_maps were made from (gim__vpl_ism_key
+                                     with the RSM cameras) when those VPLs were drawn at their texels; else 0 */
+    uint64_t ism_vpl_layout;      /* the same without the cameras: ism_maps holds one map per VPL slot, made
+                                     for what each slot held; 0: ism_maps holds no VPL maps */
     uint32_t ism_maps_made;       /* imperfect shadow maps rendered by this frame (gim_stats.ism_maps_made) */
+    int ism_made_counted;         /* 1: this frame's VPL maps were counted on the GPU (ctx->vpl.made) */
     uint64_t scene_version;       /* bumped when meshes, instances or a deforming mesh's vertices change */
     gim__GLuint deform_box;       /* 28 bytes: a host-buffer deforming mesh's bounds (caches_follow.comp mode 0; bound in mode 1 too); 0: none yet */
     uint64_t ls_version;          /* the scene_version the world caches and their grid were made for */
@@ -9380,9 +9460,24 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
    map_first + cache_count - 1 are made, each into its own place (maps_out holds map_first +
    cache_count maps): the others keep what an earlier call wrote. map_first must be a multiple
    of gim__ism_align_maps. */
+static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
+                                        uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out,
+                                        gim__GLuint made);
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
+    return gim__gl_ism_render_ex(ctx, caches, source_vec4s, source_first, map_first, cache_count, points, point_count, size,
+                                 points_per_map, scene_scale, maps_out, 0u);
+}
+
+/* ... and with made (a buffer of one uint, or 0): the maps of VPLs kept from the last frame
+   (gim_vpl.kept 1; source_vec4s 3) are not made, they keep what the buffer holds; made counts
+   those that are (ctx->ism_maps_made then counts none: gim_frame_stats reads made). */
+static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
+                                        uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
+                                        uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out,
+                                        gim__GLuint made) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -9428,6 +9523,9 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
         r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, ((uint64_t)map_first + cache_count) * size * size * 2u);
     if (r == GIM_OK && (maps_out == caches || maps_out == points))
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
+    if (r == GIM_OK && made && source_vec4s != 3u)
+        r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "only VPLs keep their maps");
+    if (r == GIM_OK && made) r = gim__gl_check_buffer(ctx, where, "made", made, 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
@@ -9441,6 +9539,8 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
+    gl->Uniform1ui(10, made ? 1u : 0u);
+    if (made) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, made);
     for (first = map_first; first < map_first + cache_count; first += chunk) {   /* each dispatch within one block */
         uint32_t n = map_first + cache_count - first < chunk ? map_first + cache_count - first : chunk;
         gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)(first * map_bytes),
@@ -9449,7 +9549,7 @@ static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, ui
         gl->Uniform1ui(9, first);
         gl->DispatchCompute(n, 1u, 1u);
     }
-    ctx->ism_maps_made += cache_count;
+    if (!made) ctx->ism_maps_made += cache_count;
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
@@ -9562,10 +9662,23 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
    order, each loop under llvmpipe's 65535 iterations (a row of <= 16384 texels; the final sum
    over size + count / GIM_RSM_VPL_BLOCK partials). The texel list and the partial sums live
    in two buffers of the context (ctx->vpl), the list remade only when count, sequence, size
-   or offsets change. Cost: size^2 + 3 count texel reads. */
+   or offsets change. Cost: size^2 + 3 count texel reads.
+   follow (NULL: none) is the RSM's camera now (proj view) when vpls_out holds this RSM's VPLs of
+   the last frame, slot for slot: they are kept where gim_rsm_vpls_twin's previous keeps them
+   (flux.w 1), so that this pass is the twin with previous = what vpls_out held. */
+static gim_result gim__gl_rsm_vpls_follow(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                          gim__GLuint rsm_flux, uint32_t size, uint32_t count,
+                                          gim_vpl_sequence sequence, const float *offsets, gim__GLuint vpls_out,
+                                          const gim_mat4 *follow);
 static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
                                                gim__GLuint rsm_flux, uint32_t size, uint32_t count,
                                                gim_vpl_sequence sequence, const float *offsets, gim__GLuint vpls_out) {
+    return gim__gl_rsm_vpls_follow(ctx, rsm_position, rsm_normal, rsm_flux, size, count, sequence, offsets, vpls_out, NULL);
+}
+static gim_result gim__gl_rsm_vpls_follow(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                          gim__GLuint rsm_flux, uint32_t size, uint32_t count,
+                                          gim_vpl_sequence sequence, const float *offsets, gim__GLuint vpls_out,
+                                          const gim_mat4 *follow) {
     static const char where[] = "RSM VPLs (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__vpl_gpu *v = &ctx->vpl;
@@ -9582,6 +9695,8 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
     if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count is 0");
     if (offsets && !(offsets[0] >= 0.0f && offsets[0] < 1.0f && offsets[1] >= 0.0f && offsets[1] < 1.0f))
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "offsets must be in [0,1)");
+    if (follow && !gim__mat4_isfinite(*follow))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "the RSM's camera is not finite");
     blocks = (count + GIM_RSM_VPL_BLOCK - 1u) / GIM_RSM_VPL_BLOCK;
     sums_bytes = ((uint64_t)size + blocks + 1u) * 32u;
     if ((uint64_t)count * 48u > (uint64_t)ctx->max_ssbo_bytes || sums_bytes > (uint64_t)ctx->max_ssbo_bytes ||
@@ -9593,10 +9708,14 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
            (offsets ? v->texels_offsets[2] == 1.0f && v->texels_offsets[0] == offsets[0] && v->texels_offsets[1] == offsets[1]
                     : v->texels_offsets[2] == 0.0f);
     if (!same) {
-        texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 2u * sizeof(uint32_t));
+        texels = (uint32_t *)gim__alloc_array(&ctx->env, count, 4u * sizeof(uint32_t));
         if (!texels) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u VPL texels", (unsigned)count);
-        for (i = 0; i < count; ++i)
-            gim__rsm_vpl_texel(i, count, sequence, size, size, offsets, texels + 2 * i, texels + 2 * i + 1);
+        for (i = 0; i < count; ++i) {   /* x, y, the keep radius's bits, 0 */
+            float radius = gim__rsm_vpl_radius(i, count, size, size);
+            gim__rsm_vpl_texel(i, count, sequence, size, size, offsets, texels + 4 * i, texels + 4 * i + 1);
+            memcpy(texels + 4 * i + 2, &radius, 4);
+            texels[4 * i + 3] = 0;
+        }
     }
     textures[0] = rsm_position;
     textures[1] = rsm_normal;
@@ -9607,10 +9726,10 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_RSM_VPLS, &program);
     if (r == GIM_OK && !same) {
         v->texels_key[0] = 0;   /* none until the upload is done */
-        r = gim__gl_sized_buffer(ctx, &v->texels, &v->texels_bytes, (uint64_t)count * 8u, where);
+        r = gim__gl_sized_buffer(ctx, &v->texels, &v->texels_bytes, (uint64_t)count * 16u, where);
         if (r == GIM_OK) {
             gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->texels);
-            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 8, texels);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 16, texels);
             r = gim__gl_check(ctx, where);
         }
         if (r == GIM_OK) {
@@ -9634,6 +9753,8 @@ static GIM__UNUSED gim_result gim__gl_rsm_vpls(gim_context *ctx, gim__GLuint rsm
         gl->Uniform1ui(0, size);
         gl->Uniform1ui(1, count);
         gl->Uniform1ui(3, GIM_RSM_VPL_BLOCK);
+        gl->Uniform1ui(4, follow ? 1u : 0u);
+        if (follow) gl->UniformMatrix4fv(5, 1, GIM__GL_FALSE, follow->m);
         for (mode = 0; mode < 4u; ++mode) {
             uint32_t n = mode == 0u ? (size > count ? size : count) : mode == 1u ? blocks : mode == 2u ? 1u : count;
             gl->Uniform1ui(2, mode);
@@ -11415,6 +11536,7 @@ static void gim__ism_release(gim_context *ctx) {
     ctx->ism_size = ctx->ism_per_map = ctx->ism_point_count = 0;
     ctx->ism_version = 0;
     ctx->ism_vpl_key = 0;
+    ctx->ism_vpl_layout = 0;
 }
 
 static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
@@ -11662,6 +11784,7 @@ vals:
                 r = gim__gl_sized_buffer(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, (uint64_t)total * size * size * 2u,
                                          where);   /* may exceed one storage block: the passes bind ranges */
             ctx->ism_vpl_key = 0;   /* the caches' maps take the buffer */
+            ctx->ism_vpl_layout = 0;
             if (r == GIM_OK) r = gim__gl_ism_render(ctx, ls->caches, total, ctx->ism_points, pool, size, per, scale, ctx->ism_maps);
             if (r != GIM_OK) return r;
             ctx->ism_version = ctx->scene_version;
@@ -12373,6 +12496,7 @@ static void gim__vpl_release(gim_context *ctx) {
     b[0] = v->vpls; b[1] = v->staging; b[2] = v->cluster_of; b[3] = v->centres; b[4] = v->maps;
     b[5] = v->texels; b[6] = v->sums; b[7] = v->kmeans_acc;
     ctx->gl.DeleteBuffers(8, b);
+    if (v->made) ctx->gl.DeleteBuffers(1, &v->made);
     memset(v, 0, sizeof *v);
     gim__vpl_raw_release(ctx);
     gim__paraboloid_release(ctx, 1);
@@ -12522,10 +12646,10 @@ static uint64_t gim__fnv64(uint64_t h, const void *p, size_t n) {
 }
 
 /* What the first-bounce VPLs' maps depend on: the scene (its version), every rendered RSM's
-   side and camera (the VPLs' texels, positions and normals; not the light's colour or power),
-   the VPL counts and sequence, and the maps' settings. Never 0. */
+   side and (cameras 1) camera (the VPLs' texels, positions and normals; not the light's colour
+   or power), the VPL counts and sequence, and the maps' settings. Never 0. */
 static uint64_t gim__vpl_ism_key(const gim_context *ctx, uint32_t first, uint32_t total, uint32_t size, uint32_t per,
-                                 float scale, int ssvp) {
+                                 float scale, int ssvp, int cameras) {
     uint64_t h = 14695981039346656037ull;
     uint32_t u[6], i;
     u[0] = first; u[1] = total; u[2] = size; u[3] = per; u[4] = (uint32_t)ssvp; u[5] = ctx->light_count;
@@ -12537,8 +12661,30 @@ static uint64_t gim__vpl_ism_key(const gim_context *ctx, uint32_t first, uint32_
         h = gim__fnv64(h, &ctx->light_on[i], sizeof ctx->light_on[i]);
         if (!ctx->light_on[i]) continue;
         h = gim__fnv64(h, &g->size, sizeof g->size);
+        if (!cameras) continue;
         h = gim__fnv64(h, g->view.m, sizeof g->view.m);
         h = gim__fnv64(h, g->proj.m, sizeof g->proj.m);
+    }
+    return h ? h : 1u;
+}
+
+/* What makes the first-bounce VPLs of the last frame the ones to follow (incremental instant
+   radiosity, Laine et al. 2007: gim_rsm_vpls_desc.previous) slot for slot: the scene (its
+   version: a moved instance moves the points the VPLs stand on and their maps), the lights that
+   rendered an RSM and its side, the VPLs per RSM and their sequence. Not the cameras, which the
+   follow test looks through. Never 0. */
+static uint64_t gim__vpl_follow_key(const gim_context *ctx, const gim_frame *f, const gim__vpl_settings *s) {
+    uint64_t h = 14695981039346656037ull;
+    uint32_t i, k, n, u[2];
+    u[0] = (uint32_t)s->ssvp; u[1] = ctx->light_count;
+    h = gim__fnv64(h, &ctx->scene_version, sizeof ctx->scene_version);
+    h = gim__fnv64(h, u, sizeof u);
+    for (i = 0, k = 0; i < ctx->light_count; ++i) {
+        h = gim__fnv64(h, &ctx->light_on[i], sizeof ctx->light_on[i]);
+        if (!ctx->light_on[i]) continue;
+        n = gim__vpl_share(f, s, ctx->light_on_count, k++);
+        h = gim__fnv64(h, &ctx->light_gpu[i].size, sizeof ctx->light_gpu[i].size);
+        h = gim__fnv64(h, &n, sizeof n);
     }
     return h ? h : 1u;
 }
@@ -12552,7 +12698,9 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = gim__ism_pool(ism_per);
-    int warm, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    int warm, follow, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    uint64_t follow_key, had_bytes;
+    gim__GLuint had;
     gim__vpl_settings_of(f, &s);
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
@@ -12561,8 +12709,15 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u of %u lights reach the scene: %u VPLs, below "
                          "cluster_count %u or interleave^2 %u", (unsigned)ctx->light_on_count, (unsigned)ctx->light_count,
                          (unsigned)total, (unsigned)s.clusters, (unsigned)(s.interleave * s.interleave));
-    /* first-bounce VPLs, one light after the other */
+    /* first-bounce VPLs, one light after the other; the last frame's followed where they are
+       still the same VPLs' (incremental instant radiosity, Laine et al. 2007; vpl.redraw 1: not) */
+    follow_key = gim__vpl_follow_key(ctx, f, &s);
+    had = v->vpls;
+    had_bytes = v->vpls_bytes;
     r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
+    follow = r == GIM_OK && !f->vpl.redraw && follow_key == v->follow_key && had && had == v->vpls &&
+             had_bytes == v->vpls_bytes;
+    v->follow_key = 0;
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->maps, &v->maps_bytes, (uint64_t)s.clusters * 48u, where);
@@ -12575,12 +12730,20 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     }
     for (i = 0, k = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
+        gim_mat4 vp = gim_mat4_mul(g->proj, g->view);
         uint32_t n;
         if (!ctx->light_on[i]) continue;   /* culled: an empty RSM */
         n = gim__vpl_share(f, &s, ctx->light_on_count, k++);
-        r = gim__gl_rsm_vpls(ctx, g->position, g->normal, g->flux, g->size, n,
-                             s.ssvp ? GIM_VPL_SEQUENCE_HAMMERSLEY : GIM_VPL_SEQUENCE_HALTON, NULL,
-                             ctx->light_on_count > 1u ? v->staging : v->vpls);
+        if (follow && ctx->light_on_count > 1u) {   /* this light's VPLs of the last frame, to follow in place */
+            ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->vpls);
+            ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->staging);
+            ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER,
+                                      (gim__GLintptr)((uint64_t)off * 48u), 0, (gim__GLsizeiptr)n * 48);
+            ctx->gl.MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+        }
+        r = gim__gl_rsm_vpls_follow(ctx, g->position, g->normal, g->flux, g->size, n,
+                                    s.ssvp ? GIM_VPL_SEQUENCE_HAMMERSLEY : GIM_VPL_SEQUENCE_HALTON, NULL,
+                                    ctx->light_on_count > 1u ? v->staging : v->vpls, follow ? &vp : NULL);
         if (r == GIM_OK && ctx->light_on_count > 1u) {
             ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->staging);
             ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->vpls);
@@ -12590,6 +12753,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         }
         off += n;
     }
+    if (r == GIM_OK) v->follow_key = follow_key;
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
     warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
@@ -12648,25 +12812,43 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     if (r == GIM_OK && (ism || s.second_ism)) {
         /* one imperfect shadow map per VPL, both bounces (Keller's instant radiosity with
            Ritschel et al.'s maps). With the clusters' paraboloid maps (s.second_ism), only the
-           second bounce's: no cluster's map sees from where they lie. The first bounce's VPLs
-           stand on fixed RSM texels, so while the scene and every rendered RSM's camera stay
-           as they were, they are the same VPLs and their maps are kept (the reuse of incremental
-           instant radiosity, Laine et al. 2007, for a light that does not move); the second
+           second bounce's: no cluster's map sees from where they lie. A first-bounce VPL kept
+           from the last frame (follow) keeps its map (incremental instant radiosity, Laine et
+           al. 2007): ism.comp skips it and counts the maps it makes. Drawn at their texels
+           (vpl.redraw) while the scene and every rendered RSM's camera stay, they are the same
+           VPLs as the last frame's and their maps are kept without a dispatch. The second
            bounce's follow the clusters and are made every frame. Their time is
            GIM_PASS_PARABOLOID's. */
         uint32_t from = s.second_ism ? first : 0u, make = from;
-        uint64_t key = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp) : 0u;
-        uint64_t had = ctx->ism_maps_bytes;
-        gim__GLuint name = ctx->ism_maps;
+        uint64_t key = ism && !follow ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) : 0u;
+        uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
+        uint64_t had_maps = ctx->ism_maps_bytes;
+        gim__GLuint name = ctx->ism_maps, made = 0;
+        int same;
         r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
                            (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
-        if (r == GIM_OK && key && key == ctx->ism_vpl_key && name == ctx->ism_maps && had == ctx->ism_maps_bytes)
+        same = r == GIM_OK && name == ctx->ism_maps && had_maps == ctx->ism_maps_bytes;
+        if (same && key && key == ctx->ism_vpl_key)
             make = first - first % gim__ism_align_maps(ctx, ism_size);   /* kept: [0, make) */
+        else if (same && follow && layout && layout == ctx->ism_vpl_layout) {
+            static const uint32_t zero = 0u;
+            r = gim__gl_sized_buffer(ctx, &v->made, &v->made_bytes, 4u, where);
+            if (r == GIM_OK) {
+                ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->made);
+                ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 4, &zero);
+                made = v->made;
+            }
+        }
         ctx->ism_vpl_key = 0;
+        ctx->ism_vpl_layout = 0;
         if (r == GIM_OK && make < total)
-            r = gim__gl_ism_render_of(ctx, v->vpls, 3u, from, make - from, total - make, ctx->ism_points, ism_pool,
-                                      ism_size, ism_per, scale, ctx->ism_maps);
-        if (r == GIM_OK) ctx->ism_vpl_key = key;
+            r = gim__gl_ism_render_ex(ctx, v->vpls, 3u, from, make - from, total - make, ctx->ism_points, ism_pool,
+                                      ism_size, ism_per, scale, ctx->ism_maps, made);
+        if (r == GIM_OK) {
+            ctx->ism_vpl_key = key;
+            ctx->ism_vpl_layout = layout;
+            ctx->ism_made_counted = made != 0u;
+        }
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else if (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps) {
         gim__ism_release(ctx);
@@ -13347,6 +13529,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     ctx->outputs.valid = 0;
     ctx->stamp_count = 0;
     ctx->ism_maps_made = 0;
+    ctx->ism_made_counted = 0;
     gim__gl_enter(ctx, where);
     ctx->own_objects = 1;
     gim__stamp(ctx, f.timing, GIM_PASS_COUNT);
@@ -13402,7 +13585,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
          ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
-         ctx->vpl.maps_bytes;
+         ctx->vpl.maps_bytes + ctx->vpl.made_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *
              (4u + (ctx->para_attributes != GIM__PARA_ATTRIBUTES ? 4u : 0u) + (ctx->para_attributes != GIM__PARA_DISTANCE ? 48u : 0u)) +
          ctx->para_samples_bytes;
@@ -13481,6 +13664,16 @@ GIMANY_DEF gim_result gim_frame_stats(gim_context *ctx, gim_stats *out) {
     if (!ctx->outputs.valid) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no successful gim_update yet");
     *out = ctx->stats;
     out->gpu_bytes = gim__context_bytes(ctx);
+    if (ctx->ism_made_counted && ctx->vpl.made) {   /* the VPLs' maps the GPU made (a wait for the frame) */
+        uint32_t made = 0;
+        gim_result r;
+        gim__gl_enter(ctx, where);
+        ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->vpl.made);
+        ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, 4, &made);
+        r = gim__gl_leave(ctx, gim__gl_check(ctx, where));
+        if (r != GIM_OK) return r;
+        out->ism_maps_made += made;
+    }
     if (!ctx->stats.timed || ctx->stamp_count < 2) return GIM_OK;
     if (ctx->stats.cpu_clock) {   /* timing 2: the clock after each glFinish */
         const double *c = ctx->stamp_ms;

@@ -12,7 +12,11 @@
         areas' factor to sums[size + blocks];
      3: invocation i < count multiplies VPL i's flux and area by them.
    The same order of sums as the twin, in double. Lit: position.w > 0 and position, normal,
-   flux finite with flux >= 0 (read as bits, so no fast-math folds the tests away). */
+   flux finite with flux >= 0 (read as bits, so no fast-math folds the tests away).
+   follow (incremental instant radiosity, Laine et al. 2007; gim_rsm_vpls_desc.previous): mode 0
+   reads VPL i as the last frame left it and keeps it where follow() finds its texel now: its
+   position and normal stay, flux and area come from that texel, flux.w = 1 (its imperfect
+   shadow map stays too: ism.comp's skip_kept); else the slot's texel as without, flux.w = 0. */
 #include "common.glsl"
 layout(local_size_x = 64) in;
 
@@ -20,8 +24,8 @@ layout(binding = 0, rgba32ui) readonly uniform uimage2D rsm_position;  /* xyz; w
 layout(binding = 1, rgba32ui) readonly uniform uimage2D rsm_normal;    /* xyz; w = area A */
 layout(binding = 2, rgba32ui) readonly uniform uimage2D rsm_flux;      /* rgb */
 
-layout(std430, binding = 0) readonly buffer Texels { uvec2 texel[]; };
-struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit 1 / 0; area; 0 */
+layout(std430, binding = 0) readonly buffer Texels { uvec4 texel[]; };   /* x, y, keep radius (float bits), 0 */
+struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit 1 / 0; area; kept 1 / 0 */
 layout(std430, binding = 1) buffer Vpls { Vpl vpl[]; };
 layout(std430, binding = 2) buffer Sums { dvec4 sums[]; };
 
@@ -29,11 +33,42 @@ layout(location = 0) uniform uint size;    /* RSM side */
 layout(location = 1) uniform uint count;   /* VPLs */
 layout(location = 2) uniform uint mode;
 layout(location = 3) uniform uint block;   /* VPLs per block sum of mode 1 (GIM_RSM_VPL_BLOCK) */
+layout(location = 4) uniform uint follow;  /* 1: vpl[] holds the last frame's VPLs of these slots */
+layout(location = 5) uniform mat4 view_proj;   /* the RSM's camera now */
 
 /* The twin's lit texel: position.w > 0 (not NaN), position, normal, flux finite, flux >= 0. */
 bool lit(uvec4 x, uvec4 n, uvec4 f) {
     return positive(x.w) && finite3(x.xyz) && finite3(n.xyz) && finite3(f.rgb) &&
            nonneg3(f.rgb);
+}
+
+/* gim__rsm_vpl_follow step for step (precise: no fused multiply-add the twin does not make):
+   the texel that the previous VPL p of slot s (texel s.xy, radius s.z) stands on now, or (-1, -1). */
+ivec2 follow_texel(Vpl p, uvec4 s) {
+    ivec2 none = ivec2(-1);
+    if (!(p.position.w == 1.0) || !finite3(p.position.xyz) || !finite3(p.normal.xyz)) return none;
+    precise float x = p.position.x, y = p.position.y, z = p.position.z;
+    precise float cx = view_proj[0][0] * x; cx += view_proj[1][0] * y; cx += view_proj[2][0] * z; cx += view_proj[3][0];
+    precise float cy = view_proj[0][1] * x; cy += view_proj[1][1] * y; cy += view_proj[2][1] * z; cy += view_proj[3][1];
+    precise float cw = view_proj[0][3] * x; cw += view_proj[1][3] * y; cw += view_proj[2][3] * z; cw += view_proj[3][3];
+    if (!(cw > 0.0)) return none;
+    precise float u = cx / cw; u = u * 0.5 + 0.5; u = u * float(size);
+    precise float v = cy / cw; v = v * 0.5 + 0.5; v = v * float(size);
+    float fx = floor(u), fy = floor(v);
+    if (!(fx >= 0.0 && fy >= 0.0 && fx < float(size) && fy < float(size))) return none;
+    float r = uintBitsToFloat(s.z);
+    if (!(abs(fx - float(s.x)) <= r && abs(fy - float(s.y)) <= r)) return none;
+    ivec2 t = ivec2(int(fx), int(fy));
+    uvec4 qx = imageLoad(rsm_position, t), qn = imageLoad(rsm_normal, t), qf = imageLoad(rsm_flux, t);
+    if (!lit(qx, qn, qf)) return none;
+    vec3 q = uintBitsToFloat(qx.xyz), n = uintBitsToFloat(qn.xyz);
+    precise float dx = q.x - x, dy = q.y - y, dz = q.z - z;
+    precise float d2 = dx * dx; d2 += dy * dy; d2 += dz * dz;
+    precise float a = 4.0 * uintBitsToFloat(qn.w);
+    if (!(d2 <= a)) return none;
+    precise float c = n.x * p.normal.x; c += n.y * p.normal.y; c += n.z * p.normal.z;
+    if (!(c >= 0.9)) return none;
+    return t;
 }
 
 void main() {
@@ -50,7 +85,14 @@ void main() {
             sums[i] = dvec4(row, 0.0);
         }
         if (i < count) {
-            ivec2 p = ivec2(texel[i]);
+            uvec4 s = texel[i];
+            ivec2 p = ivec2(s.xy), k = ivec2(-1);
+            Vpl prev;
+            if (follow != 0u) {
+                prev = vpl[i];
+                k = follow_texel(prev, s);
+                if (k.x >= 0) p = k;
+            }
             uvec4 x = imageLoad(rsm_position, p), n = imageLoad(rsm_normal, p), f = imageLoad(rsm_flux, p);
             bool l = lit(x, n, f);
             Vpl v;
@@ -60,6 +102,11 @@ void main() {
             v.normal = vec4(finite3(n.xyz) ? uintBitsToFloat(n.xyz) : vec3(0.0),
                             l && area > 0.0 && area <= FLT_MAX ? area : 0.0);
             v.flux = vec4(l ? uintBitsToFloat(f.rgb) : vec3(0.0), 0.0);
+            if (k.x >= 0) {   /* kept: where it stood (lit, as follow_texel asked) */
+                v.position.xyz = prev.position.xyz;
+                v.normal.xyz = prev.normal.xyz;
+                v.flux.w = 1.0;
+            }
             vpl[i] = v;
         }
     } else if (mode == 1u) {

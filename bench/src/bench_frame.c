@@ -29,7 +29,9 @@
    pass (ism_build_ms, timing 2: GIM_PASS_ISM, the VPL methods' GIM_PASS_PARABOLOID; on the row of
    the first VAL count of each RSM size, the others reuse the maps).
    brsm-anew: BRSM at the default VAL count with gim_frame.lightskin.temporal_steps 1, new offsets
-   every frame (its flicker against the default's drift, the brsm rows).
+   every frame (its flicker against the default's drift, the brsm rows); clustered-ism-anew,
+   ssvp-ism-anew: gim_frame.vpl.redraw 1, every VPL and its map made anew every frame (against
+   the default, which follows the last frame's VPLs: incremental instant radiosity).
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv in place of their rows there from
    MIN_RSM^2 on (to finish or redo part of a sweep); a
@@ -107,6 +109,13 @@ static void setup_anew(gim_frame *f, const bench_method *m) {
     f->lightskin.temporal_steps = 1;   /* new offsets every frame (the default drifts 1/32 of their spacing) */
 }
 
+/* the VPL rows with ISMs, their VPLs (and maps) drawn anew every frame instead of followed
+   (gim_frame_vpl.redraw; the default follows them: incremental instant radiosity) */
+static void setup_vpl_ism_anew(gim_frame *f, const bench_method *m) {
+    setup_vpl_ism(f, m);
+    f->vpl.redraw = 1;
+}
+
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
 static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
@@ -117,6 +126,7 @@ static const bench_method methods[] = {
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl, 1, 1},
     {"clustered-ism", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism, 1, 1},
+    {"clustered-ism-anew", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism_anew, 1, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 16, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 32, 0, 1, setup_vpl, 1, 1},
     /* SSVP Table I's grid: clusters 4 / 8 / 16 / 32 x second-bounce VPLs 64 / 256 / 1024, two bounces;
@@ -128,6 +138,7 @@ static const bench_method methods[] = {
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl, 1, 1},
     {"ssvp-ism", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism, 1, 1},
+    {"ssvp-ism-anew", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_anew, 1, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_vpl, 2, 1},
@@ -286,20 +297,30 @@ static double mean_rel_diff(const float *a, const float *b) {
    the vertical per frame; the mean absolute frame-to-frame change of the image over its mean.
    FULL has no sampling noise, so its change is what the moving light itself causes; a method's
    flicker is its change minus FULL's. (The reference's own change would need far more paths
-   per pixel than its noise allows at this step.) */
+   per pixel than its noise allows at this step.) Also the median frame while the light moves
+   (wall clock around gim_update + glFinish) and the mean imperfect shadow maps made a frame,
+   into moving_ms and maps (frames 1 on: frame 0 follows the still frames before). */
 #define STEP_DEG 0.25
-static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
+static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f, double *moving_ms, double *maps) {
     float *prev = (float *)malloc((size_t)W * H * 16), *cur = (float *)malloc((size_t)W * H * 16);
+    double *t = (double *)malloc(sizeof(double) * (size_t)sw->flicker_frames);
     gim_vec3 d0 = g->lights[0].direction;
     double change = 0.0;
     int k, i;
+    *maps = 0.0;
     for (k = 0; k < sw->flicker_frames; ++k) {
-        double a = k * STEP_DEG * 3.14159265358979 / 180.0, num = 0.0, den = 0.0;
+        double a = k * STEP_DEG * 3.14159265358979 / 180.0, num = 0.0, den = 0.0, t0;
+        gim_stats st;
         g->lights[0].direction = gim_v3((float)(cos(a) * d0.x + sin(a) * d0.z), d0.y, (float)(-sin(a) * d0.x + cos(a) * d0.z));
         gim_set_lights(ctx, g->lights, g->light_count);
         f.frame_index = (uint32_t)k + 1u;
         f.lightskin.rotate_view_samples = 1;
+        t0 = now_ms();
         update(ctx, &f);
+        glFinish();
+        t[k] = now_ms() - t0;
+        gim_frame_stats(ctx, &st);
+        if (k > 0) *maps += st.ism_maps_made;
         read_image(ctx, cur);
         if (k > 0) {
             for (i = 0; i < W * H * 4; ++i)
@@ -310,8 +331,11 @@ static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f) {
     }
     g->lights[0].direction = d0;
     gim_set_lights(ctx, g->lights, g->light_count);
+    *moving_ms = median(t + 1, sw->flicker_frames - 1);
+    *maps /= sw->flicker_frames - 1;
     free(prev);
     free(cur);
+    free(t);
     return change / (sw->flicker_frames - 1);
 }
 
@@ -528,7 +552,10 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         have_full = measure_frames(ctx, &f, 0, sw->full_runs, 1, &mf);
         if (have_full) {
             read_image(ctx, full);
-            if (flick) c_full = image_change(ctx, &g, f);
+            if (flick) {
+                double mov, maps;
+                c_full = image_change(ctx, &g, f, &mov, &maps);
+            }
             row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0, 0.0, 0.0);
         } else {
             printf("| %-7s | %5u^2 | full   | does not run here (see the error above): no FULL columns at this size |\n", bs->name, rsm);
@@ -569,7 +596,12 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
                     if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl) off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
-                    if (flick && si == 0) c = image_change(ctx, &g, fm);
+                    if (flick && si == 0) {
+                        double mov, maps;
+                        c = image_change(ctx, &g, fm, &mov, &maps);
+                        printf("  %s, vals %u: the light moving, median frame %.2f ms (still %.2f), %.1f maps made a "
+                               "frame\n", bm->name, fm.lightskin.val_count, mov, m.frame_ms, maps);
+                    }
                     if (bm->setup == setup_vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
                     row(bs->name, bm, rsm, fm.lightskin.view_sample_count, &m, mf.frame_ms, have_full ? mean_rel_diff(img, full) : 0.0,

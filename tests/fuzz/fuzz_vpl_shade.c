@@ -64,7 +64,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         take_unit(&r, raw, v[i].normal);
         for (a = 0; a < 3; ++a) v[i].flux[a] = take_pos(&r, raw);
         v[i].area = take_pos(&r, raw);   /* the near field: its patch */
-        v[i].unused1 = 0.0f;
+        v[i].kept = 0.0f;
         cluster[i] = take_u32(&r) % (nm + 2u);
         if (cluster[i] == nm + 1u) cluster[i] = UINT32_MAX;
         else if (!raw && cluster[i] == nm) cluster[i] = 0u;

@@ -460,7 +460,7 @@ static void second_bounce_matches_twin(void **state) {
                 fail_msg("%u VPLs: VPL %u differs: lit %g/%g, position %g %g %g / %g %g %g", n, i, (double)g->lit,
                          (double)c->lit, (double)g->position[0], (double)g->position[1], (double)g->position[2],
                          (double)c->position[0], (double)c->position[1], (double)c->position[2]);
-            assert_true(g->area == 0.0f && g->unused1 == 0.0f);   /* second-bounce VPLs are points */
+            assert_true(g->area == 0.0f && g->kept == 0.0f);   /* second-bounce VPLs are points */
             lit += c->lit == 1.0f;
             for (a = 0; a < 3; ++a) {
                 double e;

@@ -656,6 +656,7 @@ static void vpl_maps_kept(void **state) {
     s.fr.vpl.paraboloid_size = 32;
     s.fr.vpl.kmeans_restart = 1;   /* the same clusters every frame: images comparable across frames */
     s.fr.vpl.cluster_count = 8;
+    s.fr.vpl.redraw = 1;   /* VPLs at their texels: kept by the key (vpls_follow_the_light: followed) */
     for (m = 0; m < 2; ++m) {
         gim_light sun;
         gim_instance in;
@@ -713,6 +714,233 @@ static void vpl_maps_kept(void **state) {
     GLTEST_END();
 }
 
+/* Light 0's RSM read back as gim_rsm_data (caller frees the arrays with rsm_free). */
+static gim_rsm_data rsm_read(scene_fx *s) {
+    const gim__light_gpu *g = &s->f.ctx->light_gpu[0];
+    size_t n = (size_t)g->size * g->size, t;
+    float *x4 = (float *)malloc(n * 16), *n4 = (float *)malloc(n * 16), *f4 = (float *)malloc(n * 16);
+    gim_rsm_data d;
+    memset(&d, 0, sizeof d);
+    d.width = d.height = g->size;
+    d.position = (float *)malloc(n * 12); d.normal = (float *)malloc(n * 12); d.flux = (float *)malloc(n * 12);
+    d.area = (float *)malloc(n * 4); d.valid = (float *)malloc(n * 4);
+    gltest_read_texture(g->position, GL_RGBA, x4);
+    gltest_read_texture(g->normal, GL_RGBA, n4);
+    gltest_read_texture(g->flux, GL_RGBA, f4);
+    for (t = 0; t < n; ++t) {
+        memcpy((float *)d.position + t * 3, x4 + t * 4, 12);
+        memcpy((float *)d.normal + t * 3, n4 + t * 4, 12);
+        memcpy((float *)d.flux + t * 3, f4 + t * 4, 12);
+        ((float *)d.area)[t] = n4[t * 4 + 3];
+        ((float *)d.valid)[t] = x4[t * 4 + 3];
+    }
+    free(x4); free(n4); free(f4);
+    return d;
+}
+
+static void rsm_free(gim_rsm_data *d) {
+    free((void *)d->position); free((void *)d->normal); free((void *)d->flux); free((void *)d->area);
+    free((void *)d->valid);
+}
+
+/* The frame's n first-bounce VPLs (caller frees). */
+static gim_vpl *frame_vpls(scene_fx *s, uint32_t n) {
+    gim_vpl *v = (gim_vpl *)malloc(n * sizeof *v);
+    gltest_read_buffer(gim_debug(s->f.ctx).vpls, n * sizeof *v, v);
+    return v;
+}
+
+/* The frame's VPLs against gim_rsm_vpls_twin with previous = prev (NULL: drawn anew) on the RSM
+   it rendered: the kept flags the twin's but for a few (the GPU's projection divides within 2.5
+   ulp: a VPL within rounding of a texel's edge may land on the other side), and where all agree
+   positions and normals bit for bit, flux to 1e-6. The VPLs kept. */
+static uint32_t follow_twin(scene_fx *s, const gim_vpl *prev, const gim_vpl *gpu, uint32_t n) {
+    const gim__light_gpu *g = &s->f.ctx->light_gpu[0];
+    gim_rsm_data d = rsm_read(s);
+    gim_rsm_vpls_desc vd;
+    float *p = (float *)malloc(n * 12), *nn = (float *)malloc(n * 12), *fl = (float *)malloc(n * 12);
+    unsigned char *kept = (unsigned char *)malloc(n);
+    uint32_t i, a, differ = 0, k = 0;
+    memset(&vd, 0, sizeof vd);
+    vd.rsm = &d; vd.count = n; vd.sequence = GIM_VPL_SEQUENCE_HALTON; vd.env = s->f.env;
+    vd.previous = prev; vd.view_proj = gim_mat4_mul(g->proj, g->view); vd.kept = kept;
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, nn, fl, NULL), GIM_OK);
+    for (i = 0; i < n; ++i) {
+        differ += (gpu[i].kept == 1.0f) != (kept[i] != 0);
+        k += gpu[i].kept == 1.0f;
+        assert_true(gpu[i].kept == 0.0f || (gpu[i].kept == 1.0f && prev));
+    }
+    if (differ) print_message("%u of %u VPLs kept on one side only\n", differ, n);
+    assert_true(differ <= n / 100u);
+    for (i = 0; i < n && !differ; ++i) {
+        assert_memory_equal(gpu[i].position, p + i * 3, 12);
+        assert_memory_equal(gpu[i].normal, nn + i * 3, 12);
+        for (a = 0; a < 3; ++a) assert_true(fabsf(gpu[i].flux[a] - fl[i * 3 + a]) <= 1e-6f * fl[i * 3 + a]);
+    }
+    free(p); free(nn); free(fl); free(kept);
+    rsm_free(&d);
+    return k;
+}
+
+static void turn_sun(scene_fx *s, float degrees) {
+    gim_light sun;
+    float c = cosf(degrees * 3.14159265f / 180.0f), sn = sinf(degrees * 3.14159265f / 180.0f);
+    memset(&sun, 0, sizeof sun);
+    sun.type = GIM_LIGHT_DIRECTIONAL;
+    sun.irradiance = 1.0f;
+    sun.direction = gim_v3(0.4f * c - sn, 0.4f * sn + c, 0.3f);   /* setup's, about z: it sinks */
+    sun.rsm_size = 48;
+    assert_int_equal(gim_set_lights(s->f.ctx, &sun, 1), GIM_OK);
+}
+
+/* Every kept VPL stands on a point its light sees now (a texel of the frame's RSM within
+   2 sqrt of its footprint), so none stands in a new shadow; the largest distance of the texel it
+   lands on from its slot's in texels (max_slot). */
+static void kept_are_seen(scene_fx *s, const gim_vpl *v, uint32_t n, float *max_slot) {
+    const gim__light_gpu *g = &s->f.ctx->light_gpu[0];
+    gim_rsm_data d = rsm_read(s);
+    gim_mat4 vp = gim_mat4_mul(g->proj, g->view);
+    uint32_t i, k;
+    *max_slot = 0.0f;
+    for (i = 0; i < n; ++i) {
+        gim_vec3 c;
+        uint32_t x, y, sx, sy;
+        size_t t;
+        float d2 = 0.0f;
+        if (v[i].kept != 1.0f) continue;
+        c = gim_mat4_point(vp, gim_v3(v[i].position[0], v[i].position[1], v[i].position[2]));
+        x = (uint32_t)floorf((c.x * 0.5f + 0.5f) * (float)d.width);
+        y = (uint32_t)floorf((c.y * 0.5f + 0.5f) * (float)d.height);
+        assert_true(x < d.width && y < d.height);
+        t = (size_t)y * d.width + (size_t)x;
+        for (k = 0; k < 3; ++k) d2 += (d.position[t * 3 + k] - v[i].position[k]) * (d.position[t * 3 + k] - v[i].position[k]);
+        assert_true(d.valid[t] > 0.0f && d2 <= 4.0f * d.area[t] * 1.001f);
+        gim__rsm_vpl_texel(i, n, GIM_VPL_SEQUENCE_HALTON, d.width, d.height, NULL, &sx, &sy);
+        *max_slot = fmaxf(*max_slot, fmaxf(fabsf((float)x - (float)sx), fabsf((float)y - (float)sy)));
+    }
+    rsm_free(&d);
+}
+
+/* Incremental instant radiosity (Laine et al. 2007; gim_frame_vpl.redraw 0, the default) in the
+   frame: each frame's first-bounce VPLs are gim_rsm_vpls_twin's with previous = the last
+   frame's, on the RSM the frame rendered. Nothing moved: every lit VPL kept, no map made, the
+   image bit for bit. The sun sinking by 0.5, 3.5, 8 degrees a frame: most, then fewer VPLs kept,
+   their positions and normals bit for bit the last frame's, and exactly the others' maps made
+   (counted on the GPU). (It sinks towards -x: past |x| = |z| gim__up_for turns the sun's RSM by 90
+   degrees and no VPL stays in its stratum.) Every kept VPL's point is still the one the sun sees there (a texel of
+   the new RSM within 2 sqrt of its footprint), so none stands in a new shadow. A moved instance
+   or vpl.redraw 1 keeps none. Fails if the maps of moved VPLs are kept or kept ones made. */
+static void vpls_follow_the_light(void **state) {
+    scene_fx s;
+    uint32_t n = 256, lit = 0, i, k;
+    gim_vpl *v0, *v1;
+    float *a, *b;
+    gim_instance in;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    s.fr.vpl.count = n;
+    s.fr.vpl.paraboloid_size = 32;
+    s.fr.vpl.cluster_count = 8;
+    s.fr.vpl.kmeans_restart = 1;
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 8;
+    s.fr.visibility.ism_points = 512;
+    assert_int_equal(frame_maps(&s), n);
+    v0 = frame_vpls(&s, n);
+    assert_int_equal(follow_twin(&s, NULL, v0, n), 0);
+    for (i = 0; i < n; ++i) lit += v0[i].lit == 1.0f;
+    a = image(&s);
+    /* nothing moved */
+    assert_int_equal(frame_maps(&s), n - lit);
+    v1 = frame_vpls(&s, n);
+    k = follow_twin(&s, v0, v1, n);
+    print_message("still sun: %u of %u lit VPLs kept\n", k, lit);
+    assert_int_equal(k, lit);
+    b = image(&s);
+    assert_memory_equal(a, b, W * H * 16);
+    free(a); free(b); free(v0);
+    /* the sun sinks a little, then more */
+    {
+        static const float turns[3] = {-0.5f, -4.0f, -12.0f};
+        uint32_t kept[3], t;
+        float far;
+        for (t = 0; t < 3; ++t) {
+            uint32_t made;
+            v0 = v1;
+            turn_sun(&s, turns[t]);
+            made = frame_maps(&s);
+            v1 = frame_vpls(&s, n);
+            kept[t] = follow_twin(&s, v0, v1, n);
+            kept_are_seen(&s, v1, n, &far);
+            print_message("sun turned to %g degrees: %u of %u VPLs kept (up to %g texels from their slots), %u maps "
+                          "made\n", (double)turns[t], kept[t], n, (double)far, made);
+            assert_int_equal(made, n - kept[t]);
+            for (i = 0; i < n; ++i)
+                if (v1[i].kept == 1.0f) {
+                    assert_memory_equal(v1[i].position, v0[i].position, 12);
+                    assert_memory_equal(v1[i].normal, v0[i].normal, 12);
+                }
+            free(v0);
+        }
+        assert_true(kept[0] >= lit * 3u / 4u);
+        assert_true(kept[1] < kept[0] && kept[1] > 0u);   /* some moved out of their strata */
+        assert_true(kept[2] < kept[1]);
+    }
+    {   /* two suns (each light's VPLs followed in the staging buffer): nothing moved, every lit one kept */
+        gim_light suns[2];
+        uint32_t lit2 = 0;
+        float *c1, *c2;
+        memset(suns, 0, sizeof suns);
+        suns[0].type = suns[1].type = GIM_LIGHT_DIRECTIONAL;
+        suns[0].irradiance = suns[1].irradiance = 1.0f;
+        suns[0].direction = gim_v3(0.4f, 1.0f, 0.3f);
+        suns[1].direction = gim_v3(-0.5f, 1.0f, 0.2f);
+        suns[0].rsm_size = suns[1].rsm_size = 48;
+        assert_int_equal(gim_set_lights(s.f.ctx, suns, 2), GIM_OK);
+        assert_int_equal(frame_maps(&s), n);
+        free(v1);
+        v1 = frame_vpls(&s, n);
+        for (i = 0; i < n; ++i) lit2 += v1[i].lit == 1.0f;
+        c1 = image(&s);
+        assert_int_equal(frame_maps(&s), n - lit2);
+        v0 = v1;
+        v1 = frame_vpls(&s, n);
+        for (i = 0; i < n; ++i) {
+            assert_true(v1[i].kept == v1[i].lit);
+            assert_memory_equal(v1[i].position, v0[i].position, 12);
+        }
+        c2 = image(&s);
+        assert_memory_equal(c1, c2, W * H * 16);
+        free(c1); free(c2); free(v0);
+        turn_sun(&s, 0.0f);
+        assert_int_equal(frame_maps(&s), n);   /* another set of lights: none to follow */
+        assert_true(frame_maps(&s) < n);
+    }
+    /* an instance moves: nothing kept */
+    in.mesh = s.mesh;
+    in.model = gim_mat4_identity();
+    in.model.m[13] = 0.01f;
+    assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
+    assert_int_equal(frame_maps(&s), n);
+    free(v1);
+    v1 = frame_vpls(&s, n);
+    for (i = 0; i < n; ++i) assert_true(v1[i].kept == 0.0f);
+    /* redraw: nothing kept, and with the sun still the maps stay */
+    s.fr.vpl.redraw = 1;
+    turn_sun(&s, 1.0f);
+    assert_int_equal(frame_maps(&s), n);
+    assert_int_equal(frame_maps(&s), 0);
+    free(v1);
+    v1 = frame_vpls(&s, n);
+    for (i = 0; i < n; ++i) assert_true(v1[i].kept == 0.0f);
+    free(v1);
+    gltest_state_unchanged(&s.f);
+    teardown(&s);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(no_light_through_walls),
@@ -723,6 +951,7 @@ int main(void) {
         cmocka_unit_test(maps_split_over_blocks),
         cmocka_unit_test(full_over_dispatches_sees_the_maps),
         cmocka_unit_test(vpl_maps_kept),
+        cmocka_unit_test(vpls_follow_the_light),
     };
     int r;
     (void)room_receiver;   /* room.h's, for the shading tests */

@@ -535,10 +535,141 @@ static void vpls_into_kmeans(void **state) {
     GLTEST_END();
 }
 
+/* A flat RSM that a light with camera vp (orthographic, world [0, L]^2 at z = 0 onto the whole
+   map, shifted by (tx, ty) texels) sees: texel centres' points, normal +z, footprint (L / size)^2,
+   random flux; 8% unlit, 8% hidden (their point 5 L above: a blocker), 5% normals turned away. */
+static void flat_rsm(vpl_rsm *r, uint32_t size, float L, float tx, float ty, gim_mat4 *vp) {
+    size_t n = (size_t)size * size, t;
+    float h = L / (float)size;
+    const float origin[3] = {0.0f, 0.0f, 0.0f};
+    rsm_make(r, size, origin, L);   /* the arrays; overwritten */
+    glDeleteTextures(3, r->tex);
+    for (t = 0; t < n; ++t) {
+        float *x = r->position4 + t * 4, *nn = r->normal4 + t * 4, *f = r->flux4 + t * 4;
+        uint32_t i = (uint32_t)(t % size), j = (uint32_t)(t / size), k = (uint32_t)(test_rand01() * 100.0);
+        x[0] = ((float)i + 0.5f - tx) * h; x[1] = ((float)j + 0.5f - ty) * h; x[2] = 0.0f; x[3] = 1.0f;
+        nn[0] = 0.0f; nn[1] = 0.0f; nn[2] = 1.0f; nn[3] = h * h;
+        f[0] = rnd(0.1f, 2); f[1] = rnd(0.1f, 1); f[2] = rnd(0.1f, 0.5f); f[3] = 0.0f;
+        if (k < 8) x[3] = 0.0f;
+        else if (k < 16) x[2] = 5.0f * L;
+        else if (k < 21) nn[2] = -1.0f;
+        memcpy(r->position + t * 3, x, 12); memcpy(r->normal + t * 3, nn, 12); memcpy(r->flux + t * 3, f, 12);
+        r->area[t] = nn[3]; r->valid[t] = x[3];
+    }
+    r->tex[0] = texture_rgba(size, r->position4);
+    r->tex[1] = texture_rgba(size, r->normal4);
+    r->tex[2] = texture_rgba(size, r->flux4);
+    *vp = gim_mat4_identity();
+    vp->m[0] = 2.0f / L; vp->m[5] = 2.0f / L;
+    vp->m[12] = -1.0f + 2.0f * tx / (float)size; vp->m[13] = -1.0f + 2.0f * ty / (float)size;
+}
+
+/* The twin's VPLs of r (previous: prev, or NULL) as gim_vpl, with the kept flags. */
+static void twin_vpls(const vpl_rsm *r, uint32_t count, const gim_vpl *prev, gim_mat4 vp, gim_vpl *out,
+                      unsigned char *kept, gim_env env) {
+    gim_rsm_data d = rsm_data(r);
+    gim_rsm_vpls_desc vd;
+    float *p = (float *)malloc(count * 12), *n = (float *)malloc(count * 12), *fl = (float *)malloc(count * 12);
+    float *ar = (float *)malloc(count * 4);
+    uint32_t i;
+    memset(&vd, 0, sizeof vd);
+    vd.rsm = &d; vd.count = count; vd.sequence = GIM_VPL_SEQUENCE_HALTON; vd.env = env;
+    vd.previous = prev; vd.view_proj = vp; vd.kept = kept;
+    assert_int_equal(gim_rsm_vpls_twin(&vd, p, n, fl, ar), GIM_OK);
+    for (i = 0; i < count; ++i) {
+        memcpy(out[i].position, p + i * 3, 12);
+        memcpy(out[i].normal, n + i * 3, 12);
+        memcpy(out[i].flux, fl + i * 3, 12);
+        out[i].lit = fl[i * 3] > 0.0f || fl[i * 3 + 1] > 0.0f || fl[i * 3 + 2] > 0.0f ? 1.0f : 0.0f;
+        out[i].area = ar[i];
+        out[i].kept = kept[i] ? 1.0f : 0.0f;
+    }
+    free(p); free(n); free(fl); free(ar);
+}
+
+/* Incremental instant radiosity (Laine et al. 2007): the pass that follows the last frame's VPLs
+   (gim__gl_rsm_vpls_follow on a buffer holding them) against gim_rsm_vpls_twin with previous.
+   The light moves by (tx, ty) texels between two flat RSMs (flat_rsm: hidden, turned and unlit
+   texels): a VPL is kept exactly where the twin keeps it, never where its point is hidden,
+   turned away or dark now, nor where the move takes it farther from its slot's texel than its
+   radius; kept ones keep their position and normal bit for bit and take the new texel's flux.
+   Then nothing moves: every lit VPL is kept and the pass gives its input back. Fails if the
+   shader's projection, radius or tests are not the twin's. */
+static void follows_twin(void **state) {
+    static const struct { uint32_t size, count; float tx, ty; } cases[3] = {
+        {64, 200, 1.3f, 0.2f},     /* radius 1.1-2.3 texels: a move of 1 keeps all the light sees */
+        {48, 1500, 0.2f, 0.15f},   /* two blocks of the sum; radius 0.3-0.6: only VPLs that stay in their texel */
+        {37, 300, -0.7f, 1.4f}};   /* radius 0.5-1.1, a move of 1: a few kept */
+    gltest_fixture f;
+    uint32_t c;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    for (c = 0; c < 3; ++c) {
+        uint32_t n = cases[c].count, i, a, kept = 0, lit = 0, hidden = 0;
+        vpl_rsm r0, r1;
+        gim_mat4 vp0, vp1;
+        gim_vpl *prev = (gim_vpl *)malloc(n * sizeof *prev), *twin = (gim_vpl *)malloc(n * sizeof *twin);
+        gim_vpl *gpu = (gim_vpl *)malloc(n * sizeof *gpu);
+        unsigned char *k0 = (unsigned char *)malloc(n), *k1 = (unsigned char *)malloc(n);
+        GLuint out;
+        int pass;
+        flat_rsm(&r0, cases[c].size, 10.0f, 0.0f, 0.0f, &vp0);
+        twin_vpls(&r0, n, NULL, vp0, prev, k0, f.env);
+        flat_rsm(&r1, cases[c].size, 10.0f, cases[c].tx, cases[c].ty, &vp1);
+        for (pass = 0; pass < 2; ++pass) {   /* the light moves, then stays */
+            twin_vpls(&r1, n, prev, vp1, twin, k1, f.env);
+            out = gltest_ssbo(n * sizeof *prev, prev);
+            assert_int_equal(gim__gl_rsm_vpls_follow(f.ctx, r1.tex[0], r1.tex[1], r1.tex[2], r1.size, n,
+                                                     GIM_VPL_SEQUENCE_HALTON, NULL, out, &vp1), GIM_OK);
+            gltest_state_unchanged(&f);
+            gltest_read_buffer(out, n * sizeof *gpu, gpu);
+            glDeleteBuffers(1, &out);
+            kept = lit = hidden = 0;
+            for (i = 0; i < n; ++i) {
+                if (gpu[i].kept != twin[i].kept)
+                    fail_msg("case %u pass %d VPL %u: kept %g, the twin's %g", c, pass, i, (double)gpu[i].kept,
+                             (double)twin[i].kept);
+                assert_memory_equal(gpu[i].position, twin[i].position, 12);
+                assert_memory_equal(gpu[i].normal, twin[i].normal, 12);
+                assert_true(gpu[i].lit == twin[i].lit);
+                for (a = 0; a < 3; ++a) {
+                    double e = fabs((double)gpu[i].flux[a] - twin[i].flux[a]);
+                    assert_true(twin[i].flux[a] == 0.0f ? gpu[i].flux[a] == 0.0f : e <= TOL_FLUX * twin[i].flux[a]);
+                }
+                assert_true(fabs((double)gpu[i].area - twin[i].area) <= TOL_FLUX * twin[i].area);
+                lit += prev[i].lit == 1.0f;
+                if (twin[i].kept == 1.0f) {
+                    ++kept;
+                    assert_memory_equal(twin[i].position, prev[i].position, 12);
+                } else if (prev[i].lit == 1.0f) {
+                    ++hidden;
+                }
+            }
+            print_message("RSM %u^2, %u VPLs, the light %s: %u of %u lit VPLs kept\n", cases[c].size, n,
+                          pass ? "still" : "moved", kept, lit);
+            if (pass == 1) assert_int_equal(kept, lit);   /* nothing moved: every lit one stays */
+            else assert_true(kept > (c == 0 ? lit / 2u : 0u) && hidden > lit / 10u);
+            if (pass == 1)   /* its input back, but the flags of the VPLs drawn anew last time */
+                for (i = 0; i < n; ++i) {
+                    assert_memory_equal(gpu[i].position, prev[i].position, 12);
+                    assert_memory_equal(gpu[i].normal, prev[i].normal, 12);
+                }
+            memcpy(prev, gpu, n * sizeof *prev);
+            for (i = 0; i < n && pass == 1; ++i) assert_true(prev[i].lit != 1.0f || prev[i].kept == 1.0f);
+        }
+        free(prev); free(twin); free(gpu); free(k0); free(k1);
+        rsm_free(&r0); rsm_free(&r1);
+    }
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(matches_twin),
         cmocka_unit_test(bad_arguments),
+        cmocka_unit_test(follows_twin),
         cmocka_unit_test(kmeans_matches_twin),
         cmocka_unit_test(kmeans_empty_cluster),
         cmocka_unit_test(vpls_into_kmeans),

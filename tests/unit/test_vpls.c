@@ -397,6 +397,87 @@ static void cluster_paraboloids(void **state) {
     assert_int_equal(paraboloids_of(v, NV, cl, centres, normals, 2, 1.0f, out, env), GIM_ERROR_INVALID_ARGUMENT);
 }
 
+/* Incremental instant radiosity (gim_rsm_vpls_desc.previous; Laine et al. 2007) on make_rsm's
+   RSM, seen by the camera that puts texel (x, y)'s point at its centre: the last frame's VPLs on
+   the same RSM are all kept where lit, and the result is the VPLs drawn anew bit for bit; moved
+   by 0.3 texel they are kept with their own positions and the same flux; one that was dark, not
+   finite, turned away (normal), hidden (the texel sees a point 5 texels off) or a texel past its
+   radius is drawn anew at its texel. A camera that is not finite is refused. */
+static void follow_previous(void **state) {
+    static float p[N * 3], n[N * 3], f[N * 3], p2[N * 3], n2[N * 3], f2[N * 3];
+    static gim_vpl prev[N];
+    static unsigned char kept[N];
+    gim_rsm_vpls_desc d;
+    test_log log;
+    gim_env env = test_env(NULL, &log);
+    uint32_t i, lit = 0, k;
+    (void)state;
+    make_rsm(&g_rsm);
+    assert_int_equal(vpls_of(&g_rsm.rsm, N, GIM_VPL_SEQUENCE_HALTON, NULL, p, n, f, env), GIM_OK);
+    for (i = 0; i < N; ++i) {
+        memcpy(prev[i].position, p + i * 3, 12);
+        memcpy(prev[i].normal, n + i * 3, 12);
+        memcpy(prev[i].flux, f + i * 3, 12);
+        prev[i].lit = f[i * 3] > 0.0f || f[i * 3 + 1] > 0.0f ? 1.0f : 0.0f;
+        prev[i].area = 0.0f;
+        prev[i].kept = 0.0f;
+        lit += prev[i].lit == 1.0f;
+    }
+    memset(&d, 0, sizeof d);
+    d.rsm = &g_rsm.rsm; d.count = N; d.sequence = GIM_VPL_SEQUENCE_HALTON; d.env = env;
+    d.previous = prev; d.kept = kept;
+    d.view_proj = gim_mat4_identity();
+    d.view_proj.m[0] = 2.0f / W; d.view_proj.m[5] = 2.0f / H; d.view_proj.m[12] = -1.0f; d.view_proj.m[13] = -1.0f;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_OK);
+    for (i = 0, k = 0; i < N; ++i) k += kept[i];
+    assert_int_equal(k, lit);
+    assert_true(lit > N / 2u && lit < N);
+    assert_memory_equal(p, p2, sizeof p);
+    assert_memory_equal(n, n2, sizeof n);
+    assert_memory_equal(f, f2, sizeof f);
+    /* moved 0.3 texel, and the five ways to drop one */
+    for (i = 0; i < N; ++i) prev[i].position[0] += 0.3f;
+    prev[0].lit = 0.0f;
+    prev[1].position[1] = NAN;
+    prev[2].normal[1] = -0.6f; prev[2].normal[2] = -0.8f;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_OK);
+    for (i = 0; i < N; ++i) {
+        int want = prev[i].lit == 1.0f && i > 2u;
+        assert_int_equal(kept[i], want);
+        if (want) assert_memory_equal(p2 + i * 3, prev[i].position, 12);
+        else assert_memory_equal(p2 + i * 3, p + i * 3, 12);
+        assert_true(f2[i * 3 + 1] == f[i * 3 + 1] || (i <= 2u && prev[i].lit == 1.0f));   /* same texels but three */
+    }
+    {   /* hidden: its texel sees a point 5 texels nearer the light; past its radius (0.4-0.8 texel
+           here): one texel on, where the texel sees a point 0.3 texel from it */
+        uint32_t a = 3, b, t;
+        float z;
+        while (prev[a].lit != 1.0f) ++a;
+        b = a + 1u;
+        while (prev[b].lit != 1.0f || prev[b].position[0] + 1.0f >= (float)W) ++b;
+        t = (uint32_t)prev[a].position[1] * W + (uint32_t)prev[a].position[0];
+        z = g_rsm.pos[t * 3 + 2];
+        g_rsm.pos[t * 3 + 2] = z - 5.0f;
+        prev[b].position[0] += 1.0f;
+        assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_OK);
+        assert_int_equal(kept[a], 0);
+        assert_int_equal(kept[b], 0);
+        prev[b].position[0] -= 2.0f;   /* the other way: the same */
+        assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_OK);
+        assert_int_equal(kept[b], 0);
+        prev[b].position[0] += 1.0f;
+        g_rsm.pos[t * 3 + 2] = z;
+        assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_OK);
+        assert_int_equal(kept[a], 1);
+        assert_int_equal(kept[b], 1);
+    }
+    d.view_proj.m[5] = NAN;
+    for (i = 0; i < N * 3; ++i) p2[i] = -5.0f;
+    assert_int_equal(gim_rsm_vpls_twin(&d, p2, n2, f2, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(log.errors, 1);
+    for (i = 0; i < N * 3; ++i) assert_true(p2[i] == -5.0f);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(flux_sums_to_the_total),
@@ -407,6 +488,7 @@ int main(void) {
         cmocka_unit_test(units),
         cmocka_unit_test(bad_arguments),
         cmocka_unit_test(areas_cover_the_lit_surface),
+        cmocka_unit_test(follow_previous),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
