@@ -826,8 +826,8 @@ static void kept_are_seen(scene_fx *s, const gim_vpl *v, uint32_t n, float *max_
    frame's, on the RSM the frame rendered. Nothing moved: every lit VPL kept, no map made, the
    image bit for bit. The sun sinking by 0.5, 3.5, 8 degrees a frame: most, then fewer VPLs kept,
    their positions and normals bit for bit the last frame's, and exactly the others' maps made
-   (counted on the GPU). (It sinks towards -x: past |x| = |z| gim__up_for turns the sun's RSM by 90
-   degrees and no VPL stays in its stratum.) Every kept VPL's point is still the one the sun sees there (a texel of
+   (counted on the GPU). Then a degree a frame through the direction where gim__up_for alone would
+   turn the sun's RSM by 90 degrees (no VPL would stay): most VPLs kept. Every kept VPL's point is still the one the sun sees there (a texel of
    the new RSM within 2 sqrt of its footprint), so none stands in a new shadow. A moved instance
    or vpl.redraw 1 keeps none. Fails if the maps of moved VPLs are kept or kept ones made. */
 static void vpls_follow_the_light(void **state) {
@@ -887,6 +887,20 @@ static void vpls_follow_the_light(void **state) {
         assert_true(kept[0] >= lit * 3u / 4u);
         assert_true(kept[1] < kept[0] && kept[1] > 0u);   /* some moved out of their strata */
         assert_true(kept[2] < kept[1]);
+        /* the other way, a degree a frame through |x| = |z| (at 5.8 degrees): the sun's RSM keeps its
+           up axis (gim__up_kept), so it turns only with the sun and the VPLs stay */
+        turn_sun(&s, 4.0f);
+        (void)frame_maps(&s);
+        for (t = 5; t <= 8; ++t) {
+            uint32_t made, k1 = 0;
+            turn_sun(&s, (float)t);
+            made = frame_maps(&s);
+            free(v1);
+            v1 = frame_vpls(&s, n);
+            for (i = 0; i < n; ++i) k1 += v1[i].kept == 1.0f;
+            print_message("sun turned to %u degrees: %u of %u VPLs kept, %u maps made\n", t, k1, n, made);
+            assert_true(k1 >= lit / 2u);
+        }
     }
     {   /* two suns (each light's VPLs followed in the staging buffer): nothing moved, every lit one kept */
         gim_light suns[2];
