@@ -842,8 +842,8 @@ typedef struct gim_stats {
     uint32_t ism_maps_made;     /* visibility ISM: imperfect shadow maps rendered by this frame; the caches' are
                                    kept while the scene stays, a first-bounce VPL's with the VPL (gim_frame_vpl.
                                    redraw; 0 for CLUSTERED while nothing moves; SSVP makes its second bounce's
-                                   every frame). Counted on the GPU while VPLs are kept: gim_frame_stats then
-                                   waits for the frame */
+                                   every frame), an unlit VPL's never (no pass reads it). The VPLs' are counted
+                                   on the GPU: gim_frame_stats then waits for the frame */
 } gim_stats;
 
 /* Stats of the last successful gim_update; waits for the GPU when it was timed. */
@@ -8503,7 +8503,8 @@ typedef struct gim__vpl_gpu {
     uint32_t texels_key[3];       /* count, sequence, size of the list in texels; count 0: none */
     float texels_offsets[3];      /* offsets[0..1], [2] = 1 when offsets were given */
     uint64_t follow_key;          /* gim__vpl_follow_key of the first-bounce VPLs in vpls; 0: none to follow */
-    gim__GLuint made;             /* one uint: the VPLs' imperfect shadow maps made this frame (ism.comp) */
+    gim__GLuint made;             /* two uints: the VPLs' imperfect shadow maps made so far (ism.comp), and that
+                                     count before this frame's maps */
     uint64_t made_bytes;
 } gim__vpl_gpu;
 
@@ -9488,21 +9489,22 @@ static GIM__UNUSED gim_result gim__gl_ism_render(gim_context *ctx, gim__GLuint c
 static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out,
-                                        gim__GLuint made);
+                                        gim__GLuint made, int keep);
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out) {
     return gim__gl_ism_render_ex(ctx, caches, source_vec4s, source_first, map_first, cache_count, points, point_count, size,
-                                 points_per_map, scene_scale, maps_out, 0u);
+                                 points_per_map, scene_scale, maps_out, 0u, 0);
 }
 
-/* ... and with made (a buffer of one uint, or 0): the maps of VPLs kept from the last frame
-   (gim_vpl.kept 1; source_vec4s 3) are not made, they keep what the buffer holds; made counts
-   those that are (ctx->ism_maps_made then counts none: gim_frame_stats reads made). */
+/* ... and with made (a buffer of one uint, or 0) for VPLs (gim_vpl, source_vec4s 3): an unlit
+   VPL's map is not made (no pass reads it: its light is 0), nor with keep a kept VPL's
+   (gim_vpl.kept 1), which keeps what the buffer holds; made counts the maps made
+   (ctx->ism_maps_made counts none of them: gim_frame_stats reads made). */
 static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out,
-                                        gim__GLuint made) {
+                                        gim__GLuint made, int keep) {
     static const char where[] = "imperfect shadow maps (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -9550,7 +9552,7 @@ static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, ui
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_out is also an input");
     if (r == GIM_OK && made && source_vec4s != 3u)
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "only VPLs keep their maps");
-    if (r == GIM_OK && made) r = gim__gl_check_buffer(ctx, where, "made", made, 4u);
+    if (r == GIM_OK && made) r = gim__gl_check_buffer(ctx, where, "made", made, 8u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, caches);
@@ -9564,7 +9566,7 @@ static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
-    gl->Uniform1ui(10, made ? 1u : 0u);
+    gl->Uniform1ui(10, !made ? 0u : keep ? 2u : 1u);
     if (made) gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, made);
     for (first = map_first; first < map_first + cache_count; first += chunk) {   /* each dispatch within one block */
         uint32_t n = map_first + cache_count - first < chunk ? map_first + cache_count - first : chunk;
@@ -12849,18 +12851,29 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
         uint64_t had_maps = ctx->ism_maps_bytes;
         gim__GLuint name = ctx->ism_maps, made = 0;
-        int same;
+        int same, keep = 0;
         r = gim__gl_upload(ctx, &ctx->ism_maps, &ctx->ism_maps_bytes, NULL,
                            (uint64_t)(total - from) * ism_size * ism_size * 2u, where);
         same = r == GIM_OK && name == ctx->ism_maps && had_maps == ctx->ism_maps_bytes;
         if (same && key && key == ctx->ism_vpl_key)
             make = first - first % gim__ism_align_maps(ctx, ism_size);   /* kept: [0, make) */
-        else if (same && follow && layout && layout == ctx->ism_vpl_layout) {
-            static const uint32_t zero = 0u;
-            r = gim__gl_sized_buffer(ctx, &v->made, &v->made_bytes, 4u, where);
-            if (r == GIM_OK) {
+        else if (same && follow && layout && layout == ctx->ism_vpl_layout)
+            keep = 1;
+        if (r == GIM_OK && make < total) {
+            /* the maps made are counted on the GPU: a running count (zeroed once, when the buffer is
+               made) and, copied there on the GPU before this frame's, what it was; no upload a frame */
+            static const uint32_t zero[2] = {0u, 0u};
+            int fresh = v->made_bytes == 0;
+            r = gim__gl_sized_buffer(ctx, &v->made, &v->made_bytes, 8u, where);
+            if (r == GIM_OK && fresh) {
                 ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->made);
-                ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 4, &zero);
+                ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, 8, zero);
+            }
+            if (r == GIM_OK) {
+                ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->made);
+                ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->made);
+                ctx->gl.CopyBufferSubData(GIM__GL_COPY_READ_BUFFER, GIM__GL_COPY_WRITE_BUFFER, 0, 4, 4);
+                ctx->gl.MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
                 made = v->made;
             }
         }
@@ -12868,7 +12881,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         ctx->ism_vpl_layout = 0;
         if (r == GIM_OK && make < total)
             r = gim__gl_ism_render_ex(ctx, v->vpls, 3u, from, make - from, total - make, ctx->ism_points, ism_pool,
-                                      ism_size, ism_per, scale, ctx->ism_maps, made);
+                                      ism_size, ism_per, scale, ctx->ism_maps, made, keep);
         if (r == GIM_OK) {
             ctx->ism_vpl_key = key;
             ctx->ism_vpl_layout = layout;
@@ -13690,14 +13703,14 @@ GIMANY_DEF gim_result gim_frame_stats(gim_context *ctx, gim_stats *out) {
     *out = ctx->stats;
     out->gpu_bytes = gim__context_bytes(ctx);
     if (ctx->ism_made_counted && ctx->vpl.made) {   /* the VPLs' maps the GPU made (a wait for the frame) */
-        uint32_t made = 0;
+        uint32_t made[2] = {0u, 0u};
         gim_result r;
         gim__gl_enter(ctx, where);
         ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, ctx->vpl.made);
-        ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, 4, &made);
+        ctx->gl.GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, 8, made);
         r = gim__gl_leave(ctx, gim__gl_check(ctx, where));
         if (r != GIM_OK) return r;
-        out->ism_maps_made += made;
+        out->ism_maps_made += made[0] - made[1];   /* the running count now less before the frame */
     }
     if (!ctx->stats.timed || ctx->stamp_count < 2) return GIM_OK;
     if (ctx->stats.cpu_clock) {   /* timing 2: the clock after each glFinish */

@@ -29,8 +29,9 @@ layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 layout(location = 8) uniform uint source_first; /* map m's origin is source entry source_first + m */
 layout(location = 9) uniform uint out_first;    /* Maps is bound from map out_first on (a block holds a range) */
-layout(location = 10) uniform uint skip_kept;   /* 1 (VPLs): a VPL kept from the last frame (flux.w 1) keeps its
-                                                   map; the maps made are counted in made */
+layout(location = 10) uniform uint vpl_mode;    /* 0: every map made. VPLs (gim_vpl): 1: not an unlit VPL's (its
+                                                   light is 0, no pass reads its map), the maps made counted in
+                                                   made; 2: nor a kept VPL's (flux.w 1), which keeps its map */
 layout(std430, binding = 3) buffer Made { uint made; };
 
 shared uint level0[MAX_SIZE * MAX_SIZE];
@@ -76,8 +77,9 @@ float fetch(uint level, uint off, uint sz, uint x, uint y) {
 void main() {
     uint m = first_map + gl_WorkGroupID.x;
     uint local = gl_LocalInvocationIndex;
-    if (skip_kept != 0u) {   /* the whole work group leaves, before any barrier */
-        if (source[(source_first + m) * source_vec4s + 2u].w == 1.0) return;
+    if (vpl_mode != 0u) {   /* the whole work group leaves, before any barrier */
+        uint v = (source_first + m) * source_vec4s;
+        if (!(source[v].w > 0.0) || (vpl_mode == 2u && source[v + 2u].w == 1.0)) return;
         if (local == 0u) atomicAdd(made, 1u);
     }
     uint texels = size * size;
