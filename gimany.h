@@ -8576,8 +8576,8 @@ struct gim_context {
     uint64_t ism_cluster_maps_bytes;
     uint32_t ism_size, ism_per_map, ism_point_count;
     float ism_scale;
-    uint64_t ism_vpl_key;         /* what the first-bounce VPLs' maps in ism_maps were made from (gim__vpl_ism_key
-                                     with the RSM cameras) when those VPLs were drawn at their texels; else 0 */
+    uint64_t ism_vpl_key;         /* what the first-bounce VPLs' maps in ism_maps were made from: gim__vpl_ism_key
+                                     with the RSM cameras, xor 1 when the VPLs were followed */
     uint64_t ism_vpl_layout;      /* the same without the cameras: ism_maps holds one map per VPL slot, made
                                      for what each slot held; 0: ism_maps holds no VPL maps */
     uint32_t ism_maps_made;       /* imperfect shadow maps rendered by this frame (gim_stats.ism_maps_made) */
@@ -12841,13 +12841,14 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
            Ritschel et al.'s maps). With the clusters' paraboloid maps (s.second_ism), only the
            second bounce's: no cluster's map sees from where they lie. A first-bounce VPL kept
            from the last frame (follow) keeps its map (incremental instant radiosity, Laine et
-           al. 2007): ism.comp skips it and counts the maps it makes. Drawn at their texels
-           (vpl.redraw) while the scene and every rendered RSM's camera stay, they are the same
-           VPLs as the last frame's and their maps are kept without a dispatch. The second
+           al. 2007): ism.comp skips it and counts the maps it makes. While the scene and every
+           rendered RSM's camera stay (and the VPLs are followed, or drawn at their texels, as in
+           the last frame), they are the last frame's VPLs and their maps are kept without a
+           dispatch. The second
            bounce's follow the clusters and are made every frame. Their time is
            GIM_PASS_PARABOLOID's. */
         uint32_t from = s.second_ism ? first : 0u, make = from;
-        uint64_t key = ism && !follow ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) : 0u;
+        uint64_t key = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
         uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
         uint64_t had_maps = ctx->ism_maps_bytes;
         gim__GLuint name = ctx->ism_maps, made = 0;
