@@ -6363,15 +6363,19 @@ static gim_vec3 gim__up_for(gim_vec3 d) {
     return gim_v3(1.0f, 0.0f, 0.0f);
 }
 
-/* gim__up_for with memory (*axis: 1 x, 2 y, 3 z, 0 none yet; written): the axis of the light's
-   last camera while the unit d stays more than acos 0.8 (37 degrees) from it. gim__up_for alone
-   turns the map by 90 degrees where two of d's components cross, so a light moving through such
-   a direction would move every texel, every VAL and every VPL at once (a frame of flicker, and
-   no VPL to follow); with the memory the map turns only with the light. */
-static gim_vec3 gim__up_kept(gim_vec3 d, int *axis) {
+/* gim__up_for with memory (*axis: 1 x, 2 y, 3 z, 0 none yet; *last: the direction it was kept
+   for; both written): the axis of the light's last camera while the unit d stays within 10
+   degrees of that camera's direction (the same light, moving) and more than acos 0.8 (37
+   degrees) from the axis. gim__up_for alone turns the map by 90 degrees where two of d's
+   components cross, so a light moving through such a direction would move every texel, every
+   VAL and every VPL at once (a frame of flicker, and no VPL to follow); with the memory the map
+   turns only with the light, and a light set anew (another scene) gets gim__up_for's axis. */
+static gim_vec3 gim__up_kept(gim_vec3 d, int *axis, gim_vec3 *last) {
     gim_vec3 u;
     float c = *axis == 1 ? d.x : *axis == 2 ? d.y : d.z;
-    if (*axis >= 1 && *axis <= 3 && fabsf(c) < 0.8f)
+    int near = d.x * last->x + d.y * last->y + d.z * last->z > 0.985f;
+    *last = d;
+    if (*axis >= 1 && *axis <= 3 && near && fabsf(c) < 0.8f)
         return gim_v3(*axis == 1 ? 1.0f : 0.0f, *axis == 2 ? 1.0f : 0.0f, *axis == 3 ? 1.0f : 0.0f);
     u = gim__up_for(d);
     *axis = u.x > 0.0f ? 1 : u.y > 0.0f ? 2 : 3;
@@ -6412,16 +6416,18 @@ GIMANY_DEF gim_result gim_point_light_faces(const gim_light *point, gim_light fa
 }
 
 static gim_result gim__light_camera_kept(const gim_light *light, const float bmin[3], const float bmax[3],
-                                        gim_mat4 *view, gim_mat4 *proj, int *up_axis);
+                                        gim_mat4 *view, gim_mat4 *proj, int *up_axis, gim_vec3 *up_dir);
 GIMANY_DEF gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj) {
     int axis = 0;
-    return gim__light_camera_kept(light, bmin, bmax, view, proj, &axis);
+    gim_vec3 dir = gim_v3(0.0f, 0.0f, 0.0f);
+    return gim__light_camera_kept(light, bmin, bmax, view, proj, &axis, &dir);
 }
 
-/* gim_light_camera with the up axis of the light's last camera (gim__up_kept; *up_axis 0: none). */
+/* gim_light_camera with the up axis of the light's last camera (gim__up_kept; *up_axis 0: none;
+   *up_dir the direction it was kept for). */
 static gim_result gim__light_camera_kept(const gim_light *light, const float bmin[3], const float bmax[3],
-                                        gim_mat4 *view, gim_mat4 *proj, int *up_axis) {
+                                        gim_mat4 *view, gim_mat4 *proj, int *up_axis, gim_vec3 *up_dir) {
     static const char where[] = "gim_light_camera";
     double c[3], radius = 0.0;
     gim_result r;
@@ -6469,7 +6475,7 @@ static gim_result gim__light_camera_kept(const gim_light *light, const float bmi
         if (near_d < far_d * 1e-4) near_d = far_d * 1e-4;
         double eye[3];
         eye[0] = p.x; eye[1] = p.y; eye[2] = p.z;
-        *view = gim__look_along(eye, d, gim__up_kept(d, up_axis));
+        *view = gim__look_along(eye, d, gim__up_kept(d, up_axis, up_dir));
         *proj = gim_mat4_perspective(2.0f * light->cone_angle, 1.0f, (float)near_d, (float)far_d);
     } else {
         gim_vec3 l = gim_v3_normalize(light->direction);
@@ -6477,7 +6483,7 @@ static gim_result gim__light_camera_kept(const gim_light *light, const float bmi
         double eye[3];
         /* the eye 2R out along the light: the bounds' sphere lies between depths R and 3R */
         eye[0] = c[0] + 2.0 * R * l.x; eye[1] = c[1] + 2.0 * R * l.y; eye[2] = c[2] + 2.0 * R * l.z;
-        *view = gim__look_along(eye, gim__v3_scale(l, -1.0f), gim__up_kept(l, up_axis));
+        *view = gim__look_along(eye, gim__v3_scale(l, -1.0f), gim__up_kept(l, up_axis, up_dir));
         *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
     }
     if (!gim__mat4_isfinite(*view) || !gim__mat4_isfinite(*proj))
@@ -8467,6 +8473,7 @@ typedef struct gim__light_gpu {
     uint32_t tile, table_side;    /* the tile side of the last BRSM frame, its tables' side (ceil(size / tile)) */
     gim_mat4 view, proj;
     int up_axis;                  /* the up axis of the last camera (gim__up_kept); 0: none */
+    gim_vec3 up_dir;              /* the direction of the last camera */
 } gim__light_gpu;
 
 /* The hash grid over the world-space caches that lightskin_shade.comp searches. */
@@ -11055,7 +11062,7 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, 
     uint32_t size = gim__light_rsm_size(l);
     gim__GLuint program = 0;
     float power[3], eye[4];
-    gim_result r = gim__light_camera_kept(l, bmin, bmax, &g->view, &g->proj, &g->up_axis);
+    gim_result r = gim__light_camera_kept(l, bmin, bmax, &g->view, &g->proj, &g->up_axis, &g->up_dir);
     if (r != GIM_OK) return gim__fail(&ctx->env, r, where, "light %u: no camera for the scene bounds", (unsigned)i);
     r = gim__gl_program(ctx, GIM__PROGRAM_RSM, &program);
     if (r != GIM_OK) return r;

@@ -593,6 +593,12 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                             (!methods[mi - 1].setup || (bm->vpl && methods[mi - 1].setup == setup_vpl)))
                             t_off = off_ms[vi][si];
                     }
+                    if (bm->vpl) {   /* VPLs drawn at their texels, not followed from the row before (a still
+                                        light then keeps them: the row's frame is the one drawn anew) */
+                        gim_frame fresh = fm;
+                        fresh.vpl.redraw = 1;
+                        update(ctx, &fresh);
+                    }
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
                     if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl) off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
