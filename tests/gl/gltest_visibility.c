@@ -854,15 +854,12 @@ static void vpls_follow_the_light(void **state) {
     gim_instance in;
     (void)state;
     GLTEST_BEGIN();
-    setup(&s);
+    setup_ism(&s, 8, 512);
     s.fr.method = GIM_METHOD_CLUSTERED;
     s.fr.vpl.count = n;
     s.fr.vpl.paraboloid_size = 32;
     s.fr.vpl.cluster_count = 8;
     s.fr.vpl.kmeans_restart = 1;
-    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
-    s.fr.visibility.ism_size = 8;
-    s.fr.visibility.ism_points = 512;
     frame_makes(&s, 0, n, 0);
     v0 = frame_vpls(&s, n);
     assert_int_equal(follow_twin(&s, NULL, v0, n), 0);
