@@ -12749,8 +12749,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     had = v->vpls;
     had_bytes = v->vpls_bytes;
     r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
-    follow = r == GIM_OK && !f->vpl.redraw && follow_key == v->follow_key && had && had == v->vpls &&
-             had_bytes == v->vpls_bytes;
+    follow = r == GIM_OK && !f->vpl.redraw && follow_key == v->follow_key && had && had_bytes == v->vpls_bytes;   /* not remade */
     v->follow_key = 0;
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
@@ -12764,10 +12763,11 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     }
     for (i = 0, k = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
-        gim_mat4 vp = gim_mat4_mul(g->proj, g->view);
+        gim_mat4 vp;
         uint32_t n;
         if (!ctx->light_on[i]) continue;   /* culled: an empty RSM */
         n = gim__vpl_share(f, &s, ctx->light_on_count, k++);
+        if (follow) vp = gim_mat4_mul(g->proj, g->view);
         if (follow && ctx->light_on_count > 1u) {   /* this light's VPLs of the last frame, to follow in place */
             ctx->gl.BindBuffer(GIM__GL_COPY_READ_BUFFER, v->vpls);
             ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->staging);

@@ -16,7 +16,7 @@
    follow (incremental instant radiosity, Laine et al. 2007; gim_rsm_vpls_desc.previous): mode 0
    reads VPL i as the last frame left it and keeps it where follow() finds its texel now: its
    position and normal stay, flux and area come from that texel, flux.w = 1 (its imperfect
-   shadow map stays too: ism.comp's skip_kept); else the slot's texel as without, flux.w = 0. */
+   shadow map stays too: ism.comp's vpl_mode 2); else the slot's texel as without, flux.w = 0. */
 #include "common.glsl"
 layout(local_size_x = 64) in;
 
