@@ -293,19 +293,62 @@ static void maps_are_the_twins(void **state) {
     GLTEST_END();
 }
 
-/* The VPL frame's maps are gim_ism_render_twin's on the frame's VPLs (taken as caches, map i of VPL
-   i of o.vpls) and the points of the world triangles, pool 4 P; SSVP keeps one map per VPL of
-   both bounces. */
-static void vpl_maps_are_the_twins(void **state) {
-    scene_fx s;
-    gim_frame_outputs o;
-    gim_debug_outputs od;
+/* How many texels of the last frame's lit VPLs' maps differ from gim_ism_render_twin's on the
+   frame's VPLs (taken as caches, map i of VPL i of the frame's VPL buffer) and the points of the
+   world triangles, pool 4 P; *lit, *lit2 (second bounce), *texels count what was compared. */
+static uint32_t vpl_maps_off(scene_fx *s, uint32_t *lit, uint32_t *lit2, uint32_t *texels) {
+    gim_frame_outputs o = gim_outputs(s->f.ctx);
+    gim_debug_outputs od = gim_debug(s->f.ctx);
     gim_vpl *v;
     gim_cache *c;
     gim_twin_scene ts;
     gim_ism_desc d;
     float pos[MAX_Q * 2 * 9], alb[MAX_Q * 2 * 3], *pts, *cpu, *gpu;
-    uint32_t t, k, i, n, pool = 4 * 512, off = 0, lit = 0, lit2 = 0, texels = 0;
+    uint32_t t, k, i, n = od.vpl_count, size = s->fr.visibility.ism_size, pp = s->fr.visibility.ism_points;
+    uint32_t pool = 4 * pp, tex = size * size, off = 0;
+    assert_true(od.ism_maps != 0 && od.ism_size == size);
+    v = (gim_vpl *)malloc(n * sizeof *v);
+    c = (gim_cache *)calloc(n, sizeof *c);
+    gltest_read_buffer(od.vpls, n * sizeof *v, v);
+    for (i = 0; i < n; ++i) {   /* an unlit VPL (zero normal) gets a stand-in; its map is not compared */
+        memcpy(c[i].position, v[i].position, 12);
+        memcpy(c[i].normal, v[i].normal, 12);
+        if (!(v[i].lit > 0.0f)) { c[i].normal[0] = c[i].normal[2] = 0.0f; c[i].normal[1] = 1.0f; }
+        c[i].area = 1.0f;
+        c[i].reflectance = 0.5f;
+    }
+    for (t = 0; t < s->r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) {
+            memcpy(pos + t * 9 + k * 3, s->r.pos + s->r.idx[t * 3 + k] * 3, 12);
+            alb[t * 3 + k] = 0.8f;
+        }
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s->r.quads * 2;
+    pts = (float *)malloc(pool * 32u);
+    assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
+    memset(&d, 0, sizeof d);
+    d.caches = c; d.cache_count = n; d.points = pts; d.point_count = pool;
+    d.size = size; d.points_per_map = pp; d.scene_scale = o.scene_scale; d.env = s->f.env;
+    cpu = (float *)malloc((size_t)n * tex * 4);
+    gpu = (float *)malloc((size_t)n * tex * 4);
+    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
+    gltest_read_ism(od.ism_maps, (size_t)n * tex, gpu);   /* 16 bits a texel, two to a uint */
+    *lit = *lit2 = *texels = 0;
+    for (i = 0; i < n; ++i) {
+        if (!(v[i].lit > 0.0f)) continue;
+        ++*lit;
+        *lit2 += i >= od.first_bounce_count;
+        for (k = 0; k < tex; ++k, ++*texels)
+            off += !(fabsf(gpu[(size_t)i * tex + k] - cpu[(size_t)i * tex + k]) <= 1e-4f * cpu[(size_t)i * tex + k]);
+    }
+    free(v); free(c); free(pts); free(cpu); free(gpu);
+    return off;
+}
+
+/* The VPL frame's maps are gim_ism_render_twin's on the frame's VPLs; SSVP keeps one map per VPL
+   of both bounces. */
+static void vpl_maps_are_the_twins(void **state) {
+    scene_fx s;
+    uint32_t off, lit, lit2, texels;
     (void)state;
     GLTEST_BEGIN();
     setup(&s);
@@ -317,41 +360,8 @@ static void vpl_maps_are_the_twins(void **state) {
     s.fr.visibility.ism_size = 8;
     s.fr.visibility.ism_points = 512;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-    o = gim_outputs(s.f.ctx); od = gim_debug(s.f.ctx);
-    n = od.vpl_count;
-    assert_int_equal(n, 256 + 64);
-    assert_true(od.ism_maps != 0 && od.ism_size == 8);
-    v = (gim_vpl *)malloc(n * sizeof *v);
-    c = (gim_cache *)calloc(n, sizeof *c);
-    gltest_read_buffer(od.vpls, n * sizeof *v, v);
-    for (i = 0; i < n; ++i) {   /* an unlit VPL (zero normal) gets a stand-in; its map is not compared */
-        memcpy(c[i].position, v[i].position, 12);
-        memcpy(c[i].normal, v[i].normal, 12);
-        if (!(v[i].lit > 0.0f)) { c[i].normal[0] = c[i].normal[2] = 0.0f; c[i].normal[1] = 1.0f; }
-        c[i].area = 1.0f;
-        c[i].reflectance = 0.5f;
-    }
-    for (t = 0; t < s.r.quads * 2; ++t)
-        for (k = 0; k < 3; ++k) {
-            memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
-            alb[t * 3 + k] = 0.8f;
-        }
-    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s.r.quads * 2;
-    pts = (float *)malloc(pool * 32u);
-    assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
-    memset(&d, 0, sizeof d);
-    d.caches = c; d.cache_count = n; d.points = pts; d.point_count = pool;
-    d.size = 8; d.points_per_map = 512; d.scene_scale = o.scene_scale; d.env = s.f.env;
-    cpu = (float *)malloc((size_t)n * 64 * 4);
-    gpu = (float *)malloc((size_t)n * 64 * 4);
-    assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
-    gltest_read_ism(od.ism_maps, (size_t)n * 64, gpu);   /* 16 bits a texel, two to a uint */
-    for (i = 0; i < n; ++i) {
-        if (!(v[i].lit > 0.0f)) continue;
-        ++lit;
-        lit2 += i >= od.first_bounce_count;
-        for (k = 0; k < 64; ++k, ++texels) off += !(fabsf(gpu[i * 64 + k] - cpu[i * 64 + k]) <= 1e-4f * cpu[i * 64 + k]);
-    }
+    assert_int_equal(gim_debug(s.f.ctx).vpl_count, 256 + 64);
+    off = vpl_maps_off(&s, &lit, &lit2, &texels);
     print_message("%u lit VPLs' maps (%u of the second bounce): %u of %u texels differ from the twin\n", lit, lit2, off,
                   texels);
     assert_true(lit > 50 && lit2 > 0);
@@ -367,7 +377,6 @@ static void vpl_maps_are_the_twins(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
     assert_int_equal(s.f.ctx->ism_size, 0);
     assert_int_equal(s.f.ctx->ism_cluster_maps, 0);   /* one bounce: no clusters' maps */
-    free(v); free(c); free(pts); free(cpu); free(gpu);
     teardown(&s);
     GLTEST_END();
 }
@@ -845,7 +854,8 @@ static void kept_are_seen(scene_fx *s, const gim_vpl *v, uint32_t n, float *max_
    (counted on the GPU). Then a degree a frame through the direction where gim__up_for alone would
    turn the sun's RSM by 90 degrees (no VPL would stay): most VPLs kept. Every kept VPL's point is still the one the sun sees there (a texel of
    the new RSM within 2 sqrt of its footprint), so none stands in a new shadow. A moved instance
-   or vpl.redraw 1 keeps none. Fails if the maps of moved VPLs are kept or kept ones made. */
+   or vpl.redraw 1 keeps none. Fails if the maps of moved VPLs are kept or kept ones made, or if
+   any lit VPL's map after a move is not gim_ism_render_twin's on that frame's VPLs. */
 static void vpls_follow_the_light(void **state) {
     scene_fx s;
     uint32_t n = 256, lit = 0, i, k;
@@ -877,7 +887,7 @@ static void vpls_follow_the_light(void **state) {
     /* the sun sinks a little, then more */
     {
         static const float turns[3] = {-0.5f, -4.0f, -12.0f};
-        uint32_t kept[3], t;
+        uint32_t kept[3], t, off, mlit, mlit2, texels;
         float far;
         for (t = 0; t < 3; ++t) {
             uint32_t made;
@@ -887,9 +897,14 @@ static void vpls_follow_the_light(void **state) {
             v1 = frame_vpls(&s, n);
             kept[t] = follow_twin(&s, v0, v1, n);
             kept_are_seen(&s, v1, n, &far);
+            /* kept and made maps alike are the twin's on this frame's VPLs (a kept map whose VPL
+               moved, or a map made before the VPL was written, would differ) */
+            off = vpl_maps_off(&s, &mlit, &mlit2, &texels);
             print_message("sun turned to %g degrees: %u of %u VPLs kept (up to %g texels from their slots), %u maps "
-                          "made\n", (double)turns[t], kept[t], n, (double)far, made);
+                          "made; %u of %u texels of %u lit maps differ from the twin\n", (double)turns[t], kept[t], n,
+                          (double)far, made, off, texels, mlit);
             assert_int_equal(made, lit_in(&s, 0, n) - kept[t]);
+            assert_true(mlit > 0u && off <= texels / 200);
             for (i = 0; i < n; ++i)
                 if (v1[i].kept == 1.0f) {
                     assert_memory_equal(v1[i].position, v0[i].position, 12);
