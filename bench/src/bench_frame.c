@@ -32,6 +32,9 @@
    every frame (its flicker against the default's drift, the brsm rows); clustered-ism-anew,
    ssvp-ism-anew: gim_frame.vpl.redraw 1, every VPL and its map made anew every frame (against
    the default, which follows the last frame's VPLs: incremental instant radiosity).
+   On the street at the flicker size, each row also prints its error after the sun turned 24
+   degrees, a degree a frame, against a reference rendered at that sun (moved_error): followed as
+   by default, and drawn anew there.
    Usage: bench_frame [ci|full [SCENE[:MIN_RSM]...]]: with scenes, only those (from RSM
    MIN_RSM^2 on), appended to the sweep's results.csv in place of their rows there from
    MIN_RSM^2 on (to finish or redo part of a sweep); a
@@ -339,6 +342,40 @@ static double image_change(gim_context *ctx, scene_gimany *g, gim_frame f, doubl
     return change / (sw->flicker_frames - 1);
 }
 
+/* The error after a long move: the sun turned MOVE_DEG about the vertical, a degree a frame,
+   the method following the light as it does by default (VPLs and their maps kept where still
+   valid, Laine et al. 2007; BRSM's offsets drifting), and the last frame against the reference
+   rendered at the turned sun (ref_moved); then the same frame made from nothing there (anew:
+   vpl.redraw 1, lightskin.temporal_steps 1). The flicker rows measure change between frames;
+   this measures whether what was kept stays right. follow 0: only the last frame (FULL, which
+   keeps nothing). One frame each: a single draw of a sampled method varies (BRSM, 1024 VALs,
+   the street: 0.245-0.271 over 12 draws, one at 0.551; docs/methods.md). */
+#define MOVE_DEG 24
+static void moved_error(gim_context *ctx, scene_gimany *g, gim_frame f, const float *ref_moved, int follow,
+                        double *followed, double *anew) {
+    float *img = (float *)malloc((size_t)W * H * 16);
+    gim_vec3 d0 = g->lights[0].direction;
+    int k;
+    f.lightskin.rotate_view_samples = 1;
+    for (k = follow ? 1 : MOVE_DEG; k <= MOVE_DEG; ++k) {
+        double a = k * 3.14159265358979 / 180.0;
+        g->lights[0].direction = gim_v3((float)(cos(a) * d0.x + sin(a) * d0.z), d0.y, (float)(-sin(a) * d0.x + cos(a) * d0.z));
+        gim_set_lights(ctx, g->lights, g->light_count);
+        f.frame_index = 1000u + (uint32_t)k;
+        update(ctx, &f);
+    }
+    read_image(ctx, img);
+    *followed = error_vs(img, ref_moved);
+    f.vpl.redraw = 1;
+    f.lightskin.temporal_steps = 1;
+    update(ctx, &f);
+    read_image(ctx, img);
+    *anew = error_vs(img, ref_moved);
+    g->lights[0].direction = d0;
+    gim_set_lights(ctx, g->lights, g->light_count);
+    free(img);
+}
+
 /* The energy VPL clamping removes (Krivanek's bias for variance): the image's sum at the
    default clamp against the same frame unclamped, from the same clusters (k-means restarted
    from its seeds in both). Printed; the README quotes it. */
@@ -421,8 +458,9 @@ static double file_time(const char *path) {
 /* The ground truth of the same view (Embree, tools/reference) when it is built: the image and
    its per-pixel standard error (both RGB, top row first), or NULL. Rendered once per scene,
    view, size, paths per pixel and bounces into build/bench_ref/ (the folder's name holds a hash
-   of the command), and again when the renderer (which links the scene loader) is newer. */
-static float *reference(const bench_scene *bs, const char *source, int bounces, float **sigma) {
+   of the command), and again when the renderer (which links the scene loader) is newer. extra:
+   more options of the renderer ("" or, e.g., " --sun-dir X,Y,Z"). */
+static float *reference(const bench_scene *bs, const char *source, int bounces, const char *extra, float **sigma) {
     char cmd[1024], dir[512], path[600], err[256];
     float *ref = NULL;
     uint32_t rw = 0, rh = 0, sw_ = 0, sh = 0, hash = 2166136261u;
@@ -430,8 +468,8 @@ static float *reference(const bench_scene *bs, const char *source, int bounces, 
     size_t i;
     *sigma = NULL;
     if (bin == 0.0) return NULL;
-    snprintf(cmd, sizeof cmd, "--scene %s%s%s --size %dx%d --spp %d --bounces %d --seed 1", source,
-             bs->camera ? " --camera " : "", bs->camera ? bs->camera : "", W, H, sw->ref_spp, bounces);
+    snprintf(cmd, sizeof cmd, "--scene %s%s%s --size %dx%d --spp %d --bounces %d --seed 1%s", source,
+             bs->camera ? " --camera " : "", bs->camera ? bs->camera : "", W, H, sw->ref_spp, bounces, extra);
     for (i = 0; cmd[i]; ++i) hash = (hash ^ (unsigned char)cmd[i]) * 16777619u;
     snprintf(dir, sizeof dir, "build/bench_ref/%s_%dx%d_%dspp_%db_%08x", bs->name, W, H, sw->ref_spp, bounces, hash);
     snprintf(path, sizeof path, "%s/reference_stderr.pfm", dir);
@@ -457,6 +495,19 @@ static float *reference(const bench_scene *bs, const char *source, int bounces, 
     return ref;
 }
 
+/* The reference at the sun of moved_error's last frame (bounces 1 or 2), or NULL. */
+static float *moved_reference(const bench_scene *bs, const char *source, const scene_gimany *g, int bounces) {
+    char extra[128];
+    float *ref, *sigma = NULL;
+    gim_vec3 d0 = g->lights[0].direction;
+    double a = MOVE_DEG * 3.14159265358979 / 180.0;
+    snprintf(extra, sizeof extra, " --sun-dir %.9g,%.9g,%.9g", cos(a) * d0.x + sin(a) * d0.z, (double)d0.y,
+             -sin(a) * d0.x + cos(a) * d0.z);
+    ref = reference(bs, source, bounces, extra, &sigma);
+    free(sigma);
+    return ref;
+}
+
 /* The fraction of pixels whose reference indirect light is not zero: a view that measures
    something has most of them. */
 static double lit_fraction(const float *ref) {
@@ -473,7 +524,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     scene_gimany g;
     gim_frame f;
     char err[256];
-    float *full, *img, *ref, *sigma = NULL, *ref2 = NULL, *sigma2 = NULL;
+    float *full, *img, *ref, *sigma = NULL, *ref2 = NULL, *sigma2 = NULL, *refm = NULL, *refm2 = NULL;
     double ref_noise = -1.0, ref2_noise = -1.0;
     float cache_frac = 1.0f / 32.0f;
     W = bs->width[which];
@@ -524,9 +575,9 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         printf("\nscene: %s (%s%s%s), %u triangles, %u caches, %dx%d pixels, %u light(s); sweep %s\n", bs->name, source,
                bs->camera ? ", camera " : "", bs->camera ? bs->camera : "", tris, g.cache_count, W, H, g.light_count, sw->name);
     }
-    ref = reference(bs, source, 1, &sigma);
+    ref = reference(bs, source, 1, "", &sigma);
     if (ref && sigma) ref_noise = reference_noise(ref, sigma);
-    ref2 = reference(bs, source, 2, &sigma2);   /* the two-bounce rows' ground truth */
+    ref2 = reference(bs, source, 2, "", &sigma2);   /* the two-bounce rows' ground truth */
     if (ref2 && sigma2) ref2_noise = reference_noise(ref2, sigma2);
     if (ref)
         printf("reference: build/gimany-reference, %d paths per pixel; %.1f%% of the pixels carry indirect light; its noise "
@@ -553,8 +604,14 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         if (have_full) {
             read_image(ctx, full);
             if (flick) {
-                double mov, maps;
+                double mov, maps, e1, e2;
                 c_full = image_change(ctx, &g, f, &mov, &maps);
+                if (!refm) refm = moved_reference(bs, source, &g, 1);
+                if (!refm2) refm2 = moved_reference(bs, source, &g, 2);
+                if (refm) {
+                    moved_error(ctx, &g, f, refm, 0, &e1, &e2);
+                    printf("  full: the sun turned %d degrees: rel. MAE %.4f against the reference there\n", MOVE_DEG, e1);
+                }
             }
             row(bs->name, &baseline, rsm, 0, &mf, mf.frame_ms, 0.0, error_vs(full, ref), ref_noise, c_full, 0.0, 0.0, 0.0);
         } else {
@@ -607,6 +664,14 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                         c = image_change(ctx, &g, fm, &mov, &maps);
                         printf("  %s, vals %u: the light moving, median frame %.2f ms (still %.2f), %.1f maps made a "
                                "frame\n", bm->name, fm.lightskin.val_count, mov, m.frame_ms, maps);
+                        if (vi == 0 && bm->setup != setup_anew && bm->setup != setup_vpl_ism_anew &&
+                            (bm->bounces == 2 ? refm2 : refm)) {
+                            double e1, e2;
+                            moved_error(ctx, &g, fm, bm->bounces == 2 ? refm2 : refm, 1, &e1, &e2);
+                            printf("  %s, vals %u: the sun turned %d degrees, a degree a frame: rel. MAE %.4f followed, "
+                                   "%.4f drawn anew, against the reference there\n", bm->name, fm.lightskin.val_count,
+                                   MOVE_DEG, e1, e2);
+                        }
                     }
                     if (bm->setup == setup_vpl && bm->clusters == 8 && bm->bounces == 1 && bm->method == GIM_METHOD_CLUSTERED)
                         clamp_loss(ctx, fm, img, bs->name);
@@ -624,6 +689,8 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
     free(sigma);
     free(ref2);
     free(sigma2);
+    free(refm);
+    free(refm2);
 }
 
 /* Removes from the CSV at path the rows of sweep and scene_name whose RSM side is at least
