@@ -575,6 +575,13 @@ typedef struct gim_frame_lightskin {
                                    its plane's term, P exact, so the pass costs <= 4 texels / T^2 x view samples;
                                    1: eq. 10-11 per texel (the paper's map, the images of before); 0:
                                    GIM_DEFAULT_IMPORTANCE_TILE (docs/methods.md) */
+    float defensive_share;      /* BRSM: the share of the VALs drawn by the texels' luminance alone, the rest by
+                                   importance, every VAL weighted by the mixture's pdf (gim_select_desc.
+                                   defensive_count): a texel the view samples barely see but that lights
+                                   caches then weighs at most 1 / share times its share of the RSM's light
+                                   (the paper's 1 / P alone gave one VAL of 1024 98% of a frame's light);
+                                   in (0, 0.5]; negative: none (the paper's selection); 0:
+                                   GIM_DEFAULT_DEFENSIVE_SHARE */
     uint32_t shade_block;       /* B: the shading pass finds the neighbours and interpolates (eq. 8-9) once per
                                    B x B block of pixels, at its first receiver, and every pixel of the block on
                                    that receiver's surface (gim_shade_sources) takes that light times its own
@@ -732,6 +739,11 @@ typedef struct gim_light_outputs {
                                    map (T = 1) or of the tile map (ceil(rsm_size / T) square) */
     uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
     uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
+    uint32_t defensive_count;   /* BRSM: of those, the picks by luminance (gim_frame_lightskin.defensive_share);
+                                   with the three below (0 without a share): */
+    uint32_t luminance;         /* SSBO: rsm_size^2 floats, each texel's luminance (gim_importance_luminance's weight) */
+    uint32_t luminance_column, luminance_row; /* SSBOs: its eq. 12 tables, the size of column and row (of the
+                                   tile sums when importance_tile > 1) */
     int rendered;               /* 1: its RSM was rendered this frame; 0: culled (its frustum meets no
                                    instance's bounds): every GL name above is 0 */
     double importance_total;    /* BRSM, shared budget, more than one rendered RSM: the sum of its importance
@@ -1167,6 +1179,9 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
 #define GIM_MAX_IMPORTANCE_TILE 32
 #define GIM_DEFAULT_IMPORTANCE_TILE 1
 
+/* BRSM's default defensive share (gim_frame_lightskin.defensive_share; docs/methods.md, LightSkin). */
+#define GIM_DEFAULT_DEFENSIVE_SHARE 0.125f
+
 /* The shading pass's default block (gim_frame_lightskin.shade_block): 2 x 2 pixels, the pass
    2x cheaper on llvmpipe at the same error against the reference (docs/methods.md). */
 #define GIM_DEFAULT_SHADE_BLOCK 2
@@ -1223,6 +1238,14 @@ GIMANY_API gim_result gim_importance_map(const gim_importance_desc *desc, float 
 GIMANY_API gim_result gim_importance_tile_map(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
                                               float *weight);
 
+/* The tables' input of the selection's defensive share (gim_select_desc.defensive_count): each
+   texel's flux luminance where gim_importance_map counts it as a VAL, else 0, into
+   weight[width * height] (may be NULL when tile is 1), and its sum per tile of tile x tile
+   texels into tile_map as gim_importance_tile_map's (tile 1: the luminances themselves). The view
+   samples are not read (desc's may be NULL). Every output finite and >= 0 (clamped at FLT_MAX). */
+GIMANY_API gim_result gim_importance_luminance(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
+                                               float *weight);
+
 /* The two tables of eq. 12, built in double so P stays exact at 4096^2:
    column[y * width + x] = sum over rows 0..y of map(x, .)   (vertical, per column),
    row[x] = sum over columns 0..x of column[(height-1) * width + .] (horizontal totals).
@@ -1256,6 +1279,18 @@ typedef struct gim_select_desc {
                                    finite and >= 0 */
     uint32_t rsm_width, rsm_height; /* tile > 1: the RSM's size in texels; width = ceil(rsm_width / tile),
                                    height = ceil(rsm_height / tile) */
+    /* Defensive share (Hesterberg 1995; Veach and Guibas 1995, the balance heuristic): the last
+       defensive_count of the count picks come from a second set of tables, of the texels'
+       luminance alone (gim_importance_luminance, then gim_importance_cumsum), as a Hammersley set
+       of their own with the same offsets, and every pdf is the mixture's,
+         pdf = ((count - defensive_count) P_importance + defensive_count P_luminance) / count,
+       so 1 / (count pdf) <= L_total / (defensive_count L_texel): no texel that has light weighs
+       more than count / defensive_count times its share of the RSM's luminance, and a texel of
+       importance 0 that has light can still be picked. 0: none (the paper's selection). */
+    uint32_t defensive_count;   /* < count */
+    const double *lum_column;   /* defensive_count > 0: the luminance tables, the size of column and row */
+    const double *lum_row;
+    const float *lum_weight;    /* defensive_count > 0, tile > 1: rsm_width * rsm_height texel luminances */
     gim_env env;
 } gim_select_desc;
 
@@ -4798,6 +4833,46 @@ GIMANY_DEF gim_result gim_importance_tile_map(const gim_importance_desc *desc, u
     return GIM_OK;
 }
 
+GIMANY_DEF gim_result gim_importance_luminance(const gim_importance_desc *desc, uint32_t tile, float *tile_map,
+                                               float *weight) {
+    static const char fn[] = "gim_importance_luminance";
+    uint32_t tx, ty, tiles_x, tiles_y, w, h, x, y;
+    size_t texels;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT; /* no env to log through */
+    if (!tile_map || (tile > 1u && !weight))
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "tile_map (and weight with tile > 1) are required");
+    if (tile == 0 || tile > GIM_MAX_IMPORTANCE_TILE)
+        return gim__fail(&desc->env, GIM_ERROR_OUT_OF_RANGE, fn, "tile %u outside 1..%d", (unsigned)tile,
+                         GIM_MAX_IMPORTANCE_TILE);
+    if (!desc->rsm_position || !desc->rsm_normal || !desc->rsm_flux)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "rsm_position, rsm_normal and rsm_flux are required");
+    w = desc->width; h = desc->height;
+    texels = gim__array_size(w, h);
+    if (w == 0 || h == 0 || texels == 0 || gim__array_size(texels, 3u * sizeof(float)) == 0)
+        return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "RSM size %ux%u is empty or overflows size_t",
+                         (unsigned)w, (unsigned)h);
+    tiles_x = (w - 1u) / tile + 1u;
+    tiles_y = (h - 1u) / tile + 1u;
+    for (ty = 0; ty < tiles_y; ++ty)   /* one invocation per tile, as gim_importance_tile_map */
+        for (tx = 0; tx < tiles_x; ++tx) {
+            uint32_t x1 = tx * tile + tile < w ? tx * tile + tile : w, y1 = ty * tile + tile < h ? ty * tile + tile : h;
+            double sum = 0.0;
+            for (y = ty * tile; y < y1; ++y)
+                for (x = tx * tile; x < x1; ++x) {
+                    size_t i = (size_t)y * w + x;
+                    double n[3], phi = desc->rsm_valid && !(desc->rsm_valid[i] > 0.0f)
+                                           ? 0.0
+                                           : gim__importance_phi(desc->rsm_position + i * 3u, desc->rsm_normal + i * 3u,
+                                                                 desc->rsm_flux + i * 3u, n);
+                    float f = (float)phi;   /* gim__importance_phi clamps at FLT_MAX */
+                    if (weight) weight[i] = f;
+                    sum += (double)f;
+                }
+            tile_map[(size_t)ty * tiles_x + tx] = sum < FLT_MAX ? (float)sum : FLT_MAX;
+        }
+    return GIM_OK;
+}
+
 /* Table size checks shared by cumsum and select. */
 static gim_result gim__importance_tables_check(const gim_env *env, const char *fn, uint32_t width, uint32_t height) {
     size_t texels;
@@ -4867,21 +4942,131 @@ static double gim__below(double t, double total) {
     return t < total ? t : nextafter(total, 0.0);
 }
 
+/* One set of eq. 12 tables (the importance's or the luminance's) as the selection reads them. */
+typedef struct gim__select_tables {
+    const double *column, *row, *totals;  /* totals: the last row of column */
+    const float *weight;                  /* tile > 1 */
+    uint32_t width, height, tile, rsm_width;
+    double total;
+} gim__select_tables;
+
+/* The O(width) check of what every search relies on; the interior of the columns is checked
+   per sample (a NaN there shows as a non-positive difference). */
+static gim_result gim__select_tables_check(const gim_env *env, const char *fn, const gim__select_tables *t,
+                                           const char *which) {
+    double prev = 0.0;
+    uint32_t x;
+    for (x = 0; x < t->width; ++x) {
+        if (!(t->row[x] >= prev && t->row[x] <= DBL_MAX) || !(t->totals[x] >= 0.0 && t->totals[x] <= DBL_MAX) ||
+            (t->row[x] > prev && !(t->totals[x] > 0.0)))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "%s tables are not cumulative sums at column %u (row %g, column total %g)", which,
+                             (unsigned)x, t->row[x], t->totals[x]);
+        prev = t->row[x];
+    }
+    return GIM_OK;
+}
+
+/* The sum of tile (tx, ty)'s weights in row-major order (the GPU's order). */
+static double gim__select_tile_sum(const gim__select_tables *t, uint32_t tx, uint32_t ty, uint32_t rsm_height) {
+    uint32_t x0 = tx * t->tile, y0 = ty * t->tile, xx, yy;
+    uint32_t x1 = x0 + t->tile < t->rsm_width ? x0 + t->tile : t->rsm_width;
+    uint32_t y1 = y0 + t->tile < rsm_height ? y0 + t->tile : rsm_height;
+    double sum = 0.0;
+    for (yy = y0; yy < y1; ++yy)
+        for (xx = x0; xx < x1; ++xx) sum += (double)t->weight[(size_t)yy * t->rsm_width + xx];
+    return sum;
+}
+
+/* The probability the tables give texel (x, y) (an RSM texel when tile > 1); 0 where they
+   cannot pick it. */
+static double gim__select_pdf_at(const gim__select_tables *t, uint32_t x, uint32_t y, uint32_t rsm_height) {
+    uint32_t tx = x / t->tile, ty = y / t->tile;
+    double ct = t->totals[tx], p, hi, lo;
+    if (!(t->total > 0.0) || !(ct > 0.0)) return 0.0;
+    hi = t->column[(size_t)ty * t->width + tx];
+    lo = ty ? t->column[(size_t)(ty - 1u) * t->width + tx] : 0.0;
+    p = (t->row[tx] - (tx ? t->row[tx - 1u] : 0.0)) / t->total * ((hi - lo) / ct);
+    if (t->tile > 1u && p > 0.0) {
+        double sum = gim__select_tile_sum(t, tx, ty, rsm_height);
+        p = sum > 0.0 ? p * ((double)t->weight[(size_t)y * t->rsm_width + x] / sum) : 0.0;
+    }
+    return p;
+}
+
+/* One pick from the tables at (u, v) in [0, 1)^2 (total > 0): the texel and its probability. */
+static gim_result gim__select_pick(const gim_env *env, const char *fn, const gim__select_tables *t, double u, double v,
+                                   uint32_t rsm_height, uint32_t *ox, uint32_t *oy, double *op) {
+    double col_total, p_col, p_row, p, tt, lo, hi;
+    uint32_t sx, sy, width = t->width, height = t->height;
+    sx = gim__first_above(t->row, 1u, width, gim__below(u * t->total, t->total));
+    col_total = t->totals[sx];
+    tt = gim__below(v * col_total, col_total);
+    sy = gim__first_above(t->column + sx, width, height, tt);
+    lo = sy ? t->column[(size_t)(sy - 1u) * width + sx] : 0.0;
+    hi = t->column[(size_t)sy * width + sx];
+    p_col = (t->row[sx] - (sx ? t->row[sx - 1u] : 0.0)) / t->total;
+    p_row = (hi - lo) / col_total;
+    p = p_col * p_row;
+    if (!(p > 0.0 && p <= 1.0))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                         "column %u of the tables is not a cumulative sum (texel %u has P = %g)", (unsigned)sx,
+                         (unsigned)sy, p);
+    if (t->tile > 1u) {
+        /* second level: the residual of v in the tile's interval picks the texel by weight */
+        double res = (tt - lo) / (hi - lo), sum, acc = 0.0, w = 0.0;
+        uint32_t x0 = sx * t->tile, y0 = sy * t->tile, xx, yy, px = 0, py = 0;
+        uint32_t x1 = x0 + t->tile < t->rsm_width ? x0 + t->tile : t->rsm_width;
+        uint32_t y1 = y0 + t->tile < rsm_height ? y0 + t->tile : rsm_height;
+        int found = 0;
+        res = res < 1.0 ? (res > 0.0 ? res : 0.0) : 0.0;   /* NaN-safe; [0, 1) */
+        sum = gim__select_tile_sum(t, sx, sy, rsm_height);
+        if (!(sum > 0.0 && sum <= DBL_MAX))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
+                             "tile (%u, %u) was picked but its weights sum to %g (not the tile map's weights)",
+                             (unsigned)sx, (unsigned)sy, sum);
+        /* the first texel whose running sum exceeds res * sum; rounding past the end: the last
+           texel of positive weight (so a picked texel always has weight > 0) */
+        for (yy = y0; yy < y1 && !found; ++yy)
+            for (xx = x0; xx < x1 && !found; ++xx) {
+                double wt = (double)t->weight[(size_t)yy * t->rsm_width + xx];
+                acc += wt;
+                if (wt > 0.0) { px = xx; py = yy; w = wt; }
+                found = acc > res * sum;
+            }
+        if (!found) {   /* res * sum rounded to the tile's sum or past it: the last positive one */
+            for (yy = y0; yy < y1; ++yy)
+                for (xx = x0; xx < x1; ++xx) {
+                    double wt = (double)t->weight[(size_t)yy * t->rsm_width + xx];
+                    if (wt > 0.0) { px = xx; py = yy; w = wt; }
+                }
+        }
+        p *= w / sum;
+        if (!(p > 0.0 && p <= 1.0))
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "texel (%u, %u) has P = %g: weights not finite and >= 0",
+                             (unsigned)px, (unsigned)py, p);
+        sx = px;
+        sy = py;
+    }
+    *ox = sx;
+    *oy = sy;
+    *op = p;
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_selected_val *out) {
     static const char fn[] = "gim_importance_select";
-    const double *column, *row;
-    uint32_t width, height, count;
     const gim_env *env;
+    gim__select_tables t[2];
     float seeded[4];
     const float *off;
-    const double *totals; /* the last row of column: per-column totals */
-    double total, prev, o0, o1;
-    uint32_t i, x, tile;
+    double o0, o1;
+    uint32_t i, tile, count, n1, n2, rsm_height;
     gim_result r;
     if (!desc) return gim__fail(NULL, GIM_ERROR_INVALID_ARGUMENT, fn, "desc is NULL");
-    column = desc->column; row = desc->row; width = desc->width; height = desc->height; count = desc->count;
     env = &desc->env;
-    if (!column || !row || !out)
+    count = desc->count;
+    if (!desc->column || !desc->row || !out)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "column, row and out are required");
     off = desc->offsets;
     if (!off) {
@@ -4889,108 +5074,72 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
         off = seeded;
     }
     if (count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "count is 0");
-    r = gim__importance_tables_check(env, fn, width, height);
+    r = gim__importance_tables_check(env, fn, desc->width, desc->height);
     if (r != GIM_OK) return r;
     tile = desc->tile > 1u ? desc->tile : 1u;
     if (tile > 1u) {
         if (tile > GIM_MAX_IMPORTANCE_TILE)
             return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, fn, "tile %u above %d", (unsigned)tile, GIM_MAX_IMPORTANCE_TILE);
         if (!desc->weight) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "tile %u needs weight", (unsigned)tile);
-        if (desc->rsm_width == 0 || desc->rsm_height == 0 || (desc->rsm_width - 1u) / tile + 1u != width ||
-            (desc->rsm_height - 1u) / tile + 1u != height)
+        if (desc->rsm_width == 0 || desc->rsm_height == 0 || (desc->rsm_width - 1u) / tile + 1u != desc->width ||
+            (desc->rsm_height - 1u) / tile + 1u != desc->height)
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "a %ux%u RSM in tiles of %u is not %ux%u tiles",
-                             (unsigned)desc->rsm_width, (unsigned)desc->rsm_height, (unsigned)tile, (unsigned)width,
-                             (unsigned)height);
+                             (unsigned)desc->rsm_width, (unsigned)desc->rsm_height, (unsigned)tile,
+                             (unsigned)desc->width, (unsigned)desc->height);
     }
-    totals = column + (size_t)(height - 1u) * width;
-    /* O(width) check of what every search relies on; the interior of the columns is checked
-       per sample (a NaN there shows as a non-positive difference) */
-    for (x = 0, prev = 0.0; x < width; ++x) {
-        if (!(row[x] >= prev && row[x] <= DBL_MAX) || !(totals[x] >= 0.0 && totals[x] <= DBL_MAX) ||
-            (row[x] > prev && !(totals[x] > 0.0)))
-            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
-                             "tables are not cumulative sums at column %u (row %g, column total %g)",
-                             (unsigned)x, row[x], totals[x]);
-        prev = row[x];
+    n2 = desc->defensive_count;
+    if (n2 >= count)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "defensive_count %u is not below count %u", (unsigned)n2,
+                         (unsigned)count);
+    if (n2 && (!desc->lum_column || !desc->lum_row || (tile > 1u && !desc->lum_weight)))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "defensive_count %u needs the luminance tables%s",
+                         (unsigned)n2, tile > 1u ? " and lum_weight" : "");
+    rsm_height = tile > 1u ? desc->rsm_height : desc->height;
+    for (i = 0; i < (n2 ? 2u : 1u); ++i) {
+        t[i].column = i ? desc->lum_column : desc->column;
+        t[i].row = i ? desc->lum_row : desc->row;
+        t[i].weight = i ? desc->lum_weight : desc->weight;
+        t[i].width = desc->width;
+        t[i].height = desc->height;
+        t[i].tile = tile;
+        t[i].rsm_width = tile > 1u ? desc->rsm_width : desc->width;
+        t[i].totals = t[i].column + (size_t)(desc->height - 1u) * desc->width;
+        r = gim__select_tables_check(env, fn, &t[i], i ? "the luminance" : "the importance");
+        if (r != GIM_OK) return r;
+        t[i].total = t[i].row[desc->width - 1u];
     }
-    total = row[width - 1u];
+    if (n2 && !(t[1].total > 0.0)) n2 = 0;   /* no luminance (tables that cannot be the map's): no share */
+    n1 = count - n2;
     /* 48-bit Cranley-Patterson offsets, two 24-bit ones per dimension: over all seeds u_i
        only takes values on the offsets' lattice, so with 24 bits a column holding less than
        2^-24 of the total would be picked with the wrong frequency (never, or far too often) */
     o0 = (double)off[0] + (double)off[2] * (1.0 / 16777216.0);
     o1 = (double)off[1] + (double)off[3] * (1.0 / 16777216.0);
-    if (!(total > 0.0))
+    if (!(t[0].total > 0.0))
         gim__log(env, GIM_LOG_WARNING, fn, "the importance map is all zero: %u texels selected uniformly",
                  (unsigned)count);
     for (i = 0; i < count; ++i) {
-        double u = (double)i / (double)count + o0, v = gim_van_der_corput(i) + o1;
-        uint32_t sx, sy;
+        uint32_t l = i < n1 ? 0u : 1u, k = l ? i - n1 : i, n = l ? n2 : n1, sx = 0, sy = 0;
+        double u = (double)k / (double)n + o0, v = gim_van_der_corput(k) + o1, p = 0.0;
         u = u < 1.0 ? u : u - 1.0;
         v = v < 1.0 ? v : v - 1.0;
-        if (!(total > 0.0)) { /* documented fallback: uniform, pdf 1 / texels */
-            uint32_t tw = tile > 1u ? desc->rsm_width : width, th = tile > 1u ? desc->rsm_height : height;
+        if (!(t[0].total > 0.0)) { /* documented fallback: every pick uniform, pdf 1 / texels */
+            uint32_t tw = tile > 1u ? desc->rsm_width : desc->width, th = rsm_height;
             sx = (uint32_t)(u * tw); sy = (uint32_t)(v * th);
             out[i].x = sx < tw ? sx : tw - 1u;
             out[i].y = sy < th ? sy : th - 1u;
             out[i].pdf = (float)(1.0 / ((double)tw * (double)th));
             continue;
         }
-        {
-            double col_total, p_col, p_row, p, t, lo, hi;
-            sx = gim__first_above(row, 1u, width, gim__below(u * total, total));
-            col_total = totals[sx];
-            t = gim__below(v * col_total, col_total);
-            sy = gim__first_above(column + sx, width, height, t);
-            lo = sy ? column[(size_t)(sy - 1u) * width + sx] : 0.0;
-            hi = column[(size_t)sy * width + sx];
-            p_col = (row[sx] - (sx ? row[sx - 1u] : 0.0)) / total;
-            p_row = (hi - lo) / col_total;
-            p = p_col * p_row;
-            if (!(p > 0.0 && p <= 1.0))
-                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
-                                 "column %u of the tables is not a cumulative sum (texel %u has P = %g)",
-                                 (unsigned)sx, (unsigned)sy, p);
-            if (tile > 1u) {
-                /* second level: the residual of v in the tile's interval picks the texel by weight */
-                double res = (t - lo) / (hi - lo), sum = 0.0, acc = 0.0, w = 0.0;
-                uint32_t x0 = sx * tile, y0 = sy * tile, xx, yy, px = 0, py = 0;
-                uint32_t x1 = x0 + tile < desc->rsm_width ? x0 + tile : desc->rsm_width;
-                uint32_t y1 = y0 + tile < desc->rsm_height ? y0 + tile : desc->rsm_height;
-                int found = 0;
-                res = res < 1.0 ? (res > 0.0 ? res : 0.0) : 0.0;   /* NaN-safe; [0, 1) */
-                for (yy = y0; yy < y1; ++yy)
-                    for (xx = x0; xx < x1; ++xx) sum += (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
-                if (!(sum > 0.0 && sum <= DBL_MAX))
-                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
-                                     "tile (%u, %u) was picked but its weights sum to %g (not the tile map's weights)",
-                                     (unsigned)sx, (unsigned)sy, sum);
-                /* the first texel whose running sum exceeds res * sum; rounding past the end: the last
-                   texel of positive weight (so a picked texel always has weight > 0) */
-                for (yy = y0; yy < y1 && !found; ++yy)
-                    for (xx = x0; xx < x1 && !found; ++xx) {
-                        double wt = (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
-                        acc += wt;
-                        if (wt > 0.0) { px = xx; py = yy; w = wt; }
-                        found = acc > res * sum;
-                    }
-                if (!found) {   /* res * sum rounded to the tile's sum or past it: the last positive one */
-                    for (yy = y0; yy < y1; ++yy)
-                        for (xx = x0; xx < x1; ++xx) {
-                            double wt = (double)desc->weight[(size_t)yy * desc->rsm_width + xx];
-                            if (wt > 0.0) { px = xx; py = yy; w = wt; }
-                        }
-                }
-                p *= w / sum;
-                if (!(p > 0.0 && p <= 1.0))
-                    return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "texel (%u, %u) has P = %g: weights not finite and >= 0",
-                                     (unsigned)px, (unsigned)py, p);
-                sx = px;
-                sy = py;
-            }
-            out[i].x = sx;
-            out[i].y = sy;
-            out[i].pdf = p > FLT_MIN ? (float)p : FLT_MIN;
+        r = gim__select_pick(env, fn, &t[l], u, v, rsm_height, &sx, &sy, &p);
+        if (r != GIM_OK) return r;
+        if (n2) {   /* the mixture's pdf: the other set's probability of the same texel */
+            double q = gim__select_pdf_at(&t[1u - l], sx, sy, rsm_height);
+            p = l ? ((double)n1 * q + (double)n2 * p) / (double)count : ((double)n1 * p + (double)n2 * q) / (double)count;
         }
+        out[i].x = sx;
+        out[i].y = sy;
+        out[i].pdf = p > FLT_MIN ? (float)p : FLT_MIN;
     }
     return GIM_OK;
 }
@@ -8470,6 +8619,10 @@ typedef struct gim__light_gpu {
     uint64_t map_bytes, column_bytes, row_bytes, selected_bytes;
     gim__GLuint tiles;            /* two-level map (tile > 1): eq. 10-11 per tile; map then holds the texel weights */
     uint64_t tiles_bytes;
+    /* the selection's defensive share (gim_frame_lightskin.defensive_share): the texels' luminance
+       (lum_map; per tile in lum_tiles with tile > 1, lum_map then the texel weights) and its tables */
+    gim__GLuint lum_map, lum_tiles, lum_column, lum_row;
+    uint64_t lum_map_bytes, lum_tiles_bytes, lum_column_bytes, lum_row_bytes;
     uint32_t tile, table_side;    /* the tile side of the last BRSM frame, its tables' side (ceil(size / tile)) */
     gim_mat4 view, proj;
     int up_axis;                  /* the up axis of the last camera (gim__up_kept); 0: none */
@@ -8993,10 +9146,24 @@ static GIM__UNUSED gim_result gim__gl_importance_inputs(gim_context *ctx, const 
    view_samples: SSBO of view_sample_count {vec4 position; vec4 normal} (xyz used). map: SSBO
    of width * height floats (row-major, row 0 first), written. clamp 0 means 1/64 of scene_scale.
    Cost: width * height * view_sample_count terms. */
+static gim_result gim__gl_importance_map_lum(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                            gim__GLuint rsm_flux, uint32_t width, uint32_t height,
+                                            gim__GLuint view_samples, uint32_t view_sample_count, float scene_scale,
+                                            float clamp, gim__GLuint map, gim__GLuint lum_map);
 static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
                                                      gim__GLuint rsm_flux, uint32_t width, uint32_t height,
                                                      gim__GLuint view_samples, uint32_t view_sample_count,
                                                      float scene_scale, float clamp, gim__GLuint map) {
+    return gim__gl_importance_map_lum(ctx, rsm_position, rsm_normal, rsm_flux, width, height, view_samples,
+                                      view_sample_count, scene_scale, clamp, map, 0u);
+}
+
+/* gim__gl_importance_map, and with lum_map != 0 each texel's luminance into lum_map (width *
+   height floats, the twin's gim_importance_luminance at tile 1). */
+static gim_result gim__gl_importance_map_lum(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                            gim__GLuint rsm_flux, uint32_t width, uint32_t height,
+                                            gim__GLuint view_samples, uint32_t view_sample_count, float scene_scale,
+                                            float clamp, gim__GLuint map, gim__GLuint lum_map) {
     static const char where[] = "importance map (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -9007,17 +9174,20 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
     if (r != GIM_OK) return r;
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "map", map, (uint64_t)width * height * 4u);
+    if (r == GIM_OK && lum_map) r = gim__gl_check_buffer(ctx, where, "lum_map", lum_map, (uint64_t)width * height * 4u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_MAP, &program);
     if (r == GIM_OK)
         r = gim__gl_importance_inputs(ctx, where, rsm_position, rsm_normal, rsm_flux, width, height, view_samples,
                                       view_sample_count);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, map);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, lum_map ? lum_map : map);   /* 0: unwritten */
     gl->UseProgram(program);
     gl->Uniform2ui(0, width, height);
     gl->Uniform1ui(1, view_sample_count);
     gl->Uniform1f(2, (float)(1.0 / (double)scene_scale));
     gl->Uniform1f(3, clamp * clamp);
+    gl->Uniform1ui(4, lum_map ? 1u : 0u);
     gl->DispatchCompute((width + 15u) / 16u, (height + 15u) / 16u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -9029,11 +9199,27 @@ static GIM__UNUSED gim_result gim__gl_importance_map(gim_context *ctx, gim__GLui
    Cost: 4 planes x tiles x view_sample_count terms + 2 x width * height texel reads, against
    width * height * view_sample_count for the per-texel map. Float sums with running means; on
    the twin's inputs the tile map and weights agree to ~6e-7 relative (tests/gl/gltest_importance.c). */
+static gim_result gim__gl_importance_tile_map_lum(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                 gim__GLuint rsm_flux, uint32_t width, uint32_t height, uint32_t tile,
+                                                 gim__GLuint view_samples, uint32_t view_sample_count,
+                                                 float scene_scale, float clamp, gim__GLuint tile_map,
+                                                 gim__GLuint weight, gim__GLuint lum_tiles, gim__GLuint lum_weight);
 static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim__GLuint rsm_position,
                                                           gim__GLuint rsm_normal, gim__GLuint rsm_flux, uint32_t width,
                                                           uint32_t height, uint32_t tile, gim__GLuint view_samples,
                                                           uint32_t view_sample_count, float scene_scale, float clamp,
                                                           gim__GLuint tile_map, gim__GLuint weight) {
+    return gim__gl_importance_tile_map_lum(ctx, rsm_position, rsm_normal, rsm_flux, width, height, tile, view_samples,
+                                           view_sample_count, scene_scale, clamp, tile_map, weight, 0u, 0u);
+}
+
+/* gim__gl_importance_tile_map, and with lum_tiles != 0 the texels' luminance into lum_weight and
+   its tile sums into lum_tiles (the twin's gim_importance_luminance; sizes as weight, tile_map). */
+static gim_result gim__gl_importance_tile_map_lum(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                 gim__GLuint rsm_flux, uint32_t width, uint32_t height, uint32_t tile,
+                                                 gim__GLuint view_samples, uint32_t view_sample_count,
+                                                 float scene_scale, float clamp, gim__GLuint tile_map,
+                                                 gim__GLuint weight, gim__GLuint lum_tiles, gim__GLuint lum_weight) {
     static const char where[] = "importance tile map (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
@@ -9051,6 +9237,11 @@ static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim_
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "tile_map", tile_map, (uint64_t)tiles_x * tiles_y * 4u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "weight", weight, (uint64_t)width * height * 4u);
+    if (r == GIM_OK && (lum_tiles || lum_weight)) {
+        if (!lum_tiles || !lum_weight) r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "lum_tiles without lum_weight");
+        if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lum_tiles", lum_tiles, (uint64_t)tiles_x * tiles_y * 4u);
+        if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lum_weight", lum_weight, (uint64_t)width * height * 4u);
+    }
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_IMPORTANCE_TILES, &program);
     if (r == GIM_OK)
         r = gim__gl_importance_inputs(ctx, where, rsm_position, rsm_normal, rsm_flux, width, height, view_samples,
@@ -9058,6 +9249,8 @@ static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim_
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, tile_map);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, weight);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, lum_tiles ? lum_tiles : tile_map);   /* 0: unwritten */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, lum_weight ? lum_weight : weight);
     gl->UseProgram(program);
     gl->Uniform2ui(0, width, height);
     gl->Uniform1ui(1, view_sample_count);
@@ -9065,6 +9258,7 @@ static GIM__UNUSED gim_result gim__gl_importance_tile_map(gim_context *ctx, gim_
     gl->Uniform1f(3, clamp * clamp);
     gl->Uniform1ui(4, tile);
     gl->Uniform1f(5, (float)(GIM__TILE_PLANE_DISTANCE * (double)scene_scale));
+    gl->Uniform1ui(6, lum_tiles ? 1u : 0u);
     gl->DispatchCompute((tiles_x + 7u) / 8u, (tiles_y + 7u) / 8u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -9189,11 +9383,33 @@ static gim_result gim__gl_importance_select_offsets(gim_context *ctx, gim__GLuin
    weight an SSBO of rsm_width * rsm_height floats (gim__gl_importance_tile_map's); tile 1: the
    per-texel selection (weight unused, may be 0). Same offsets, same picks and pdf as the twin;
    pdf 0 marks a pick in a tile whose weights sum to 0 (the twin's error). */
+/* The luminance tables of the selection's defensive share (gim_select_desc.defensive_count):
+   count picks of the last defensive_count, lum_column / lum_row the size of column / row, lum_weight
+   (tile > 1) rsm texels' luminance. */
+typedef struct gim__gl_defensive {
+    uint32_t count;
+    gim__GLuint lum_column, lum_row, lum_weight;
+} gim__gl_defensive;
+static gim_result gim__gl_importance_select_mix(gim_context *ctx, gim__GLuint column, gim__GLuint row, uint32_t width,
+                                                uint32_t height, uint32_t count, const float off[4], uint32_t tile,
+                                                gim__GLuint weight, uint32_t rsm_width, uint32_t rsm_height,
+                                                const gim__gl_defensive *dfs, gim__GLuint out);
 static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint column, gim__GLuint row, uint32_t width,
                                                   uint32_t height, uint32_t count, const float off[4], uint32_t tile,
                                                   gim__GLuint weight, uint32_t rsm_width, uint32_t rsm_height,
                                                   gim__GLuint out) {
+    return gim__gl_importance_select_mix(ctx, column, row, width, height, count, off, tile, weight, rsm_width, rsm_height,
+                                         NULL, out);
+}
+
+/* gim__gl_importance_select_tiles with a defensive share (dfs; NULL or count 0: none), the twin of
+   gim_importance_select with gim_select_desc's defensive_count and luminance tables. */
+static gim_result gim__gl_importance_select_mix(gim_context *ctx, gim__GLuint column, gim__GLuint row, uint32_t width,
+                                                uint32_t height, uint32_t count, const float off[4], uint32_t tile,
+                                                gim__GLuint weight, uint32_t rsm_width, uint32_t rsm_height,
+                                                const gim__gl_defensive *dfs, gim__GLuint out) {
     static const char where[] = "importance select (GL)";
+    uint32_t n2 = dfs ? dfs->count : 0u;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     gim_result r;
@@ -9218,6 +9434,16 @@ static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint 
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "out", out, (uint64_t)count * 12u);
     if (r == GIM_OK && tile > 1u)
         r = gim__gl_check_buffer(ctx, where, "weight", weight, (uint64_t)rsm_width * rsm_height * 4u);
+    if (r == GIM_OK && n2) {
+        if (n2 >= count || !dfs->lum_column || !dfs->lum_row || (tile > 1u && !dfs->lum_weight))
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                          "a defensive share of %u picks of %u needs fewer picks and the luminance tables",
+                          (unsigned)n2, (unsigned)count);
+        if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lum_column", dfs->lum_column, (uint64_t)width * height * 8u);
+        if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "lum_row", dfs->lum_row, (uint64_t)width * 8u);
+        if (r == GIM_OK && tile > 1u)
+            r = gim__gl_check_buffer(ctx, where, "lum_weight", dfs->lum_weight, (uint64_t)rsm_width * rsm_height * 4u);
+    }
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SELECT, &program);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     /* the twin's 48-bit rotation: two 24-bit offsets per dimension */
@@ -9225,9 +9451,14 @@ static gim_result gim__gl_importance_select_tiles(gim_context *ctx, gim__GLuint 
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, column);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, row);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, out);
+    /* without a share the luminance tables are not read: the importance's stand in */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, n2 ? dfs->lum_column : column);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 6, n2 ? dfs->lum_row : row);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 7, n2 && tile > 1u ? dfs->lum_weight : (tile > 1u ? weight : column));
     gl->UseProgram(program);
     gl->Uniform2ui(0, width, height);
     gl->Uniform1ui(1, count);
+    gl->Uniform1ui(5, n2);
     gl->Uniform2d(2, (double)off[0] + (double)off[2] * (1.0 / 16777216.0),
                   (double)off[1] + (double)off[3] * (1.0 / 16777216.0));
     gl->Uniform1ui(3, tile);
@@ -10705,14 +10936,24 @@ GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
     return GIM_OK;
 }
 
+/* Delete one light's buffers of the defensive share (a frame without it keeps none). */
+static void gim__light_lum_release(gim_context *ctx, gim__light_gpu *g) {
+    gim__GLuint b[4];
+    b[0] = g->lum_map; b[1] = g->lum_tiles; b[2] = g->lum_column; b[3] = g->lum_row;
+    ctx->gl.DeleteBuffers(4, b);   /* 0 names are ignored */
+    g->lum_map = g->lum_tiles = g->lum_column = g->lum_row = 0;
+    g->lum_map_bytes = g->lum_tiles_bytes = g->lum_column_bytes = g->lum_row_bytes = 0;
+}
+
 /* Delete one light's GL objects. */
 static void gim__light_gpu_release(gim_context *ctx, gim__light_gpu *g) {
     const gim__gl *gl = &ctx->gl;
-    gim__GLuint t[4], b[5];
+    gim__GLuint t[4], b[9];
     t[0] = g->position; t[1] = g->normal; t[2] = g->flux; t[3] = g->depth;
     b[0] = g->map; b[1] = g->column; b[2] = g->row; b[3] = g->selected; b[4] = g->tiles;
+    b[5] = g->lum_map; b[6] = g->lum_tiles; b[7] = g->lum_column; b[8] = g->lum_row;
     gl->DeleteTextures(4, t); /* 0 names are ignored */
-    gl->DeleteBuffers(5, b);
+    gl->DeleteBuffers(9, b);
     if (g->fbo) gl->DeleteFramebuffers(1, &g->fbo);
     memset(g, 0, sizeof *g);
 }
@@ -12460,6 +12701,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.lightskin.importance_clamp = GIM__IMPORTANCE_DEFAULT_CLAMP;
     f.lightskin.neighbour_count = GIM_MAX_NEIGHBOUR_CACHES;
     f.lightskin.importance_tile = GIM_DEFAULT_IMPORTANCE_TILE;
+    f.lightskin.defensive_share = GIM_DEFAULT_DEFENSIVE_SHARE;
     f.lightskin.shade_block = GIM_DEFAULT_SHADE_BLOCK;
     f.gather.samples = GIM__GATHER_DEFAULT_SAMPLES;
     f.gather.radius = GIM__GATHER_DEFAULT_RADIUS;
@@ -12495,6 +12737,7 @@ static void gim__frame_resolve(const gim_frame *in, gim_frame *out) {
     GIM__RESOLVE(lightskin.importance_clamp);
     GIM__RESOLVE(lightskin.neighbour_count);
     GIM__RESOLVE(lightskin.importance_tile);
+    GIM__RESOLVE(lightskin.defensive_share);
     GIM__RESOLVE(lightskin.shade_block);
     GIM__RESOLVE(gather.samples);
     GIM__RESOLVE(gather.radius);
@@ -13036,6 +13279,10 @@ static gim_result gim__frame_check(gim_context *ctx, const gim_frame *f, const g
     if (f->lightskin.importance_tile > GIM_MAX_IMPORTANCE_TILE)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "importance_tile %u above %d",
                          (unsigned)f->lightskin.importance_tile, GIM_MAX_IMPORTANCE_TILE);
+    if (!gim__isfinitef(f->lightskin.defensive_share) || f->lightskin.defensive_share > 0.5f)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
+                         "defensive_share %g: in (0, 0.5], negative for none, 0 for the default",
+                         (double)f->lightskin.defensive_share);
     if (f->lightskin.neighbour_count > GIM_MAX_NEIGHBOUR_CACHES)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "neighbour_count %u above %d", (unsigned)f->lightskin.neighbour_count,
                          GIM_MAX_NEIGHBOUR_CACHES);
@@ -13307,6 +13554,7 @@ static void gim__release_other_methods(gim_context *ctx, gim_method method) {
         ctx->gl.DeleteBuffers(5, b);
         g->map = g->column = g->row = g->selected = g->tiles = 0;
         g->map_bytes = g->column_bytes = g->row_bytes = g->selected_bytes = g->tiles_bytes = 0;
+        gim__light_lum_release(ctx, g);
     }
     if (!brsm) {   /* and the view samples and the scan's scratch, BRSM's only */
         gim__GLuint b[3];
@@ -13382,6 +13630,15 @@ static gim_result gim__gl_shared_passes(gim_context *ctx, const gim_frame *f, co
     return r;
 }
 
+/* The picks of a light's count VALs drawn by luminance (gim_frame_lightskin.defensive_share):
+   round(share count), fewer than count. */
+static uint32_t gim__defensive_count(const gim_frame *f, uint32_t count) {
+    uint32_t n;
+    if (!(f->lightskin.defensive_share > 0.0f)) return 0u;
+    n = (uint32_t)((double)f->lightskin.defensive_share * count + 0.5);
+    return n < count ? n : count - 1u;
+}
+
 /* BRSM's selection (Bischoff 2017 sec. 4), per rendered light: view samples -> importance map
    (eq. 10-11; per tile of importance_tile^2 texels with the texels' weights when the tile is > 1)
    -> cumulative sums (eq. 12) -> its share of val_count (gim__gl_val_budget) -> that many VALs
@@ -13391,6 +13648,7 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
     static const char where[] = "gim_update";
     uint32_t i, vs_count = f->lightskin.view_sample_count, val_count = f->lightskin.val_count;
     uint32_t tile = f->lightskin.importance_tile;
+    int defensive = f->lightskin.defensive_share > 0.0f;
     gim_result r = gim__gl_view_samples(ctx, f, depth, normal, vs_count);
     gim__stamp(ctx, f->timing, GIM_PASS_VIEW_SAMPLES);
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
@@ -13407,18 +13665,32 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->map, &g->map_bytes, texels * 4u, where);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->column, &g->column_bytes, cells * 8u, where);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->row, &g->row_bytes, (uint64_t)g->table_side * 8u, where);
+        if (defensive) {   /* the luminance map (per texel, or the weights and tile sums) and its tables */
+            if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->lum_map, &g->lum_map_bytes, texels * 4u, where);
+            if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &g->lum_column, &g->lum_column_bytes, cells * 8u, where);
+            if (r == GIM_OK)
+                r = gim__gl_sized_buffer(ctx, &g->lum_row, &g->lum_row_bytes, (uint64_t)g->table_side * 8u, where);
+            if (r == GIM_OK && tile > 1u) r = gim__gl_sized_buffer(ctx, &g->lum_tiles, &g->lum_tiles_bytes, cells * 4u, where);
+            if (r == GIM_OK && tile == 1u && g->lum_tiles) {
+                ctx->gl.DeleteBuffers(1, &g->lum_tiles);
+                g->lum_tiles = 0;
+                g->lum_tiles_bytes = 0;
+            }
+        } else {
+            gim__light_lum_release(ctx, g);
+        }
         if (r == GIM_OK && tile > 1u) {
             r = gim__gl_sized_buffer(ctx, &g->tiles, &g->tiles_bytes, cells * 4u, where);
             if (r == GIM_OK)
-                r = gim__gl_importance_tile_map(ctx, g->position, g->normal, g->flux, g->size, g->size, tile,
-                                                ctx->view_samples, vs_count, scale, f->lightskin.importance_clamp,
-                                                g->tiles, g->map);
+                r = gim__gl_importance_tile_map_lum(ctx, g->position, g->normal, g->flux, g->size, g->size, tile,
+                                                    ctx->view_samples, vs_count, scale, f->lightskin.importance_clamp,
+                                                    g->tiles, g->map, g->lum_tiles, g->lum_map);
         } else if (r == GIM_OK) {
             if (g->tiles) ctx->gl.DeleteBuffers(1, &g->tiles);   /* per texel: no tile map */
             g->tiles = 0;
             g->tiles_bytes = 0;
-            r = gim__gl_importance_map(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples, vs_count,
-                                       scale, f->lightskin.importance_clamp, g->map);
+            r = gim__gl_importance_map_lum(ctx, g->position, g->normal, g->flux, g->size, g->size, ctx->view_samples,
+                                           vs_count, scale, f->lightskin.importance_clamp, g->map, g->lum_map);
         }
         gim__stamp(ctx, f->timing, GIM_PASS_IMPORTANCE_MAP);
     }
@@ -13427,6 +13699,9 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
         if (!ctx->light_on[i]) continue;
         r = gim__gl_importance_cumsum(ctx, tile > 1u ? g->tiles : g->map, g->column, g->row, g->table_side,
                                       g->table_side, 0u);
+        if (r == GIM_OK && defensive)
+            r = gim__gl_importance_cumsum(ctx, tile > 1u ? g->lum_tiles : g->lum_map, g->lum_column, g->lum_row,
+                                          g->table_side, g->table_side, 0u);
         gim__stamp(ctx, f->timing, GIM_PASS_CUMSUM);
     }
     if (r == GIM_OK) r = gim__gl_val_budget(ctx, f->per_light_budget, val_count, where);
@@ -13444,9 +13719,14 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
             float off[4];
             /* temporal_steps: the drift's step from the frame's total, so a split that changes
                by a VAL does not move the offsets */
+            gim__gl_defensive dfs;
             gim__select_offsets(f, i, val_count, off);
-            r = gim__gl_importance_select_tiles(ctx, g->column, g->row, g->table_side, g->table_side,
-                                                ctx->light_vals[i], off, tile, g->map, g->size, g->size, g->selected);
+            dfs.count = gim__defensive_count(f, ctx->light_vals[i]);
+            dfs.lum_column = g->lum_column;
+            dfs.lum_row = g->lum_row;
+            dfs.lum_weight = g->lum_map;
+            r = gim__gl_importance_select_mix(ctx, g->column, g->row, g->table_side, g->table_side, ctx->light_vals[i],
+                                              off, tile, g->map, g->size, g->size, &dfs, g->selected);
         }
         gim__stamp(ctx, f->timing, GIM_PASS_SELECT);
     }
@@ -13512,6 +13792,10 @@ static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint
         lo->row = g->row;
         lo->selected = g->selected;
         lo->selected_count = brsm ? ctx->light_vals[i] : 0u;
+        lo->defensive_count = brsm && g->lum_map ? gim__defensive_count(f, ctx->light_vals[i]) : 0u;
+        lo->luminance = lo->defensive_count ? g->lum_map : 0u;
+        lo->luminance_column = lo->defensive_count ? g->lum_column : 0u;
+        lo->luminance_row = lo->defensive_count ? g->lum_row : 0u;
         lo->rendered = ctx->light_on[i];
         lo->importance_total = brsm ? ctx->light_total[i] : 0.0;
     }
@@ -13624,7 +13908,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     for (i = 0; i < ctx->light_capacity; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         b += (uint64_t)g->size * g->size * 52u + g->map_bytes + g->column_bytes + g->row_bytes + g->selected_bytes +
-             g->tiles_bytes;
+             g->tiles_bytes + g->lum_map_bytes + g->lum_tiles_bytes + g->lum_column_bytes + g->lum_row_bytes;
     }
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u + (uint64_t)ctx->decoded_width * ctx->decoded_height * 12u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);

@@ -26,6 +26,7 @@ typedef struct demo_options {
     uint32_t importance_tile; /* brsm: the two-level importance map's tile side (0: gimany's default; 1: per texel) */
     uint32_t shade_block;    /* brsm, full: the shading pass's block side (0: gimany's default; 1: per pixel) */
     uint32_t neighbours;     /* brsm, full: caches interpolated per pixel (0: gimany's default, 16) */
+    float defensive_share;   /* brsm: VALs drawn by luminance alone (0: gimany's default; < 0: none) */
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM */
@@ -54,6 +55,8 @@ static const char demo_usage_text[] =
     "  --shade-block B       brsm, full: neighbours and interpolation once per B x B pixel block, shared by\n"
     "                        the block's pixels on one surface (1: per pixel; 2; default: GIM_DEFAULT_SHADE_BLOCK)\n"
     "  --neighbours N        brsm, full: nearest caches interpolated per pixel (1..16; default 16)\n"
+    "  --defensive-share S   brsm: the share of the VALs drawn by the texels' luminance alone, a bound on\n"
+    "                        any VAL's weight (0..0.5; 0: none; default: GIM_DEFAULT_DEFENSIVE_SHARE)\n"
     "  --vpls N, --clusters N  clustered, ssvp: VPLs per light and clusters (default 2048, 30 clustered;\n"
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
@@ -107,7 +110,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
     for (i = 1; i < argc; ++i) {
         const char *a = argv[i], *eq = strchr(a, '='), *v = NULL;
         size_t len = eq ? (size_t)(eq - a) : strlen(a), k;
-        int flag = -1, num = -1, is_method, is_exposure, is_shot, is_timing;
+        int flag = -1, num = -1, is_method, is_exposure, is_shot, is_timing, is_share;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) return 1;
         if (len == 11 && !strncmp(a, "--no-glossy", 11)) flag = 1;
         else if (len == 15 && !strncmp(a, "--no-visibility", 15)) flag = 2;
@@ -127,7 +130,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         is_exposure = len == 10 && !strncmp(a, "--exposure", 10);
         is_shot = (flags & DEMO_PARSE_VIEWER) && len == 12 && !strncmp(a, "--screenshot", 12);
         is_timing = !(flags & DEMO_PARSE_VIEWER) && len == 8 && !strncmp(a, "--timing", 8);
-        if (num < 0 && !is_method && !is_exposure && !is_shot && !is_timing) {
+        is_share = len == 17 && !strncmp(a, "--defensive-share", 17);
+        if (num < 0 && !is_method && !is_exposure && !is_shot && !is_timing && !is_share) {
             /* the scene layer's: every one of them takes one value */
             rest[n++] = argv[i];
             if (!strncmp(a, "--", 2) && !eq && i + 1 < argc) rest[n++] = argv[++i];
@@ -158,6 +162,16 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             else if (!strcmp(v, "gl")) d->timing = 1;
             else if (!strcmp(v, "off")) d->timing = 0;
             else { snprintf(err, cap, "--timing wants cpu|gl|off, got '%.200s'", v); return -1; }
+        } else if (is_share) {
+            char *end;
+            double e;
+            errno = 0;
+            e = strtod(v, &end);
+            if (end == v || *end || errno == ERANGE || !(e >= 0.0 && e <= 0.5)) {
+                snprintf(err, cap, "--defensive-share wants a number in 0..0.5, got '%.200s'", v);
+                return -1;
+            }
+            d->defensive_share = e > 0.0 ? (float)e : -1.0f;
         } else if (is_exposure) {
             char *end;
             double e;
@@ -197,6 +211,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->lightskin.val_count = d->vals;
     f->lightskin.view_sample_count = d->view_samples;
     f->lightskin.importance_tile = d->importance_tile;
+    f->lightskin.defensive_share = d->defensive_share;
     f->lightskin.shade_block = d->shade_block;
     f->lightskin.neighbour_count = d->neighbours;
     f->lightskin.rotate_view_samples = 1;

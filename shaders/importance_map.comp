@@ -3,7 +3,8 @@
        cos+(n_l, l) cos+(n_vs, -l) / max(|l|^2, clamp^2),   l = (x_vs - x_l) / scene_scale.
    One invocation per texel; the view samples pass through shared memory in tiles, one sample
    loaded per invocation. Positions are subtracted before scaling, so a scene far from the
-   origin keeps the precision of its float positions. */
+   origin keeps the precision of its float positions. With luminance_out, each texel's luminance
+   (0 where it is no VAL) also goes to lum_map: the map of the selection's defensive share. */
 #include "common.glsl"
 #define TILE 256
 layout(local_size_x = 16, local_size_y = 16) in;
@@ -15,11 +16,13 @@ layout(binding = 2) uniform sampler2D rsm_flux;       /* rgb */
 struct ViewSample { vec4 position; vec4 normal; };   /* xyz used */
 layout(std430, binding = 0) readonly buffer ViewSamples { ViewSample view_sample[]; };
 layout(std430, binding = 1) writeonly buffer ImportanceMap { float map[]; };   /* width * height */
+layout(std430, binding = 2) writeonly buffer LuminanceMap { float lum_map[]; }; /* width * height, with luminance_out */
 
 layout(location = 0) uniform uvec2 size;             /* RSM width, height */
 layout(location = 1) uniform uint view_sample_count;
 layout(location = 2) uniform float inv_scene_scale;
 layout(location = 3) uniform float clamp2;           /* (clamp in scene scales)^2 */
+layout(location = 4) uniform uint luminance_out;     /* 1: lum_map written */
 
 shared vec3 tile_position[TILE];
 shared vec3 tile_normal[TILE];                       /* zero: the sample sees nothing */
@@ -66,4 +69,5 @@ void main() {
         barrier();
     }
     if (inside) map[p.y * size.x + p.x] = lit ? min(phi * (sum / float(view_sample_count)), FLT_MAX) : 0.0;
+    if (inside && luminance_out != 0u) lum_map[p.y * size.x + p.x] = lit ? phi : 0.0;
 }

@@ -13,7 +13,9 @@
    over view samples runs PLANES * texels / tile^2 times instead of texels times. One aggregate
    per tile was not enough: where a wall meets the ground or a roof edge lies over the street,
    the mean point floats between the surfaces and sees the view samples wrongly (the street at
-   1024^2: 10x the per-texel map's variance and texels of P = 0; with planes +4%, none). */
+   1024^2: 10x the per-texel map's variance and texels of P = 0; with planes +4%, none). With
+   luminance_out, the same two outputs of the texels' luminance alone (lum_weight per texel, 0
+   where no VAL; lum_tile their sum): the tables of the selection's defensive share. */
 #include "common.glsl"
 #define GROUP 64
 #define PLANES 4
@@ -27,6 +29,8 @@ struct ViewSample { vec4 position; vec4 normal; };   /* xyz used */
 layout(std430, binding = 0) readonly buffer ViewSamples { ViewSample view_sample[]; };
 layout(std430, binding = 1) writeonly buffer TileMap { float tile_map[]; };   /* tiles.x * tiles.y */
 layout(std430, binding = 2) writeonly buffer Weights { float weight[]; };     /* width * height */
+layout(std430, binding = 3) writeonly buffer LuminanceTiles { float lum_tile[]; };     /* with luminance_out */
+layout(std430, binding = 4) writeonly buffer LuminanceWeights { float lum_weight[]; }; /* with luminance_out */
 
 layout(location = 0) uniform uvec2 size;             /* RSM width, height */
 layout(location = 1) uniform uint view_sample_count;
@@ -34,6 +38,7 @@ layout(location = 2) uniform float inv_scene_scale;
 layout(location = 3) uniform float clamp2;           /* (clamp in scene scales)^2 */
 layout(location = 4) uniform uint tile;              /* tile side in texels */
 layout(location = 5) uniform float plane;            /* a plane's thickness in world units (0.01 scene scales) */
+layout(location = 6) uniform uint luminance_out;     /* 1: lum_tile and lum_weight written */
 
 shared vec3 tile_position[GROUP];
 shared vec3 tile_normal[GROUP];                      /* zero: the sample sees nothing */
@@ -128,16 +133,21 @@ void main() {
                 }
         barrier();
     }
-    float sum = 0.0;
+    float sum = 0.0, lum_sum = 0.0;
     for (uint y = t0.y; y < t1.y; ++y)
         for (uint x = t0.x; x < t1.x; ++x) {
             vec3 x_l, n_l;
             float w = val(ivec2(x, y), x_l, n_l), gk = 0.0;
             uint c = w > 0.0 ? plane_of(x_l, n_l, false) : uint(PLANES);
+            if (luminance_out != 0u) {
+                lum_weight[y * size.x + x] = w;
+                lum_sum = min(lum_sum + w, FLT_MAX);
+            }
             for (uint k = 0u; k < uint(PLANES); ++k) gk = k == c ? g[k] : gk;
             w = min(w * (gk / float(view_sample_count)), FLT_MAX);
             weight[y * size.x + x] = w;
             sum = min(sum + w, FLT_MAX);
         }
     if (inside) tile_map[tp.y * tiles.x + tp.x] = sum;
+    if (inside && luminance_out != 0u) lum_tile[tp.y * tiles.x + tp.x] = lum_sum;
 }

@@ -583,6 +583,140 @@ static void tiles_match_twin(void **state) {
     GLTEST_END();
 }
 
+/* The defensive share on the GPU against its twins (tile 1 and T): the luminance map
+   (gim__gl_importance_map_lum / gim__gl_importance_tile_map_lum) is gim_importance_luminance's
+   (1e-6, zero exactly where zero), and the mixture selection from the GPU's importance and
+   luminance (tables made on the CPU from them) gives the twin's texels exactly and its pdf
+   within 1e-6, with an eighth of the picks by luminance. Returns the picks of texels whose
+   importance is 0. Breaks with: the luminance of an invalid texel, a tile sum of the wrong
+   texels, the two sets' Hammersley points or offsets, the other set's pdf left out. */
+static uint32_t compare_defensive(gltest_fixture *f, const rsm_data *r, const gim_view_sample *vs, int n,
+                                  float scene_scale, uint32_t T) {
+    enum { N = 512 };
+    uint32_t w = (uint32_t)r->w, h = (uint32_t)r->h, tw = (w - 1) / T + 1, th = (h - 1) / T + 1, zero = 0;
+    size_t texels = (size_t)w * h, cells = (size_t)tw * th, i;
+    float *cl = (float *)malloc(cells * sizeof(float)), *gl_ = (float *)malloc(cells * sizeof(float));
+    float *clw = (float *)malloc(texels * sizeof(float)), *glw = (float *)malloc(texels * sizeof(float));
+    float *gm = (float *)malloc(cells * sizeof(float)), *gw = (float *)malloc(texels * sizeof(float));
+    double *col = (double *)malloc(cells * sizeof(double)), *row = (double *)malloc(tw * sizeof(double));
+    double *lcol = (double *)malloc(cells * sizeof(double)), *lrow = (double *)malloc(tw * sizeof(double));
+    gim_selected_val cpu[N], gpu[N];
+    gim_importance_desc d;
+    gim_select_desc sd;
+    gim__gl_defensive dfs;
+    GLuint tp, tn, tf, bvs, bm, bw, blt, blw, bc, br, blc, blr, bout;
+    float off[4];
+    memset(&d, 0, sizeof d);
+    d.rsm_position = r->position; d.rsm_normal = r->normal; d.rsm_flux = r->flux; d.rsm_valid = r->valid;
+    d.width = w; d.height = h; d.view_samples = vs; d.view_sample_count = (uint32_t)n;
+    d.scene_scale = scene_scale; d.env = f->env;
+    assert_int_equal(gim_importance_luminance(&d, T, cl, clw), GIM_OK);
+    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
+    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
+    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
+    bvs = view_sample_buffer(vs, n);
+    bm = gltest_ssbo(cells * sizeof(float), NULL);      /* importance: tile map or per-texel map */
+    bw = gltest_ssbo(texels * sizeof(float), NULL);     /* T > 1: importance weights */
+    blt = gltest_ssbo(cells * sizeof(float), NULL);     /* luminance per tile (T > 1) */
+    blw = gltest_ssbo(texels * sizeof(float), NULL);    /* luminance per texel */
+    if (T > 1)
+        assert_int_equal(gim__gl_importance_tile_map_lum(f->ctx, tp, tn, tf, w, h, T, bvs, (uint32_t)n, scene_scale, 0.0f,
+                                                         bm, bw, blt, blw), GIM_OK);
+    else
+        assert_int_equal(gim__gl_importance_map_lum(f->ctx, tp, tn, tf, w, h, bvs, (uint32_t)n, scene_scale, 0.0f, bm,
+                                                    blw), GIM_OK);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(blw, texels * sizeof(float), glw);
+    gltest_read_buffer(bm, cells * sizeof(float), gm);
+    if (T > 1) {
+        gltest_read_buffer(blt, cells * sizeof(float), gl_);
+        gltest_read_buffer(bw, texels * sizeof(float), gw);
+    } else {
+        memcpy(gl_, glw, cells * sizeof(float));
+        memcpy(gw, gm, texels * sizeof(float));
+    }
+    for (i = 0; i < texels; ++i) assert_true(clw[i] == 0.0f ? glw[i] == 0.0f : fabs((double)glw[i] - clw[i]) <= 1e-6 * clw[i]);
+    for (i = 0; i < cells; ++i) assert_true(cl[i] == 0.0f ? gl_[i] == 0.0f : fabs((double)gl_[i] - cl[i]) <= 1e-5 * cl[i]);
+    /* a fifth of the texels without importance (as where no view sample sees them), the tile
+       sums made again from the weights: the luminance's picks land there too */
+    for (i = 0; i < texels; ++i)
+        if ((i % w + 3u * (i / w)) % 5u == 2u) gw[i] = 0.0f;
+    if (T > 1) {
+        memset(gm, 0, cells * sizeof(float));
+        for (i = 0; i < texels; ++i) gm[((i / w) / T) * tw + (i % w) / T] += gw[i];
+    } else {
+        memcpy(gm, gw, texels * sizeof(float));
+    }
+    glDeleteBuffers(1, &bw);
+    bw = gltest_ssbo(texels * sizeof(float), gw);
+    /* the mixture's selection from the GPU's maps, both sides on the same tables */
+    assert_int_equal(gim_importance_cumsum(gm, tw, th, col, row, f->env), GIM_OK);
+    assert_int_equal(gim_importance_cumsum(gl_, tw, th, lcol, lrow, f->env), GIM_OK);
+    gim_rotation_offsets(off, 4u, 9u);
+    memset(&sd, 0, sizeof sd);
+    sd.column = col; sd.row = row; sd.width = tw; sd.height = th; sd.count = N; sd.offsets = off; sd.tile = T;
+    sd.weight = T > 1 ? gw : NULL; sd.rsm_width = w; sd.rsm_height = h; sd.env = f->env;
+    sd.defensive_count = N / 8; sd.lum_column = lcol; sd.lum_row = lrow; sd.lum_weight = T > 1 ? glw : NULL;
+    assert_int_equal(gim_importance_select(&sd, cpu), GIM_OK);
+    bc = gltest_ssbo(cells * sizeof(double), col);
+    br = gltest_ssbo(tw * sizeof(double), row);
+    blc = gltest_ssbo(cells * sizeof(double), lcol);
+    blr = gltest_ssbo(tw * sizeof(double), lrow);
+    bout = gltest_ssbo(sizeof gpu, NULL);
+    dfs.count = N / 8; dfs.lum_column = blc; dfs.lum_row = blr; dfs.lum_weight = T > 1 ? blw : 0u;
+    assert_int_equal(gim__gl_importance_select_mix(f->ctx, bc, br, tw, th, N, off, T, T > 1 ? bw : 0u, w, h, &dfs, bout),
+                     GIM_OK);
+    gltest_state_unchanged(f);
+    gltest_read_buffer(bout, sizeof gpu, gpu);
+    for (i = 0; i < N; ++i) {
+        size_t idx = (size_t)gpu[i].y * w + gpu[i].x;
+        assert_true(gpu[i].x == cpu[i].x && gpu[i].y == cpu[i].y);
+        assert_true(gpu[i].pdf > 0.0f && fabs((double)gpu[i].pdf - cpu[i].pdf) <= 1e-6 * cpu[i].pdf);
+        assert_true(glw[idx] > 0.0f);
+        zero += gw[idx] == 0.0f;
+    }
+    /* refused before any GL work: a share of every pick, the tables missing */
+    dfs.count = N;
+    assert_int_equal(gim__gl_importance_select_mix(f->ctx, bc, br, tw, th, N, off, T, T > 1 ? bw : 0u, w, h, &dfs, bout),
+                     GIM_ERROR_INVALID_ARGUMENT);
+    dfs.count = N / 8; dfs.lum_row = 0u;
+    assert_int_equal(gim__gl_importance_select_mix(f->ctx, bc, br, tw, th, N, off, T, T > 1 ? bw : 0u, w, h, &dfs, bout),
+                     GIM_ERROR_INVALID_ARGUMENT);
+    glDeleteTextures(1, &tp); glDeleteTextures(1, &tn); glDeleteTextures(1, &tf);
+    glDeleteBuffers(1, &bvs); glDeleteBuffers(1, &bm); glDeleteBuffers(1, &bw); glDeleteBuffers(1, &blt);
+    glDeleteBuffers(1, &blw); glDeleteBuffers(1, &bc); glDeleteBuffers(1, &br); glDeleteBuffers(1, &blc);
+    glDeleteBuffers(1, &blr); glDeleteBuffers(1, &bout);
+    free(cl); free(gl_); free(clw); free(glw); free(gm); free(gw); free(col); free(row); free(lcol); free(lrow);
+    return zero;
+}
+
+/* The defensive share's passes against their twins on the damaged 64x64 box (invalid, black,
+   NaN, Inf texels; back-facing ones of importance 0): per texel and in tiles of 8 and 7. */
+static void defensive_matches_twin(void **state) {
+    static const float origin[3] = {0.0f, 0.0f, 0.0f};
+    gltest_fixture f;
+    rsm_data r;
+    gim_view_sample *vs;
+    uint32_t z1, z8, z7;
+    (void)state;
+    GLTEST_BEGIN();
+    gltest_fixture_begin(&f);
+    make_rsm(&r, 64, 64, 4.0f, origin, 1);
+    vs = make_view_samples(48, 4.0f, origin);
+    z1 = compare_defensive(&f, &r, vs, 48, 4.0f * 1.7320508f, 1);
+    z8 = compare_defensive(&f, &r, vs, 48, 4.0f * 1.7320508f, 8);
+    z7 = compare_defensive(&f, &r, vs, 48, 4.0f * 1.7320508f, 7);
+    print_message("defensive share: 512 picks, 64 by luminance; picks of importance 0: %u (per texel), %u (tiles of 8), "
+                  "%u (tiles of 7)\n", z1, z8, z7);
+    assert_true(z1 > 0u && z8 > 0u && z7 > 0u);
+    assert_int_equal(f.log.errors, 6);   /* the refusals, one line each */
+    f.log.errors = 0;
+    free(vs);
+    free_rsm(&r);
+    gltest_fixture_end(&f);
+    GLTEST_END();
+}
+
 /* Bad arguments: an error through the logger, no GL touched, no GL error. */
 static void pass_arguments(void **state) {
     gltest_fixture f;
@@ -622,6 +756,7 @@ int main(void) {
         cmocka_unit_test(select_matches_twin),
         cmocka_unit_test(chain_matches_twin),
         cmocka_unit_test(tiles_match_twin),
+        cmocka_unit_test(defensive_matches_twin),
         cmocka_unit_test(pass_arguments),
     };
     int r = cmocka_run_group_tests(tests, NULL, NULL);

@@ -14,7 +14,9 @@
                                scenes need none), noisier per pixel than the methods that
                                share or blur their samples.
    The near-edge band, the corner's pixels within 0.1 of its contact edge (115 pixels), median
-   gimany / exact, printed for every method: LightSkin FULL and BRSM >= 0.89 (sun 0.928 / 0.906,
+   gimany / exact, printed for every method: LightSkin FULL >= 0.89, BRSM's mean over four
+   independent draws of its VALs >= 0.875 (one draw's band reads 0.880-0.914, mean 0.89,
+   whether a share of the VALs is drawn by luminance or none: 2026-11-29) (sun 0.928 / 0.906,
    spot 0.963 / 0.966; 0.869 / 0.863 and 0.921 / 0.928 before VALs within 2 sqrt(A) of a cache
    were evaluated as patches), asserted at scale 1 only: the band is a strip of pixels one or
    two wide, and at the other scales it reads 0.894 (sun, scale 1e-3, BRSM) and 0.852 / 0.871
@@ -194,10 +196,27 @@ static void check_scene(phys_which which, double scale, const double *offset, in
         if (st.edge_counted > 0)
             print_message("%-13s %-12s %-15s within 0.1 of the contact edge: median %.3f (%u pixels)\n", "", "",
                           method_name(methods[k]), st.edge_median, st.edge_counted);
+        if (methods[k] == GIM_METHOD_LIGHTSKIN_BRSM && edge_band && st.edge_counted > 0) {
+            /* the band of one draw of the VALs varies (0.880-0.914 over ten draws, 2026-11-29):
+               its mean over four independent draws */
+            uint32_t d;
+            double band = 0.0;
+            p->fr.lightskin.temporal_steps = 1;
+            for (d = 1; d <= 4; ++d) {
+                p->fr.frame_index = d;
+                band += run_method(p, methods[k]).edge_median / 4.0;
+            }
+            p->fr.lightskin.temporal_steps = 0;
+            p->fr.frame_index = 0;
+            print_message("%-13s %-12s %-15s the band over four draws of the VALs: mean of the medians %.3f\n", "", "",
+                          method_name(methods[k]), band);
+            assert_true(band >= 0.875);
+        }
         if (methods[k] == GIM_METHOD_LIGHTSKIN_FULL || methods[k] == GIM_METHOD_LIGHTSKIN_BRSM) {
             assert_true(fabs(st.median - 1.0) <= 0.05);
             assert_true(st.within10 >= 0.90);
-            if (edge_band && st.edge_counted > 0) assert_true(st.edge_median >= 0.89);   /* the near-edge band */
+            if (edge_band && st.edge_counted > 0 && methods[k] == GIM_METHOD_LIGHTSKIN_FULL)
+                assert_true(st.edge_median >= 0.89);   /* the near-edge band (BRSM: above) */
         } else if (methods[k] == GIM_METHOD_CLUSTERED || methods[k] == GIM_METHOD_SSVP) {
             assert_true(fabs(st.median - 1.0) <= 0.10);
             assert_true(st.within20 >= 0.80);

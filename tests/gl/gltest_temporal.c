@@ -37,7 +37,8 @@ static void twin_selected(gim_context *ctx, uint32_t frame_index, uint32_t steps
     uint32_t rsm = o->lights[0].rsm_size, tile = o->lights[0].importance_tile;
     uint32_t size = (rsm - 1u) / tile + 1u;   /* the tables' side: texels, or tiles of the two-level map */
     double *column = (double *)malloc((size_t)size * size * sizeof(double)), *row = (double *)malloc(size * sizeof(double));
-    float off[4], *weight = NULL;
+    double *lcol = NULL, *lrow = NULL;
+    float off[4], *weight = NULL, *lum = NULL;
     gim_select_desc sd;
     assert_true(tile >= 1u);
     if (steps > 1)
@@ -53,10 +54,28 @@ static void twin_selected(gim_context *ctx, uint32_t frame_index, uint32_t steps
         gltest_read_buffer(o->lights[0].importance, (size_t)rsm * rsm * sizeof(float), weight);
         sd.tile = tile; sd.weight = weight; sd.rsm_width = sd.rsm_height = rsm;
     }
+    if (o->lights[0].defensive_count) {   /* the defensive share (the default): the luminance's tables too */
+        assert_true(o->lights[0].luminance && o->lights[0].luminance_column && o->lights[0].luminance_row);
+        lcol = (double *)malloc((size_t)size * size * sizeof(double));
+        lrow = (double *)malloc(size * sizeof(double));
+        gltest_read_buffer(o->lights[0].luminance_column, (size_t)size * size * sizeof(double), lcol);
+        gltest_read_buffer(o->lights[0].luminance_row, size * sizeof(double), lrow);
+        sd.defensive_count = o->lights[0].defensive_count;
+        sd.lum_column = lcol;
+        sd.lum_row = lrow;
+        if (tile > 1u) {
+            lum = (float *)malloc((size_t)rsm * rsm * sizeof(float));
+            gltest_read_buffer(o->lights[0].luminance, (size_t)rsm * rsm * sizeof(float), lum);
+            sd.lum_weight = lum;
+        }
+    }
     assert_int_equal(gim_importance_select(&sd, s), GIM_OK);
     free(column);
     free(row);
     free(weight);
+    free(lcol);
+    free(lrow);
+    free(lum);
 }
 
 static void indirect_of(gim_context *ctx, float *img) {
@@ -96,6 +115,7 @@ static void selection_moves(void **state) {
             ff.fr.frame_index = 10 + k;
             update(&ff);
             read_selected(ff.f.ctx, cur, N);
+            assert_int_equal(gim_outputs(ff.f.ctx).lights[0].defensive_count, N / 8);   /* 1/8 of 64 */
             twin_selected(ff.f.ctx, ff.fr.frame_index, steps[q], twin, N, ff.f.env);
             for (i = 0; i < N; ++i) {
                 assert_true(same(cur + i, twin + i));
@@ -108,9 +128,22 @@ static void selection_moves(void **state) {
                   tt ? 8u : 1u, N, changed[0], changed[1]);
     assert_true(changed[0] > 4 * N && changed[1] < (tt ? 5u * N / 4u : N));
     }
+    /* without the defensive share no luminance buffer is kept; a share outside (0, 0.5] is refused */
+    ff.fr.lightskin.defensive_share = -1.0f;
+    update(&ff);
+    assert_int_equal(gim_outputs(ff.f.ctx).lights[0].defensive_count, 0);
+    assert_int_equal(gim_outputs(ff.f.ctx).lights[0].luminance, 0);
+    assert_int_equal(ff.f.ctx->light_gpu[0].lum_map, 0);
+    assert_int_equal(ff.f.ctx->light_gpu[0].lum_column, 0);
+    ff.fr.lightskin.defensive_share = 0.7f;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
+    ff.fr.lightskin.defensive_share = NAN;
+    assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
+    ff.fr.lightskin.defensive_share = 0.0f;
     ff.fr.lightskin.temporal_steps = GIM_MAX_TEMPORAL_STEPS + 1u;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
-    ff.f.log.errors = 0;   /* that refusal's one line */
+    assert_int_equal(ff.f.log.errors, 3);
+    ff.f.log.errors = 0;   /* those refusals' one line each */
     free(prev);
     free(cur);
     free(twin);

@@ -944,6 +944,131 @@ static void two_level_errors(void **state) {
     tables_free(&t); tables_free(&tz);
 }
 
+/* The defensive share (gim_select_desc.defensive_count; Hesterberg 1995, the balance heuristic):
+   per texel (tile 1) and in tiles of 4 on a 22x13 RSM whose importance is 0 on a fifth of the
+   texels that have light. Every pick reports the mixture's pdf, (N_1 P_imp + N_2 P_lum) / N
+   (1e-6), frequencies over many seeds pass chi-square against it (and fail against P_imp alone),
+   texels of importance 0 are picked, no pick weighs more than L_total / N_2 of luminance, and
+   the estimate of sum f over many seeds is within 1% of the sum (f = luminance x a random
+   term; importance alone misses a fifth of it). Refused: a share of all picks, the luminance
+   tables missing or not cumulative. gim_importance_luminance: the texels' luminance, 0 where no
+   VAL, and its tile sums. */
+static void defensive_share(void **state) {
+    const uint32_t w = 22, h = 13, count = 2000, seeds = 80;
+    size_t n = (size_t)w * h, i;
+    test_log lg;
+    gim_env env = test_env(NULL, &lg);
+    float imp[22 * 13], lum[22 * 13], f[22 * 13];
+    double pa[22 * 13], pb[22 * 13], pm[22 * 13], ltot = 0.0, ftot = 0.0, fimp = 0.0;
+    long obs[22 * 13];
+    gim_selected_val *sel = (gim_selected_val *)malloc(count * sizeof *sel);
+    uint32_t T, s, k;
+    (void)state;
+    for (i = 0; i < n; ++i) {
+        lum[i] = i % 13 == 5 ? 0.0f : (float)(0.2 + test_rand01());
+        imp[i] = lum[i] > 0.0f && i % 5 != 2 ? lum[i] * (float)(0.01 + test_rand01()) : 0.0f;
+        f[i] = lum[i] * (float)(0.5 + test_rand01());
+        ltot += lum[i];
+        ftot += f[i];
+        if (imp[i] > 0.0f) fimp += f[i];
+    }
+    for (T = 1; T <= 4; T += 3) {
+        uint32_t tw = (w - 1) / T + 1, th = (h - 1) / T + 1, n2 = count / 8, zero_picked = 0, x, y;
+        float ti[6 * 4], tl[6 * 4];
+        test_tables a, b;
+        gim_select_desc d;
+        double x2, dof, pv, pv_imp, est = 0.0, maxw = 0.0;
+        memset(ti, 0, sizeof ti);
+        memset(tl, 0, sizeof tl);
+        for (y = 0; y < h && T > 1; ++y)
+            for (x = 0; x < w; ++x) {
+                ti[(y / T) * tw + x / T] += imp[y * w + x];
+                tl[(y / T) * tw + x / T] += lum[y * w + x];
+            }
+        a = tables_of(T > 1 ? ti : imp, tw, th);
+        b = tables_of(T > 1 ? tl : lum, tw, th);
+        two_level_p(a.col, a.row, imp, w, h, T, pa);
+        two_level_p(b.col, b.row, lum, w, h, T, pb);
+        for (i = 0; i < n; ++i) { pm[i] = ((count - n2) * pa[i] + n2 * pb[i]) / count; obs[i] = 0; }
+        memset(&d, 0, sizeof d);
+        d.column = a.col; d.row = a.row; d.width = tw; d.height = th; d.count = count;
+        d.tile = T; d.weight = T > 1 ? imp : NULL; d.rsm_width = w; d.rsm_height = h; d.env = env;
+        d.defensive_count = n2; d.lum_column = b.col; d.lum_row = b.row; d.lum_weight = T > 1 ? lum : NULL;
+        for (s = 0; s < seeds; ++s) {
+            double e = 0.0;
+            d.seed = 77u + s;
+            assert_int_equal(gim_importance_select(&d, sel), GIM_OK);
+            for (k = 0; k < count; ++k) {
+                size_t idx = (size_t)sel[k].y * w + sel[k].x;
+                double wl = lum[idx] / (count * (double)sel[k].pdf);
+                assert_true(sel[k].x < w && sel[k].y < h);
+                assert_true(lum[idx] > 0.0f);
+                assert_true(rel_close(sel[k].pdf, pm[idx], 1e-6));
+                zero_picked += imp[idx] == 0.0f;
+                maxw = wl > maxw ? wl : maxw;
+                e += f[idx] / (count * (double)sel[k].pdf);
+                obs[idx]++;
+            }
+            est += e / seeds;
+        }
+        x2 = chi2_of(obs, pm, n, (double)count * seeds, &dof);
+        pv = test_chi2_pvalue(x2, dof);
+        x2 = chi2_of(obs, pa, n, (double)count * seeds, &dof);
+        pv_imp = test_chi2_pvalue(x2, dof);
+        print_message("defensive share %u of %u, tile %u: chi2 p %.3f (against importance alone %.2g); %u picks of "
+                      "importance 0; heaviest pick %.3f of L_total / N_2; estimate / sum %.4f (importance alone "
+                      "reaches %.3f)\n", (unsigned)n2, (unsigned)count, (unsigned)T, pv, pv_imp, (unsigned)zero_picked,
+                      maxw / (ltot / n2), est / ftot, fimp / ftot);
+        assert_true(pv > 1e-3);
+        assert_true(pv_imp < 1e-9);
+        assert_true(zero_picked > 0u);
+        assert_true(maxw <= ltot / n2 * (1.0 + 1e-5));
+        assert_true(fabs(est / ftot - 1.0) < 0.01);
+        assert_true(fimp / ftot < 0.9);
+        /* refused */
+        d.defensive_count = count;
+        assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_INVALID_ARGUMENT);
+        d.defensive_count = n2; d.lum_row = NULL;
+        assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_INVALID_ARGUMENT);
+        d.lum_row = b.row; b.row[0] = -1.0;
+        assert_int_equal(gim_importance_select(&d, sel), GIM_ERROR_INVALID_ARGUMENT);
+        assert_non_null(strstr(lg.last, "luminance"));
+        tables_free(&a); tables_free(&b);
+    }
+    assert_int_equal(lg.errors, 6);
+    {   /* gim_importance_luminance: the luminance where gim_importance_map sees a VAL, and tile sums */
+        test_rsm r = rsm_new(w, h);
+        gim_view_sample vs[8];
+        gim_importance_desc dd;
+        float lw[22 * 13], lt[6 * 4], lm[22 * 13], m[22 * 13];
+        random_scene(&r, vs, 8, 2.0f);
+        for (i = 0; i < n; i += 7) r.valid[i] = 0.0f;
+        for (i = 3; i < n; i += 11) set3(r.flux, i, 0, 0, 0);
+        dd = desc_for(&r, vs, 8, 2.0f, env);
+        assert_int_equal(gim_importance_map(&dd, m), GIM_OK);
+        assert_int_equal(gim_importance_luminance(&dd, 1, lm, NULL), GIM_OK);
+        assert_int_equal(gim_importance_luminance(&dd, 4, lt, lw), GIM_OK);
+        for (i = 0; i < n; ++i) {
+            double l = 0.2126 * r.flux[i * 3] + 0.7152 * r.flux[i * 3 + 1] + 0.0722 * r.flux[i * 3 + 2];
+            int val = r.valid[i] > 0.0f && l > 0.0;
+            assert_true(val ? rel_close(lm[i], l, 1e-6) : lm[i] == 0.0f);
+            assert_true(lw[i] == lm[i]);
+            if (m[i] > 0.0f) assert_true(lm[i] > 0.0f);   /* importance only where there is light */
+        }
+        for (k = 0; k < 24; ++k) {
+            double sum = 0.0;
+            uint32_t x, y;
+            for (y = (k / 6) * 4; y < (k / 6) * 4 + 4 && y < h; ++y)
+                for (x = (k % 6) * 4; x < (k % 6) * 4 + 4 && x < w; ++x) sum += lw[y * w + x];
+            assert_true(rel_close(lt[k], sum, 1e-6));
+        }
+        assert_int_equal(gim_importance_luminance(&dd, 4, lt, NULL), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_importance_luminance(&dd, 0, lt, lw), GIM_ERROR_OUT_OF_RANGE);
+        rsm_free(&r);
+    }
+    free(sel);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(eq10_hand_computed),
@@ -962,6 +1087,7 @@ int main(void) {
         cmocka_unit_test(tile_map_aggregate),
         cmocka_unit_test(two_level_frequencies),
         cmocka_unit_test(two_level_errors),
+        cmocka_unit_test(defensive_share),
     };
     return cmocka_run_group_tests_name("importance", tests, NULL, NULL);
 }
