@@ -104,9 +104,25 @@ static GLuint view_sample_buffer(const gim_view_sample *s, int n) {
     return b;
 }
 
+/* The twins' desc of an RSM and its view samples. */
+static gim_importance_desc importance_desc(const rsm_data *r, const gim_view_sample *vs, int n, float scene_scale,
+                                           gim_env env) {
+    gim_importance_desc d;
+    memset(&d, 0, sizeof d);
+    d.rsm_position = r->position; d.rsm_normal = r->normal; d.rsm_flux = r->flux; d.rsm_valid = r->valid;
+    d.width = (uint32_t)r->w; d.height = (uint32_t)r->h; d.view_samples = vs; d.view_sample_count = (uint32_t)n;
+    d.scene_scale = scene_scale; d.env = env;
+    return d;
+}
 
-
-
+/* The RSM's three textures and the view samples' buffer, as the GPU passes read them. */
+static void rsm_upload(const rsm_data *r, const gim_view_sample *vs, int n, GLuint *tp, GLuint *tn, GLuint *tf,
+                       GLuint *bvs) {
+    *tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
+    *tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
+    *tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
+    *bvs = view_sample_buffer(vs, n);
+}
 
 /* --- eq. 10-11 ------------------------------------------------------------------------------ */
 
@@ -119,23 +135,10 @@ static double compare_map(gltest_fixture *f, const rsm_data *r, const gim_view_s
     float *gpu = (float *)malloc(texels * sizeof(float));
     float *cpu = cpu_out ? cpu_out : (float *)malloc(texels * sizeof(float));
     double worst = 0.0, max_cpu = 0.0;
-    memset(&d, 0, sizeof d);
-    d.rsm_position = r->position;
-    d.rsm_normal = r->normal;
-    d.rsm_flux = r->flux;
-    d.rsm_valid = r->valid;
-    d.width = (uint32_t)r->w;
-    d.height = (uint32_t)r->h;
-    d.view_samples = vs;
-    d.view_sample_count = (uint32_t)n;
-    d.scene_scale = scene_scale;
+    d = importance_desc(r, vs, n, scene_scale, f->env);
     d.clamp = clamp;
-    d.env = f->env;
     assert_int_equal(gim_importance_map(&d, cpu), GIM_OK);
-    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
-    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
-    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
-    bvs = view_sample_buffer(vs, n);
+    rsm_upload(r, vs, n, &tp, &tn, &tf, &bvs);
     bmap = gltest_ssbo(texels * sizeof(float), NULL);
     assert_int_equal(gim__gl_importance_map(f->ctx, tp, tn, tf, (uint32_t)r->w, (uint32_t)r->h, bvs, (uint32_t)n,
                                             scene_scale, clamp, bmap),
@@ -452,6 +455,8 @@ static void chain_matches_twin(void **state) {
 
 /* --- two-level map (gim_importance_tile_map, gim_importance_select with tile > 1) -------------- */
 
+
+
 /* The GPU tile map and texel weights against the twin's, then the GPU's two-level selection
    from the same tables and weights against the twin's (exactly the same texels, pdf 1e-6), and
    the whole GPU chain (tile map -> tables -> selection) against the CPU chain (at most 1 of 512
@@ -476,15 +481,9 @@ static double compare_tiles(gltest_fixture *f, const rsm_data *r, const gim_view
     GLuint tp, tn, tf, bvs, btiles, bweight, bc, br, bout;
     float off[4];
     int differ = 0;
-    memset(&d, 0, sizeof d);
-    d.rsm_position = r->position; d.rsm_normal = r->normal; d.rsm_flux = r->flux; d.rsm_valid = r->valid;
-    d.width = w; d.height = h; d.view_samples = vs; d.view_sample_count = (uint32_t)n;
-    d.scene_scale = scene_scale; d.env = f->env;
+    d = importance_desc(r, vs, n, scene_scale, f->env);
     assert_int_equal(gim_importance_tile_map(&d, T, ct, cw), GIM_OK);
-    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
-    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
-    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
-    bvs = view_sample_buffer(vs, n);
+    rsm_upload(r, vs, n, &tp, &tn, &tf, &bvs);
     btiles = gltest_ssbo(cells * sizeof(float), NULL);
     bweight = gltest_ssbo(texels * sizeof(float), NULL);
     assert_int_equal(gim__gl_importance_tile_map(f->ctx, tp, tn, tf, w, h, T, bvs, (uint32_t)n, scene_scale, 0.0f,
@@ -606,15 +605,9 @@ static uint32_t compare_defensive(gltest_fixture *f, const rsm_data *r, const gi
     gim__gl_defensive dfs;
     GLuint tp, tn, tf, bvs, bm, bw, blt, blw, bc, br, blc, blr, bout;
     float off[4];
-    memset(&d, 0, sizeof d);
-    d.rsm_position = r->position; d.rsm_normal = r->normal; d.rsm_flux = r->flux; d.rsm_valid = r->valid;
-    d.width = w; d.height = h; d.view_samples = vs; d.view_sample_count = (uint32_t)n;
-    d.scene_scale = scene_scale; d.env = f->env;
+    d = importance_desc(r, vs, n, scene_scale, f->env);
     assert_int_equal(gim_importance_luminance(&d, T, cl, clw), GIM_OK);
-    tp = texture_rgba32f(r->w, r->h, r->position, r->valid);
-    tn = texture_rgba32f(r->w, r->h, r->normal, NULL);
-    tf = texture_rgba32f(r->w, r->h, r->flux, NULL);
-    bvs = view_sample_buffer(vs, n);
+    rsm_upload(r, vs, n, &tp, &tn, &tf, &bvs);
     bm = gltest_ssbo(cells * sizeof(float), NULL);      /* importance: tile map or per-texel map */
     bw = gltest_ssbo(texels * sizeof(float), NULL);     /* T > 1: importance weights */
     blt = gltest_ssbo(cells * sizeof(float), NULL);     /* luminance per tile (T > 1) */
