@@ -580,8 +580,9 @@ typedef struct gim_frame_lightskin {
                                    defensive_count): a texel the view samples barely see but that lights
                                    caches then weighs at most 1 / share times its share of the RSM's light
                                    (the paper's 1 / P alone gave one VAL of 1024 98% of a frame's light);
-                                   in (0, 0.5]; negative: none (the paper's selection); 0:
-                                   GIM_DEFAULT_DEFENSIVE_SHARE */
+                                   in (0, 0.5], e.g. 0.125; negative: none (the paper's selection); 0:
+                                   GIM_DEFAULT_DEFENSIVE_SHARE (none for now: it helps open views and
+                                   costs interiors, docs/methods.md) */
     uint32_t shade_block;       /* B: the shading pass finds the neighbours and interpolates (eq. 8-9) once per
                                    B x B block of pixels, at its first receiver, and every pixel of the block on
                                    that receiver's surface (gim_shade_sources) takes that light times its own
@@ -1179,8 +1180,11 @@ GIMANY_API gim_result gim_cache_blob_read(const void *blob, size_t size, gim_cac
 #define GIM_MAX_IMPORTANCE_TILE 32
 #define GIM_DEFAULT_IMPORTANCE_TILE 1
 
-/* BRSM's default defensive share (gim_frame_lightskin.defensive_share; docs/methods.md, LightSkin). */
-#define GIM_DEFAULT_DEFENSIVE_SHARE 0.125f
+/* BRSM's default defensive share (gim_frame_lightskin.defensive_share; docs/methods.md, LightSkin):
+   none for now. 1/8 removes the rare frame that one heavy VAL takes over (the street at a turned
+   sun: worst of 16 draws 0.551 -> 0.259) but costs the Sponza atrium's BRSM + ISM 0.32 -> 0.36
+   on average, where the luminance's picks land in light the view barely gets. */
+#define GIM_DEFAULT_DEFENSIVE_SHARE (-1.0f)
 
 /* The shading pass's default block (gim_frame_lightskin.shade_block): 2 x 2 pixels, the pass
    2x cheaper on llvmpipe at the same error against the reference (docs/methods.md). */

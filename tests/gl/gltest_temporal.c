@@ -103,6 +103,7 @@ static void selection_moves(void **state) {
     frame_small(&ff, GIM_METHOD_LIGHTSKIN_BRSM);
     ff.fr.lightskin.val_count = N;
     ff.fr.lightskin.rotate_view_samples = 1;
+    ff.fr.lightskin.defensive_share = 0.125f;   /* the selection with its luminance share (off by default) */
     /* per texel, then the two-level map of tile 8 (4x4 tiles of this RSM), whose
        pick inside a tile follows the residual of v that the drift moves by drift / P(tile | column):
        measured 32 and 66 changes with 32 steps, 314-315 with new offsets */
@@ -139,7 +140,9 @@ static void selection_moves(void **state) {
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     ff.fr.lightskin.defensive_share = NAN;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
-    ff.fr.lightskin.defensive_share = 0.0f;
+    ff.fr.lightskin.defensive_share = 0.0f;   /* the default: none */
+    update(&ff);
+    assert_int_equal(gim_outputs(ff.f.ctx).lights[0].defensive_count, 0);
     ff.fr.lightskin.temporal_steps = GIM_MAX_TEMPORAL_STEPS + 1u;
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(ff.f.log.errors, 3);
