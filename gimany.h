@@ -4950,7 +4950,7 @@ static double gim__below(double t, double total) {
 typedef struct gim__select_tables {
     const double *column, *row, *totals;  /* totals: the last row of column */
     const float *weight;                  /* tile > 1 */
-    uint32_t width, height, tile, rsm_width;
+    uint32_t width, height, tile, rsm_width, rsm_height;  /* rsm_*: the texels (tile 1: width, height) */
     double total;
 } gim__select_tables;
 
@@ -4972,10 +4972,10 @@ static gim_result gim__select_tables_check(const gim_env *env, const char *fn, c
 }
 
 /* The sum of tile (tx, ty)'s weights in row-major order (the GPU's order). */
-static double gim__select_tile_sum(const gim__select_tables *t, uint32_t tx, uint32_t ty, uint32_t rsm_height) {
+static double gim__select_tile_sum(const gim__select_tables *t, uint32_t tx, uint32_t ty) {
     uint32_t x0 = tx * t->tile, y0 = ty * t->tile, xx, yy;
     uint32_t x1 = x0 + t->tile < t->rsm_width ? x0 + t->tile : t->rsm_width;
-    uint32_t y1 = y0 + t->tile < rsm_height ? y0 + t->tile : rsm_height;
+    uint32_t y1 = y0 + t->tile < t->rsm_height ? y0 + t->tile : t->rsm_height;
     double sum = 0.0;
     for (yy = y0; yy < y1; ++yy)
         for (xx = x0; xx < x1; ++xx) sum += (double)t->weight[(size_t)yy * t->rsm_width + xx];
@@ -4984,7 +4984,7 @@ static double gim__select_tile_sum(const gim__select_tables *t, uint32_t tx, uin
 
 /* The probability the tables give texel (x, y) (an RSM texel when tile > 1); 0 where they
    cannot pick it. */
-static double gim__select_pdf_at(const gim__select_tables *t, uint32_t x, uint32_t y, uint32_t rsm_height) {
+static double gim__select_pdf_at(const gim__select_tables *t, uint32_t x, uint32_t y) {
     uint32_t tx = x / t->tile, ty = y / t->tile;
     double ct = t->totals[tx], p, hi, lo;
     if (!(t->total > 0.0) || !(ct > 0.0)) return 0.0;
@@ -4992,7 +4992,7 @@ static double gim__select_pdf_at(const gim__select_tables *t, uint32_t x, uint32
     lo = ty ? t->column[(size_t)(ty - 1u) * t->width + tx] : 0.0;
     p = (t->row[tx] - (tx ? t->row[tx - 1u] : 0.0)) / t->total * ((hi - lo) / ct);
     if (t->tile > 1u && p > 0.0) {
-        double sum = gim__select_tile_sum(t, tx, ty, rsm_height);
+        double sum = gim__select_tile_sum(t, tx, ty);
         p = sum > 0.0 ? p * ((double)t->weight[(size_t)y * t->rsm_width + x] / sum) : 0.0;
     }
     return p;
@@ -5000,7 +5000,7 @@ static double gim__select_pdf_at(const gim__select_tables *t, uint32_t x, uint32
 
 /* One pick from the tables at (u, v) in [0, 1)^2 (total > 0): the texel and its probability. */
 static gim_result gim__select_pick(const gim_env *env, const char *fn, const gim__select_tables *t, double u, double v,
-                                   uint32_t rsm_height, uint32_t *ox, uint32_t *oy, double *op) {
+                                   uint32_t *ox, uint32_t *oy, double *op) {
     double col_total, p_col, p_row, p, tt, lo, hi;
     uint32_t sx, sy, width = t->width, height = t->height;
     sx = gim__first_above(t->row, 1u, width, gim__below(u * t->total, t->total));
@@ -5021,10 +5021,10 @@ static gim_result gim__select_pick(const gim_env *env, const char *fn, const gim
         double res = (tt - lo) / (hi - lo), sum, acc = 0.0, w = 0.0;
         uint32_t x0 = sx * t->tile, y0 = sy * t->tile, xx, yy, px = 0, py = 0;
         uint32_t x1 = x0 + t->tile < t->rsm_width ? x0 + t->tile : t->rsm_width;
-        uint32_t y1 = y0 + t->tile < rsm_height ? y0 + t->tile : rsm_height;
+        uint32_t y1 = y0 + t->tile < t->rsm_height ? y0 + t->tile : t->rsm_height;
         int found = 0;
         res = res < 1.0 ? (res > 0.0 ? res : 0.0) : 0.0;   /* NaN-safe; [0, 1) */
-        sum = gim__select_tile_sum(t, sx, sy, rsm_height);
+        sum = gim__select_tile_sum(t, sx, sy);
         if (!(sum > 0.0 && sum <= DBL_MAX))
             return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn,
                              "tile (%u, %u) was picked but its weights sum to %g (not the tile map's weights)",
@@ -5107,6 +5107,7 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
         t[i].height = desc->height;
         t[i].tile = tile;
         t[i].rsm_width = tile > 1u ? desc->rsm_width : desc->width;
+        t[i].rsm_height = rsm_height;
         t[i].totals = t[i].column + (size_t)(desc->height - 1u) * desc->width;
         r = gim__select_tables_check(env, fn, &t[i], i ? "the luminance" : "the importance");
         if (r != GIM_OK) return r;
@@ -5135,10 +5136,10 @@ GIMANY_DEF gim_result gim_importance_select(const gim_select_desc *desc, gim_sel
             out[i].pdf = (float)(1.0 / ((double)tw * (double)th));
             continue;
         }
-        r = gim__select_pick(env, fn, &t[l], u, v, rsm_height, &sx, &sy, &p);
+        r = gim__select_pick(env, fn, &t[l], u, v, &sx, &sy, &p);
         if (r != GIM_OK) return r;
         if (n2) {   /* the mixture's pdf: the other set's probability of the same texel */
-            double q = gim__select_pdf_at(&t[1u - l], sx, sy, rsm_height);
+            double q = gim__select_pdf_at(&t[1u - l], sx, sy);
             p = l ? ((double)n1 * q + (double)n2 * p) / (double)count : ((double)n1 * p + (double)n2 * q) / (double)count;
         }
         out[i].x = sx;
@@ -10943,6 +10944,7 @@ GIMANY_DEF gim_result gim_set_instances(gim_context *ctx, const gim_instance *in
 /* Delete one light's buffers of the defensive share (a frame without it keeps none). */
 static void gim__light_lum_release(gim_context *ctx, gim__light_gpu *g) {
     gim__GLuint b[4];
+    if (!g->lum_map && !g->lum_tiles && !g->lum_column && !g->lum_row) return;   /* none: no GL call a frame */
     b[0] = g->lum_map; b[1] = g->lum_tiles; b[2] = g->lum_column; b[3] = g->lum_row;
     ctx->gl.DeleteBuffers(4, b);   /* 0 names are ignored */
     g->lum_map = g->lum_tiles = g->lum_column = g->lum_row = 0;
