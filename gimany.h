@@ -623,6 +623,13 @@ typedef struct gim_frame_vpl {
                                    sees its point and it stays near its slot's texel (gim_rsm_vpls_desc.
                                    previous); the others are drawn anew. 1: every VPL drawn at its texel
                                    every frame (the frame of a light that moves depends on that frame only) */
+    int importance;             /* 1: the first-bounce VPLs drawn where their light reaches the view, by
+                                   BRSM's importance (Bischoff 2017 eq. 10-12, with f.lightskin's view
+                                   samples, tile, clamp and defensive share): each light's even share N of
+                                   vpl.count picked with probability P, each VPL weighing 1 / (N P)
+                                   (gim_vpls_from_vals); drawn anew every frame (redraw as 1, every ISM
+                                   made). On large scenes far fewer VPLs are wasted on what the view does
+                                   not see (docs/methods.md). 0: at their texels of the sequence */
 } gim_frame_vpl;
 
 /* Input of gim_update: the settings every method shares, then one sub-struct per method family
@@ -687,7 +694,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    gim_lightskin_shade_twin with gim_shade_sources is the twin). A scene without caches gets no LightSkin passes
    and no indirect texture. The VPL methods (CLUSTERED, SSVP; no caches needed) instead run,
    after the RSMs and the G-buffer: vpl_count VPLs split over the lights (gim_rsm_vpls_twin; the
-   last frame's kept where their light still sees them near their slot, gim_frame_vpl.redraw) -> k-means
+   last frame's kept where their light still sees them near their slot, gim_frame_vpl.redraw; or,
+   with gim_frame_vpl.importance, BRSM's selection written as VPLs, gim_vpls_from_vals) -> k-means
    steps on the GPU (Dong's or SSVP's metric, warm from the last frame's centres or from the
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
@@ -739,7 +747,8 @@ typedef struct gim_light_outputs {
     uint32_t column, row;       /* SSBOs: the eq. 12 tables in double (gim_importance_cumsum's), of the per-texel
                                    map (T = 1) or of the tile map (ceil(rsm_size / T) square) */
     uint32_t selected;          /* SSBO: selected_count gim_selected_val {x, y, pdf} */
-    uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM) */
+    uint32_t selected_count;    /* its share of val_count (0: none, or not BRSM); with the VPL methods'
+                                   vpl.importance its share of the VPLs, each pick VPL i of its share */
     uint32_t defensive_count;   /* BRSM: of those, the picks by luminance (gim_frame_lightskin.defensive_share);
                                    with the three below (0 without a share): */
     uint32_t luminance;         /* SSBO: rsm_size^2 floats, each texel's luminance (gim_importance_luminance's weight) */
@@ -1878,6 +1887,18 @@ typedef struct gim_vpl {
     float kept;             /* 1: a first-bounce VPL kept from the last frame (gim_rsm_vpls_desc.previous),
                                its imperfect shadow map with it; 0: drawn this frame */
 } gim_vpl;
+
+/* First-bounce VPLs drawn by BRSM's importance (gim_frame_vpl.importance): VAL i of a light's
+   selection (gim_vals_gather_twin, weight w = 1 / (N P)) as VPL i, the twin of vals_gather.comp's
+   VPL mode: position, lit 1, normal, area w A, flux w Phi (each one float multiply); kept 1
+   where previous (the slot's VPLs of the last frame, or NULL: kept 0) holds a lit VPL at the
+   same position and normal bit for bit, whose imperfect shadow map then still holds (the
+   selection's offsets drift, so most picks stay on their texel from frame to frame); a VAL of
+   weight 0 (an invalid texel) an all-zero, unlit VPL. The VPL stands for the 1 / (N P) texels
+   the pick stands for, as a slot of gim_rsm_vpls_twin stands for its share. out may not be vals
+   or previous. Errors: GIM_ERROR_INVALID_ARGUMENT (NULL with count > 0, out aliasing an input). */
+GIMANY_API gim_result gim_vpls_from_vals(const gim_val *vals, uint32_t count, const gim_vpl *previous, gim_vpl *out,
+                                         gim_env env);
 
 /* The paraboloid map of one cluster (a virtual area light, VAL): three vec4 (48 bytes). */
 typedef struct gim_paraboloid {
@@ -6062,6 +6083,34 @@ GIMANY_DEF gim_result gim_rsm_vpls_twin(const gim_rsm_vpls_desc *desc, float *po
     return GIM_OK;
 }
 
+GIMANY_DEF gim_result gim_vpls_from_vals(const gim_val *vals, uint32_t count, const gim_vpl *previous, gim_vpl *out,
+                                         gim_env env) {
+    static const char fn[] = "gim_vpls_from_vals";
+    uint32_t i;
+    int a;
+    if (count && (!vals || !out)) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "vals or out is NULL");
+    if (count && ((const void *)vals == (const void *)out || previous == out))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "out is vals or previous");
+    for (i = 0; i < count; ++i) {
+        const gim_val *v = vals + i;
+        gim_vpl *p = out + i;
+        float w = v->weight;
+        memset(p, 0, sizeof *p);
+        if (w == 0.0f) continue;   /* invalid (gim_vals_gather_twin zeroes it), or below the floats */
+        for (a = 0; a < 3; ++a) {
+            p->position[a] = v->position[a];
+            p->normal[a] = v->normal[a];
+            p->flux[a] = v->flux[a] * w;
+        }
+        p->lit = 1.0f;
+        p->area = v->area * w;
+        if (previous && previous[i].lit == 1.0f && !memcmp(previous[i].position, p->position, sizeof p->position) &&
+            !memcmp(previous[i].normal, p->normal, sizeof p->normal))
+            p->kept = 1.0f;   /* the same point: its map still holds */
+    }
+    return GIM_OK;
+}
+
 GIMANY_DEF gim_result gim_caches_to_world(const gim_cache *in, uint32_t count, gim_mat4 model, gim_cache *out,
                                           gim_env env) {
     static const char fn[] = "gim_caches_to_world";
@@ -9862,10 +9911,13 @@ static gim_result gim__gl_check_rsm(gim_context *ctx, const char *where, const g
    a NaN/Inf, negative area or flux) is an all-zero VAL, as in the twin; so is a selected entry
    outside the RSM or whose pdf is not finite and > 0, which the twin returns as
    GIM_ERROR_INVALID_ARGUMENT and a shader cannot report (gim__gl_importance_select writes
-   pdf 0 for a pick from broken tables: it lights nothing). Cost: count texel reads. */
-static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
-                                                  gim__GLuint rsm_flux, uint32_t size, gim__GLuint selected,
-                                                  uint32_t selected_count, gim__GLuint vals_out, uint32_t first) {
+   pdf 0 for a pick from broken tables: it lights nothing). Cost: count texel reads.
+   vpl 1: each written as a first-bounce VPL instead (gim_vpl, 48 bytes too: the VPL methods'
+   vpl.importance), the twin's gim_vpls_from_vals on the VAL; 2: the same with the slots' last
+   VPLs (what vals_out holds) as its previous. */
+static gim_result gim__gl_vals_gather_as(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                         gim__GLuint rsm_flux, uint32_t size, gim__GLuint selected,
+                                         uint32_t selected_count, gim__GLuint vals_out, uint32_t first, int vpl) {
     static const char where[] = "VAL gather (GL)";
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0, textures[3];
@@ -9910,6 +9962,7 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     gl->Uniform1ui(1, (gim__GLuint)count);
     gl->Uniform1ui(2, first);
     gl->Uniform1ui(3, selected ? 1u : 0u);
+    gl->Uniform1ui(4, (gim__GLuint)vpl);
     /* up to 16384^2 VALs: rows of at most 65535 groups (GL 4.3's minimum per dimension) */
     groups = (count + GIM__GATHER_GROUP - 1u) / GIM__GATHER_GROUP;
     gx = (uint32_t)(groups < 65535u ? groups : 65535u);
@@ -9917,6 +9970,13 @@ static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint 
     gl->DispatchCompute(gx, gy, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+static GIM__UNUSED gim_result gim__gl_vals_gather(gim_context *ctx, gim__GLuint rsm_position, gim__GLuint rsm_normal,
+                                                  gim__GLuint rsm_flux, uint32_t size, gim__GLuint selected,
+                                                  uint32_t selected_count, gim__GLuint vals_out, uint32_t first) {
+    return gim__gl_vals_gather_as(ctx, rsm_position, rsm_normal, rsm_flux, size, selected, selected_count, vals_out,
+                                  first, 0);
 }
 
 /* VPLs from an RSM on the GPU (Dong et al. sec. 4), the twin of gim_rsm_vpls_twin (see there):
@@ -12839,6 +12899,8 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f, const gim
     if (!gim__isfinitef(f->vpl.clamp_distance) || !gim__isfinitef(f->vpl.blur_distance) || f->vpl.blur_distance < 0.0f)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "clamp_distance and blur_distance must be finite "
                          "(blur_distance >= 0)");
+    if (f->vpl.importance != 0 && f->vpl.importance != 1)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "vpl.importance %d: 0 or 1", f->vpl.importance);
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
     gim__vpl_settings_of(rf, &s);
     if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
@@ -12972,6 +13034,9 @@ static uint64_t gim__vpl_follow_key(const gim_context *ctx, const gim_frame *f, 
     return h ? h : 1u;
 }
 
+static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
+                                      float scale, const gim__vpl_settings *vpls);
+
 static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
                                     gim_frame_outputs *o, gim_debug_outputs *dbg) {
     static const char where[] = "gim_update";
@@ -12998,7 +13063,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     had = v->vpls;
     had_bytes = v->vpls_bytes;
     r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
-    follow = r == GIM_OK && !f->vpl.redraw && follow_key == v->follow_key && had && had_bytes == v->vpls_bytes;   /* not remade */
+    follow = r == GIM_OK && !f->vpl.redraw && !f->vpl.importance && follow_key == v->follow_key && had &&
+             had_bytes == v->vpls_bytes;   /* not remade */
     v->follow_key = 0;
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
@@ -13010,7 +13076,23 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         ctx->gl.DeleteBuffers(1, &v->staging);
         v->staging = 0; v->staging_bytes = 0;
     }
-    for (i = 0, k = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+    if (r == GIM_OK && f->vpl.importance) {
+        /* drawn by BRSM's importance (vpl.importance): each light's even share of the VPLs picked
+           from its eq. 12 tables, written as VPLs weighing 1 / (N P) (gim_vpls_from_vals) */
+        /* the buffer not remade: its slots hold the last frame's VPLs, to flag the ones that stayed */
+        int kept_before = had && had == v->vpls && had_bytes == v->vpls_bytes;
+        r = gim__gl_brsm_select(ctx, f, depth, normal, scale, &s);
+        for (i = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
+            const gim__light_gpu *g = &ctx->light_gpu[i];
+            if (!ctx->light_on[i] || !ctx->light_vals[i]) continue;
+            r = gim__gl_vals_gather_as(ctx, g->position, g->normal, g->flux, g->size, g->selected, ctx->light_vals[i],
+                                       v->vpls, off, kept_before ? 2 : 1);
+            off += ctx->light_vals[i];
+        }
+        dbg->view_samples = ctx->view_samples;
+        dbg->view_sample_count = f->lightskin.view_sample_count;
+    }
+    for (i = 0, k = 0, off = 0; i < ctx->light_count && r == GIM_OK && !f->vpl.importance; ++i) {
         const gim__light_gpu *g = &ctx->light_gpu[i];
         gim_mat4 vp;
         uint32_t n;
@@ -13036,7 +13118,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         }
         off += n;
     }
-    if (r == GIM_OK) v->follow_key = follow_key;
+    if (r == GIM_OK && !f->vpl.importance) v->follow_key = follow_key;
     gim__stamp(ctx, f->timing, GIM_PASS_VPLS);
     /* k-means (Dong 5; SSVP 3.B) and the clusters' VALs */
     warm = !s.restart && v->warm_clusters == s.clusters && v->warm_vpls == first && v->warm_metric == 1u + (uint32_t)s.ssvp;
@@ -13104,7 +13186,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
            bounce's follow the clusters and are made every frame. Their time is
            GIM_PASS_PARABOLOID's. */
         uint32_t from = s.second_ism ? first : 0u, make = from;
-        uint64_t key = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
+        uint64_t key = ism && !f->vpl.importance   /* importance: new VPLs every frame, every map made */
+                           ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
         uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
         uint64_t had_maps = ctx->ism_maps_bytes;
         gim__GLuint name = ctx->ism_maps, made = 0;
@@ -13114,8 +13197,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         same = r == GIM_OK && name == ctx->ism_maps && had_maps == ctx->ism_maps_bytes;
         if (same && key && key == ctx->ism_vpl_key)
             make = first - first % gim__ism_align_maps(ctx, ism_size);   /* kept: [0, make) */
-        else if (same && follow && layout && layout == ctx->ism_vpl_layout)
-            keep = 1;
+        else if (same && (follow || f->vpl.importance) && layout && layout == ctx->ism_vpl_layout)
+            keep = 1;   /* the maps of the VPLs flagged kept (followed, or picked at the same point again) */
         if (r == GIM_OK && make < total) {
             /* the maps made are counted on the GPU: a running count (zeroed once, when the buffer is
                made) and, copied there on the GPU before this frame's, what it was; no upload a frame */
@@ -13549,9 +13632,12 @@ static gim_result gim__frame_scene_check(gim_context *ctx, const gim_frame *fram
 /* The buffers of the methods this frame does not run, freed (a feature not used costs no
    memory): BRSM's importance tables, view samples and scan scratch unless BRSM, LightSkin's
    unless LightSkin, the VPL methods' unless one of them, the gather's unless RSM_GATHER. */
-static void gim__release_other_methods(gim_context *ctx, gim_method method) {
-    int brsm = method == GIM_METHOD_LIGHTSKIN_BRSM, lightskin = brsm || method == GIM_METHOD_LIGHTSKIN_FULL;
-    int gather = method == GIM_METHOD_RSM_GATHER, vplm = method == GIM_METHOD_CLUSTERED || method == GIM_METHOD_SSVP;
+static void gim__release_other_methods(gim_context *ctx, const gim_frame *f) {
+    gim_method method = f->method;
+    int vplm = method == GIM_METHOD_CLUSTERED || method == GIM_METHOD_SSVP;
+    int brsm = method == GIM_METHOD_LIGHTSKIN_BRSM || (vplm && f->vpl.importance);   /* BRSM's selection */
+    int lightskin = method == GIM_METHOD_LIGHTSKIN_BRSM || method == GIM_METHOD_LIGHTSKIN_FULL;
+    int gather = method == GIM_METHOD_RSM_GATHER;
     uint32_t i;
     for (i = 0; i < ctx->light_count && !brsm; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
@@ -13650,9 +13736,10 @@ static uint32_t gim__defensive_count(const gim_frame *f, uint32_t count) {
    -> cumulative sums (eq. 12) -> its share of val_count (gim__gl_val_budget) -> that many VALs
    drawn (none where no light reaches a view sample). */
 static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal,
-                                      float scale) {
+                                      float scale, const gim__vpl_settings *vpls) {
     static const char where[] = "gim_update";
-    uint32_t i, vs_count = f->lightskin.view_sample_count, val_count = f->lightskin.val_count;
+    uint32_t i, k, vs_count = f->lightskin.view_sample_count;
+    uint32_t val_count = vpls ? gim__vpl_first(f, vpls, ctx->light_on_count) : f->lightskin.val_count;
     uint32_t tile = f->lightskin.importance_tile;
     int defensive = f->lightskin.defensive_share > 0.0f;
     gim_result r = gim__gl_view_samples(ctx, f, depth, normal, vs_count);
@@ -13710,7 +13797,9 @@ static gim_result gim__gl_brsm_select(gim_context *ctx, const gim_frame *f, gim_
                                           g->table_side, g->table_side, 0u);
         gim__stamp(ctx, f->timing, GIM_PASS_CUMSUM);
     }
-    if (r == GIM_OK) r = gim__gl_val_budget(ctx, f->per_light_budget, val_count, where);
+    if (r == GIM_OK && !vpls) r = gim__gl_val_budget(ctx, f->per_light_budget, val_count, where);
+    for (i = 0, k = 0; i < ctx->light_count && r == GIM_OK && vpls; ++i)   /* the VPL methods' even shares */
+        ctx->light_vals[i] = ctx->light_on[i] ? gim__vpl_share(f, vpls, ctx->light_on_count, k++) : 0u;
     for (i = 0; i < ctx->light_count && r == GIM_OK; ++i) {
         gim__light_gpu *g = &ctx->light_gpu[i];
         if (!ctx->light_vals[i]) {   /* none of its light reaches a view sample: no VALs, no selection */
@@ -13744,7 +13833,7 @@ static gim_result gim__gl_lightskin_frame(gim_context *ctx, const gim_frame *f, 
                                           float scale, gim_frame_outputs *o, gim_debug_outputs *dbg) {
     gim_result r = GIM_OK;
     if (f->method == GIM_METHOD_LIGHTSKIN_BRSM) {
-        r = gim__gl_brsm_select(ctx, f, depth, normal, scale);
+        r = gim__gl_brsm_select(ctx, f, depth, normal, scale, NULL);
         dbg->view_samples = ctx->view_samples;
         dbg->view_sample_count = f->lightskin.view_sample_count;
     }
@@ -13767,7 +13856,8 @@ static gim_result gim__gl_gather_frame(gim_context *ctx, const gim_frame *f, gim
 /* The frame's outputs, the lights' and the stats, after every pass succeeded. */
 static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint depth, gim__GLuint normal, float scale,
                                gim_frame_outputs *o, const gim_debug_outputs *dbg) {
-    int brsm = f->method == GIM_METHOD_LIGHTSKIN_BRSM;
+    int vplm = f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP;
+    int brsm = f->method == GIM_METHOD_LIGHTSKIN_BRSM || (vplm && f->vpl.importance);   /* BRSM's selection ran */
     uint32_t i;
     o->valid = 1;
     o->width = f->width;
@@ -13803,7 +13893,7 @@ static void gim__frame_outputs(gim_context *ctx, const gim_frame *f, gim__GLuint
         lo->luminance_column = lo->defensive_count ? g->lum_column : 0u;
         lo->luminance_row = lo->defensive_count ? g->lum_row : 0u;
         lo->rendered = ctx->light_on[i];
-        lo->importance_total = brsm ? ctx->light_total[i] : 0.0;
+        lo->importance_total = f->method == GIM_METHOD_LIGHTSKIN_BRSM ? ctx->light_total[i] : 0.0;
     }
     ctx->outputs = *o;
     ctx->debug = *dbg;
@@ -13876,7 +13966,7 @@ GIMANY_DEF gim_result gim_update(gim_context *ctx, const gim_frame *frame) {
     memcpy(o.bounds_min, bmin, sizeof bmin);
     memcpy(o.bounds_max, bmax, sizeof bmax);
     if (r == GIM_OK) {
-        gim__release_other_methods(ctx, f.method);
+        gim__release_other_methods(ctx, &f);
         if (f.method == GIM_METHOD_RSM_GATHER) r = gim__gl_gather_frame(ctx, &f, depth, normal, scale, &o);
         else if (f.method == GIM_METHOD_CLUSTERED || f.method == GIM_METHOD_SSVP)
             r = gim__gl_vpl_frame(ctx, &f, depth, normal, scale, &o, &dbg);
@@ -13955,7 +14045,17 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     } else if (f.method == GIM_METHOD_CLUSTERED || f.method == GIM_METHOD_SSVP) {
         gim__vpl_settings s;
         gim__vpl_settings_of(&f, &s);
-        ids[n++] = GIM__PROGRAM_RSM_VPLS;
+        if (f.vpl.importance) {   /* BRSM's selection, its picks written as VPLs */
+            ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
+            ids[n++] = f.lightskin.importance_tile > 1u ? GIM__PROGRAM_IMPORTANCE_TILES : GIM__PROGRAM_IMPORTANCE_MAP;
+            ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
+            ids[n++] = GIM__PROGRAM_SCAN_TOTALS;
+            ids[n++] = GIM__PROGRAM_SCAN_OFFSETS;
+            ids[n++] = GIM__PROGRAM_SELECT;
+            ids[n++] = GIM__PROGRAM_VALS_GATHER;
+        } else {
+            ids[n++] = GIM__PROGRAM_RSM_VPLS;
+        }
         ids[n++] = GIM__PROGRAM_CLUSTERS;
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;

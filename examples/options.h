@@ -29,6 +29,7 @@ typedef struct demo_options {
     float defensive_share;   /* brsm: VALs drawn by luminance alone (0: gimany's default; < 0: none) */
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
+    int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
@@ -61,6 +62,9 @@ static const char demo_usage_text[] =
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
+    "  --vpl-importance      clustered, ssvp: the VPLs drawn where their light reaches the view (BRSM's\n"
+    "                        importance with --view-samples, --importance-tile, --defensive-share), each\n"
+    "                        weighted 1 / (N P), instead of evenly over the RSM\n"
     "  --ism                 imperfect shadow maps, no light through walls (default: off): brsm, full one per\n"
     "                        cache, clustered, ssvp one per VPL; --ism-size N their side, a power of two in\n"
     "                        4..64 (default 64; LightSkin halves it where the maps exceed 256 MiB);\n"
@@ -116,12 +120,14 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (len == 15 && !strncmp(a, "--no-visibility", 15)) flag = 2;
         else if (len == 12 && !strncmp(a, "--allow-slow", 12)) flag = 3;
         else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 4;
+        else if (len == 16 && !strncmp(a, "--vpl-importance", 16)) flag = 5;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
             if (flag == 1) d->glossy = 0;
             else if (flag == 2) d->no_visibility = 1;
             else if (flag == 3) d->allow_slow = 1;
-            else d->ism = 1;
+            else if (flag == 4) d->ism = 1;
+            else d->vpl_importance = 1;
             continue;
         }
         for (k = 0; k < sizeof nums / sizeof nums[0]; ++k)
@@ -208,6 +214,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->vpl.cluster_count = d->clusters;
     f->vpl.bounces = (uint32_t)bounces;
     f->vpl.no_visibility = d->no_visibility;
+    f->vpl.importance = d->vpl_importance;
     f->lightskin.val_count = d->vals;
     f->lightskin.view_sample_count = d->view_samples;
     f->lightskin.importance_tile = d->importance_tile;

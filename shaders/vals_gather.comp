@@ -20,12 +20,18 @@ layout(binding = 2, rgba32ui) readonly uniform uimage2D rsm_flux;      /* rgb */
 struct SelectedVal { uint x; uint y; uint pdf; };   /* gim_selected_val, pdf as its float bits */
 layout(std430, binding = 0) readonly buffer Selected { SelectedVal selected[]; };
 struct Val { uvec4 position_area; uvec4 normal_weight; uvec4 flux; };   /* gim_val, as bits */
-layout(std430, binding = 1) writeonly buffer Vals { Val val[]; };
+layout(std430, binding = 1) buffer Vals { Val val[]; };   /* read only in VPL mode, each slot by its own invocation */
 
 layout(location = 0) uniform uint size;    /* RSM side */
 layout(location = 1) uniform uint count;   /* VALs to write: size^2 (FULL) or selected_count */
 layout(location = 2) uniform uint first;   /* index of the first one in val[] */
 layout(location = 3) uniform uint brsm;    /* 1: one VAL per selected entry */
+/* 1: write each as a first-bounce VPL instead (gim_vpl, the VPL methods' vpl.importance;
+   gim_vpls_from_vals): position and lit 1, normal and area w A, flux w Phi, each product one
+   float multiply as in the twin; an invalid VAL an all-zero (unlit) VPL. 2: the same, and kept
+   1 where the slot's last VPL (what val[first + i] holds) was lit at the same position and
+   normal, bit for bit: its imperfect shadow map still holds (the twin's previous) */
+layout(location = 4) uniform uint vpl;
 
 const uint FLT_MAX_BITS = 0x7f7fffffu;
 const uint FLT_MIN_BITS = 0x00800000u;
@@ -76,6 +82,24 @@ void main() {
             v.normal_weight = uvec4(n.xyz, weight);
             v.flux = uvec4(f.rgb, 0u);
         }
+    }
+    if (vpl != 0u && v.normal_weight.w == 0u) {   /* weight 0 (invalid, or 1 / (N P) below the floats): unlit */
+        v.position_area = uvec4(0u);
+        v.normal_weight = uvec4(0u);
+        v.flux = uvec4(0u);
+    } else if (vpl != 0u) {
+        uint kept = 0u;
+        if (vpl == 2u) {
+            Val p = val[first + i];
+            kept = p.position_area.w == floatBitsToUint(1.0) && all(equal(p.position_area.xyz, v.position_area.xyz)) &&
+                   all(equal(p.normal_weight.xyz, v.normal_weight.xyz)) ? floatBitsToUint(1.0) : 0u;
+        }
+        precise float w = uintBitsToFloat(v.normal_weight.w);
+        precise float a = uintBitsToFloat(v.position_area.w) * w;
+        precise vec3 phi = uintBitsToFloat(v.flux.rgb) * w;
+        v.position_area.w = floatBitsToUint(1.0);
+        v.normal_weight.w = floatBitsToUint(a);
+        v.flux = uvec4(floatBitsToUint(phi), kept);
     }
     val[first + i] = v;
 }

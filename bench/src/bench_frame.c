@@ -32,6 +32,9 @@
    every frame (its flicker against the default's drift, the brsm rows); clustered-ism-anew,
    ssvp-ism-anew: gim_frame.vpl.redraw 1, every VPL and its map made anew every frame (against
    the default, which follows the last frame's VPLs: incremental instant radiosity).
+   clustered-imp, clustered-ism-imp, ssvp-imp, ssvp-ism-imp: the VPL rows with their VPLs drawn
+   where the light reaches the view (gim_frame_vpl.importance: BRSM's importance, 256 view
+   samples; drawn anew every frame).
    On the street at the flicker size, each row also prints its error after the sun turned 24
    degrees, a degree a frame, against a reference rendered at that sun (moved_error): followed as
    by default, and drawn anew there.
@@ -119,6 +122,18 @@ static void setup_vpl_ism_anew(gim_frame *f, const bench_method *m) {
     f->vpl.redraw = 1;
 }
 
+/* the VPL rows with their first-bounce VPLs drawn by BRSM's importance (gim_frame_vpl.importance,
+   anew every frame), with the library's other defaults; the ISM row right after the one without */
+static void setup_vpl_imp(gim_frame *f, const bench_method *m) {
+    setup_vpl(f, m);
+    f->vpl.importance = 1;
+}
+
+static void setup_vpl_ism_imp(gim_frame *f, const bench_method *m) {
+    setup_vpl_ism(f, m);
+    f->vpl.importance = 1;
+}
+
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
 static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
@@ -130,6 +145,8 @@ static const bench_method methods[] = {
     {"clustered", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl, 1, 1},
     {"clustered-ism", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism, 1, 1},
     {"clustered-ism-anew", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism_anew, 1, 1},
+    {"clustered-imp", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_imp, 1, 1},
+    {"clustered-ism-imp", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism_imp, 1, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 16, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 32, 0, 1, setup_vpl, 1, 1},
     /* SSVP Table I's grid: clusters 4 / 8 / 16 / 32 x second-bounce VPLs 64 / 256 / 1024, two bounces;
@@ -142,6 +159,8 @@ static const bench_method methods[] = {
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl, 1, 1},
     {"ssvp-ism", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism, 1, 1},
     {"ssvp-ism-anew", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_anew, 1, 1},
+    {"ssvp-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_imp, 1, 1},
+    {"ssvp-ism-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_imp, 1, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_vpl, 2, 1},
@@ -647,7 +666,8 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                             ism_build = st.pass_ms[bm->vpl ? GIM_PASS_PARABOLOID : GIM_PASS_ISM];
                         }
                         if (mi > 0 && methods[mi - 1].method == bm->method &&
-                            (!methods[mi - 1].setup || (bm->vpl && methods[mi - 1].setup == setup_vpl)))
+                            (!methods[mi - 1].setup || (bm->vpl && methods[mi - 1].setup == setup_vpl) ||
+                             (bm->setup == setup_vpl_ism_imp && methods[mi - 1].setup == setup_vpl_imp)))
                             t_off = off_ms[vi][si];
                     }
                     if (bm->vpl) {   /* VPLs drawn at their texels, not followed from the row before (a still
@@ -657,7 +677,8 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                         update(ctx, &fresh);
                     }
                     if (!measure_frames(ctx, &fm, 1, sw->runs, sw->runs, &m)) { fprintf(stderr, "gim_update failed\n"); exit(1); }
-                    if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl) off_ms[vi][si] = m.frame_ms;
+                    if ((bm->per_val && !bm->setup) || bm->setup == setup_vpl || bm->setup == setup_vpl_imp)
+                        off_ms[vi][si] = m.frame_ms;
                     read_image(ctx, img);
                     if (flick && si == 0) {
                         double mov, maps;

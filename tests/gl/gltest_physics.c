@@ -180,19 +180,22 @@ static const char *method_name(gim_method m) {
 
 /* edge_band: assert the near-edge band (see the top) */
 static void check_scene(phys_which which, double scale, const double *offset, int edge_band) {
+    /* the VPL methods twice: their VPLs at the RSM's sequence, then drawn by importance (vpl.importance) */
     static const gim_method methods[] = {GIM_METHOD_LIGHTSKIN_FULL, GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_CLUSTERED,
-                                         GIM_METHOD_SSVP, GIM_METHOD_RSM_GATHER};
+                                         GIM_METHOD_SSVP, GIM_METHOD_RSM_GATHER, GIM_METHOD_CLUSTERED, GIM_METHOD_SSVP};
     phys_frame *p = (phys_frame *)calloc(1, sizeof *p);
     size_t k;
     frame_begin(p, which, scale, offset);
     for (k = 0; k < sizeof methods / sizeof methods[0]; ++k) {
         phys_stats st;
         if (methods[k] == GIM_METHOD_SSVP) p->fr.vpl.bounces = 1;   /* the closed forms are one bounce */
+        p->fr.vpl.importance = k >= 5;
         st = run_method(p, methods[k]);
         p->fr.vpl.bounces = 0;
+        p->fr.vpl.importance = 0;
         print_message("%-13s scale %-6g %-15s median %.3f, %3.0f%% within 10%%, %3.0f%% within 20%% (%u pixels, %u caches)\n",
-                      p->s.name, scale, method_name(methods[k]), st.median, 100.0 * st.within10, 100.0 * st.within20,
-                      st.counted, p->caches.count);
+                      p->s.name, scale, k >= 5 ? (k == 5 ? "clustered, imp." : "SSVP, imp.") : method_name(methods[k]),
+                      st.median, 100.0 * st.within10, 100.0 * st.within20, st.counted, p->caches.count);
         if (st.edge_counted > 0)
             print_message("%-13s %-12s %-15s within 0.1 of the contact edge: median %.3f (%u pixels)\n", "", "",
                           method_name(methods[k]), st.edge_median, st.edge_counted);

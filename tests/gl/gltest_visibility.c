@@ -176,7 +176,8 @@ static double above(scene_fx *s, double frac) {
    radiance inside on the mean, 99% of the pixels under 5%. Their own per-cluster paraboloid
    maps (the default) leak more: a cluster's VAL spreads over the ground on both sides of a
    wall, and one map from its centre cannot shadow the VPLs far from it. SSVP's second bounce
-   takes one ISM per VPL in either mode (no cluster's map sees from where it lies). */
+   takes one ISM per VPL in either mode (no cluster's map sees from where it lies). The same
+   with the VPLs drawn by importance (vpl.importance). */
 static void vpl_methods_no_light_through_walls(void **state) {
     scene_fx s;
     int m;
@@ -214,6 +215,19 @@ static void vpl_methods_no_light_through_walls(void **state) {
         assert_true(ism < 0.01);
         assert_true(ism_hi < 0.01);
         assert_true(def > 0.01);   /* what the maps are for */
+        /* VPLs drawn by importance (vpl.importance): the view samples are inside, so the picks
+           crowd the ground just outside the walls (no visibility in the importance), the
+           hardest case for the maps */
+        s.fr.vpl.importance = 1;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        {
+            double imp = inside(&s), imp_hi = above(&s, 0.05);
+            print_message("%s, VPLs drawn by importance, one ISM per VPL: mean inside %.4f (%.2f %% of the pixels above "
+                          "5 %%)\n", m ? "SSVP" : "clustered", imp, 100.0 * imp_hi);
+            assert_true(imp < 0.01);
+            assert_true(imp_hi < 0.01);
+        }
+        s.fr.vpl.importance = 0;
         /* SSVP's second bounce has its own ISMs beside the clusters' maps: 0.0482 (0.0702 when it
            was unshadowed; the rest is the first bounce's 8 clusters) */
         if (m) assert_true(def < 0.06);
@@ -984,6 +998,61 @@ static void vpls_follow_the_light(void **state) {
     GLTEST_END();
 }
 
+/* VPLs drawn by importance (vpl.importance) keep the maps of the picks that stay: a VPL whose
+   slot's last VPL was lit at the same point and normal is flagged kept and its map is not made
+   again. The same frame again: every lit VPL kept, no map made, the image bit for bit. Eight
+   frames on (the selection's offsets drift 1/32 of their spacing a frame): most picks stay, exactly
+   the others' maps are made (counted on the GPU), every kept VPL is its slot's last, and every
+   lit VPL's map is gim_ism_render_twin's on this frame's VPLs. Fails when a kept flag is set for
+   a VPL that moved (its stale map differs from the twin's) or a map is made for a kept one. */
+static void importance_vpls_keep_their_maps(void **state) {
+    scene_fx s;
+    uint32_t n = 256, i, k, made, lit0 = 0, lit1 = 0, off, mlit, mlit2, texels;
+    gim_vpl *v0, *v1;
+    float *a, *b;
+    (void)state;
+    GLTEST_BEGIN();
+    setup_ism(&s, 8, 512);
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    s.fr.vpl.count = n;
+    s.fr.vpl.paraboloid_size = 32;
+    s.fr.vpl.cluster_count = 8;
+    s.fr.vpl.kmeans_restart = 1;
+    s.fr.vpl.importance = 1;
+    s.fr.lightskin.view_sample_count = 64;
+    s.fr.frame_index = 10;
+    frame_makes(&s, 0, n, 0);
+    v0 = frame_vpls(&s, n);
+    for (i = 0; i < n; ++i) { lit0 += v0[i].lit == 1.0f; assert_true(v0[i].kept == 0.0f); }
+    a = image(&s);
+    assert_int_equal(frame_maps(&s), 0);   /* the same picks */
+    v1 = frame_vpls(&s, n);
+    for (i = 0; i < n; ++i) assert_true(v1[i].kept == v1[i].lit);
+    b = image(&s);
+    assert_memory_equal(a, b, W * H * 16);
+    free(a); free(b); free(v1);
+    s.fr.frame_index = 18;   /* 8 frames on: 8 / 32 of the offsets' spacing, some picks move */
+    made = frame_maps(&s);
+    v1 = frame_vpls(&s, n);
+    for (i = 0, k = 0; i < n; ++i) {
+        int same = v0[i].lit == 1.0f && v1[i].lit == 1.0f && !memcmp(v0[i].position, v1[i].position, 12) &&
+                   !memcmp(v0[i].normal, v1[i].normal, 12);
+        assert_true(v1[i].kept == (same ? 1.0f : 0.0f));
+        k += same;
+        lit1 += v1[i].lit == 1.0f;
+    }
+    off = vpl_maps_off(&s, &mlit, &mlit2, &texels);
+    print_message("importance VPLs, eight frames on: %u of %u lit VPLs kept (%u lit before), %u maps made; %u of "
+                  "%u texels of %u lit maps differ from the twin\n", k, lit1, lit0, made, off, texels, mlit);
+    assert_int_equal(made, lit1 - k);
+    assert_true(k >= lit1 / 2u && k < lit1);
+    assert_true(mlit > 0u && off <= texels / 200);
+    free(v0); free(v1);
+    gltest_state_unchanged(&s.f);
+    teardown(&s);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(no_light_through_walls),
@@ -995,6 +1064,7 @@ int main(void) {
         cmocka_unit_test(full_over_dispatches_sees_the_maps),
         cmocka_unit_test(vpl_maps_kept),
         cmocka_unit_test(vpls_follow_the_light),
+        cmocka_unit_test(importance_vpls_keep_their_maps),
     };
     int r;
     (void)room_receiver;   /* room.h's, for the shading tests */
