@@ -14020,6 +14020,18 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     return b;
 }
 
+/* BRSM's selection programs after ids[0..n): view samples, the importance map (or its tiles),
+   the scan, the selection (BRSM, and the VPL methods' vpl.importance); the new count. */
+static uint32_t gim__select_programs(const gim_frame *f, gim__program_id *ids, uint32_t n) {
+    ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
+    ids[n++] = f->lightskin.importance_tile > 1u ? GIM__PROGRAM_IMPORTANCE_TILES : GIM__PROGRAM_IMPORTANCE_MAP;
+    ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
+    ids[n++] = GIM__PROGRAM_SCAN_TOTALS;
+    ids[n++] = GIM__PROGRAM_SCAN_OFFSETS;
+    ids[n++] = GIM__PROGRAM_SELECT;
+    return n;
+}
+
 GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
     static const char where[] = "gim_prepare";
     gim__program_id ids[GIM__PROGRAM_COUNT];
@@ -14046,12 +14058,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         gim__vpl_settings s;
         gim__vpl_settings_of(&f, &s);
         if (f.vpl.importance) {   /* BRSM's selection, its picks written as VPLs */
-            ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
-            ids[n++] = f.lightskin.importance_tile > 1u ? GIM__PROGRAM_IMPORTANCE_TILES : GIM__PROGRAM_IMPORTANCE_MAP;
-            ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
-            ids[n++] = GIM__PROGRAM_SCAN_TOTALS;
-            ids[n++] = GIM__PROGRAM_SCAN_OFFSETS;
-            ids[n++] = GIM__PROGRAM_SELECT;
+            n = gim__select_programs(&f, ids, n);
             ids[n++] = GIM__PROGRAM_VALS_GATHER;
         } else {
             ids[n++] = GIM__PROGRAM_RSM_VPLS;
@@ -14066,14 +14073,7 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;
     } else {
-        if (f.method != GIM_METHOD_LIGHTSKIN_FULL) {
-            ids[n++] = GIM__PROGRAM_VIEW_SAMPLES;
-            ids[n++] = f.lightskin.importance_tile > 1u ? GIM__PROGRAM_IMPORTANCE_TILES : GIM__PROGRAM_IMPORTANCE_MAP;
-            ids[n++] = GIM__PROGRAM_SCAN_COLUMNS;
-            ids[n++] = GIM__PROGRAM_SCAN_TOTALS;
-            ids[n++] = GIM__PROGRAM_SCAN_OFFSETS;
-            ids[n++] = GIM__PROGRAM_SELECT;
-        }
+        if (f.method != GIM_METHOD_LIGHTSKIN_FULL) n = gim__select_programs(&f, ids, n);
         ids[n++] = GIM__PROGRAM_VALS_GATHER;
         ids[n++] = GIM__PROGRAM_PROXY_LIGHTS;
         if (f.visibility.mode == GIM_VISIBILITY_ISM) ids[n++] = GIM__PROGRAM_ISM;

@@ -672,6 +672,17 @@ static uint32_t lit_in(scene_fx *s, uint32_t from, uint32_t to) {
     return n;
 }
 
+/* CLUSTERED with n VPLs, each with an 8^2 x 512-point ISM, 8 clusters of 32^2 paraboloid maps
+   restarted from the same seeds every frame (images comparable across frames). */
+static void setup_vpl_ism(scene_fx *s, uint32_t n) {
+    setup_ism(s, 8, 512);
+    s->fr.method = GIM_METHOD_CLUSTERED;
+    s->fr.vpl.count = n;
+    s->fr.vpl.paraboloid_size = 32;
+    s->fr.vpl.cluster_count = 8;
+    s->fr.vpl.kmeans_restart = 1;
+}
+
 /* One frame that makes the maps of the lit VPLs in [from, to) and `more` (SSVP's clusters'). */
 static void frame_makes(scene_fx *s, uint32_t from, uint32_t to, uint32_t more) {
     uint32_t made = frame_maps(s);
@@ -878,12 +889,7 @@ static void vpls_follow_the_light(void **state) {
     gim_instance in;
     (void)state;
     GLTEST_BEGIN();
-    setup_ism(&s, 8, 512);
-    s.fr.method = GIM_METHOD_CLUSTERED;
-    s.fr.vpl.count = n;
-    s.fr.vpl.paraboloid_size = 32;
-    s.fr.vpl.cluster_count = 8;
-    s.fr.vpl.kmeans_restart = 1;
+    setup_vpl_ism(&s, n);
     frame_makes(&s, 0, n, 0);
     v0 = frame_vpls(&s, n);
     assert_int_equal(follow_twin(&s, NULL, v0, n), 0);
@@ -1012,12 +1018,7 @@ static void importance_vpls_keep_their_maps(void **state) {
     float *a, *b;
     (void)state;
     GLTEST_BEGIN();
-    setup_ism(&s, 8, 512);
-    s.fr.method = GIM_METHOD_CLUSTERED;
-    s.fr.vpl.count = n;
-    s.fr.vpl.paraboloid_size = 32;
-    s.fr.vpl.cluster_count = 8;
-    s.fr.vpl.kmeans_restart = 1;
+    setup_vpl_ism(&s, n);
     s.fr.vpl.importance = 1;
     s.fr.lightskin.view_sample_count = 64;
     s.fr.frame_index = 10;
