@@ -627,9 +627,12 @@ typedef struct gim_frame_vpl {
                                    BRSM's importance (Bischoff 2017 eq. 10-12, with f.lightskin's view
                                    samples, tile, clamp and defensive share): each light's even share N of
                                    vpl.count picked with probability P, each VPL weighing 1 / (N P)
-                                   (gim_vpls_from_vals); drawn anew every frame (redraw as 1, every ISM
-                                   made). On large scenes far fewer VPLs are wasted on what the view does
-                                   not see (docs/methods.md). 0: at their texels of the sequence */
+                                   (gim_vpls_from_vals); no VPL is followed (redraw does not apply), but a
+                                   pick on the same point as its slot's last VPL keeps its ISM. On large
+                                   scenes far fewer VPLs are spent on what the view does not see; SSVP's
+                                   second bounce, interiors whose importance lies behind walls and a
+                                   moving light's flicker get worse (docs/methods.md: the trade).
+                                   0: at their texels of the sequence */
 } gim_frame_vpl;
 
 /* Input of gim_update: the settings every method shares, then one sub-struct per method family
