@@ -13049,7 +13049,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = gim__ism_pool(ism_per);
-    int warm, follow, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    int warm, last, follow, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
     uint64_t follow_key, had_bytes;
     gim__GLuint had;
     gim__vpl_settings_of(f, &s);
@@ -13066,30 +13066,30 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     had = v->vpls;
     had_bytes = v->vpls_bytes;
     r = gim__gl_sized_buffer(ctx, &v->vpls, &v->vpls_bytes, (uint64_t)total * 48u, where);
-    follow = r == GIM_OK && !f->vpl.redraw && !f->vpl.importance && follow_key == v->follow_key && had &&
-             had_bytes == v->vpls_bytes;   /* not remade */
+    last = r == GIM_OK && had && had_bytes == v->vpls_bytes;   /* not remade: its slots hold the last frame's VPLs */
+    follow = last && !f->vpl.redraw && !f->vpl.importance && follow_key == v->follow_key;
     v->follow_key = 0;
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->cluster_of, &v->cluster_of_bytes, (uint64_t)total * 4u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->centres, &v->centres_bytes, (uint64_t)s.clusters * 32u, where);
     if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->maps, &v->maps_bytes, (uint64_t)s.clusters * 48u, where);
-    if (r == GIM_OK && ctx->light_on_count > 1u)
+    /* the staging buffer of the lights' VPLs drawn one after the other (not with importance) */
+    if (r == GIM_OK && ctx->light_on_count > 1u && !f->vpl.importance)
         r = gim__gl_sized_buffer(ctx, &v->staging, &v->staging_bytes,
                                  (uint64_t)gim__vpl_share(f, &s, ctx->light_on_count, 0u) * 48u, where);
-    if (r == GIM_OK && ctx->light_on_count == 1u && v->staging) {
+    if (r == GIM_OK && (ctx->light_on_count == 1u || f->vpl.importance) && v->staging) {
         ctx->gl.DeleteBuffers(1, &v->staging);
         v->staging = 0; v->staging_bytes = 0;
     }
     if (r == GIM_OK && f->vpl.importance) {
         /* drawn by BRSM's importance (vpl.importance): each light's even share of the VPLs picked
-           from its eq. 12 tables, written as VPLs weighing 1 / (N P) (gim_vpls_from_vals) */
-        /* the buffer not remade: its slots hold the last frame's VPLs, to flag the ones that stayed */
-        int kept_before = had && had == v->vpls && had_bytes == v->vpls_bytes;
+           from its eq. 12 tables, written as VPLs weighing 1 / (N P) (gim_vpls_from_vals); with
+           the last frame's VPLs in the slots, a pick on the same point is flagged kept */
         r = gim__gl_brsm_select(ctx, f, depth, normal, scale, &s);
         for (i = 0, off = 0; i < ctx->light_count && r == GIM_OK; ++i) {
             const gim__light_gpu *g = &ctx->light_gpu[i];
             if (!ctx->light_on[i] || !ctx->light_vals[i]) continue;
             r = gim__gl_vals_gather_as(ctx, g->position, g->normal, g->flux, g->size, g->selected, ctx->light_vals[i],
-                                       v->vpls, off, kept_before ? 2 : 1);
+                                       v->vpls, off, last ? 2 : 1);
             off += ctx->light_vals[i];
         }
         dbg->view_samples = ctx->view_samples;
@@ -13189,7 +13189,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
            bounce's follow the clusters and are made every frame. Their time is
            GIM_PASS_PARABOLOID's. */
         uint32_t from = s.second_ism ? first : 0u, make = from;
-        uint64_t key = ism && !f->vpl.importance   /* importance: new VPLs every frame, every map made */
+        uint64_t key = ism && !f->vpl.importance   /* importance: the view moves the picks; kept flags below */
                            ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
         uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
         uint64_t had_maps = ctx->ism_maps_bytes;

@@ -764,33 +764,10 @@ static void vpl_maps_kept(void **state) {
     GLTEST_END();
 }
 
-/* Light 0's RSM read back as gim_rsm_data (caller frees the arrays with rsm_free). */
+/* Light 0's RSM read back as gim_rsm_data (caller frees the arrays with gltest_rsm_free). */
 static gim_rsm_data rsm_read(scene_fx *s) {
     const gim__light_gpu *g = &s->f.ctx->light_gpu[0];
-    size_t n = (size_t)g->size * g->size, t;
-    float *x4 = (float *)malloc(n * 16), *n4 = (float *)malloc(n * 16), *f4 = (float *)malloc(n * 16);
-    gim_rsm_data d;
-    memset(&d, 0, sizeof d);
-    d.width = d.height = g->size;
-    d.position = (float *)malloc(n * 12); d.normal = (float *)malloc(n * 12); d.flux = (float *)malloc(n * 12);
-    d.area = (float *)malloc(n * 4); d.valid = (float *)malloc(n * 4);
-    gltest_read_texture(g->position, GL_RGBA, x4);
-    gltest_read_texture(g->normal, GL_RGBA, n4);
-    gltest_read_texture(g->flux, GL_RGBA, f4);
-    for (t = 0; t < n; ++t) {
-        memcpy((float *)d.position + t * 3, x4 + t * 4, 12);
-        memcpy((float *)d.normal + t * 3, n4 + t * 4, 12);
-        memcpy((float *)d.flux + t * 3, f4 + t * 4, 12);
-        ((float *)d.area)[t] = n4[t * 4 + 3];
-        ((float *)d.valid)[t] = x4[t * 4 + 3];
-    }
-    free(x4); free(n4); free(f4);
-    return d;
-}
-
-static void rsm_free(gim_rsm_data *d) {
-    free((void *)d->position); free((void *)d->normal); free((void *)d->flux); free((void *)d->area);
-    free((void *)d->valid);
+    return gltest_rsm_read(g->position, g->normal, g->flux, g->size);
 }
 
 /* The frame's n first-bounce VPLs (caller frees). */
@@ -828,7 +805,7 @@ static uint32_t follow_twin(scene_fx *s, const gim_vpl *prev, const gim_vpl *gpu
         for (a = 0; a < 3; ++a) assert_true(fabsf(gpu[i].flux[a] - fl[i * 3 + a]) <= 1e-6f * fl[i * 3 + a]);
     }
     free(p); free(nn); free(fl); free(kept);
-    rsm_free(&d);
+    gltest_rsm_free(&d);
     return k;
 }
 
@@ -868,7 +845,7 @@ static void kept_are_seen(scene_fx *s, const gim_vpl *v, uint32_t n, float *max_
         gim__rsm_vpl_texel(i, n, GIM_VPL_SEQUENCE_HALTON, d.width, d.height, NULL, &sx, &sy);
         *max_slot = fmaxf(*max_slot, fmaxf(fabsf((float)x - (float)sx), fabsf((float)y - (float)sy)));
     }
-    rsm_free(&d);
+    gltest_rsm_free(&d);
 }
 
 /* Incremental instant radiosity (Laine et al. 2007; gim_frame_vpl.redraw 0, the default) in the

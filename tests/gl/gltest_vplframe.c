@@ -479,7 +479,7 @@ static void importance_vpls_match_twin(void **state) {
         gim_frame rf;
         gim_select_desc sd;
         gim_rsm_data rsm;
-        float off[4], *pos, *nrm, *flux, *area, *valid;
+        float off[4];
         double *column, *row;
         int fi;
         vpl_frame_begin(&ff, k ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED);
@@ -513,17 +513,7 @@ static void importance_vpls_match_twin(void **state) {
         for (i = 0; i < NV; ++i)
             assert_true(gpu_sel[i].x == twin_sel[i].x && gpu_sel[i].y == twin_sel[i].y && gpu_sel[i].pdf == twin_sel[i].pdf);
         /* the VPLs: the twin chain on the frame's RSM */
-        pos = (float *)malloc(n * n * 16); nrm = (float *)malloc(n * n * 16); flux = (float *)malloc(n * n * 16);
-        area = (float *)malloc(n * n * 4); valid = (float *)malloc(n * n * 4);
-        gltest_read_texture(o.lights[0].rsm_position, GL_RGBA, pos);
-        gltest_read_texture(o.lights[0].rsm_normal, GL_RGBA, nrm);
-        gltest_read_texture(o.lights[0].rsm_flux, GL_RGBA, flux);
-        for (i = 0; i < n * n; ++i) {   /* RGBA -> the twin's arrays */
-            area[i] = nrm[i * 4 + 3]; valid[i] = pos[i * 4 + 3];
-            memmove(pos + i * 3, pos + i * 4, 12); memmove(nrm + i * 3, nrm + i * 4, 12); memmove(flux + i * 3, flux + i * 4, 12);
-        }
-        memset(&rsm, 0, sizeof rsm);
-        rsm.position = pos; rsm.normal = nrm; rsm.flux = flux; rsm.area = area; rsm.valid = valid; rsm.width = rsm.height = n;
+        rsm = gltest_rsm_read(o.lights[0].rsm_position, o.lights[0].rsm_normal, o.lights[0].rsm_flux, n);
         assert_int_equal(gim_vals_gather_twin(&rsm, twin_sel, NV, vals, ff.f.env), GIM_OK);
         assert_int_equal(gim_vpls_from_vals(vals, NV, fi ? prev_vpl : NULL, twin_vpl, ff.f.env), GIM_OK);
         gltest_read_buffer(od.vpls, NV * sizeof *gpu_vpl, gpu_vpl);
@@ -543,7 +533,8 @@ static void importance_vpls_match_twin(void **state) {
             print_message("  GPU vs CPU chain, %u of %u pixels above 1e-3, the others within %.2e\n", bad, W * H, max_rel);
             assert_true(bad <= W * H / 50);
         }
-        free(column); free(row); free(pos); free(nrm); free(flux); free(area); free(valid);
+        free(column); free(row);
+        gltest_rsm_free(&rsm);
         }
         /* off again: no selection, no view samples; an importance of 2 is refused */
         ff.fr.vpl.importance = 0;

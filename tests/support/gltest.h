@@ -205,6 +205,35 @@ static GIM__UNUSED void gltest_read_texture(GLuint tex, GLenum format, float *ou
     glPixelStorei(GL_PACK_ALIGNMENT, pack);
 }
 
+/* An RSM of size x size texels read back from gim__gl_rsm's RGBA32F textures as the twins'
+   gim_rsm_data (area from normal.w, valid from position.w); free it with gltest_rsm_free. */
+static GIM__UNUSED gim_rsm_data gltest_rsm_read(GLuint position, GLuint normal, GLuint flux, uint32_t size) {
+    size_t n = (size_t)size * size, t;
+    float *x4 = (float *)malloc(n * 16), *n4 = (float *)malloc(n * 16), *f4 = (float *)malloc(n * 16);
+    gim_rsm_data d;
+    memset(&d, 0, sizeof d);
+    d.width = d.height = size;
+    d.position = (float *)malloc(n * 12); d.normal = (float *)malloc(n * 12); d.flux = (float *)malloc(n * 12);
+    d.area = (float *)malloc(n * 4); d.valid = (float *)malloc(n * 4);
+    gltest_read_texture(position, GL_RGBA, x4);
+    gltest_read_texture(normal, GL_RGBA, n4);
+    gltest_read_texture(flux, GL_RGBA, f4);
+    for (t = 0; t < n; ++t) {
+        memcpy((float *)d.position + t * 3, x4 + t * 4, 12);
+        memcpy((float *)d.normal + t * 3, n4 + t * 4, 12);
+        memcpy((float *)d.flux + t * 3, f4 + t * 4, 12);
+        ((float *)d.area)[t] = n4[t * 4 + 3];
+        ((float *)d.valid)[t] = x4[t * 4 + 3];
+    }
+    free(x4); free(n4); free(f4);
+    return d;
+}
+
+static GIM__UNUSED void gltest_rsm_free(gim_rsm_data *d) {
+    free((void *)d->position); free((void *)d->normal); free((void *)d->flux); free((void *)d->area);
+    free((void *)d->valid);
+}
+
 #ifndef GIMANY_EXTERNAL_GL
 /* A context with the counting allocator and the log catcher, and the GL state it started
    with, for tests of single passes. */
