@@ -34,7 +34,7 @@
    the default, which follows the last frame's VPLs: incremental instant radiosity).
    clustered-imp, clustered-ism-imp, ssvp-imp, ssvp-ism-imp: the VPL rows with their VPLs drawn
    where the light reaches the view (gim_frame_vpl.importance: BRSM's importance, 256 view
-   samples; drawn anew every frame).
+   samples; no VPL is followed, a pick that stays on its point keeps its map).
    On the street at the flicker size, each row also prints its error after the sun turned 24
    degrees, a degree a frame, against a reference rendered at that sun (moved_error): followed as
    by default, and drawn anew there.
@@ -122,8 +122,8 @@ static void setup_vpl_ism_anew(gim_frame *f, const bench_method *m) {
     f->vpl.redraw = 1;
 }
 
-/* the VPL rows with their first-bounce VPLs drawn by BRSM's importance (gim_frame_vpl.importance,
-   anew every frame), with the library's other defaults; the ISM row right after the one without */
+/* the VPL rows with their first-bounce VPLs drawn by BRSM's importance (gim_frame_vpl.importance),
+   with the library's other defaults; the ISM row right after the one without */
 static void setup_vpl_imp(gim_frame *f, const bench_method *m) {
     setup_vpl(f, m);
     f->vpl.importance = 1;
