@@ -515,7 +515,7 @@ typedef enum gim_method {
 typedef enum gim_visibility {
     GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
     GIM_VISIBILITY_OFF,             /* no pass, no memory */
-    GIM_VISIBILITY_ISM              /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
+    GIM_VISIBILITY_ISM,             /* LightSkin: one imperfect shadow map per cache (Ritschel et al. 2008),
                                        looked up per VAL in the proxy-light sum; made once per scene
                                        change (mesh, instance, a deforming mesh's vertices), not per frame. CLUSTERED, SSVP: one
                                        per VPL, both bounces (Keller's instant radiosity with Ritschel's
@@ -523,6 +523,12 @@ typedef enum gim_visibility {
                                        (gim_frame_vpl.redraw; gim_stats.ism_maps_made), the second bounce's
                                        made every frame; hard visibility per VPL in the shading instead of the
                                        clusters' paraboloid maps */
+    GIM_VISIBILITY_SHADOW_MAPS      /* CLUSTERED, SSVP: one paraboloid shadow map per VPL rendered from the
+                                       triangles (Keller 1997's instant radiosity; exact at each texel's
+                                       centre ray, where an ISM's surfels widen every silhouette), kept with
+                                       the VPL as ISM's are (Laine et al. 2007); ism_size is their side,
+                                       ism_points only SSVP's check of its clusters' hits. Costs a draw of
+                                       the scene per map made. LightSkin: refused (its caches take ISM) */
 } gim_visibility;
 
 /* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
@@ -2069,6 +2075,19 @@ GIMANY_API gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *dista
    rounding); gim_ism_dequantize gives it back as a float (the bits shifted up). */
 GIMANY_API uint16_t gim_ism_quantize(float d);
 GIMANY_API float gim_ism_dequantize(uint16_t q);
+
+/* One shadow map per VPL rendered from the triangles (GIM_VISIBILITY_SHADOW_MAPS: Keller 1997's
+   instant radiosity with a real shadow map per VPL, where an ISM has Ritschel et al.'s surfels),
+   in the ISMs' layout, so gim_vpl_shade_desc.ism and ism_lookup.glsl take either:
+   maps_out[count * size^2], map i of vpls[i], its origin o = position + (GIM_ISM_LIFT
+   scene_scale) normal (in float, as gim__ism_frame), its axis the VPL's normal; texel (x, y) is
+   gim_paraboloid_texel_twin's distance of that map with near_distance 0 (the nearest triangle
+   along the texel centre's ray in front of the map's plane, or GIM_PARABOLOID_EMPTY), stored as
+   gim_ism_quantize / gim_ism_dequantize. An unlit VPL's map is every texel empty (the GPU pass
+   leaves it unwritten: no pass reads it). size a power of two in GIM_ISM_MIN_SIZE ..
+   GIM_ISM_MAX_SIZE, scene_scale > 0. Errors: GIM_ERROR_INVALID_ARGUMENT. */
+GIMANY_API gim_result gim_vpl_shadow_maps_twin(const gim_twin_scene *scene, const gim_vpl *vpls, uint32_t count,
+                                               uint32_t size, float scene_scale, float *maps_out, gim_env env);
 
 /* Visibility V(c, x_j) of every VAL from every cache through the maps (desc's caches, size,
    bias, slope, scene_scale; points unused): out[cache * val_count + j] in {0, 1}. 1 where x_j
@@ -7650,6 +7669,41 @@ GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *dista
     return GIM_OK;
 }
 
+GIMANY_DEF gim_result gim_vpl_shadow_maps_twin(const gim_twin_scene *scene, const gim_vpl *vpls, uint32_t count,
+                                               uint32_t size, float scene_scale, float *maps_out, gim_env env) {
+    static const char fn[] = "gim_vpl_shadow_maps_twin";
+    uint32_t i, x, y;
+    float lift = GIM_ISM_LIFT * scene_scale;
+    if (!scene || (count && (!vpls || !maps_out)))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene, vpls or maps_out is NULL");
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u: a power of two in %u..%u", (unsigned)size,
+                         GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale %g must be finite and > 0", (double)scene_scale);
+    for (i = 0; i < count; ++i) {
+        const gim_vpl *v = &vpls[i];
+        float *map = maps_out + (size_t)i * size * size;
+        gim_paraboloid m;
+        size_t q;
+        for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(GIM_PARABOLOID_EMPTY));
+        if (!(v->lit > 0.0f)) continue;
+        memset(&m, 0, sizeof m);
+        for (x = 0; x < 3; ++x) {
+            m.origin[x] = v->position[x] + lift * v->normal[x];
+            m.normal[x] = v->normal[x];
+        }
+        for (y = 0; y < size; ++y)
+            for (x = 0; x < size; ++x) {
+                gim_paraboloid_texel o;
+                gim_result r = gim_paraboloid_texel_twin(scene, &m, size, x, y, &o);
+                if (r != GIM_OK) return gim__fail(&env, r, fn, "VPL %u: no map (its normal is not finite and unit?)", (unsigned)i);
+                map[(size_t)y * size + x] = gim_ism_dequantize(gim_ism_quantize(o.hit ? o.distance : GIM_PARABOLOID_EMPTY));
+            }
+    }
+    return GIM_OK;
+}
+
 /* The lookup of gim_ism_visibility_twin: 1 or 0, receiver x with normal nl through one map of frame
    (o, t, b, n); texel = slope 2 / size. Also each VPL's own map in gim_vpl_shade_twin. */
 static float gim__ism_visible(const float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n,
@@ -8612,6 +8666,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_GBUFFER_DECODE,     /* the host's packed normals / view-space depth to gimany's layout */
     GIM__PROGRAM_CACHES_FOLLOW,      /* a deforming mesh's caches moved with their triangles; its bounds */
     GIM__PROGRAM_IMPORTANCE_TILES,   /* eq. 10-11 per tile of the two-level map, texel weights */
+    GIM__PROGRAM_ISM_FROM_PARABOLOID, /* the VPLs' triangle shadow maps into the ISM format */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -8640,7 +8695,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"ism.comp", NULL},
     {"gbuffer_decode.comp", NULL},
     {"caches_follow.comp", NULL},
-    {"importance_tiles.comp", NULL}};
+    {"importance_tiles.comp", NULL},
+    {"ism_from_paraboloid.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -8823,6 +8879,9 @@ struct gim_context {
     uint32_t para_size, para_count;   /* of the textures below; 0: none */
     int para_attributes;              /* GIM__PARA_*: the maps that exist (distance, attributes, both) */
     gim__GLuint para_distance, para_depth, para_position, para_normal, para_albedo, para_fbo;
+    gim__GLuint vsm_distance, vsm_depth, vsm_fbo; /* GIM_VISIBILITY_SHADOW_MAPS' layered targets */
+    uint32_t vsm_size, vsm_layers;
+    uint32_t vsm_batch;           /* layers a batch of those maps (0: GIM__VSM_LAYERS; tests set fewer) */
     gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
     uint64_t para_samples_bytes;
     uint32_t para_key[3];             /* map_count, size, vpl_count para_samples was made for */
@@ -11871,6 +11930,16 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
 }
 
 /* The ISM buffers: visibility off costs no memory. */
+/* The layered targets of the VPLs' triangle shadow maps (gim__gl_vpl_shadow_maps). */
+static void gim__vsm_release(gim_context *ctx) {
+    gim__GLuint t[2];
+    t[0] = ctx->vsm_distance; t[1] = ctx->vsm_depth;
+    if (t[0] || t[1]) ctx->gl.DeleteTextures(2, t);
+    if (ctx->vsm_fbo) ctx->gl.DeleteFramebuffers(1, &ctx->vsm_fbo);
+    ctx->vsm_distance = ctx->vsm_depth = ctx->vsm_fbo = 0;
+    ctx->vsm_size = ctx->vsm_layers = 0;
+}
+
 static void gim__ism_release(gim_context *ctx) {
     gim__GLuint b[3];
     b[0] = ctx->ism_maps; b[1] = ctx->ism_points; b[2] = ctx->ism_cluster_maps;
@@ -11881,6 +11950,7 @@ static void gim__ism_release(gim_context *ctx) {
     ctx->ism_version = 0;
     ctx->ism_vpl_key = 0;
     ctx->ism_vpl_layout = 0;
+    gim__vsm_release(ctx);
 }
 
 static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
@@ -12637,6 +12707,9 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);  /* rounding only: a quarter texel beyond the rigorous bound */
     gl->Uniform1ui(5, size);
     gl->Uniform1f(6, scene_scale);
+    gl->Uniform1ui(8, 0u);   /* the clusters' maps (gim__gl_vpl_shadow_maps sets the VPLs') */
+    gl->Uniform1f(9, 0.0f);
+    gl->Uniform1ui(10, 0u);
     /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials ? ctx->materials : maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_ssbo);
@@ -12650,6 +12723,133 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
         gim__gl_draw_meshes(ctx, count);
     }
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
+/* Layers of the VPLs' shadow-map targets: a batch of maps drawn, then stored (64^2: 32 KiB a layer). */
+#define GIM__VSM_LAYERS 1024u
+
+/* One paraboloid shadow map per VPL from the triangles (GIM_VISIBILITY_SHADOW_MAPS; Keller 1997's
+   instant radiosity, each VPL's map kept with the VPL as Laine et al. 2007 do), in the imperfect
+   shadow maps' format, so that the VPL shading looks them up as it does ISMs (ism_lookup.glsl):
+   map m in map_first .. map_first + count - 1 of maps_out (size^2 16-bit depths a map,
+   gim_ism_quantize) is VPL source_first + m of vpls (gim_vpl, 48 bytes), its origin the VPL
+   lifted GIM_ISM_LIFT scene scales along its normal (gim__ism_frame's), each texel the distance
+   along its centre ray to the nearest triangle (paraboloid.geom / .frag in VPL mode: no near
+   skip; the twin is gim_paraboloid_texel_twin with near_distance 0, then gim_ism_quantize). In
+   batches of up to GIM__VSM_LAYERS layers: the paraboloid pass draws VPL source_first + first +
+   l into layer l, ism_from_paraboloid.comp stores the layers. An unlit VPL's map is not made
+   (no pass reads it), nor with keep a kept VPL's (gim_vpl.kept 1), which keeps what maps_out
+   holds; made (one uint) counts the maps made. Cost: per batch, every triangle of the scene
+   once per map (the geometry shader returns at once for a map not made) and each covered texel
+   a ray-triangle test: far more than an ISM's 2048 surfels on a large scene, but only for the
+   VPLs that are new this frame. */
+static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, uint32_t source_first, uint32_t map_first,
+                                          uint32_t count, uint32_t size, float scene_scale, gim__GLuint maps_out,
+                                          gim__GLuint made, int keep) {
+    static const char where[] = "VPL shadow maps (GL)";
+    static const float empty[4] = {GIM_PARABOLOID_EMPTY, 0.0f, 0.0f, 0.0f};
+    static const float one = 1.0f;
+    const gim__gl *gl = &ctx->gl;
+    gim__GLuint draw = 0, store = 0;
+    uint32_t layers, first, chunk, i;
+    uint64_t map_bytes = (uint64_t)size * size * 2u;
+    gim_result r = GIM_OK;
+    if (!vpls || !maps_out || !made) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
+    if (count == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no maps");
+    if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "map size %u: a power of two in %u..%u",
+                         (unsigned)size, GIM_ISM_MIN_SIZE, GIM_ISM_MAX_SIZE);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale %g must be finite and > 0",
+                         (double)scene_scale);
+    if (((uint64_t)map_first + count) * map_bytes > (uint64_t)GIM_ISM_MAX_BYTES)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps of %u^2 exceed GIM_ISM_MAX_BYTES",
+                         (unsigned)(map_first + count), (unsigned)size);
+    chunk = gim__ism_block_maps(ctx, size, GIM__ISM_CHUNK);
+    if (chunk == 0)
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
+                         (int)ctx->ssbo_align);
+    layers = ctx->vsm_batch ? ctx->vsm_batch : GIM__VSM_LAYERS;
+    if (count < layers) layers = count;
+    if ((int64_t)layers > (int64_t)ctx->max_layers[0]) layers = (uint32_t)ctx->max_layers[0];
+    if ((int64_t)layers > (int64_t)ctx->max_layers[1]) layers = (uint32_t)ctx->max_layers[1];
+    if (layers == 0 || size > (uint32_t)ctx->max_texture_size || size > (uint32_t)ctx->max_viewport[0] ||
+        size > (uint32_t)ctx->max_viewport[1])
+        return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "no layered target of %u^2 (layer limits %d, %d)",
+                         (unsigned)size, (int)ctx->max_layers[0], (int)ctx->max_layers[1]);
+    gim__gl_enter(ctx, where);
+    for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
+        if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
+            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
+    if (r == GIM_OK)
+        r = gim__gl_check_buffer(ctx, where, "vpls", vpls, ((uint64_t)source_first + map_first + count) * 48u);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, ((uint64_t)map_first + count) * map_bytes);
+    if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "made", made, 4u);
+    if (r == GIM_OK && (maps_out == vpls || made == vpls || made == maps_out))
+        r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "an output is also an input");
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PARABOLOID, &draw);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM_FROM_PARABOLOID, &store);
+    if (r == GIM_OK && (ctx->vsm_size != size || ctx->vsm_layers != layers || !ctx->vsm_fbo)) {
+        gim__GLenum status;
+        gim__vsm_release(ctx);
+        gim__gl_texture_array(ctx, &ctx->vsm_distance, GIM__GL_R32F, size, layers);
+        gim__gl_texture_array(ctx, &ctx->vsm_depth, GIM__GL_DEPTH_COMPONENT32F, size, layers);
+        gl->GenFramebuffers(1, &ctx->vsm_fbo);
+        gl->BindFramebuffer(GIM__GL_DRAW_FRAMEBUFFER, ctx->vsm_fbo);
+        gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_COLOR_ATTACHMENT0, ctx->vsm_distance, 0);
+        gl->FramebufferTexture(GIM__GL_DRAW_FRAMEBUFFER, GIM__GL_DEPTH_ATTACHMENT, ctx->vsm_depth, 0);
+        status = gl->CheckFramebufferStatus(GIM__GL_DRAW_FRAMEBUFFER);
+        if (status != GIM__GL_FRAMEBUFFER_COMPLETE)
+            r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "layered framebuffer incomplete (0x%04x)", (unsigned)status);
+        if (r == GIM_OK) r = gim__gl_check(ctx, where);
+        if (r == GIM_OK) { ctx->vsm_size = size; ctx->vsm_layers = layers; }
+        else gim__vsm_release(ctx);
+    }
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    for (first = map_first; first < map_first + count; first += layers) {
+        uint32_t n = map_first + count - first < layers ? map_first + count - first : layers, at;
+        /* draw: VPL source_first + first + l into layer l */
+        gim__gl_raster_state(gl, ctx->vsm_fbo, size, size);
+        gl->UseProgram(draw);
+        gl->Uniform1ui(3, 0u);   /* no albedo: the distance pass only */
+        gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);
+        gl->Uniform1ui(5, size);
+        gl->Uniform1f(6, scene_scale);
+        gl->Uniform1ui(7, 0u);
+        gl->Uniform1ui(8, source_first + first);
+        gl->Uniform1f(9, GIM_ISM_LIFT * scene_scale);
+        gl->Uniform1ui(10, keep ? 1u : 0u);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);   /* materials: never read (count 0) */
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls);
+        gl->ClearBufferfv(GIM__GL_COLOR, 0, empty);
+        gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
+        gim__gl_draw_meshes(ctx, n);
+        gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT);
+        /* store: layer l as map first + l, within one storage block a dispatch */
+        gl->UseProgram(store);
+        gl->ActiveTexture(GIM__GL_TEXTURE0);
+        gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, ctx->vsm_distance);
+        gl->BindSampler(0, ctx->nearest_sampler);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, made);
+        gl->Uniform1ui(0, size);
+        gl->Uniform1ui(1, first);
+        gl->Uniform1ui(3, source_first);
+        gl->Uniform1ui(4, keep ? 1u : 0u);
+        for (at = first; at < first + n;) {
+            uint32_t block = at - at % chunk, end = block + chunk < first + n ? block + chunk : first + n;
+            gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)(block * map_bytes),
+                                (gim__GLsizeiptr)(chunk * map_bytes < ((uint64_t)map_first + count - block) * map_bytes
+                                                      ? chunk * map_bytes
+                                                      : ((uint64_t)map_first + count - block) * map_bytes));
+            gl->Uniform1ui(2, block);
+            gl->Uniform1ui(5, at - first);
+            gl->DispatchCompute(end - at, 1u, 1u);
+            at = end;
+        }
+        gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+    }
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
@@ -12871,7 +13071,8 @@ static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->size = f->vpl.paraboloid_size;
     s->bounces = f->vpl.bounces;
     s->second = s->bounces == 2u ? f->vpl.second_bounce_vpls : 0u;
-    s->second_ism = f->visibility.mode != GIM_VISIBILITY_ISM && s->visibility && s->second > 0u;
+    s->second_ism = f->visibility.mode != GIM_VISIBILITY_ISM && f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS &&
+                    s->visibility && s->second > 0u;
     s->interleave = f->vpl.interleave;
     s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance;
     s->blur_distance = f->vpl.blur_distance;
@@ -13049,10 +13250,13 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     gim_result r = GIM_OK;
     uint32_t ism_per = f->visibility.ism_points;
     uint32_t ism_pool = gim__ism_pool(ism_per);
-    int warm, last, follow, ism = f->visibility.mode == GIM_VISIBILITY_ISM;
+    /* ism: a map per VPL, of points (ISM) or of the triangles (tri, SHADOW_MAPS) */
+    int warm, last, follow, tri = f->visibility.mode == GIM_VISIBILITY_SHADOW_MAPS,
+        ism = f->visibility.mode == GIM_VISIBILITY_ISM || tri;
     uint64_t follow_key, had_bytes;
     gim__GLuint had;
     gim__vpl_settings_of(f, &s);
+    if (!tri && ctx->vsm_fbo) gim__vsm_release(ctx);   /* SHADOW_MAPS' targets, only while it is on */
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
@@ -13149,7 +13353,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else {
         gim__paraboloid_release(ctx, 1);
     }
-    if (r == GIM_OK && (ism || s.second_ism)) {
+    if (r == GIM_OK && ((ism && !tri) || s.second_ism || (tri && s.second))) {
         /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
            only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
            this one makes its caches' again: ism_size 0 says they are not theirs) */
@@ -13190,8 +13394,8 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
            GIM_PASS_PARABOLOID's. */
         uint32_t from = s.second_ism ? first : 0u, make = from;
         uint64_t key = ism && !f->vpl.importance   /* importance: the view moves the picks; kept flags below */
-                           ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
-        uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, ism_per, scale, s.ssvp, 0) : 0u;
+                           ? gim__vpl_ism_key(ctx, first, total, ism_size, tri ? 0u : ism_per, scale, s.ssvp, 1) ^ (uint64_t)follow : 0u;
+        uint64_t layout = ism ? gim__vpl_ism_key(ctx, first, total, ism_size, tri ? 0u : ism_per, scale, s.ssvp, 0) : 0u;
         uint64_t had_maps = ctx->ism_maps_bytes;
         gim__GLuint name = ctx->ism_maps, made = 0;
         int same, keep = 0;
@@ -13222,7 +13426,10 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         }
         ctx->ism_vpl_key = 0;
         ctx->ism_vpl_layout = 0;
-        if (r == GIM_OK && make < total)
+        if (r == GIM_OK && make < total && tri)
+            r = gim__gl_vpl_shadow_maps(ctx, v->vpls, from, make - from, total - make, ism_size, scale, ctx->ism_maps, made,
+                                        keep);
+        else if (r == GIM_OK && make < total)
             r = gim__gl_ism_render_ex(ctx, v->vpls, 3u, from, make - from, total - make, ctx->ism_points, ism_pool,
                                       ism_size, ism_per, scale, ctx->ism_maps, made, keep);
         if (r == GIM_OK) {
@@ -13440,10 +13647,16 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
     uint64_t caches = 0;
     int vplm = f->method == GIM_METHOD_CLUSTERED || f->method == GIM_METHOD_SSVP;
     gim__vpl_settings s;
-    if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF && f->visibility.mode != GIM_VISIBILITY_ISM)
+    if (f->visibility.mode != GIM_VISIBILITY_DEFAULT && f->visibility.mode != GIM_VISIBILITY_OFF &&
+        f->visibility.mode != GIM_VISIBILITY_ISM && f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "unknown visibility %d", (int)f->visibility.mode);
+    if (f->visibility.mode == GIM_VISIBILITY_SHADOW_MAPS && !vplm)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "visibility SHADOW_MAPS is one map per VPL: CLUSTERED or SSVP (LightSkin: ISM)");
     if (vplm) gim__vpl_settings_of(rf, &s);
-    if (f->visibility.mode != GIM_VISIBILITY_ISM && !(vplm && s.second_ism)) return GIM_OK;
+    if (f->visibility.mode != GIM_VISIBILITY_ISM && f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS &&
+        !(vplm && s.second_ism))
+        return GIM_OK;
     for (i = 0; i < ctx->instance_count; ++i) caches += gim__mesh_get(ctx, ctx->instances[i].mesh)->cache_count;
     size = gim__ism_frame_size(f, caches);
     if (size < GIM_ISM_MIN_SIZE || size > GIM_ISM_MAX_SIZE || (size & (size - 1u)))
@@ -13456,7 +13669,7 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
         uint64_t maps;
         uint32_t vsize = rf->visibility.ism_size;   /* the map side the VPL frame renders with */
         if (f->vpl.no_visibility)
-            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM: one or the other");
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no_visibility with visibility ISM or SHADOW_MAPS: one or the other");
         maps = (s.second_ism ? 0u : (uint64_t)gim__vpl_first(f, &s, ctx->light_count ? ctx->light_count : 1u)) + s.second;
         if (maps * vsize * vsize * 2u > (uint64_t)ctx->max_ssbo_bytes)   /* 16 bits a texel */
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where,
@@ -14069,9 +14282,14 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_CLUSTERS;
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
+        /* the clusters' maps, or SHADOW_MAPS' drawn through the same program */
         if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
-        /* ISMs: every VPL's, or the second bounce's beside the paraboloid maps */
-        if (f.visibility.mode == GIM_VISIBILITY_ISM || s.second_ism) ids[n++] = GIM__PROGRAM_ISM;
+        /* ISMs: every VPL's, or the second bounce's (beside the paraboloid maps, or checking
+           its clusters' hits with SHADOW_MAPS) */
+        if (f.visibility.mode == GIM_VISIBILITY_ISM || s.second_ism ||
+            (f.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS && s.second))
+            ids[n++] = GIM__PROGRAM_ISM;
+        if (f.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS) ids[n++] = GIM__PROGRAM_ISM_FROM_PARABOLOID;
         if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;

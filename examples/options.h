@@ -30,7 +30,7 @@ typedef struct demo_options {
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
-    int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM */
+    int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;
@@ -70,6 +70,9 @@ static const char demo_usage_text[] =
     "                        4..64 (default 64; LightSkin halves it where the maps exceed 256 MiB);\n"
     "                        --ism-points N\n"
     "                        the points splatted into each, 1..65536 (default 16384)\n"
+    "  --shadow-maps         clustered, ssvp: one shadow map per VPL rendered from the triangles instead\n"
+    "                        of its ISM (exact at each texel; a draw of the scene per map made);\n"
+    "                        --ism-size N their side\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
     "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
@@ -121,12 +124,14 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (len == 12 && !strncmp(a, "--allow-slow", 12)) flag = 3;
         else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 4;
         else if (len == 16 && !strncmp(a, "--vpl-importance", 16)) flag = 5;
+        else if (len == 13 && !strncmp(a, "--shadow-maps", 13)) flag = 6;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
             if (flag == 1) d->glossy = 0;
             else if (flag == 2) d->no_visibility = 1;
             else if (flag == 3) d->allow_slow = 1;
             else if (flag == 4) d->ism = 1;
+            else if (flag == 6) d->ism = 2;
             else d->vpl_importance = 1;
             continue;
         }
@@ -222,7 +227,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->lightskin.shade_block = d->shade_block;
     f->lightskin.neighbour_count = d->neighbours;
     f->lightskin.rotate_view_samples = 1;
-    f->visibility.mode = d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+    f->visibility.mode = d->ism == 2 ? GIM_VISIBILITY_SHADOW_MAPS : d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
     f->visibility.ism_size = d->ism_size;
     f->visibility.ism_points = d->ism_points;
 }

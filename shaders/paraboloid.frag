@@ -15,15 +15,15 @@ flat in vec3 tri_n0;
 flat in vec3 tri_n1;
 flat in vec3 tri_n2;
 flat in vec3 tri_albedo;
-flat in int tri_map;
+flat in vec3 tri_origin;
+flat in vec3 tri_axis;
+flat in float tri_near;
+flat in float tri_attribute_near;
 
 layout(location = 0) out float out_distance;
 layout(location = 1) out vec4 out_position;
 layout(location = 2) out vec4 out_normal;
 layout(location = 3) out vec4 out_albedo;
-
-struct Paraboloid { vec4 origin_near; vec4 normal_size; vec4 flux; };
-layout(std430, binding = 2) readonly buffer Maps { Paraboloid map[]; };
 
 layout(location = 5) uniform uint size;
 layout(location = 6) uniform float scene_scale;
@@ -34,7 +34,7 @@ void main() {
     float r2 = dot(uv, uv);
     if (r2 > 1.0) discard;
     vec3 w = vec3(2.0 * uv, 1.0 - r2) / (1.0 + r2);
-    vec3 n = normalize(map[tri_map].normal_size.xyz), t, b;
+    vec3 n = tri_axis, t, b;
     basis(n, t, b);
     vec3 d = normalize(w.x * t + w.y * b + w.z * n);
     vec3 e1 = tri_v1 - tri_v0, e2 = tri_v2 - tri_v0, tv = -tri_v0;
@@ -47,10 +47,10 @@ void main() {
     float v = dot(d, qv) / det;
     if (v < 0.0 || u + v > 1.0) discard;
     float s = dot(e2, qv) / det;
-    if (!(s > (attribute_pass != 0u ? map[tri_map].flux.w : map[tri_map].origin_near.w))) discard;
+    if (!(s > (attribute_pass != 0u ? tri_attribute_near : tri_near))) discard;
     gl_FragDepth = s / (s + scene_scale);
     out_distance = s;
-    out_position = vec4(map[tri_map].origin_near.xyz + s * d, 1.0);
+    out_position = vec4(tri_origin + s * d, 1.0);
     vec3 nn = (1.0 - u - v) * tri_n0 + u * tri_n1 + v * tri_n2;
     float len = length(nn);
     nn = len > 0.0 ? nn / len : vec3(0.0);

@@ -31,6 +31,11 @@ layout(std430, binding = 1) readonly buffer TriangleMaterial { uint triangle_mat
 layout(location = 3) uniform uint material_count;  /* 0: albedo 0 */
 layout(location = 4) uniform float margin;         /* map units */
 layout(location = 5) uniform uint size;            /* of the maps */
+layout(location = 8) uniform uint map_first;       /* instance i draws map map_first + i into layer i */
+layout(location = 9) uniform float vpl_lift;       /* > 0: Maps holds gim_vpl (3 vec4: position, lit in w;
+                                                      normal; flux, kept in w), each a map of origin
+                                                      position + vpl_lift normal, no near skip */
+layout(location = 10) uniform uint vpl_keep;       /* with vpl_lift: a kept VPL (flux.w 1) keeps its map */
 
 flat out vec3 tri_v0;      /* vertices relative to the map's origin, world axes */
 flat out vec3 tri_v1;
@@ -39,15 +44,27 @@ flat out vec3 tri_n0;      /* world vertex normals */
 flat out vec3 tri_n1;
 flat out vec3 tri_n2;
 flat out vec3 tri_albedo;
-flat out int tri_map;
+flat out vec3 tri_origin;  /* the map's frame: origin, unit axis, the two skips */
+flat out vec3 tri_axis;
+flat out float tri_near;
+flat out float tri_attribute_near;
 out float gl_ClipDistance[8];
 
 const int MAX_K = 16;
 
 void main() {
-    int m = map_index[0];
+    int m = int(map_first) + map_index[0];
     vec3 o = map[m].origin_near.xyz;
     vec3 n = normalize(map[m].normal_size.xyz);
+    float near = map[m].origin_near.w, attribute_near = map[m].flux.w;
+    if (vpl_lift > 0.0) {   /* a VPL's map (gim__gl_vpl_shadow_maps): an unlit one is never read */
+        if (!(map[m].origin_near.w > 0.0) || (vpl_keep != 0u && map[m].flux.w == 1.0)) return;
+        vec3 c = map[m].origin_near.xyz, nv = map[m].normal_size.xyz;
+        o = vec3(c.x + vpl_lift * nv.x, c.y + vpl_lift * nv.y, c.z + vpl_lift * nv.z);   /* gim__ism_frame's */
+        n = nv;   /* unit already; as the maps' lookup (ism_lookup.glsl) takes it */
+        near = 0.0;
+        attribute_near = 0.0;
+    }
     vec3 t, b;
     basis(n, t, b);
     vec3 rel[3], l[3];
@@ -106,8 +123,11 @@ void main() {
         tri_v0 = rel[0]; tri_v1 = rel[1]; tri_v2 = rel[2];
         tri_n0 = world_normal[0]; tri_n1 = world_normal[1]; tri_n2 = world_normal[2];
         tri_albedo = albedo;
-        tri_map = m;
-        gl_Layer = m;
+        tri_origin = o;
+        tri_axis = n;
+        tri_near = near;
+        tri_attribute_near = attribute_near;
+        gl_Layer = map_index[0];
         gl_Position = vec4((v & 1) == 0 ? lo.x : hi.x, v < 2 ? lo.y : hi.y, 0.5, 1.0);
         for (int c = 0; c < 8; ++c) gl_ClipDistance[c] = 1.0;
         EmitVertex();

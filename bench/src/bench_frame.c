@@ -35,6 +35,8 @@
    clustered-imp, clustered-ism-imp, ssvp-imp, ssvp-ism-imp: the VPL rows with their VPLs drawn
    where the light reaches the view (gim_frame_vpl.importance: BRSM's importance, 256 view
    samples; no VPL is followed, a pick that stays on its point keeps its map).
+   clustered-sm, clustered-sm-imp, ssvp-sm, ssvp-sm-imp: the same with one shadow map per VPL
+   drawn from the triangles (GIM_VISIBILITY_SHADOW_MAPS) instead of its ISM.
    On the street at the flicker size, each row also prints its error after the sun turned 24
    degrees, a degree a frame, against a reference rendered at that sun (moved_error): followed as
    by default, and drawn anew there.
@@ -76,7 +78,9 @@ struct bench_method {
     uint32_t second_bounce_vpls;  /* SSVP's second-bounce VPLs */
     uint32_t bounces;             /* 1 or 2 */
     void (*setup)(gim_frame *f, const bench_method *m);
-    int ci;                       /* in `make bench`: 1 on every scene, 2 on the Cornell box only, 0 not (bench-full) */
+    int ci;                       /* in `make bench`: 1 on every scene, 2 on the Cornell box only, 3 on every scene
+                                     but Sponza's views (whose frame that makes the maps takes minutes on
+                                     llvmpipe), 0 not (bench-full) */
     int vpl;                      /* 1: a VPL method (no caches, VPLs from the RSM): run at one RSM size, the
                                      flicker size; its reference has its bounces */
 };
@@ -134,6 +138,18 @@ static void setup_vpl_ism_imp(gim_frame *f, const bench_method *m) {
     f->vpl.importance = 1;
 }
 
+/* the VPL rows with one shadow map per VPL drawn from the triangles (GIM_VISIBILITY_SHADOW_MAPS)
+   instead of its ISM: at the sequence's VPLs (followed) and drawn by importance */
+static void setup_vpl_sm(gim_frame *f, const bench_method *m) {
+    setup_vpl(f, m);
+    f->visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
+}
+
+static void setup_vpl_sm_imp(gim_frame *f, const bench_method *m) {
+    setup_vpl_sm(f, m);
+    f->vpl.importance = 1;
+}
+
 static const bench_method baseline = {"full", GIM_METHOD_LIGHTSKIN_FULL, 0, 0, 0, 1, NULL, 1, 0};
 static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
@@ -147,6 +163,8 @@ static const bench_method methods[] = {
     {"clustered-ism-anew", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism_anew, 1, 1},
     {"clustered-imp", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_imp, 1, 1},
     {"clustered-ism-imp", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_ism_imp, 1, 1},
+    {"clustered-sm", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_sm, 3, 1},
+    {"clustered-sm-imp", GIM_METHOD_CLUSTERED, 0, 8, 0, 1, setup_vpl_sm_imp, 3, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 16, 0, 1, setup_vpl, 2, 1},
     {"clustered", GIM_METHOD_CLUSTERED, 0, 32, 0, 1, setup_vpl, 1, 1},
     /* SSVP Table I's grid: clusters 4 / 8 / 16 / 32 x second-bounce VPLs 64 / 256 / 1024, two bounces;
@@ -161,6 +179,8 @@ static const bench_method methods[] = {
     {"ssvp-ism-anew", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_anew, 1, 1},
     {"ssvp-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_imp, 1, 1},
     {"ssvp-ism-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_imp, 1, 1},
+    {"ssvp-sm", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_sm, 3, 1},
+    {"ssvp-sm-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_sm_imp, 3, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 16, 256, 2, setup_vpl, 2, 1},
@@ -641,7 +661,9 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         for (mi = 0; mi < (int)METHOD_COUNT; ++mi) {
             const bench_method *bm = &methods[mi];
             int nv = bm->per_val ? sw->vals_n : 1, ns = bm->per_val ? sw->vs_n : 1;
-            if (which == 0 && (bm->ci == 0 || (bm->ci == 2 && strcmp(bs->name, "cornell") != 0))) continue;
+            if (which == 0 && (bm->ci == 0 || (bm->ci == 2 && strcmp(bs->name, "cornell") != 0) ||
+                               (bm->ci == 3 && strncmp(bs->name, "sponza", 6) == 0)))
+                continue;
             if (bm->vpl && rsm != sw->flicker_rsm) continue;   /* VPL methods: one RSM size */
             for (vi = 0; vi < nv; ++vi)
                 for (si = 0; si < ns; ++si) {
@@ -651,7 +673,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.lightskin.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.lightskin.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
-                    if (fm.visibility.mode == GIM_VISIBILITY_ISM) {
+                    if (fm.visibility.mode == GIM_VISIBILITY_ISM || fm.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS) {
                         /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
                            a frame without them frees them, the next makes them */
                         if (vi == 0 && si == 0) {

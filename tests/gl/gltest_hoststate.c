@@ -296,8 +296,9 @@ static void set_default(hostile *h) {
    hostile state: the same image, bit for bit (the same inputs on the same driver), and the
    host's state kept. The VPL methods restart k-means from the same seeds so that both frames
    cluster alike. reset: the context runs with GIM_GL_STATE_RESET (the same image; the list left
-   at GL's initial values, check_reset). */
-static void same_image(gim_method m, int reset) {
+   at GL's initial values, check_reset). vis: the frame's visibility mode; with maps per VPL
+   (ISM, SHADOW_MAPS) the host's frame makes every map again (the first frame's are not kept). */
+static void same_image_vis(gim_method m, int reset, gim_visibility vis) {
     frame_fixture ff;
     float a[W * H * 4], b[W * H * 4], peak = 0.0f;
     hostile h;
@@ -307,6 +308,8 @@ static void same_image(gim_method m, int reset) {
     assert_int_equal(frame_begin(&ff, NULL, 16), 0);
     frame_small(&ff, m);
     ff.fr.vpl.kmeans_restart = 1;
+    ff.fr.visibility.mode = vis;
+    if (vis != GIM_VISIBILITY_OFF) ff.fr.visibility.ism_size = 8;
     if (reset) ff.f.ctx->gl_state = GIM_GL_STATE_RESET;   /* as gim_create sets it from gim_desc.gl_state */
     set_default(NULL);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
@@ -315,7 +318,13 @@ static void same_image(gim_method m, int reset) {
     for (i = 0; i < W * H * 4; ++i) if (a[i] > peak) peak = a[i];
     assert_true(peak > 0.0f);   /* a black image would match anything black */
     set_hostile(&h);
+    ff.f.ctx->ism_vpl_key = ff.f.ctx->ism_vpl_layout = 0;   /* the VPLs' maps made again */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
+    if (vis != GIM_VISIBILITY_OFF) {
+        gim_stats st;
+        assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
+        assert_true(st.ism_maps_made > 16u);   /* of the 64 + 16 VPLs, the lit ones */
+    }
     assert_int_equal(gltest_errors(), 0);
     if (reset) check_reset(&h);
     else check_hostile(&h);
@@ -323,10 +332,22 @@ static void same_image(gim_method m, int reset) {
     o = gim_outputs(ff.f.ctx);
     read_indirect(&o, b);
     for (i = 0; i < W * H * 4; ++i)
-        if (a[i] != b[i]) fail_msg("method %d: pixel %d channel %d: %g from the default state, %g from the host's",
-                                   (int)m, i / 4, i % 4, (double)a[i], (double)b[i]);
+        if (a[i] != b[i]) fail_msg("method %d, visibility %d: pixel %d channel %d: %g from the default state, %g from the host's",
+                                   (int)m, (int)vis, i / 4, i % 4, (double)a[i], (double)b[i]);
     frame_end(&ff);
     GLTEST_END();
+}
+
+static void same_image(gim_method m, int reset) { same_image_vis(m, reset, GIM_VISIBILITY_OFF); }
+
+/* The VPL methods' maps per VPL, imperfect and drawn from the triangles (the latter binds a
+   texture array and a sampler on unit 0 and draws layered), in both state modes. */
+static void vpl_maps(void **state) {
+    int k;
+    (void)state;
+    for (k = 0; k < 8; ++k)
+        same_image_vis(k & 1 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED, k >> 2,
+                       k & 2 ? GIM_VISIBILITY_SHADOW_MAPS : GIM_VISIBILITY_ISM);
 }
 
 static void lightskin_brsm(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_BRSM, 0); }
@@ -430,7 +451,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
         cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context),
-        cmocka_unit_test(deleted_host_program), cmocka_unit_test(reset_every_method), cmocka_unit_test(gl_state_desc)};
+        cmocka_unit_test(deleted_host_program), cmocka_unit_test(reset_every_method), cmocka_unit_test(vpl_maps), cmocka_unit_test(gl_state_desc)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
     gltest_shutdown();
     return r;

@@ -548,6 +548,105 @@ static void second_bounce_ism_matches_twin(void **state) {
     GLTEST_END();
 }
 
+/* GIM_VISIBILITY_SHADOW_MAPS' pass (gim__gl_vpl_shadow_maps: the paraboloid pass in VPL mode, then
+   ism_from_paraboloid.comp) against gim_vpl_shadow_maps_twin at every texel of every map made:
+   eight VPLs on the box's and the block's surfaces (one grazing, one on the block's top, one
+   under the ceiling), one unlit and one kept, drawn in batches of 3 layers and stored over
+   storage ranges of 2 maps (the block limit lowered), so both splits are crossed. The unlit
+   and the kept VPLs' maps keep what the buffer held (a marker), made counts the others; the
+   hit/miss agreement and the distances as maps_match_twin's, after the 16-bit rounding (one
+   step of it, 2^-7 relative, allowed where the float and double hits straddle a rounding
+   boundary). A map drawn from the wrong VPL (the layers shifted by one) fails. */
+static void vpl_shadow_maps_match_twin(void **state) {
+    enum { VS = 16, NV = 10 };
+    static const float at[NV][7] = {   /* position, normal, lit */
+        {0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 1.0f},       {0.1f, 2.0f, 0.2f, 0.0f, -1.0f, 0.0f, 1.0f},
+        {-1.0f, 1.0f, -0.3f, 1.0f, 0.0f, 0.0f, 1.0f},     {0.5f, 0.0f, 0.6f, 0.0f, 1.0f, 0.0f, 0.0f},
+        {-0.5f, 0.0f, 0.5f, 0.0f, 1.0f, 0.0f, 1.0f},      {1.0f, 0.7f, 0.4f, -1.0f, 0.0f, 0.0f, 1.0f},
+        {0.2f, 1.0f, -1.0f, 0.0f, 0.0f, 1.0f, 1.0f},      {-0.7f, 0.0f, -0.7f, 0.0f, 1.0f, 0.0f, 1.0f},
+        {0.6f, 0.0f, -0.8f, 0.0f, 1.0f, 0.0f, 1.0f},      {-0.2f, 1.3f, 0.9f, 0.0f, 0.0f, -1.0f, 1.0f}};
+    scene s;
+    gim_vpl v[NV];
+    GLuint vb, maps, made;
+    uint32_t *raw = (uint32_t *)malloc((size_t)NV * VS * VS * 2);
+    float *gpu = (float *)malloc((size_t)NV * VS * VS * 4), *cpu = (float *)malloc((size_t)NV * VS * VS * 4);
+    uint32_t i, q, counted[2] = {0u, 0u}, agree = 0, texels = 0, hits = 0, expect = 0;
+    gim__GLint64 keep_bytes;
+    double worst = 0.0;
+    int shifted;
+    (void)state;
+    GLTEST_BEGIN();
+    scene_begin(&s);
+    memset(v, 0, sizeof v);
+    for (i = 0; i < NV; ++i) {
+        memcpy(v[i].position, at[i], 12);
+        memcpy(v[i].normal, at[i] + 3, 12);
+        v[i].lit = at[i][6];
+        v[i].area = 0.01f;
+        v[i].flux[0] = v[i].flux[1] = v[i].flux[2] = 1.0f;
+    }
+    v[6].kept = 1.0f;   /* keeps its map */
+    /* the block's top (0.6 high, rotated: its centre) and a grazing normal on the floor */
+    v[8].position[0] = 0.35f; v[8].position[1] = 1.2f; v[8].position[2] = -0.2f;
+    v[4].normal[0] = 0.8660254f * 0.9961947f; v[4].normal[1] = 0.0871557f; v[4].normal[2] = 0.5f * 0.9961947f;
+    for (i = 0; i < NV; ++i) expect += v[i].lit > 0.0f && v[i].kept != 1.0f;
+    vb = gltest_ssbo(sizeof v, v);
+    for (q = 0; q < (uint32_t)NV * VS * VS / 2u; ++q) raw[q] = 0xa5a5a5a5u;
+    maps = gltest_ssbo((size_t)NV * VS * VS * 2, raw);
+    made = gltest_ssbo(8, counted);
+    s.f.ctx->vsm_batch = 3;
+    keep_bytes = s.f.ctx->max_ssbo_bytes;
+    s.f.ctx->max_ssbo_bytes = 2 * VS * VS * 2;   /* two maps a storage range */
+    assert_int_equal(gim__gl_vpl_shadow_maps(s.f.ctx, vb, 0u, 0u, NV, VS, 2.0f, maps, made, 1), GIM_OK);
+    s.f.ctx->max_ssbo_bytes = keep_bytes;
+    gltest_state_unchanged(&s.f);
+    gltest_read_buffer(made, 8, counted);
+    assert_int_equal(counted[0], expect);
+    gltest_read_buffer(maps, (size_t)NV * VS * VS * 2, raw);
+    gltest_read_ism(maps, (size_t)NV * VS * VS, gpu);
+    assert_int_equal(gim_vpl_shadow_maps_twin(&s.twin, v, NV, VS, 2.0f, cpu, s.f.env), GIM_OK);
+    for (shifted = 0; shifted < 2; ++shifted) {
+        agree = texels = hits = 0;
+        worst = 0.0;
+        for (i = 0; i < NV; ++i) {
+            uint32_t src = shifted ? (i + 1u) % NV : i;
+            if (!(v[i].lit > 0.0f) || v[i].kept == 1.0f) {   /* not made: the marker stays */
+                for (q = 0; q < VS * VS / 2u; ++q)
+                    if (raw[(size_t)i * VS * VS / 2u + q] != 0xa5a5a5a5u) fail_msg("map %u written at word %u", i, q);
+                continue;
+            }
+            for (q = 0; q < VS * VS; ++q) {
+                float g = gpu[(size_t)i * VS * VS + q], c = cpu[(size_t)src * VS * VS + q];
+                int gh = g < 1e38f, ch = c < 1e38f;
+                texels++;
+                if (gh != ch) continue;
+                agree++;
+                if (gh) {
+                    double e = fabs((double)g - c) / c;
+                    hits++;
+                    if (e > worst) worst = e;
+                }
+            }
+        }
+        print_message("VPL shadow maps%s: %u texels, %u agree, %u hits, worst rel. distance %.3g\n",
+                      shifted ? " (the twin's maps shifted by one VPL)" : "", texels, agree, hits, worst);
+        if (!shifted) {
+            assert_true(agree >= texels - texels / 1000u && hits > texels / 2u && worst <= 1.0 / 128.0 + 1e-6);
+        } else {
+            assert_false(agree >= texels - texels / 1000u && worst <= 1.0 / 128.0 + 1e-6);
+        }
+    }
+    /* refused before GL work: no made buffer, a size that is not a power of two */
+    assert_int_equal(gim__gl_vpl_shadow_maps(s.f.ctx, vb, 0u, 0u, NV, VS, 2.0f, maps, 0u, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim__gl_vpl_shadow_maps(s.f.ctx, vb, 0u, 0u, NV, 24u, 2.0f, maps, made, 1), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_vpl_shadow_maps_twin(&s.twin, v, NV, VS, 0.0f, cpu, s.f.env), GIM_ERROR_INVALID_ARGUMENT);
+    s.f.log.errors = 0;
+    glDeleteBuffers(1, &vb); glDeleteBuffers(1, &maps); glDeleteBuffers(1, &made);
+    free(raw); free(gpu); free(cpu);
+    scene_end(&s);
+    GLTEST_END();
+}
+
 /* Ray (o, unit d) against triangle p (Moller-Trumbore in double, the test's own): the distance
    along d, or -1. */
 static double ray_tri(const double o[3], const double d[3], const float *p) {
@@ -830,6 +929,7 @@ int main(void) {
         cmocka_unit_test(second_bounce_matches_twin),
         cmocka_unit_test(second_bounce_ism_matches_twin),
         cmocka_unit_test(second_bounce_lands_first),
+        cmocka_unit_test(vpl_shadow_maps_match_twin),
         cmocka_unit_test(argument_errors),
         cmocka_unit_test(empty_scene_and_no_materials),
     };

@@ -234,10 +234,11 @@ static void check_scene(phys_which which, double scale, const double *offset, in
 
 static const double origin[3] = {0.0, 0.0, 0.0};
 
-/* The VPL methods' imperfect shadow maps (one per VPL) on the open corners: nothing occludes,
-   so the maps must remove almost no light, on the floor and the wall up to their contact edge,
-   where a map's texels straddle both planes (false self-shadowing): the image's sum within 2%
-   of the same frame with no visibility at all, and no pixel darker by over 20%. */
+/* The VPL methods' maps per VPL, imperfect (ISM) and drawn from the triangles (SHADOW_MAPS), on
+   the open corners: nothing occludes, so the maps must remove almost no light, on the floor and
+   the wall up to their contact edge, where a map's texels straddle both planes (false
+   self-shadowing): the image's sum within 2% of the same frame with no visibility at all, and
+   no pixel darker by over 20%. */
 static void corner_ism_removes_nothing(void **state) {
     static const phys_which which[2] = {PHYS_CORNER_SUN, PHYS_CORNER_SPOT};
     int w, m;
@@ -251,16 +252,17 @@ static void corner_ism_removes_nothing(void **state) {
         p->fr.vpl.bounces = 1;
         p->fr.visibility.ism_size = 16;
         p->fr.visibility.ism_points = 1024;
-        for (m = 0; m < 2; ++m) {
+        for (m = 0; m < 4; ++m) {
             float *none = (float *)malloc(W * H * 16), *ism = (float *)malloc(W * H * 16);
             double sn = 0.0, si = 0.0;
             uint32_t i, dark = 0, counted = 0;
-            p->fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+            gim_visibility mode = m < 2 ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_SHADOW_MAPS;
+            p->fr.method = m & 1 ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
             p->fr.visibility.mode = GIM_VISIBILITY_OFF;
             p->fr.vpl.no_visibility = 1;
             assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
             gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, none);
-            p->fr.visibility.mode = GIM_VISIBILITY_ISM;
+            p->fr.visibility.mode = mode;
             p->fr.vpl.no_visibility = 0;
             assert_int_equal(gim_update(p->f.ctx, &p->fr), GIM_OK);
             gltest_read_texture(gim_outputs(p->f.ctx).indirect, GL_RGBA, ism);
@@ -270,8 +272,9 @@ static void corner_ism_removes_nothing(void **state) {
                 sn += a; si += b; ++counted;
                 dark += b < 0.8 * a;
             }
-            print_message("%-13s %-9s ISM per VPL: %.2f %% of the light removed, %u of %u pixels darker by over 20 %%\n",
-                          p->s.name, m ? "SSVP" : "clustered", 100.0 * (1.0 - si / sn), dark, counted);
+            print_message("%-13s %-9s %s per VPL: %.2f %% of the light removed, %u of %u pixels darker by over 20 %%\n",
+                          p->s.name, m & 1 ? "SSVP" : "clustered", m < 2 ? "ISM" : "shadow map",
+                          100.0 * (1.0 - si / sn), dark, counted);
             assert_true(si >= 0.98 * sn && si <= 1.0001 * sn);
             assert_true(dark == 0u);
             free(none); free(ism);

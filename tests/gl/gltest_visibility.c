@@ -1031,6 +1031,103 @@ static void importance_vpls_keep_their_maps(void **state) {
     GLTEST_END();
 }
 
+/* The texels of the last frame's lit VPLs' maps that differ from gim_vpl_shadow_maps_twin's on
+   the frame's VPLs and the room's triangles (a hit against a miss, or a distance beyond one
+   step of the 16-bit rounding); *lit, *texels count what was compared. */
+static uint32_t shadow_maps_off(scene_fx *s, uint32_t *lit, uint32_t *texels) {
+    gim_frame_outputs o = gim_outputs(s->f.ctx);
+    gim_debug_outputs od = gim_debug(s->f.ctx);
+    gim_twin_scene ts;
+    gim_vpl *v;
+    float pos[MAX_Q * 2 * 9], alb[MAX_Q * 2 * 3], *cpu, *gpu;
+    uint32_t t, k, i, n = od.vpl_count, size = s->fr.visibility.ism_size, tex = size * size, off = 0;
+    assert_true(od.ism_maps != 0 && od.ism_size == size);
+    v = (gim_vpl *)malloc(n * sizeof *v);
+    gltest_read_buffer(od.vpls, n * sizeof *v, v);
+    for (t = 0; t < s->r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) {
+            memcpy(pos + t * 9 + k * 3, s->r.pos + s->r.idx[t * 3 + k] * 3, 12);
+            alb[t * 3 + k] = 0.8f;
+        }
+    ts.positions = pos; ts.normals = NULL; ts.albedo = alb; ts.triangle_count = s->r.quads * 2;
+    cpu = (float *)malloc((size_t)n * tex * 4);
+    gpu = (float *)malloc((size_t)n * tex * 4);
+    assert_int_equal(gim_vpl_shadow_maps_twin(&ts, v, n, size, o.scene_scale, cpu, s->f.env), GIM_OK);
+    gltest_read_ism(od.ism_maps, (size_t)n * tex, gpu);
+    *lit = *texels = 0;
+    for (i = 0; i < n; ++i) {
+        if (!(v[i].lit > 0.0f)) continue;
+        ++*lit;
+        for (k = 0; k < tex; ++k, ++*texels) {
+            float g = gpu[(size_t)i * tex + k], c = cpu[(size_t)i * tex + k];
+            off += (g < 1e38f) != (c < 1e38f) || (c < 1e38f && !(fabsf(g - c) <= c / 128.0f));
+        }
+    }
+    free(v); free(cpu); free(gpu);
+    return off;
+}
+
+/* GIM_VISIBILITY_SHADOW_MAPS, one paraboloid shadow map per VPL drawn from the triangles (Keller's
+   instant radiosity with real shadow maps): the closed room's targets for both methods (SSVP
+   with its second bounce) and with the VPLs drawn by importance; the frame's maps are
+   gim_vpl_shadow_maps_twin's on its VPLs; a second frame with nothing moved makes no first-bounce
+   map (SSVP: its second bounce's and its clusters' ISMs) and gives the same image bit for bit;
+   leaving the mode releases its targets; LightSkin refuses it before any GL work. */
+static void shadow_maps_per_vpl(void **state) {
+    scene_fx s;
+    int m;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.vpl.count = 4096;
+    s.fr.vpl.interleave = 8;
+    s.fr.vpl.second_bounce_vpls = 128;
+    s.fr.vpl.paraboloid_size = 64;
+    s.fr.vpl.kmeans_restart = 1;   /* the same clusters every frame: images comparable across frames */
+    s.fr.visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
+    s.fr.visibility.ism_size = 16;
+    s.fr.visibility.ism_points = 1024;   /* SSVP's clusters' ISMs (its second bounce's hits checked) */
+    for (m = 0; m < 2; ++m) {
+        uint32_t total = m ? 4096u + 128u : 4096u, off, lit, texels;
+        double in, hi;
+        float *a, *b;
+        s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        in = inside(&s);
+        hi = above(&s, 0.05);
+        off = shadow_maps_off(&s, &lit, &texels);
+        print_message("%s, a shadow map per VPL: mean inside %.4f (%.2f %% of the pixels above 5 %%); %u lit VPLs' maps, "
+                      "%u of %u texels off the twin\n", m ? "SSVP" : "clustered", in, 100.0 * hi, lit, off, texels);
+        assert_true(in < 0.01 && hi < 0.01);
+        assert_true(lit > 500u && off <= texels / 1000u);
+        a = image(&s);
+        frame_makes(&s, 4096u, total, m ? 8u : 0u);   /* nothing moved: the first bounce's maps kept */
+        b = image(&s);
+        assert_memory_equal(a, b, W * H * 16);
+        free(a); free(b);
+        s.fr.vpl.importance = 1;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        in = inside(&s);
+        hi = above(&s, 0.05);
+        print_message("%s, VPLs drawn by importance, a shadow map per VPL: mean inside %.4f (%.2f %% above 5 %%)\n",
+                      m ? "SSVP" : "clustered", in, 100.0 * hi);
+        assert_true(in < 0.01 && hi < 0.01);
+        s.fr.vpl.importance = 0;
+        assert_true(s.f.ctx->vsm_fbo != 0);
+    }
+    gltest_state_unchanged(&s.f);
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;   /* its targets go with the mode */
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_true(s.f.ctx->vsm_fbo == 0 && s.f.ctx->vsm_distance == 0 && s.f.ctx->vsm_depth == 0);
+    s.fr.visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
+    s.fr.method = GIM_METHOD_LIGHTSKIN_BRSM;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    assert_true(strstr(s.f.log.last, "SHADOW_MAPS") != NULL);
+    s.f.log.errors = 0;
+    teardown(&s);
+    GLTEST_END();
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(no_light_through_walls),
@@ -1043,6 +1140,7 @@ int main(void) {
         cmocka_unit_test(vpl_maps_kept),
         cmocka_unit_test(vpls_follow_the_light),
         cmocka_unit_test(importance_vpls_keep_their_maps),
+        cmocka_unit_test(shadow_maps_per_vpl),
     };
     int r;
     (void)room_receiver;   /* room.h's, for the shading tests */
