@@ -14231,7 +14231,9 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *
              (4u + (ctx->para_attributes != GIM__PARA_ATTRIBUTES ? 4u : 0u) + (ctx->para_attributes != GIM__PARA_DISTANCE ? 48u : 0u)) +
          ctx->para_samples_bytes;
-    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes + (ctx->deform_box ? 28u : 0u);
+    b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes + ctx->ism_cluster_maps_bytes +
+         (ctx->deform_box ? 28u : 0u);
+    b += (uint64_t)ctx->vsm_size * ctx->vsm_size * ctx->vsm_layers * 8u;   /* SHADOW_MAPS' distance and depth layers */
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }

@@ -34,7 +34,9 @@ typedef struct gpu_method {
 } gpu_method;
 
 /* every method at its library defaults but for the sizes above, each with imperfect shadow maps
-   right after it (the cost of visibility: the ISM row over the row before); LightSkin + BRSM is
+   right after it (the cost of visibility: the ISM row over the row before), the VPL methods
+   also with a shadow map per VPL from the triangles (GIM_VISIBILITY_SHADOW_MAPS; their maps
+   kept over the timed frames, the light being still: the first frame's build is what costs); LightSkin + BRSM is
    the default method, also with the two-level importance map's measured tile (8), with fewer
    caches per pixel (what the shading pass's neighbour search costs) and shaded per pixel
    instead of in 2 x 2 blocks */
@@ -50,8 +52,10 @@ static const gpu_method methods[] = {
     {"LightSkin FULL, ISM", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_ISM, 0, 0, 0, 0},
     {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0, 0, 0},
     {"clustered, ISM", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_ISM, 1, 0, 0, 0},
+    {"clustered, shadow maps", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_SHADOW_MAPS, 1, 0, 0, 0},
     {"SSVP, 2 bounces", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0, 0, 0},
     {"SSVP, 2 bounces, ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0, 0, 0},
+    {"SSVP, 2 bounces, shadow maps", GIM_METHOD_SSVP, GIM_VISIBILITY_SHADOW_MAPS, 2, 0, 0, 0},
 };
 #define METHOD_COUNT (sizeof methods / sizeof methods[0])
 
