@@ -13256,7 +13256,6 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     uint64_t follow_key, had_bytes;
     gim__GLuint had;
     gim__vpl_settings_of(f, &s);
-    if (!tri && ctx->vsm_fbo) gim__vsm_release(ctx);   /* SHADOW_MAPS' targets, only while it is on */
     if (ctx->light_on_count == 0) { gim__vpl_release(ctx); return GIM_OK; }   /* no light: nothing to bounce */
     first = gim__vpl_first(f, &s, ctx->light_on_count);
     total = first + s.second;
@@ -13875,6 +13874,7 @@ static void gim__release_other_methods(gim_context *ctx, const gim_frame *f) {
     }
     if (!lightskin) gim__lightskin_drop(ctx);
     if (!vplm) gim__vpl_release(ctx);
+    if (!vplm || f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS) gim__vsm_release(ctx);   /* SHADOW_MAPS' targets */
     if (!gather) {
         gim__GLuint b[2];
         b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
