@@ -97,7 +97,8 @@
                            shadowed by one imperfect shadow map [5] per second-bounce VPL; f.vpl
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
-     off by default, and off costs nothing. f.lightskin.temporal_steps (32 by default) keeps
+     GIM_VISIBILITY_SHADOW_MAPS: CLUSTERED's and SSVP's per VPL drawn from the triangles, as
+     instant radiosity [6] has them; off by default, and off costs nothing. f.lightskin.temporal_steps (32 by default) keeps
      the VALs coherent from frame to frame (the aim of incremental instant radiosity [7]).
      Measured speed and error of each: README.md, docs/methods.md.
 
@@ -511,7 +512,7 @@ typedef enum gim_method {
 /* Visibility of the indirect light (docs/design.md sec. 8). The VPL methods (CLUSTERED, SSVP) have
    their own exact visibility: DEFAULT and OFF keep it (one paraboloid depth map per cluster,
    rendered from the triangles, soft PCSS lookups; gim_frame.vpl.no_visibility turns it off); ISM
-   replaces it with one imperfect shadow map per VPL. */
+   replaces it with one imperfect shadow map per VPL, SHADOW_MAPS with one drawn from the triangles. */
 typedef enum gim_visibility {
     GIM_VISIBILITY_DEFAULT = 0,     /* = OFF */
     GIM_VISIBILITY_OFF,             /* no pass, no memory */
@@ -546,9 +547,10 @@ typedef struct gim_frame_gbuffer {
 
 /* Visibility of the indirect light (gim_frame.visibility). */
 typedef struct gim_frame_visibility {
-    gim_visibility mode;        /* OFF (default) or ISM; the two below only with ISM. CLUSTERED, SSVP: OFF keeps
-                                   their paraboloid maps, ISM is one map per VPL (not with vpl.no_visibility;
-                                   their VPLs x ism_size^2 16-bit depths within one shader storage block) */
+    gim_visibility mode;        /* OFF (default), ISM or SHADOW_MAPS; the two below only with those. CLUSTERED,
+                                   SSVP: OFF keeps their paraboloid maps, ISM and SHADOW_MAPS are one map per
+                                   VPL (not with vpl.no_visibility; their VPLs x ism_size^2 16-bit depths
+                                   within one shader storage block) */
     uint32_t ism_size;          /* map side, a power of two in 4..64; 0: GIM_ISM_DEFAULT_SIZE (64); LightSkin
                                    halves it until every cache's map fits GIM_ISM_BUDGET_BYTES (256 MiB: 64^2
                                    up to 32,768 caches, 32^2 up to 131,072) and refuses an explicit side whose
