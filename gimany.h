@@ -8882,6 +8882,8 @@ struct gim_context {
     int para_attributes;              /* GIM__PARA_*: the maps that exist (distance, attributes, both) */
     gim__GLuint para_distance, para_depth, para_position, para_normal, para_albedo, para_fbo;
     gim__GLuint vsm_distance, vsm_depth, vsm_fbo; /* GIM_VISIBILITY_SHADOW_MAPS' layered targets */
+    gim__GLuint vsm_list;          /* its VPLs whose maps a frame makes (uint each) */
+    uint64_t vsm_list_bytes;
     uint32_t vsm_size, vsm_layers;
     uint32_t vsm_batch;           /* layers a batch of those maps (0: GIM__VSM_LAYERS; tests set fewer) */
     gim__GLuint para_samples;         /* second bounce: the texel of each VPL (uvec4), for para_key */
@@ -11932,14 +11934,22 @@ static void gim__stamp(gim_context *ctx, int timed, gim_pass pass) {
 }
 
 /* The ISM buffers: visibility off costs no memory. */
-/* The layered targets of the VPLs' triangle shadow maps (gim__gl_vpl_shadow_maps). */
-static void gim__vsm_release(gim_context *ctx) {
+/* The layered targets of the VPLs' triangle shadow maps (gim__gl_vpl_shadow_maps) ... */
+static void gim__vsm_targets_release(gim_context *ctx) {
     gim__GLuint t[2];
     t[0] = ctx->vsm_distance; t[1] = ctx->vsm_depth;
     if (t[0] || t[1]) ctx->gl.DeleteTextures(2, t);
     if (ctx->vsm_fbo) ctx->gl.DeleteFramebuffers(1, &ctx->vsm_fbo);
     ctx->vsm_distance = ctx->vsm_depth = ctx->vsm_fbo = 0;
     ctx->vsm_size = ctx->vsm_layers = 0;
+}
+
+/* ... and with them the list of the maps to make. */
+static void gim__vsm_release(gim_context *ctx) {
+    gim__vsm_targets_release(ctx);
+    if (ctx->vsm_list) ctx->gl.DeleteBuffers(1, &ctx->vsm_list);
+    ctx->vsm_list = 0;
+    ctx->vsm_list_bytes = 0;
 }
 
 static void gim__ism_release(gim_context *ctx) {
@@ -12711,10 +12721,10 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     gl->Uniform1f(6, scene_scale);
     gl->Uniform1ui(8, 0u);   /* the clusters' maps (gim__gl_vpl_shadow_maps sets the VPLs') */
     gl->Uniform1f(9, 0.0f);
-    gl->Uniform1ui(10, 0u);
     /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials ? ctx->materials : maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_ssbo);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, maps_ssbo);   /* the VPL list, not read here */
     for (pass = 0; pass < 2; ++pass) {   /* 0: the visibility maps, 1: the attribute maps */
         if ((pass == 0 && what == GIM__PARA_ATTRIBUTES) || (pass == 1 && what == GIM__PARA_DISTANCE)) continue;
         gl->DrawBuffers(4, bufs[pass]);
@@ -12738,14 +12748,16 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
    gim_ism_quantize) is VPL source_first + m of vpls (gim_vpl, 48 bytes), its origin the VPL
    lifted GIM_ISM_LIFT scene scales along its normal (gim__ism_frame's), each texel the distance
    along its centre ray to the nearest triangle (paraboloid.geom / .frag in VPL mode: no near
-   skip; the twin is gim_paraboloid_texel_twin with near_distance 0, then gim_ism_quantize). In
-   batches of up to GIM__VSM_LAYERS layers: the paraboloid pass draws VPL source_first + first +
-   l into layer l, ism_from_paraboloid.comp stores the layers. An unlit VPL's map is not made
-   (no pass reads it), nor with keep a kept VPL's (gim_vpl.kept 1), which keeps what maps_out
-   holds; made (one uint) counts the maps made. Cost: per batch, every triangle of the scene
-   once per map (the geometry shader returns at once for a map not made) and each covered texel
-   a ray-triangle test: far more than an ISM's 2048 surfels on a large scene, but only for the
-   VPLs that are new this frame. */
+   skip; the twin is gim_paraboloid_texel_twin with near_distance 0, then gim_ism_quantize). An
+   unlit VPL's map is not made (no pass reads it), nor with keep a kept VPL's (gim_vpl.kept 1),
+   which keeps what maps_out holds: the VPLs' flags are read back (a sync, in the frames that
+   make maps; drawing every VPL's copy of the scene to skip the kept ones in the geometry shader
+   cost the street 32 s a frame on llvmpipe for 2 maps made) and the ones to make listed
+   (ctx->vsm_list). In batches of up to GIM__VSM_LAYERS layers: the paraboloid pass draws VPL
+   list[first + l] into layer l, ism_from_paraboloid.comp stores the layers, a dispatch per
+   storage range of maps; made (one uint) counts the maps made. Cost: every triangle of the
+   scene once per map made, each covered texel a ray-triangle test: far more than an ISM's 2048
+   surfels on a large scene, but only for the VPLs new this frame. */
 static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, uint32_t source_first, uint32_t map_first,
                                           uint32_t count, uint32_t size, float scene_scale, gim__GLuint maps_out,
                                           gim__GLuint made, int keep) {
@@ -12754,7 +12766,9 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
     static const float one = 1.0f;
     const gim__gl *gl = &ctx->gl;
     gim__GLuint draw = 0, store = 0;
-    uint32_t layers, first, chunk, i;
+    gim_vpl *flags = NULL;
+    uint32_t *list = NULL;
+    uint32_t layers, first, chunk, i, n = 0;
     uint64_t map_bytes = (uint64_t)size * size * 2u;
     gim_result r = GIM_OK;
     if (!vpls || !maps_out || !made) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "a buffer is 0");
@@ -12772,7 +12786,7 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
     if (chunk == 0)
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
                          (int)ctx->ssbo_align);
-    layers = ctx->vsm_batch ? ctx->vsm_batch : GIM__VSM_LAYERS;
+    layers = ctx->vsm_batch ? ctx->vsm_batch : GIM__VSM_LAYERS;   /* of the candidates: the targets stay */
     if (count < layers) layers = count;
     if ((int64_t)layers > (int64_t)ctx->max_layers[0]) layers = (uint32_t)ctx->max_layers[0];
     if ((int64_t)layers > (int64_t)ctx->max_layers[1]) layers = (uint32_t)ctx->max_layers[1];
@@ -12792,9 +12806,26 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "an output is also an input");
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PARABOLOID, &draw);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_ISM_FROM_PARABOLOID, &store);
-    if (r == GIM_OK && (ctx->vsm_size != size || ctx->vsm_layers != layers || !ctx->vsm_fbo)) {
+    if (r == GIM_OK) {   /* the maps to make: the lit VPLs, but with keep the kept ones */
+        flags = (gim_vpl *)gim__alloc_array(&ctx->env, count, sizeof *flags);
+        list = (uint32_t *)gim__alloc_array(&ctx->env, count, sizeof *list);
+        if (!flags || !list) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "the flags of %u VPLs", (unsigned)count);
+    }
+    if (r == GIM_OK) {
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, vpls);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)(((uint64_t)source_first + map_first) * 48u),
+                             (gim__GLsizeiptr)((uint64_t)count * 48u), flags);
+        for (i = 0; i < count; ++i)
+            if (flags[i].lit > 0.0f && !(keep && flags[i].kept == 1.0f)) list[n++] = source_first + map_first + i;
+        if (n) r = gim__gl_sized_buffer(ctx, &ctx->vsm_list, &ctx->vsm_list_bytes, (uint64_t)count * 4u, where);
+        if (r == GIM_OK && n) {
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->vsm_list);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)n * 4, list);
+        }
+    }
+    if (r == GIM_OK && n && (ctx->vsm_size != size || ctx->vsm_layers != layers || !ctx->vsm_fbo)) {
         gim__GLenum status;
-        gim__vsm_release(ctx);
+        gim__vsm_targets_release(ctx);
         gim__gl_texture_array(ctx, &ctx->vsm_distance, GIM__GL_R32F, size, layers);
         gim__gl_texture_array(ctx, &ctx->vsm_depth, GIM__GL_DEPTH_COMPONENT32F, size, layers);
         gl->GenFramebuffers(1, &ctx->vsm_fbo);
@@ -12806,12 +12837,11 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
             r = gim__fail(&ctx->env, GIM_ERROR_GL, where, "layered framebuffer incomplete (0x%04x)", (unsigned)status);
         if (r == GIM_OK) r = gim__gl_check(ctx, where);
         if (r == GIM_OK) { ctx->vsm_size = size; ctx->vsm_layers = layers; }
-        else gim__vsm_release(ctx);
+        else gim__vsm_targets_release(ctx);
     }
-    if (r != GIM_OK) return gim__gl_leave(ctx, r);
-    for (first = map_first; first < map_first + count; first += layers) {
-        uint32_t n = map_first + count - first < layers ? map_first + count - first : layers, at;
-        /* draw: VPL source_first + first + l into layer l */
+    for (first = 0; r == GIM_OK && first < n; first += layers) {
+        uint32_t nb = n - first < layers ? n - first : layers, at;
+        /* draw: VPL list[first + l] into layer l */
         gim__gl_raster_state(gl, ctx->vsm_fbo, size, size);
         gl->UseProgram(draw);
         gl->Uniform1ui(3, 0u);   /* no albedo: the distance pass only */
@@ -12819,32 +12849,31 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         gl->Uniform1ui(5, size);
         gl->Uniform1f(6, scene_scale);
         gl->Uniform1ui(7, 0u);
-        gl->Uniform1ui(8, source_first + first);
+        gl->Uniform1ui(8, first);
         gl->Uniform1f(9, GIM_ISM_LIFT * scene_scale);
-        gl->Uniform1ui(10, keep ? 1u : 0u);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);   /* materials: never read (count 0) */
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->vsm_list);
         gl->ClearBufferfv(GIM__GL_COLOR, 0, empty);
         gl->ClearBufferfv(GIM__GL_DEPTH, 0, &one);
-        gim__gl_draw_meshes(ctx, n);
+        gim__gl_draw_meshes(ctx, nb);
         gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT);
-        /* store: layer l as map first + l, within one storage block a dispatch */
+        /* store: layer l as VPL list[first + l]'s map, a dispatch per storage range (the list ascends) */
         gl->UseProgram(store);
         gl->ActiveTexture(GIM__GL_TEXTURE0);
         gl->BindTexture(GIM__GL_TEXTURE_2D_ARRAY, ctx->vsm_distance);
         gl->BindSampler(0, ctx->nearest_sampler);
-        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
+        gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, ctx->vsm_list);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, made);
         gl->Uniform1ui(0, size);
         gl->Uniform1ui(1, first);
         gl->Uniform1ui(3, source_first);
-        gl->Uniform1ui(4, keep ? 1u : 0u);
-        for (at = first; at < first + n;) {
-            uint32_t block = at - at % chunk, end = block + chunk < first + n ? block + chunk : first + n;
-            gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)(block * map_bytes),
-                                (gim__GLsizeiptr)(chunk * map_bytes < ((uint64_t)map_first + count - block) * map_bytes
-                                                      ? chunk * map_bytes
-                                                      : ((uint64_t)map_first + count - block) * map_bytes));
+        for (at = first; at < first + nb;) {
+            uint32_t m = list[at] - source_first, block = m - m % chunk, end = at;
+            uint64_t maps = (uint64_t)map_first + count - block < chunk ? (uint64_t)map_first + count - block : chunk;
+            while (end < first + nb && list[end] - source_first < block + chunk) ++end;
+            gl->BindBufferRange(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_out, (gim__GLintptr)((uint64_t)block * map_bytes),
+                                (gim__GLsizeiptr)(maps * map_bytes));
             gl->Uniform1ui(2, block);
             gl->Uniform1ui(5, at - first);
             gl->DispatchCompute(end - at, 1u, 1u);
@@ -12852,6 +12881,9 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         }
         gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
     }
+    gim__free(&ctx->env, flags);
+    gim__free(&ctx->env, list);
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
@@ -14235,7 +14267,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->para_samples_bytes;
     b += ctx->vpl_partial_bytes + ctx->ism_maps_bytes + ctx->ism_points_bytes + ctx->ism_cluster_maps_bytes +
          (ctx->deform_box ? 28u : 0u);
-    b += (uint64_t)ctx->vsm_size * ctx->vsm_size * ctx->vsm_layers * 8u;   /* SHADOW_MAPS' distance and depth layers */
+    b += (uint64_t)ctx->vsm_size * ctx->vsm_size * ctx->vsm_layers * 8u + ctx->vsm_list_bytes;   /* SHADOW_MAPS' layers, list */
     b += (uint64_t)ctx->vpl_raw_width * ctx->vpl_raw_height * (ctx->vpl_raw_format == GIM__GL_RGBA32F ? 16u : 8u);
     return b;
 }

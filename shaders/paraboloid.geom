@@ -31,11 +31,12 @@ layout(std430, binding = 1) readonly buffer TriangleMaterial { uint triangle_mat
 layout(location = 3) uniform uint material_count;  /* 0: albedo 0 */
 layout(location = 4) uniform float margin;         /* map units */
 layout(location = 5) uniform uint size;            /* of the maps */
-layout(location = 8) uniform uint map_first;       /* instance i draws map map_first + i into layer i */
+layout(location = 8) uniform uint list_first;      /* with vpl_lift: instance i draws VPL list[list_first + i] */
 layout(location = 9) uniform float vpl_lift;       /* > 0: Maps holds gim_vpl (3 vec4: position, lit in w;
                                                       normal; flux, kept in w), each a map of origin
-                                                      position + vpl_lift normal, no near skip */
-layout(location = 10) uniform uint vpl_keep;       /* with vpl_lift: a kept VPL (flux.w 1) keeps its map */
+                                                      position + vpl_lift normal, no near skip; 0: the
+                                                      clusters' maps, instance i map i */
+layout(std430, binding = 3) readonly buffer List { uint list[]; };   /* the VPLs whose maps are made */
 
 flat out vec3 tri_v0;      /* vertices relative to the map's origin, world axes */
 flat out vec3 tri_v1;
@@ -53,12 +54,11 @@ out float gl_ClipDistance[8];
 const int MAX_K = 16;
 
 void main() {
-    int m = int(map_first) + map_index[0];
+    int m = vpl_lift > 0.0 ? int(list[list_first + uint(map_index[0])]) : map_index[0];
     vec3 o = map[m].origin_near.xyz;
     vec3 n = normalize(map[m].normal_size.xyz);
     float near = map[m].origin_near.w, attribute_near = map[m].flux.w;
-    if (vpl_lift > 0.0) {   /* a VPL's map (gim__gl_vpl_shadow_maps): an unlit one is never read */
-        if (!(map[m].origin_near.w > 0.0) || (vpl_keep != 0u && map[m].flux.w == 1.0)) return;
+    if (vpl_lift > 0.0) {   /* a VPL's map (gim__gl_vpl_shadow_maps) */
         vec3 c = map[m].origin_near.xyz, nv = map[m].normal_size.xyz;
         o = vec3(c.x + vpl_lift * nv.x, c.y + vpl_lift * nv.y, c.z + vpl_lift * nv.z);   /* gim__ism_frame's */
         n = nv;   /* unit already; as the maps' lookup (ism_lookup.glsl) takes it */

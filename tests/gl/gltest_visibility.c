@@ -1072,6 +1072,8 @@ static uint32_t shadow_maps_off(scene_fx *s, uint32_t *lit, uint32_t *texels) {
    with its second bounce) and with the VPLs drawn by importance; the frame's maps are
    gim_vpl_shadow_maps_twin's on its VPLs; a second frame with nothing moved makes no first-bounce
    map (SSVP: its second bounce's and its clusters' ISMs) and gives the same image bit for bit;
+   with the sun turned a degree only the VPLs not followed get new maps, and every map is still
+   the twin's for its VPL;
    leaving the mode releases its targets; LightSkin refuses it before any GL work. */
 static void shadow_maps_per_vpl(void **state) {
     scene_fx s;
@@ -1114,6 +1116,21 @@ static void shadow_maps_per_vpl(void **state) {
         assert_true(in < 0.01 && hi < 0.01);
         s.fr.vpl.importance = 0;
         assert_true(s.f.ctx->vsm_fbo != 0);
+        if (!m) {   /* the sun turns a degree: the followed VPLs keep their maps, the new ones' are the twin's */
+            uint32_t made, kept = 0, k;
+            gim_vpl *v = (gim_vpl *)malloc(4096 * sizeof *v);
+            assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);   /* VPLs at their texels again */
+            turn_sun(&s, 1.0f);
+            made = frame_maps(&s);
+            gltest_read_buffer(gim_debug(s.f.ctx).vpls, 4096 * sizeof *v, v);
+            for (k = 0; k < 4096; ++k) kept += v[k].lit == 1.0f && v[k].kept == 1.0f;
+            off = shadow_maps_off(&s, &lit, &texels);
+            print_message("clustered, the sun turned a degree: %u of %u lit VPLs kept, %u maps made, %u of %u texels off "
+                          "the twin\n", kept, lit, made, off, texels);
+            assert_true(kept > lit / 2u && made == lit - kept && off <= texels / 1000u);
+            turn_sun(&s, 0.0f);
+            free(v);
+        }
     }
     gltest_state_unchanged(&s.f);
     s.fr.visibility.mode = GIM_VISIBILITY_ISM;   /* its targets go with the mode */
