@@ -435,6 +435,22 @@ static void bad_settings(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(s.f.log.errors, 4);
     s.f.log.errors = 0;
+    /* the same checks with the maps drawn from the triangles (SHADOW_MAPS): not with no_visibility,
+       a side that is no power of two, more maps than a block holds */
+    s.fr.visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.vpl.no_visibility = 0;
+    s.fr.visibility.ism_size = 48;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.visibility.ism_size = 64;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);   /* SSVP's 8192 + 256 maps of 64^2 */
+    assert_int_equal(s.f.log.errors, 3);
+    assert_true(strstr(s.f.log.last, "exceed") != NULL);
+    s.f.log.errors = 0;
+    assert_true(s.f.ctx->vsm_fbo == 0 && s.f.ctx->vsm_list == 0);   /* refused before any GL work */
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    s.fr.visibility.ism_size = 16;
+    s.fr.vpl.no_visibility = 1;
     assert_int_equal(s.f.ctx->ism_maps, 0);
     assert_int_equal(s.f.ctx->ism_cluster_maps, 0);
     /* SSVP's second-bounce ISMs beside the paraboloid maps (visibility off): their side and
