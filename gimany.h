@@ -12786,8 +12786,8 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
     if (chunk == 0)
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT %d",
                          (int)ctx->ssbo_align);
-    layers = ctx->vsm_batch ? ctx->vsm_batch : GIM__VSM_LAYERS;   /* of the candidates: the targets stay */
-    if (count < layers) layers = count;
+    layers = ctx->vsm_batch ? ctx->vsm_batch : GIM__VSM_LAYERS;
+    if (map_first + count < layers) layers = map_first + count;   /* of every map in the buffer: the targets stay */
     if ((int64_t)layers > (int64_t)ctx->max_layers[0]) layers = (uint32_t)ctx->max_layers[0];
     if ((int64_t)layers > (int64_t)ctx->max_layers[1]) layers = (uint32_t)ctx->max_layers[1];
     if (layers == 0 || size > (uint32_t)ctx->max_texture_size || size > (uint32_t)ctx->max_viewport[0] ||
@@ -12812,6 +12812,7 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         if (!flags || !list) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "the flags of %u VPLs", (unsigned)count);
     }
     if (r == GIM_OK) {
+        gl->MemoryBarrier(GIM__GL_BUFFER_UPDATE_BARRIER_BIT);   /* the VPL passes wrote them from shaders */
         gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, vpls);
         gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)(((uint64_t)source_first + map_first) * 48u),
                              (gim__GLsizeiptr)((uint64_t)count * 48u), flags);
