@@ -12656,6 +12656,28 @@ static gim_result gim__gl_paraboloid_targets(gim_context *ctx, uint32_t count, u
     return GIM_OK;
 }
 
+/* Before a paraboloid pass draws the scene (inside gim__gl_enter): every instance's mesh exists. */
+static gim_result gim__paraboloid_draw_check(gim_context *ctx, const char *where) {
+    uint32_t i;
+    for (i = 0; i < ctx->instance_count; ++i)
+        if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
+            return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
+    return GIM_OK;
+}
+
+/* The paraboloid program's uniforms but the pass (7): material_count (0: albedo 0), the maps'
+   side, scene_scale (the depth encoding), the quad's margin (rounding only: a quarter texel
+   beyond the rigorous bound); list_first and vpl_lift for the VPLs' maps (0, 0: the clusters'). */
+static void gim__paraboloid_uniforms(const gim__gl *gl, uint32_t material_count, uint32_t size, float scene_scale,
+                                     uint32_t list_first, float vpl_lift) {
+    gl->Uniform1ui(3, material_count);
+    gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);
+    gl->Uniform1ui(5, size);
+    gl->Uniform1f(6, scene_scale);
+    gl->Uniform1ui(8, list_first);
+    gl->Uniform1f(9, vpl_lift);
+}
+
 /* The paraboloid maps of count clusters in layered passes, the GPU twin of
    gim_paraboloid_texel_twin at every texel. maps_ssbo: count gim_paraboloid (48 bytes, std430
    3 vec4), read by the shaders only (the cluster pass writes it on the GPU). Every scene
@@ -12688,7 +12710,6 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
     const gim__gl *gl = &ctx->gl;
     gim__GLuint program = 0;
     gim_result r = GIM_OK;
-    uint32_t i;
     int k, pass;
     if (!maps_ssbo) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "maps_ssbo is 0");
     if (count == 0 || size == 0) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "count or size is 0");
@@ -12706,21 +12727,14 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u maps exceed the layer limits (%d, %d)",
                          (unsigned)count, (int)ctx->max_layers[0], (int)ctx->max_layers[1]);
     gim__gl_enter(ctx, where);
-    for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
-        if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
-            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
+    r = gim__paraboloid_draw_check(ctx, where);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_ssbo", maps_ssbo, (uint64_t)count * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_PARABOLOID, &program);
     if (r == GIM_OK) r = gim__gl_paraboloid_targets(ctx, count, size, what, where);
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gim__gl_raster_state(gl, ctx->para_fbo, size, size);
     gl->UseProgram(program);
-    gl->Uniform1ui(3, ctx->materials ? ctx->material_count : 0u);
-    gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);  /* rounding only: a quarter texel beyond the rigorous bound */
-    gl->Uniform1ui(5, size);
-    gl->Uniform1f(6, scene_scale);
-    gl->Uniform1ui(8, 0u);   /* the clusters' maps (gim__gl_vpl_shadow_maps sets the VPLs') */
-    gl->Uniform1f(9, 0.0f);
+    gim__paraboloid_uniforms(gl, ctx->materials ? ctx->material_count : 0u, size, scene_scale, 0u, 0.0f);
     /* with no materials, binding 0 is never read (albedo 0) but must name a buffer */
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, ctx->materials ? ctx->materials : maps_ssbo);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, maps_ssbo);
@@ -12795,9 +12809,7 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         return gim__fail(&ctx->env, GIM_ERROR_UNSUPPORTED, where, "no layered target of %u^2 (layer limits %d, %d)",
                          (unsigned)size, (int)ctx->max_layers[0], (int)ctx->max_layers[1]);
     gim__gl_enter(ctx, where);
-    for (i = 0; i < ctx->instance_count && r == GIM_OK; ++i)
-        if (!gim__mesh_get(ctx, ctx->instances[i].mesh))
-            r = gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "instance %u names a removed mesh", (unsigned)i);
+    r = gim__paraboloid_draw_check(ctx, where);
     if (r == GIM_OK)
         r = gim__gl_check_buffer(ctx, where, "vpls", vpls, ((uint64_t)source_first + map_first + count) * 48u);
     if (r == GIM_OK) r = gim__gl_check_buffer(ctx, where, "maps_out", maps_out, ((uint64_t)map_first + count) * map_bytes);
@@ -12845,13 +12857,8 @@ static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, ui
         /* draw: VPL list[first + l] into layer l */
         gim__gl_raster_state(gl, ctx->vsm_fbo, size, size);
         gl->UseProgram(draw);
-        gl->Uniform1ui(3, 0u);   /* no albedo: the distance pass only */
-        gl->Uniform1f(4, 0.5f / (float)size + 1e-5f);
-        gl->Uniform1ui(5, size);
-        gl->Uniform1f(6, scene_scale);
-        gl->Uniform1ui(7, 0u);
-        gl->Uniform1ui(8, first);
-        gl->Uniform1f(9, GIM_ISM_LIFT * scene_scale);
+        gim__paraboloid_uniforms(gl, 0u, size, scene_scale, first, GIM_ISM_LIFT * scene_scale);   /* no albedo */
+        gl->Uniform1ui(7, 0u);   /* the distance pass only */
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);   /* materials: never read (count 0) */
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, vpls);
         gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->vsm_list);
