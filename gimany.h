@@ -98,7 +98,9 @@
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
      GIM_VISIBILITY_SHADOW_MAPS: CLUSTERED's and SSVP's per VPL drawn from the triangles, as
-     instant radiosity [6] has them; off by default, and off costs nothing. f.lightskin.temporal_steps (32 by default) keeps
+     instant radiosity [6] has them; off by default, and off costs nothing.
+     f.visibility.neighbour_rays (LightSkin): each pixel interpolates only the neighbour caches
+     it sees, tested by rays through a bounding volume hierarchy of the scene (gim_bvh_build). f.lightskin.temporal_steps (32 by default) keeps
      the VALs coherent from frame to frame (the aim of incremental instant radiosity [7]).
      Measured speed and error of each: README.md, docs/methods.md.
 
@@ -137,7 +139,8 @@
      @section importance   importance map (eq. 10-11), cumulative sums (eq. 12), selection
    The reference layer:
      @section twins        the CPU twin of every GPU pass (gim_<pass>_twin; building blocks
-                           the runtime itself runs on the CPU keep plain names)
+                           the runtime itself runs on the CPU keep plain names: among them the
+                           bounding volume hierarchy of neighbour_rays, gim_bvh_build)
    The implementation follows under GIMANY_IMPLEMENTATION, each part tagged @impl <name>: the
    CPU parts first (common, math, samplers, kmeans, caches, importance, twins), then gl, which
    uses them. Where each part is tested: tests/README.md; the design: docs/design.md.
@@ -557,6 +560,12 @@ typedef struct gim_frame_visibility {
                                    maps exceed GIM_ISM_MAX_BYTES (1 GiB); CLUSTERED, SSVP keep 64 */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
                                    GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
+    uint32_t neighbour_rays;    /* LightSkin, with any mode: 1 = each pixel interpolates only the neighbour
+                                   caches it sees, tested by a ray through a bounding volume hierarchy of the
+                                   scene's triangles (gim_neighbour_rays_twin; built when the scene changes,
+                                   32 bytes a node and 48 a triangle on the GPU, up to GIM_BVH_MAX_TRIANGLES);
+                                   16 rays per search in the shading pass. 0: off (no buffer). Other methods:
+                                   refused */
 } gim_frame_visibility;
 
 /* LightSkin, LIGHTSKIN_BRSM and LIGHTSKIN_FULL (gim_frame.lightskin). */
@@ -853,8 +862,9 @@ typedef enum gim_pass {
     GIM_PASS_PARABOLOID,        /* the layered paraboloid maps */
     GIM_PASS_SECOND_BOUNCE,     /* second-bounce VPLs */
     GIM_PASS_BLUR,              /* geometry-aware blur */
-    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps, in the frames that make them (a scene
-                                   change or a setting); their lookups are GIM_PASS_PROXY_LIGHTS' */
+    GIM_PASS_ISM,               /* LightSkin's imperfect shadow maps and neighbour_rays' hierarchy, in the
+                                   frames that make them (a scene change or a setting); the maps' lookups
+                                   are GIM_PASS_PROXY_LIGHTS', the rays GIM_PASS_SHADE's */
     GIM_PASS_COUNT
 } gim_pass;
 
@@ -2103,6 +2113,81 @@ GIMANY_API gim_result gim_vpl_shadow_maps_twin(const gim_twin_scene *scene, cons
    float.) The matrix gim_proxy_desc.visibility takes. */
 GIMANY_API gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const float *distance, const gim_val *vals,
                                          uint32_t val_count, float *out);
+
+/* Visibility by rays: a pixel's own line of sight to its neighbour caches. LightSkin
+   interpolates each pixel's light from its nearest caches (eq. 8-9); inside a building two
+   thirds of them can lie behind a column, an arch or a floor from the pixel, and their light
+   is not the pixel's (docs/methods.md, "Where Sponza's error is"). A bounding volume hierarchy
+   over the scene's world triangles answers "does this segment cross a triangle", on the CPU
+   here and in lightskin_shade.comp (shaders/bvh.glsl, the same steps in float), and each pixel
+   drops the neighbours it cannot see (gim_frame_visibility.neighbour_rays). */
+
+/* One node, 32 bytes as the GPU buffer holds it: the box (grown by a millionth of its size
+   and of its distance from the origin, so float rounding in the slab test never misses a
+   triangle on its face), then either an inner node (count 0: the first child is the next
+   node, the second is node `index`) or a leaf (count triangles from triangle `index` on). */
+typedef struct gim_bvh_node {
+    float lo[3];
+    uint32_t index;
+    float hi[3];
+    uint32_t count;
+} gim_bvh_node;
+
+/* A hierarchy made by gim_bvh_build (free it with gim_bvh_free). */
+typedef struct gim_bvh {
+    gim_bvh_node *nodes;        /* node_count, depth first; node 0 is the root (none: nothing blocks) */
+    float *triangles;           /* triangle_count * 12 in the leaves' order: (v0, 0), (v1 - v0, 0), (v2 - v0, 0) */
+    uint32_t node_count, triangle_count;
+    uint32_t depth;             /* of the deepest leaf (the root's is 0), < GIM_BVH_MAX_DEPTH */
+    gim_env env;                /* what allocated the arrays */
+} gim_bvh;
+
+#define GIM_BVH_MAX_DEPTH 48            /* the traversal's stack; the build stays below it */
+#define GIM_BVH_MAX_TRIANGLES 16777216u /* 2^24: past 24 levels of SAH splits, halving reaches a leaf within 24 more */
+#define GIM_BVH_LEAF 4                  /* triangles per leaf at most */
+#define GIM_NEIGHBOUR_RAY_LIFT 1e-3f    /* a pixel-to-cache ray's ends above their surfaces, in scene scales */
+
+/* A bounding volume hierarchy over scene->positions (triangle_count triangles; normals and
+   albedo are not read): binned surface-area heuristic splits (16 bins on the longest axis of
+   the triangles' centroids) for 24 levels, then halves by count, leaves of at most
+   GIM_BVH_LEAF triangles. Unit-free (no length threshold). A vertex that is not finite is
+   GIM_ERROR_INVALID_ARGUMENT, more than GIM_BVH_MAX_TRIANGLES GIM_ERROR_OUT_OF_RANGE; degenerate
+   triangles are kept (they block nothing); 0 triangles give an empty hierarchy. out is written
+   only on GIM_OK and owns arrays allocated through env. */
+GIMANY_API gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gim_bvh *out);
+/* Free what gim_bvh_build allocated; NULL or zeroed is fine. */
+GIMANY_API void gim_bvh_free(gim_bvh *bvh);
+/* 1 when a triangle (either side) crosses the open segment from -> to: with d = to - from,
+   e1, e2 a triangle's edges from v0, s = from - v0, p = d x e2, q = s x e1 and det = e1 . p
+   (Moller and Trumbore 1997 without the division, signs flipped where det < 0) and g = 1e-4
+   det, a hit is det != 0, s . p >= -g, d . q >= -g, s . p + d . q <= det + g and 0 < e2 . q <
+   det (each triangle grown by 1e-4 of itself, so no segment slips between two that share an
+   edge); all in float, in this order. 0 for an empty hierarchy or a non-finite end. */
+GIMANY_API int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to);
+
+/* Input of gim_neighbour_rays_twin: the neighbour rows of gim_cache_neighbours and the
+   receivers they are for. */
+typedef struct gim_neighbour_rays_desc {
+    const gim_bvh *bvh;
+    const gim_cache *caches;           /* unit normals */
+    uint32_t cache_count;
+    const gim_receiver *receivers;     /* position and unit normal read */
+    uint32_t receiver_count;
+    const uint32_t *neighbour_index;   /* receiver_count * neighbour_stride, nearest first; UINT32_MAX pads */
+    const uint32_t *neighbour_count;   /* receiver_count, each <= stride */
+    uint32_t neighbour_stride;         /* 1..GIM_MAX_NEIGHBOUR_CACHES */
+    float scene_scale;                 /* > 0 */
+    gim_env env;
+} gim_neighbour_rays_desc;
+
+/* The neighbours each receiver sees, the twin of lightskin_shade.comp with neighbour_rays: a
+   neighbour cache c (normal n_c) of receiver x (normal n_x) is kept unless
+   gim_bvh_occluded(x + l n_x, c + l n_c), l = GIM_NEIGHBOUR_RAY_LIFT scene_scale (each
+   component a float multiply-add in that order); the kept ones in their order, d_cmax the
+   distance of the farthest kept (as gim_cache_neighbours computes it). A receiver that sees
+   none keeps its whole row: an interpolation from caches it cannot see beats none. out's arrays
+   may be the desc's own (in place). */
+GIMANY_API gim_result gim_neighbour_rays_twin(const gim_neighbour_rays_desc *desc, gim_neighbour_result *out);
 
 /* Input of gim_second_bounce_vpls_twin; zero means default. */
 typedef struct gim_second_bounce_desc {
@@ -7757,6 +7842,338 @@ GIMANY_DEF gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const fl
     return GIM_OK;
 }
 
+/* rays: the BVH and the pixels' neighbour test ------------------------------------------- */
+
+/* The build's working set: each triangle's box and centroid, and the triangles' order. */
+typedef struct gim__bvh_build {
+    const float *pos;          /* the scene's triangles, 9 floats each */
+    float *box;                /* triangle_count * 6: lo xyz, hi xyz */
+    float *centroid;           /* triangle_count * 3 */
+    uint32_t *order;           /* the leaves' order */
+    gim_bvh_node *nodes;
+    uint32_t node_count, depth;
+} gim__bvh_build;
+
+#define GIM__BVH_BINS 16
+#define GIM__BVH_SAH_LEVELS 24 /* below them the build halves by count (GIM_BVH_MAX_TRIANGLES) */
+
+static float gim__bvh_area(const float *lo, const float *hi) {
+    float x = hi[0] - lo[0], y = hi[1] - lo[1], z = hi[2] - lo[2];
+    return x < 0.0f || y < 0.0f || z < 0.0f ? 0.0f : x * y + y * z + z * x;
+}
+
+static void gim__bvh_grow(float *lo, float *hi, const float *b) {
+    int a;
+    for (a = 0; a < 3; ++a) {
+        if (b[a] < lo[a]) lo[a] = b[a];
+        if (b[3 + a] > hi[a]) hi[a] = b[3 + a];
+    }
+}
+
+/* Put order[begin, end)'s element of rank k (by centroid on axis a) at k, the smaller before
+   it and the larger after (Hoare's selection). */
+static void gim__bvh_select(gim__bvh_build *b, uint32_t begin, uint32_t end, uint32_t k, int a) {
+    while (end - begin > 1u) {
+        /* the lower middle: Hoare's partition then always splits [begin, end) in two */
+        float pivot = b->centroid[(size_t)b->order[begin + (end - 1u - begin) / 2u] * 3u + (size_t)a];
+        uint32_t i = begin, j = end - 1u, t;
+        for (;;) {
+            while (b->centroid[(size_t)b->order[i] * 3u + (size_t)a] < pivot) ++i;
+            while (b->centroid[(size_t)b->order[j] * 3u + (size_t)a] > pivot) --j;
+            if (i >= j) break;
+            t = b->order[i]; b->order[i] = b->order[j]; b->order[j] = t;
+            ++i; --j;
+        }
+        /* order[begin, j] <= pivot <= order[j + 1, end) */
+        if (k <= j) end = j + 1u;
+        else begin = j + 1u;
+    }
+}
+
+/* Node for order[begin, end) at depth, then its subtrees (the first right after it). */
+static void gim__bvh_node_make(gim__bvh_build *b, uint32_t begin, uint32_t end, uint32_t depth) {
+    uint32_t self = b->node_count++, i, count = end - begin, mid = begin;
+    gim_bvh_node *node = b->nodes + self;
+    float lo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, hi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX};
+    float clo[3] = {FLT_MAX, FLT_MAX, FLT_MAX}, chi[3] = {-FLT_MAX, -FLT_MAX, -FLT_MAX}, ext = 0.0f, far_ = 0.0f;
+    int a, axis = 0;
+    for (i = begin; i < end; ++i) {
+        const float *c = b->centroid + (size_t)b->order[i] * 3u;
+        gim__bvh_grow(lo, hi, b->box + (size_t)b->order[i] * 6u);
+        for (a = 0; a < 3; ++a) {
+            if (c[a] < clo[a]) clo[a] = c[a];
+            if (c[a] > chi[a]) chi[a] = c[a];
+        }
+    }
+    /* grown by 1e-6 of its size and of its distance from the origin: the slab test's rounding
+       (and a GPU's approximate reciprocal) cannot lose a triangle lying on a face */
+    for (a = 0; a < 3; ++a) {
+        float e = hi[a] - lo[a], f = fabsf(lo[a]) > fabsf(hi[a]) ? fabsf(lo[a]) : fabsf(hi[a]);
+        if (e > ext) ext = e;
+        if (f > far_) far_ = f;
+    }
+    for (a = 0; a < 3; ++a) {
+        node->lo[a] = lo[a] - 1e-6f * (ext + far_);
+        node->hi[a] = hi[a] + 1e-6f * (ext + far_);
+    }
+    if (depth > b->depth) b->depth = depth;
+    if (count <= (uint32_t)GIM_BVH_LEAF) {
+        node->index = begin;
+        node->count = count;
+        return;
+    }
+    for (a = 1; a < 3; ++a)
+        if (chi[a] - clo[a] > chi[axis] - clo[axis]) axis = a;
+    if (depth < GIM__BVH_SAH_LEVELS && chi[axis] > clo[axis]) {
+        /* binned SAH (Wald 2007): the plane between bins with the least A_l N_l + A_r N_r */
+        float blo[GIM__BVH_BINS][3], bhi[GIM__BVH_BINS][3], scale = (float)GIM__BVH_BINS / (chi[axis] - clo[axis]);
+        float best = FLT_MAX, alo[3], ahi[3], rlo[GIM__BVH_BINS][3], rhi[GIM__BVH_BINS][3];
+        uint32_t bn[GIM__BVH_BINS], rn = 0, ln = 0;
+        int k, split = -1;
+        for (k = 0; k < GIM__BVH_BINS; ++k) {
+            bn[k] = 0;
+            for (a = 0; a < 3; ++a) { blo[k][a] = FLT_MAX; bhi[k][a] = -FLT_MAX; }
+        }
+        for (i = begin; i < end; ++i) {
+            float t = (b->centroid[(size_t)b->order[i] * 3u + (size_t)axis] - clo[axis]) * scale;
+            int bin = t >= (float)(GIM__BVH_BINS - 1) ? GIM__BVH_BINS - 1 : t > 0.0f ? (int)t : 0;
+            const float *tb = b->box + (size_t)b->order[i] * 6u;
+            ++bn[bin];
+            for (a = 0; a < 3; ++a) {
+                if (tb[a] < blo[bin][a]) blo[bin][a] = tb[a];
+                if (tb[3 + a] > bhi[bin][a]) bhi[bin][a] = tb[3 + a];
+            }
+        }
+        for (a = 0; a < 3; ++a) { alo[a] = FLT_MAX; ahi[a] = -FLT_MAX; }
+        for (k = GIM__BVH_BINS - 1; k > 0; --k) {   /* the boxes of bins k.. */
+            float bb[6];
+            for (a = 0; a < 3; ++a) { bb[a] = blo[k][a]; bb[3 + a] = bhi[k][a]; }
+            if (bn[k]) gim__bvh_grow(alo, ahi, bb);
+            for (a = 0; a < 3; ++a) { rlo[k][a] = alo[a]; rhi[k][a] = ahi[a]; }
+        }
+        for (a = 0; a < 3; ++a) { alo[a] = FLT_MAX; ahi[a] = -FLT_MAX; }
+        for (k = 0; k < GIM__BVH_BINS - 1; ++k) {   /* the plane after bin k */
+            float bb[6], cost;
+            for (a = 0; a < 3; ++a) { bb[a] = blo[k][a]; bb[3 + a] = bhi[k][a]; }
+            if (bn[k]) gim__bvh_grow(alo, ahi, bb);
+            ln += bn[k];
+            rn = count - ln;
+            if (ln == 0 || rn == 0) continue;
+            cost = gim__bvh_area(alo, ahi) * (float)ln + gim__bvh_area(rlo[k + 1], rhi[k + 1]) * (float)rn;
+            if (cost < best) { best = cost; split = k; }
+        }
+        if (split >= 0) {   /* partition: the bins up to split first */
+            uint32_t j = end;
+            i = begin;
+            while (i < j) {
+                float t = (b->centroid[(size_t)b->order[i] * 3u + (size_t)axis] - clo[axis]) * scale;
+                int bin = t >= (float)(GIM__BVH_BINS - 1) ? GIM__BVH_BINS - 1 : t > 0.0f ? (int)t : 0;
+                if (bin <= split) { ++i; continue; }
+                --j;
+                { uint32_t s = b->order[i]; b->order[i] = b->order[j]; b->order[j] = s; }
+            }
+            mid = i;
+        }
+    }
+    if (mid <= begin || mid >= end) {   /* no plane splits them (or below the SAH levels): halves by count */
+        mid = begin + count / 2u;
+        if (chi[axis] > clo[axis]) gim__bvh_select(b, begin, end, mid, axis);
+    }
+    node->count = 0;
+    gim__bvh_node_make(b, begin, mid, depth + 1u);
+    node->index = b->node_count;   /* the second child follows the first's subtree */
+    gim__bvh_node_make(b, mid, end, depth + 1u);
+}
+
+GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gim_bvh *out) {
+    static const char where[] = "gim_bvh_build";
+    gim__bvh_build b;
+    uint32_t n, i;
+    if (!scene || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "scene or out is NULL");
+    n = scene->triangle_count;
+    if (n > 0 && !scene->positions) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "no positions");
+    if (n > GIM_BVH_MAX_TRIANGLES)
+        return gim__fail(&env, GIM_ERROR_OUT_OF_RANGE, where, "%u triangles exceed %u", n, GIM_BVH_MAX_TRIANGLES);
+    for (i = 0; i < n; ++i)
+        if (!gim__all_finite(scene->positions + (size_t)i * 9u, 9))
+            return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "triangle %u has a vertex that is not finite", i);
+    memset(&b, 0, sizeof b);
+    memset(out, 0, sizeof *out);
+    out->env = env;
+    if (n == 0) return GIM_OK;
+    b.pos = scene->positions;
+    b.box = (float *)gim__alloc_array(&env, n, 6u * sizeof(float));
+    b.centroid = (float *)gim__alloc_array(&env, n, 3u * sizeof(float));
+    b.order = (uint32_t *)gim__alloc_array(&env, n, sizeof(uint32_t));
+    b.nodes = (gim_bvh_node *)gim__alloc_array(&env, 2u * (size_t)n, sizeof(gim_bvh_node));
+    out->triangles = (float *)gim__alloc_array(&env, n, 12u * sizeof(float));
+    if (!b.box || !b.centroid || !b.order || !b.nodes || !out->triangles) {
+        gim__free(&env, b.box); gim__free(&env, b.centroid); gim__free(&env, b.order); gim__free(&env, b.nodes);
+        gim__free(&env, out->triangles);
+        out->triangles = NULL;
+        return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "a hierarchy of %u triangles", n);
+    }
+    for (i = 0; i < n; ++i) {
+        const float *v = b.pos + (size_t)i * 9u;
+        float *bx = b.box + (size_t)i * 6u;
+        int a, k;
+        for (a = 0; a < 3; ++a) {
+            bx[a] = bx[3 + a] = v[a];
+            for (k = 1; k < 3; ++k) {
+                float x = v[k * 3 + a];
+                if (x < bx[a]) bx[a] = x;
+                if (x > bx[3 + a]) bx[3 + a] = x;
+            }
+            b.centroid[(size_t)i * 3u + (size_t)a] = 0.5f * bx[a] + 0.5f * bx[3 + a];   /* the box's centre: never overflows */
+        }
+        b.order[i] = i;
+    }
+    gim__bvh_node_make(&b, 0, n, 0);
+    for (i = 0; i < n; ++i) {   /* the triangles in the leaves' order, as v0 and the two edges */
+        const float *v = b.pos + (size_t)b.order[i] * 9u;
+        float *t = out->triangles + (size_t)i * 12u;
+        int a;
+        for (a = 0; a < 3; ++a) {
+            t[a] = v[a];
+            t[4 + a] = v[3 + a] - v[a];
+            t[8 + a] = v[6 + a] - v[a];
+        }
+        t[3] = t[7] = t[11] = 0.0f;
+    }
+    gim__free(&env, b.box);
+    gim__free(&env, b.centroid);
+    gim__free(&env, b.order);
+    out->nodes = b.nodes;   /* 2n - 1 at most were used */
+    out->node_count = b.node_count;
+    out->triangle_count = n;
+    out->depth = b.depth;
+    return GIM_OK;
+}
+
+GIMANY_DEF void gim_bvh_free(gim_bvh *bvh) {
+    if (!bvh) return;
+    gim__free(&bvh->env, bvh->nodes);
+    gim__free(&bvh->env, bvh->triangles);
+    bvh->nodes = NULL;
+    bvh->triangles = NULL;
+    bvh->node_count = bvh->triangle_count = bvh->depth = 0;
+}
+
+/* Each triangle grown by 1e-4 of its size (in barycentrics): a segment through the edge two
+   triangles share, whose rounded barycentrics can put it just outside both, hits one; without
+   it 152 of 2000 segments through the diagonal of tests/unit/test_bvh.c's wall slipped through. */
+#define GIM__BVH_GROW 1e-4f
+
+/* The segment o + t d, 0 < t < 1, against one triangle (gim_bvh_occluded's steps; bvh.glsl). */
+static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
+    float px, py, pz, det, sx, sy, sz, u, qx, qy, qz, v, t, g;
+    const float *e1 = tri + 4, *e2 = tri + 8;
+    px = d[1] * e2[2] - d[2] * e2[1];
+    py = d[2] * e2[0] - d[0] * e2[2];
+    pz = d[0] * e2[1] - d[1] * e2[0];
+    det = e1[0] * px + e1[1] * py + e1[2] * pz;
+    if (det == 0.0f) return 0;
+    sx = o[0] - tri[0]; sy = o[1] - tri[1]; sz = o[2] - tri[2];
+    u = sx * px + sy * py + sz * pz;
+    qx = sy * e1[2] - sz * e1[1];
+    qy = sz * e1[0] - sx * e1[2];
+    qz = sx * e1[1] - sy * e1[0];
+    v = d[0] * qx + d[1] * qy + d[2] * qz;
+    t = e2[0] * qx + e2[1] * qy + e2[2] * qz;
+    if (det < 0.0f) { det = -det; u = -u; v = -v; t = -t; }
+    g = GIM__BVH_GROW * det;   /* a ray along the edge two triangles share hits one of them */
+    return u >= -g && v >= -g && u + v <= det + g && t > 0.0f && t < det;
+}
+
+GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) {
+    uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0;
+    float o[3], d[3], inv[3];
+    int a;
+    if (!bvh || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
+    o[0] = from.x; o[1] = from.y; o[2] = from.z;
+    d[0] = to.x - from.x; d[1] = to.y - from.y; d[2] = to.z - from.z;
+    if (!gim__all_finite(o, 3) || !gim__all_finite(d, 3)) return 0;
+    /* a reciprocal that is never infinite, so no slab gives 0 x inf */
+    for (a = 0; a < 3; ++a) inv[a] = 1.0f / (d[a] >= 0.0f ? (d[a] > 1e-30f ? d[a] : 1e-30f) : (d[a] < -1e-30f ? d[a] : -1e-30f));
+    for (;;) {
+        const gim_bvh_node *nd = bvh->nodes + node;
+        float tn = 0.0f, tf = 1.0f;
+        for (a = 0; a < 3; ++a) {
+            float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
+            float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
+            tn = lo_ > tn ? lo_ : tn;
+            tf = hi_ < tf ? hi_ : tf;
+        }
+        if (tn <= tf) {
+            if (nd->count == 0) {
+                stack[sp++] = nd->index;
+                node = node + 1u;
+                continue;
+            } else {
+                uint32_t k;
+                for (k = 0; k < nd->count; ++k)
+                    if (gim__bvh_triangle(bvh->triangles + (size_t)(nd->index + k) * 12u, o, d)) return 1;
+            }
+        }
+        if (sp == 0) return 0;
+        node = stack[--sp];
+    }
+}
+
+GIMANY_DEF gim_result gim_neighbour_rays_twin(const gim_neighbour_rays_desc *desc, gim_neighbour_result *out) {
+    static const char where[] = "gim_neighbour_rays_twin";
+    const gim_env *env;
+    uint32_t r, n;
+    float lift;
+    if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
+    env = &desc->env;
+    n = desc->neighbour_stride;
+    if (!out || !out->index || !out->count || !out->d_cmax)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "result or one of its arrays (index, count, d_cmax) is NULL");
+    if (!desc->bvh || !desc->caches || !desc->cache_count || !desc->receivers || !desc->neighbour_index ||
+        !desc->neighbour_count)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "bvh, caches, receivers and the neighbour rows are required");
+    if (n == 0 || n > GIM_MAX_NEIGHBOUR_CACHES)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "neighbour_stride must be 1..%d", GIM_MAX_NEIGHBOUR_CACHES);
+    if (!gim__isfinitef(desc->scene_scale) || !(desc->scene_scale > 0.0f))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
+    for (r = 0; r < desc->receiver_count; ++r) {
+        const uint32_t *row = desc->neighbour_index + (size_t)r * n;
+        uint32_t k, cnt = desc->neighbour_count[r];
+        if (cnt > n) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "neighbour_count[%u] = %u exceeds the stride", r, cnt);
+        for (k = 0; k < cnt; ++k)
+            if (row[k] >= desc->cache_count)
+                return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "receiver %u: neighbour %u is cache %u of %u", r, k,
+                                 row[k], desc->cache_count);
+    }
+    lift = GIM_NEIGHBOUR_RAY_LIFT * desc->scene_scale;
+    for (r = 0; r < desc->receiver_count; ++r) {
+        const gim_receiver *rc = desc->receivers + r;
+        const uint32_t *row = desc->neighbour_index + (size_t)r * n;
+        uint32_t kept[GIM_MAX_NEIGHBOUR_CACHES], cnt = desc->neighbour_count[r], nk = 0, k;
+        gim_vec3 x = gim_v3(rc->position[0] + lift * rc->normal[0], rc->position[1] + lift * rc->normal[1],
+                            rc->position[2] + lift * rc->normal[2]);
+        for (k = 0; k < cnt; ++k) {
+            const gim_cache *c = desc->caches + row[k];
+            gim_vec3 t = gim_v3(c->position[0] + lift * c->normal[0], c->position[1] + lift * c->normal[1],
+                                c->position[2] + lift * c->normal[2]);
+            if (!gim_bvh_occluded(desc->bvh, x, t)) kept[nk++] = row[k];
+        }
+        if (nk == 0)   /* sees none: keeps them all */
+            for (k = 0; k < cnt; ++k) kept[nk++] = row[k];
+        for (k = 0; k < n; ++k) out->index[(size_t)r * n + k] = k < nk ? kept[k] : UINT32_MAX;
+        out->count[r] = nk;
+        out->d_cmax[r] = 0.0f;
+        if (nk) {   /* gim_cache_neighbours' distance: the double of the float coordinates */
+            const float *cp = desc->caches[kept[nk - 1u]].position;
+            double dx = (double)rc->position[0] - cp[0], dy = (double)rc->position[1] - cp[1],
+                   dz = (double)rc->position[2] - cp[2];
+            out->d_cmax[r] = (float)sqrt(dx * dx + dy * dy + dz * dz);
+        }
+    }
+    return GIM_OK;
+}
+
 /* A receiver of gim_vpl_shade_twin / gim_geometry_blur_twin: a surface (unit normal) or none (zero). */
 static int gim__receiver_ok(const gim_receiver *rc) {
     if (!gim__all_finite(rc->position, 3) || !gim__all_finite(rc->normal, 3) || !gim__unit_or_zero(rc->normal, 1))
@@ -8759,6 +9176,9 @@ typedef struct gim__lightskin_gpu {
     uint64_t exponents_bytes;
     uint32_t *material;           /* CPU: the material of each world cache, in the grid's order */
     uint64_t exponents_for;       /* the materials_version the exponents were made from; 0: not made */
+    gim__GLuint bvh;              /* neighbour_rays: the scene's hierarchy, gim_bvh's nodes then triangles */
+    uint64_t bvh_bytes, bvh_version;  /* the scene_version it was built for */
+    uint32_t bvh_nodes;           /* its node count (the triangles start at vec4 2 bvh_nodes) */
 } gim__lightskin_gpu;
 
 /* The GPU state of the VPL methods (see "the VPL frame"), sized to what the last frame used. */
@@ -11839,6 +12259,8 @@ typedef struct gim__shade_args {
     uint32_t block;              /* B of gim_frame_lightskin.shade_block: 1 or 2 (0: 1) */
     uint32_t slabs;              /* a tile's list in slabs where its box is long (0); tests: 1 in slabs, 2 in rings
                                     in every tile */
+    gim__GLuint bvh;             /* neighbour_rays: the hierarchy (gim__gl_bvh's layout), or 0: no rays */
+    uint32_t bvh_nodes;          /* its nodes (0: nothing blocks) */
     gim__GLuint indirect;        /* width x height texture of format */
     gim__GLenum format;          /* RGBA16F or RGBA32F */
 } gim__shade_args;
@@ -11852,7 +12274,8 @@ typedef struct gim__shade_args {
    tile whose list overflows does instead), and the block's pixels off its surface search for
    themselves. Cost: tiles x cells of the tile's box grown by the radius, + searches x (the
    part of the tile's list in the rings or slabs a search visits + 2 n), searches = the blocks
-   + the pixels that do not share. */
+   + the pixels that do not share; with a->bvh (neighbour_rays) each search's n neighbours are
+   then tested by rays (gim_neighbour_rays_twin after gim_cache_neighbours): + searches x n rays. */
 static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_args *a) {
     static const char where[] = "LightSkin shading (GL)";
     const gim__gl *gl = &ctx->gl;
@@ -11872,6 +12295,7 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, a->buckets);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 4, a->cells);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 5, host ? a->caches : ctx->materials);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 6, a->bvh ? a->bvh : a->caches);   /* never read without rays */
     gl->Uniform1ui(4, a->n);
     gl->Uniform1f(5, a->cos_theta);
     gl->Uniform4f(6, a->grid.origin[0], a->grid.origin[1], a->grid.origin[2], a->grid.h);
@@ -11879,12 +12303,16 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1ui(8, a->grid.bucket_count - 1u);
     gl->Uniform1i(9, GIM__NEIGHBOUR_RINGS);
     gl->Uniform1f(10, GIM__TWINS_COINCIDENT * a->scene_scale);
-    gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u) | (a->neighbours_out ? 4u : 0u));
+    gl->Uniform1ui(11, (a->glossy && !host ? 1u : 0u) | (host ? 2u : 0u) | (a->neighbours_out ? 4u : 0u) |
+                           (a->bvh ? 8u : 0u));
     gl->Uniform1ui(12, host ? 1u : ctx->material_count);
     gl->Uniform1f(13, a->format == GIM__GL_RGBA16F ? 65504.0f : FLT_MAX);
     gl->Uniform1ui(14, a->list_limit && a->list_limit < GIM__SHADE_LIST_CAP ? a->list_limit : GIM__SHADE_LIST_CAP);
     gl->Uniform1ui(15, block);
     gl->Uniform1ui(16, a->slabs <= 2u ? a->slabs : 0u);
+    gl->Uniform1ui(17, a->bvh ? a->bvh_nodes : 0u);
+    gl->Uniform1ui(18, a->bvh_nodes * 2u);
+    gl->Uniform1f(19, GIM_NEIGHBOUR_RAY_LIFT * a->scene_scale);
     gl->DispatchCompute((a->width + 8u * block - 1u) / (8u * block), (a->height + 8u * block - 1u) / (8u * block), 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
@@ -11968,23 +12396,19 @@ static void gim__ism_release(gim_context *ctx) {
 static gim_result gim__gl_upload(gim_context *ctx, gim__GLuint *b, uint64_t *have, const void *data, uint64_t bytes,
                                  const char *where);
 
-/* The scene's ISM points (gim_ism_points over every instance's world triangles, read back
-   from the meshes' buffers), uploaded to ctx->ism_points; count of them in *count. */
-static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, const char *where) {
+/* Every instance's world triangles (9 floats each: gim_twin_scene.positions), read back from
+   the meshes' buffers into *positions (allocated through ctx->env, the caller frees it), their
+   count in *count: the points of the ISMs and the hierarchy of neighbour_rays are made from
+   them when the scene changes. */
+static gim_result gim__gl_world_triangles(gim_context *ctx, float **positions, uint32_t *count, const char *where) {
     const gim__gl *gl = &ctx->gl;
     uint32_t i, tris = 0, t;
-    float *pos, *alb, *pts;
-    gim_twin_scene sc;
-    gim_result r;
+    float *pos;
+    *positions = NULL;
+    *count = 0;
     for (i = 0; i < ctx->instance_count; ++i) tris += gim__mesh_get(ctx, ctx->instances[i].mesh)->triangle_count;
     pos = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 9u, sizeof(float));
-    alb = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 3u, sizeof(float));
-    pts = (float *)gim__alloc_array(&ctx->env, (size_t)count * 8u, sizeof(float));
-    if (!pos || !alb || !pts) {
-        gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
-        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "ISM points of %u triangles", (unsigned)tris);
-    }
-    memset(alb, 0, (size_t)tris * 3u * sizeof(float));
+    if (!pos && tris) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a copy of %u triangles", (unsigned)tris);
     for (i = 0, t = 0; i < ctx->instance_count; ++i) {
         const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
         gim__GLint64 vbytes = 0;
@@ -11997,8 +12421,7 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
         v = (float *)gim__alloc_array(&ctx->env, (size_t)vbytes / 4u + 1u, sizeof(float));
         idx = gim__alloc_array(&ctx->env, ibytes + 4u, 1u);
         if (!v || !idx) {
-            gim__free(&ctx->env, v); gim__free(&ctx->env, idx);
-            gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+            gim__free(&ctx->env, v); gim__free(&ctx->env, idx); gim__free(&ctx->env, pos);
             return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "a mesh's copy");
         }
         gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, (gim__GLintptr)m->position_offset, (gim__GLsizeiptr)vbytes, v);
@@ -12014,6 +12437,26 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
         gim__free(&ctx->env, v);
         gim__free(&ctx->env, idx);
     }
+    *positions = pos;
+    *count = tris;
+    return GIM_OK;
+}
+
+/* The scene's ISM points (gim_ism_points over every instance's world triangles), uploaded to
+   ctx->ism_points; count of them in *count. */
+static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, const char *where) {
+    uint32_t tris;
+    float *pos, *alb, *pts;
+    gim_twin_scene sc;
+    gim_result r = gim__gl_world_triangles(ctx, &pos, &tris, where);
+    if (r != GIM_OK) return r;
+    alb = (float *)gim__alloc_array(&ctx->env, (size_t)tris * 3u, sizeof(float));
+    pts = (float *)gim__alloc_array(&ctx->env, (size_t)count * 8u, sizeof(float));
+    if (!alb || !pts) {
+        gim__free(&ctx->env, pos); gim__free(&ctx->env, alb); gim__free(&ctx->env, pts);
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "ISM points of %u triangles", (unsigned)tris);
+    }
+    memset(alb, 0, (size_t)tris * 3u * sizeof(float));
     sc.positions = pos; sc.normals = NULL; sc.albedo = alb; sc.triangle_count = tris;
     r = gim_ism_points(&sc, count, pts);
     if (r == GIM_OK) r = gim__gl_upload(ctx, &ctx->ism_points, &ctx->ism_points_bytes, pts, (uint64_t)count * 32u, where);
@@ -12021,14 +12464,49 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
     return r;
 }
 
+/* neighbour_rays' hierarchy of the scene's world triangles (gim_bvh_build), in one buffer: the
+   nodes (32 bytes each), then the triangles (48 bytes each); made again when the scene changes
+   (scene_version), not per frame. */
+static gim_result gim__gl_bvh(gim_context *ctx, const char *where) {
+    gim__lightskin_gpu *ls = &ctx->ls;
+    uint32_t tris;
+    float *pos;
+    gim_twin_scene sc;
+    gim_bvh bvh;
+    gim_result r;
+    r = gim__gl_world_triangles(ctx, &pos, &tris, where);
+    if (r != GIM_OK) return r;
+    memset(&sc, 0, sizeof sc);
+    sc.positions = pos;
+    sc.triangle_count = tris;
+    r = gim_bvh_build(&sc, ctx->env, &bvh);
+    gim__free(&ctx->env, pos);
+    if (r != GIM_OK) return r;
+    {
+        uint64_t nb = (uint64_t)bvh.node_count * 32u, tb = (uint64_t)bvh.triangle_count * 48u;
+        r = gim__gl_upload(ctx, &ls->bvh, &ls->bvh_bytes, NULL, nb + tb > 0u ? nb + tb : 32u, where);
+        if (r == GIM_OK && nb) {
+            ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ls->bvh);
+            ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)nb, bvh.nodes);
+            ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLintptr)nb, (gim__GLsizeiptr)tb, bvh.triangles);
+        }
+    }
+    if (r == GIM_OK) {
+        ls->bvh_nodes = bvh.node_count;
+        ls->bvh_version = ctx->scene_version;
+    }
+    gim_bvh_free(&bvh);
+    return r;
+}
+
 /* The LightSkin buffers, the proxy pass's sums and the caches' materials (a frame of another
    method keeps none). */
 static void gim__lightskin_drop(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
-    gim__GLuint b[8];
+    gim__GLuint b[9];
     b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
-    b[6] = ls->exponents; b[7] = ctx->proxy_state;
-    ctx->gl.DeleteBuffers(8, b);
+    b[6] = ls->exponents; b[7] = ctx->proxy_state; b[8] = ls->bvh;
+    ctx->gl.DeleteBuffers(9, b);
     gim__free(&ctx->env, ls->material);
     memset(ls, 0, sizeof *ls);
     ctx->proxy_state = 0;
@@ -12222,6 +12700,16 @@ vals:
     } else if (ctx->ism_maps || ctx->ism_points) {
         gim__ism_release(ctx);
     }
+    if (f->visibility.neighbour_rays && (!ls->bvh || ls->bvh_version != ctx->scene_version)) {
+        r = gim__gl_bvh(ctx, where);   /* the shading pass's rays: made again only when the scene changed */
+        if (r != GIM_OK) return r;
+        gim__stamp(ctx, f->timing, GIM_PASS_ISM);
+    } else if (!f->visibility.neighbour_rays && ls->bvh) {   /* off: no buffer */
+        ctx->gl.DeleteBuffers(1, &ls->bvh);
+        ls->bvh = 0;
+        ls->bvh_bytes = ls->bvh_version = 0;
+        ls->bvh_nodes = 0;
+    }
     r = gim__gl_proxy_lights_ism(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
                                  glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
     if (r != GIM_OK) return r;
@@ -12247,6 +12735,8 @@ vals:
     sa.indirect = ctx->indirect;
     sa.format = format;
     sa.block = f->lightskin.shade_block;
+    sa.bvh = f->visibility.neighbour_rays ? ls->bvh : 0u;
+    sa.bvh_nodes = ls->bvh_nodes;
     r = gim__gl_lightskin_shade(ctx, &sa);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
@@ -13694,6 +14184,13 @@ static gim_result gim__visibility_check(gim_context *ctx, const gim_frame *f, co
     if (f->visibility.mode == GIM_VISIBILITY_SHADOW_MAPS && !vplm)
         return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
                          "visibility SHADOW_MAPS is one map per VPL: CLUSTERED or SSVP (LightSkin: ISM)");
+    if (f->visibility.neighbour_rays > 1u)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "visibility.neighbour_rays %u: 0 or 1",
+                         (unsigned)f->visibility.neighbour_rays);
+    if (f->visibility.neighbour_rays &&
+        f->method != GIM_METHOD_LIGHTSKIN_BRSM && f->method != GIM_METHOD_LIGHTSKIN_FULL && f->method != GIM_METHOD_DEFAULT)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where,
+                         "visibility.neighbour_rays tests LightSkin's neighbour caches: LIGHTSKIN_BRSM or LIGHTSKIN_FULL");
     if (vplm) gim__vpl_settings_of(rf, &s);
     if (f->visibility.mode != GIM_VISIBILITY_ISM && f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS &&
         !(vplm && s.second_ism))
@@ -14267,7 +14764,8 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u + (uint64_t)ctx->decoded_width * ctx->decoded_height * 12u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
-         ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->gather_samples_bytes + ctx->gather_sum_bytes;
+         ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->ls.bvh_bytes + ctx->gather_samples_bytes +
+         ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
          ctx->vpl.maps_bytes + ctx->vpl.made_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *

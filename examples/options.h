@@ -31,6 +31,7 @@ typedef struct demo_options {
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS */
+    int neighbour_rays;      /* brsm, full: 1 turns on gim_frame.visibility.neighbour_rays */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
     int glossy;
@@ -73,6 +74,8 @@ static const char demo_usage_text[] =
     "  --shadow-maps         clustered, ssvp: one shadow map per VPL rendered from the triangles instead\n"
     "                        of its ISM (exact at each texel; a draw of the scene per map made);\n"
     "                        --ism-size N their side\n"
+    "  --neighbour-rays      brsm, full: each pixel interpolates only the neighbour caches it sees, by rays\n"
+    "                        through a bounding volume hierarchy of the scene (with or without --ism)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
     "  --exposure A          tone-mapping exposure (default: automatic, key 0.18 / log-average luminance)\n"
     "  --allow-slow          run a frame estimated above 2e9 terms (about a minute on llvmpipe) or 2 GiB\n"
@@ -125,6 +128,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (len == 5 && !strncmp(a, "--ism", 5)) flag = 4;
         else if (len == 16 && !strncmp(a, "--vpl-importance", 16)) flag = 5;
         else if (len == 13 && !strncmp(a, "--shadow-maps", 13)) flag = 6;
+        else if (len == 16 && !strncmp(a, "--neighbour-rays", 16)) flag = 7;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
             if (flag == 1) d->glossy = 0;
@@ -132,6 +136,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             else if (flag == 3) d->allow_slow = 1;
             else if (flag == 4) d->ism = 1;
             else if (flag == 6) d->ism = 2;
+            else if (flag == 7) d->neighbour_rays = 1;
             else d->vpl_importance = 1;
             continue;
         }
@@ -230,6 +235,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->visibility.mode = d->ism == 2 ? GIM_VISIBILITY_SHADOW_MAPS : d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
     f->visibility.ism_size = d->ism_size;
     f->visibility.ism_points = d->ism_points;
+    f->visibility.neighbour_rays = d->neighbour_rays ? 1u : 0u;
 }
 
 /* A frame's work from the cost model, in terms (one VAL or VPL or texel

@@ -1,6 +1,7 @@
 /* LightSkin interpolation and shading per pixel (Bischoff 2017 "Interpolation using the Proxy
    Lights", eq. 8-9), the GPU twin of gim_cache_neighbours (with max_distance) followed by
-   gim_lightskin_shade_twin with gim_shade_sources' blocks: one invocation per B x B block of
+   gim_lightskin_shade_twin with gim_shade_sources' blocks (and gim_neighbour_rays_twin between
+   them with neighbour_rays): one invocation per B x B block of
    pixels (B = `block`, 1 or 2), one work group per 8B x 8B tile.
    1. finds the n nearest caches whose normal is within the compatibility angle, within
       `radius`, ties by cache index, as the twin, for the block's first receiver. The tile
@@ -16,6 +17,8 @@
       choice is the same. A tile whose list would not fit (a depth edge spans the scene, a box
       over too many cells) searches per pixel instead: shells of cells around the pixel's
       cell, nearest first, until the n-th found is nearer than any unvisited cell;
+      with neighbour_rays (flags 8) the receiver then keeps only the caches it sees, a ray
+      each through the scene's bounding volume hierarchy (bvh.glsl; gim_neighbour_rays_twin);
    2. interpolates the diffuse (and glossy) proxy lights of those caches there, with the
       formulas, weights and guards of gim_lightskin_shade_twin (read there);
    3. shades every pixel of the block on that receiver's surface with that light and its own
@@ -70,6 +73,15 @@ layout(location = 14) uniform uint list_limit;  /* caches a tile's list may hold
 layout(location = 15) uniform uint block;       /* B: each invocation a B x B block of pixels, 1 or 2 */
 layout(location = 16) uniform uint slabs;       /* 0: a tile's list in slabs where its box is long (SLAB_LENGTH), else
                                                    in rings; tests: 1 slabs, 2 rings in every tile */
+
+/* flags 8 (gim_frame_visibility.neighbour_rays): each search's neighbours that its receiver
+   cannot see dropped (gim_neighbour_rays_twin), by a ray through the scene's hierarchy from
+   ray_lift above the receiver to ray_lift above the cache */
+layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
+layout(location = 17) uniform uint bvh_nodes;
+layout(location = 18) uniform uint bvh_triangles;   /* the triangles' first vec4 */
+layout(location = 19) uniform float ray_lift;       /* GIM_NEIGHBOUR_RAY_LIFT scene_scale */
+#include "bvh.glsl"
 
 uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */
     return (uint(c.x) * 73856093u) ^ (uint(c.y) * 19349663u) ^ (uint(c.z) * 83492791u);
@@ -338,10 +350,27 @@ void neighbours(out Near b, bool listed, vec3 x, vec3 nx, float radius) {
     }
 }
 
-/* The light at receiver (x, nx, view, k) from its neighbours: diffuse irradiance in dl, the
-   glossy lobe's in gl (0 without glossy proxies); tests (flags 4): the neighbours themselves,
-   (d_cmax, count, sum of indices) in dl. */
+/* flags 8: b's neighbours that x (normal nx) sees, in their order; all of them where it sees
+   none (gim_neighbour_rays_twin) */
+void visible_only(inout Near b, vec3 x, vec3 nx) {
+    Near k;
+    k.found = 0u;
+    for (int j = 0; j < MAX_N; ++j) { k.d[j] = FLT_MAX; k.i[j] = 0xffffffffu; }
+    precise vec3 o = vec3(x.x + ray_lift * nx.x, x.y + ray_lift * nx.y, x.z + ray_lift * nx.z);
+    for (int j = 0; j < MAX_N; ++j) {   /* constant indices into b (see offer) */
+        if (uint(j) >= b.found) break;
+        vec3 c = cache[b.i[j]].position_area.xyz, nc = cache[b.i[j]].normal_reflectance.xyz;
+        precise vec3 t = vec3(c.x + ray_lift * nc.x, c.y + ray_lift * nc.y, c.z + ray_lift * nc.z);
+        if (!bvh_occluded(o, t)) offer(k, b.d[j], b.i[j]);
+    }
+    if (k.found > 0u) b = k;
+}
+
+/* The light at receiver (x, nx, view, k) from its neighbours (those it sees, with flags 8):
+   diffuse irradiance in dl, the glossy lobe's in gl (0 without glossy proxies); tests (flags
+   4): the neighbours themselves, (d_cmax, count, sum of indices) in dl. */
 void light_at(Near b, vec3 x, vec3 nx, vec3 view, float k, out vec3 dl, out vec3 gl) {
+    if ((flags & 8u) != 0u) visible_only(b, x, nx);
     float dcmax = b.found > 0u ? best_at(b, b.found - 1u) : 0.0;
     gl = vec3(0.0);
     if ((flags & 4u) != 0u) {

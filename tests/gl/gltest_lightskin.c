@@ -176,7 +176,34 @@ typedef struct shade_case {
     uint32_t list_limit; /* caches a tile's list may hold; 0: the pass's; 1: every tile per pixel */
     uint32_t block;      /* the pass's shade_block: 1 or 2 */
     uint32_t slabs;      /* the tiles' lists: 0 by their box, 1 in slabs, 2 in rings */
+    int rays;            /* neighbour_rays: the room's hierarchy, the twin gim_neighbour_rays_twin */
 } shade_case;
+
+/* The room's triangles in a hierarchy (gim_bvh_build), uploaded as gim__gl_bvh lays it out:
+   nodes, then triangles. */
+static GLuint room_bvh(const room *r, gim_env env, uint32_t *nodes, gim_bvh *b) {
+    float *tri = (float *)malloc(r->quads * 2u * 9u * sizeof(float)), *buf;
+    gim_twin_scene ts;
+    uint32_t t, k;
+    GLuint id;
+    size_t nb, tb;
+    for (t = 0; t < r->quads * 2u; ++t)
+        for (k = 0; k < 3u; ++k) memcpy(tri + t * 9u + k * 3u, r->pos + r->idx[t * 3u + k] * 3u, 12);
+    memset(&ts, 0, sizeof ts);
+    ts.positions = tri;
+    ts.triangle_count = r->quads * 2u;
+    assert_int_equal(gim_bvh_build(&ts, env, b), GIM_OK);
+    free(tri);
+    nb = (size_t)b->node_count * 32u;
+    tb = (size_t)b->triangle_count * 48u;
+    buf = (float *)malloc(nb + tb);
+    memcpy(buf, b->nodes, nb);
+    memcpy((char *)buf + nb, b->triangles, tb);
+    id = gltest_ssbo((GLsizeiptr)(nb + tb), buf);
+    free(buf);
+    *nodes = b->node_count;
+    return id;
+}
 
 static void run_shade_case(const shade_case *sc, float L, const float origin[3]) {
     enum { W = 80, H = 60, NV = 400 };
@@ -204,13 +231,17 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     gim_neighbour_desc nd;
     gim_neighbour_result nr;
     gim_shade_desc sdesc;
-    GLuint b_caches, b_cells, b_buckets, b_pd, b_pg = 0, t_ind, t_depth = 0, t_normal = 0;
+    GLuint b_caches, b_cells, b_buckets, b_pd, b_pg = 0, t_ind, t_depth = 0, t_normal = 0, b_bvh = 0;
+    gim_bvh bvh;
+    uint32_t bvh_nodes = 0, dropped = 0;
     gim_vec3 eye = gim_v3(origin[0] + 0.5f * L, origin[1] + 0.55f * L, origin[2] + 1.9f * L);
     double cos_t, radius, max_rel = 0.0, ref_max = 0.0;
     uint32_t bad = 0, lit = 0;
     gltest_fixture_begin(&f);
     make_room(&r, L);
     for (i = 0; i < r.quads * 4; ++i) { r.pos[i * 3] += origin[0]; r.pos[i * 3 + 1] += origin[1]; r.pos[i * 3 + 2] += origin[2]; }
+    memset(&bvh, 0, sizeof bvh);
+    if (sc->rays) b_bvh = room_bvh(&r, f.env, &bvh_nodes, &bvh);
     memset(&cd, 0, sizeof cd);
     cd.mesh = room_mesh(&r);
     /* blocks share where a pixel lies within a quarter of a grid cell of its block's first receiver:
@@ -277,6 +308,8 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     sa.list_limit = sc->list_limit;
     sa.block = sc->block;
     sa.slabs = sc->slabs;
+    sa.bvh = b_bvh;
+    sa.bvh_nodes = bvh_nodes;
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
@@ -347,6 +380,21 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             nb_cnt[i] = keep;
             dcmax[i] = far_;
         }
+        if (sc->rays) {   /* the neighbours each receiver sees, in place */
+            gim_neighbour_rays_desc rd;
+            uint32_t *before = (uint32_t *)malloc(nrec * 4);
+            memcpy(before, nb_cnt, nrec * 4);
+            memset(&rd, 0, sizeof rd);
+            rd.bvh = &bvh; rd.caches = sorted; rd.cache_count = set.count; rd.receivers = rec; rd.receiver_count = nrec;
+            rd.neighbour_index = nb_idx; rd.neighbour_count = nb_cnt; rd.neighbour_stride = sc->n;
+            rd.scene_scale = pdesc.scene_scale; rd.env = f.env;
+            assert_int_equal(gim_neighbour_rays_twin(&rd, &nr), GIM_OK);
+            for (i = 0; i < nrec; ++i) dropped += nb_cnt[i] != before[i];
+            free(before);
+            /* the block hides the caches inside it and behind it from the floor and walls around it */
+            print_message("  rays: %u of %u receivers see fewer neighbours\n", dropped, nrec);
+            assert_true(dropped > nrec / 50);
+        }
         {   /* whose light each receiver takes in the pass's blocks */
             gim_shade_blocks_desc bd;
             src = (uint32_t *)malloc(nrec * 4);
@@ -391,9 +439,9 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
             if (e > 2e-3) bad++;
             else if (e > max_rel) max_rel = e;
         }
-        print_message("shade n=%u glossy=%d host=%d list %u block %u slabs %u scale %g: %u receivers (%u share), %u lit, %u caches, max rel "
-                      "err %.2e, %u above 2e-3\n",
-                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (unsigned)sc->block, (unsigned)sc->slabs, (double)L,
+        print_message("shade n=%u glossy=%d host=%d list %u block %u slabs %u rays %d scale %g: %u receivers (%u share), %u lit, %u caches, "
+                      "max rel err %.2e, %u above 2e-3\n",
+                      sc->n, sc->glossy, sc->host, (unsigned)sc->list_limit, (unsigned)sc->block, (unsigned)sc->slabs, sc->rays, (double)L,
                       nrec, shared_n, lit,
                       set.count, max_rel, bad);
         assert_true(lit > nrec / 2);
@@ -434,6 +482,8 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     glDeleteBuffers(1, &b_caches); glDeleteBuffers(1, &b_cells); glDeleteBuffers(1, &b_buckets);
     glDeleteBuffers(1, &b_pd);
     if (b_pg) glDeleteBuffers(1, &b_pg);
+    if (b_bvh) glDeleteBuffers(1, &b_bvh);
+    gim_bvh_free(&bvh);
     glDeleteTextures(1, &t_ind);
     gim_cache_set_free(&set);
     gltest_fixture_end(&f);
@@ -444,7 +494,7 @@ static void shade_matches_twin(void **state) {
     shade_case sc;
     (void)state;
     GLTEST_BEGIN();
-    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0; sc.block = 2; sc.slabs = 0;
+    sc.n = 16; sc.glossy = 1; sc.host = 0; sc.list_limit = 0; sc.block = 2; sc.slabs = 0; sc.rays = 0;
     run_shade_case(&sc, 4.0f, o0);
     sc.slabs = 1;                               /* every tile's list in slabs across its box's long axis */
     run_shade_case(&sc, 4.0f, o0);
@@ -473,6 +523,13 @@ static void shade_matches_twin(void **state) {
     run_shade_case(&sc, 0.004f, o0);
     run_shade_case(&sc, 40.0f, ofar);
     sc.slabs = 1;                               /* the slabs' edges at those scales */
+    run_shade_case(&sc, 0.004f, o0);
+    run_shade_case(&sc, 40.0f, ofar);
+    sc.n = 16; sc.slabs = 0; sc.rays = 1;       /* neighbour_rays: in blocks, per pixel, per pixel search, far */
+    run_shade_case(&sc, 4.0f, o0);
+    sc.block = 1; sc.list_limit = 1;
+    run_shade_case(&sc, 4.0f, o0);
+    sc.block = 2; sc.list_limit = 0; sc.host = 1;
     run_shade_case(&sc, 0.004f, o0);
     run_shade_case(&sc, 40.0f, ofar);
     GLTEST_END();

@@ -146,6 +146,47 @@ static void no_light_through_walls(void **state) {
     assert_true(off > 0.05);
     assert_true(ism < 0.01);
     gltest_state_unchanged(&s.f);
+    {   /* with each pixel's rays to its neighbours too (neighbour_rays): still dark inside; the
+           hierarchy made once, counted, kept while nothing moves, made again when an instance
+           moves, released when off */
+        gim_stats st;
+        double rays;
+        uint64_t without;
+        GLuint made;
+        gim_instance in;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);   /* ISM alone */
+        assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
+        without = st.gpu_bytes;
+        assert_int_equal(s.f.ctx->ls.bvh, 0);
+        s.fr.visibility.neighbour_rays = 1;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        rays = inside(&s);
+        print_message("with neighbour rays: %.4f inside\n", rays);
+        assert_true(rays < 0.01);
+        made = s.f.ctx->ls.bvh;
+        assert_true(made != 0 && s.f.ctx->ls.bvh_nodes > 0);
+        assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
+        assert_true(st.gpu_bytes == without + s.f.ctx->ls.bvh_bytes && s.f.ctx->ls.bvh_bytes >= 48u * 2u * s.r.quads);
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_true(s.f.ctx->ls.bvh == made && s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        in.mesh = s.mesh;
+        in.model = gim_mat4_identity();
+        in.model.m[12] = 1.0f;   /* moved: made again */
+        assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
+        assert_true(s.f.ctx->ls.bvh_version != s.f.ctx->scene_version);
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_true(s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        in.model.m[12] = 0.0f;   /* and back: the first frame's image again */
+        assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_true(s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        assert_true(fabs(inside(&s) - rays) <= 1e-6 * rays + 1e-12);
+        gltest_state_unchanged(&s.f);
+        s.fr.visibility.neighbour_rays = 0;
+        assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+        assert_int_equal(s.f.ctx->ls.bvh, 0);   /* off: released */
+        assert_int_equal(s.f.ctx->ls.bvh_bytes, 0);
+    }
     s.fr.visibility.mode = GIM_VISIBILITY_OFF;
     s.fr.method = GIM_METHOD_CLUSTERED;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
@@ -472,6 +513,20 @@ static void bad_settings(void **state) {
     s.fr.vpl.no_visibility = 0;
     s.fr.vpl.count = 0;
     s.fr.visibility.ism_size = 0;
+    /* neighbour_rays: 0 or 1, LightSkin only; refused before any GL work */
+    s.fr.visibility.neighbour_rays = 2;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_OUT_OF_RANGE);
+    s.fr.visibility.neighbour_rays = 1;
+    s.fr.method = GIM_METHOD_CLUSTERED;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.method = GIM_METHOD_RSM_GATHER;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(s.f.log.errors, 3);
+    assert_true(strstr(s.f.log.last, "neighbour_rays") != NULL);
+    s.f.log.errors = 0;
+    assert_int_equal(s.f.ctx->ls.bvh, 0);
+    s.fr.visibility.neighbour_rays = 0;
+    s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
     gltest_state_unchanged(&s.f);
     teardown(&s);
     GLTEST_END();

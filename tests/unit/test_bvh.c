@@ -1,0 +1,376 @@
+/* The bounding volume hierarchy of neighbour_rays (gim_bvh_build, gim_bvh_occluded) and the
+   pixels' neighbour test (gim_neighbour_rays_twin): the traversal answers what testing every
+   triangle on its own answers, on random soups and on degenerate ones; the triangle test
+   against an exact (double) segment-triangle test away from edges and ends (each triangle is
+   grown by 1e-4 of itself so that a segment through a shared edge hits one of the two); closed forms (a
+   wall between two points, a segment stopping short of it, grazing along it); the same answers
+   in millimetres, kilometres and far from the origin; the depth bound on the worst layouts;
+   the neighbour rows (the hidden dropped in order, d_cmax the farthest kept, a receiver that
+   sees none keeps its row); bad input refused; no leak, allocation failures handled. */
+#define GIMANY_IMPLEMENTATION
+#include "testutil.h"
+
+/* A quad at corner c spanned by u, v as two triangles into pos (18 floats) from triangle t. */
+static uint32_t quad(float *pos, uint32_t t, const float c[3], const float u[3], const float v[3]) {
+    int k;
+    for (k = 0; k < 3; ++k) {
+        pos[t * 9 + k] = c[k]; pos[t * 9 + 3 + k] = c[k] + u[k]; pos[t * 9 + 6 + k] = c[k] + u[k] + v[k];
+        pos[t * 9 + 9 + k] = c[k]; pos[t * 9 + 12 + k] = c[k] + u[k] + v[k]; pos[t * 9 + 15 + k] = c[k] + v[k];
+    }
+    return t + 2;
+}
+
+static gim_bvh build(const float *pos, uint32_t n, gim_env env) {
+    gim_twin_scene s;
+    gim_bvh b;
+    memset(&s, 0, sizeof s);
+    s.positions = pos;
+    s.triangle_count = n;
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_OK);
+    return b;
+}
+
+/* Every node's box holds its triangles; inner nodes' children in range; each triangle in one leaf. */
+static void check_tree(const gim_bvh *b) {
+    uint32_t i, covered = 0, k;
+    assert_true(b->depth < GIM_BVH_MAX_DEPTH);
+    assert_true(b->node_count <= 2u * b->triangle_count);
+    for (i = 0; i < b->node_count; ++i) {
+        const gim_bvh_node *nd = b->nodes + i;
+        if (nd->count == 0) {
+            assert_true(nd->index > i + 1u && nd->index < b->node_count);
+            continue;
+        }
+        assert_true(nd->count <= GIM_BVH_LEAF);
+        assert_true(nd->index + nd->count <= b->triangle_count);
+        covered += nd->count;
+        for (k = 0; k < nd->count; ++k) {
+            const float *t = b->triangles + (size_t)(nd->index + k) * 12u;
+            int a, v;
+            for (v = 0; v < 3; ++v)
+                for (a = 0; a < 3; ++a) {
+                    float x = t[a] + (v ? t[4 * v + a] : 0.0f);
+                    assert_true(x >= nd->lo[a] && x <= nd->hi[a]);
+                }
+        }
+    }
+    assert_int_equal(covered, b->triangle_count);
+}
+
+/* What the hierarchy answers equals testing each triangle alone (a hierarchy of one). */
+static int brute(const float *pos, uint32_t n, gim_vec3 a, gim_vec3 b, gim_env env) {
+    uint32_t t;
+    int hit = 0;
+    for (t = 0; t < n && !hit; ++t) {
+        gim_bvh one = build(pos + (size_t)t * 9u, 1, env);
+        hit = gim_bvh_occluded(&one, a, b);
+        gim_bvh_free(&one);
+    }
+    return hit;
+}
+
+static gim_vec3 rnd_point(float lo, float hi) { return gim_v3(test_rnd(lo, hi), test_rnd(lo, hi), test_rnd(lo, hi)); }
+
+static void traversal_equals_every_triangle(void **state) {
+    test_alloc_stats as;
+    gim_env env = test_env(&as, NULL);
+    enum { N = 400, SEGMENTS = 1500 };
+    float *pos = (float *)malloc(N * 9 * sizeof(float));
+    uint32_t t, i, hits = 0;
+    gim_bvh b;
+    (void)state;
+    test_rng_state = 7;
+    for (t = 0; t < N; ++t) {   /* small triangles in the unit cube, some sliver, some large */
+        gim_vec3 c = rnd_point(0.0f, 1.0f);
+        float s = t % 17 == 0 ? 0.5f : 0.06f;
+        int k;
+        for (k = 0; k < 3; ++k) {
+            pos[t * 9 + k * 3] = c.x + test_rnd(-s, s);
+            pos[t * 9 + k * 3 + 1] = c.y + test_rnd(-s, s);
+            pos[t * 9 + k * 3 + 2] = c.z + (t % 5 == 0 ? 0.0f : test_rnd(-s, s));
+        }
+    }
+    b = build(pos, N, env);
+    check_tree(&b);
+    for (i = 0; i < SEGMENTS; ++i) {
+        gim_vec3 p = rnd_point(-0.2f, 1.2f), q = rnd_point(-0.2f, 1.2f);
+        int h = gim_bvh_occluded(&b, p, q);
+        assert_int_equal(h, brute(pos, N, p, q, env));
+        assert_int_equal(gim_bvh_occluded(&b, q, p), brute(pos, N, q, p, env));
+        hits += (uint32_t)h;
+    }
+    assert_true(hits > SEGMENTS / 5 && hits < SEGMENTS * 4 / 5);   /* both answers exercised */
+    gim_bvh_free(&b);
+    assert_int_equal(as.live, 0);
+    free(pos);
+}
+
+/* The triangle test against an exact one in double where the hit is clear of the triangle's
+   edges and the segment's ends (by 3e-4 in barycentrics and t: the triangles grow by 1e-4). */
+static void triangle_test_is_exact_away_from_edges(void **state) {
+    gim_env env = test_env(NULL, NULL);
+    uint32_t i, checked = 0;
+    (void)state;
+    test_rng_state = 11;
+    for (i = 0; i < 20000; ++i) {
+        float tri[9];
+        gim_vec3 p = rnd_point(-1.0f, 1.0f), q = rnd_point(-1.0f, 1.0f);
+        double e1[3], e2[3], d[3], s[3], pv[3], qv[3], det, u, v, t;
+        int k;
+        gim_bvh b;
+        for (k = 0; k < 9; ++k) tri[k] = test_rnd(-1.0f, 1.0f);
+        for (k = 0; k < 3; ++k) {
+            e1[k] = (double)tri[3 + k] - tri[k];
+            e2[k] = (double)tri[6 + k] - tri[k];
+            s[k] = (double)(k == 0 ? p.x : k == 1 ? p.y : p.z) - tri[k];
+        }
+        d[0] = (double)q.x - p.x; d[1] = (double)q.y - p.y; d[2] = (double)q.z - p.z;
+        pv[0] = d[1] * e2[2] - d[2] * e2[1]; pv[1] = d[2] * e2[0] - d[0] * e2[2]; pv[2] = d[0] * e2[1] - d[1] * e2[0];
+        det = e1[0] * pv[0] + e1[1] * pv[1] + e1[2] * pv[2];
+        if (fabs(det) < 1e-3) continue;
+        qv[0] = s[1] * e1[2] - s[2] * e1[1]; qv[1] = s[2] * e1[0] - s[0] * e1[2]; qv[2] = s[0] * e1[1] - s[1] * e1[0];
+        u = (s[0] * pv[0] + s[1] * pv[1] + s[2] * pv[2]) / det;
+        v = (d[0] * qv[0] + d[1] * qv[1] + d[2] * qv[2]) / det;
+        t = (e2[0] * qv[0] + e2[1] * qv[1] + e2[2] * qv[2]) / det;
+        if (fabs(u) < 3e-4 || fabs(v) < 3e-4 || fabs(1.0 - u - v) < 3e-4 || fabs(t) < 3e-4 || fabs(1.0 - t) < 3e-4) continue;
+        b = build(tri, 1, env);
+        assert_int_equal(gim_bvh_occluded(&b, p, q), u > 0.0 && v > 0.0 && u + v < 1.0 && t > 0.0 && t < 1.0);
+        gim_bvh_free(&b);
+        ++checked;
+    }
+    assert_true(checked > 15000);
+}
+
+/* A wall x in [-1, 1], y in [0, 2] at z = 0 (two triangles), at scale s around origin o. */
+static void wall_answers(float s, float ox, float oy, float oz) {
+    gim_env env = test_env(NULL, NULL);
+    float pos[18], c[3] = {-1, 0, 0}, u[3] = {2, 0, 0}, v[3] = {0, 2, 0};
+    int k;
+    gim_bvh b;
+    gim_vec3 a;
+#define P(x, y, z) gim_v3(ox + s * (x), oy + s * (y), oz + s * (z))
+    for (k = 0; k < 3; ++k) { c[k] *= s; u[k] *= s; v[k] *= s; }
+    c[0] += ox; c[1] += oy; c[2] += oz;
+    quad(pos, 0, c, u, v);
+    b = build(pos, 2, env);
+    a = P(0.3f, 1.1f, -1.0f);
+    assert_true(gim_bvh_occluded(&b, a, P(0.3f, 1.1f, 1.0f)));        /* through the wall */
+    assert_true(gim_bvh_occluded(&b, a, P(-0.9f, 0.2f, 0.5f)));       /* obliquely through it */
+    assert_true(gim_bvh_occluded(&b, a, P(0.0f, 1.0f, 1.0f)));        /* across the diagonal shared by its triangles */
+    assert_false(gim_bvh_occluded(&b, a, P(0.3f, 1.1f, -0.01f)));     /* stops short of it */
+    assert_false(gim_bvh_occluded(&b, a, P(2.5f, 1.1f, 1.0f)));       /* passes beside it (z = 0 at x = 1.4) */
+    assert_false(gim_bvh_occluded(&b, a, P(0.3f, 4.0f, 1.0f)));       /* over it (z = 0 at y = 2.55) */
+    assert_false(gim_bvh_occluded(&b, P(-0.5f, 1.0f, 0.001f), P(0.5f, 1.0f, 0.001f)));   /* along it, just off */
+    assert_false(gim_bvh_occluded(&b, P(-0.5f, 1.0f, -0.5f), P(0.5f, 1.0f, -0.2f)));    /* both ends on one side */
+    assert_false(gim_bvh_occluded(&b, a, a));                                          /* no length */
+    for (k = 0; k < 200; ++k) {   /* through points of the shared diagonal y = x + 1: none slips between */
+        float x = -0.95f + 1.9f * (float)k / 199.0f, y = x + 1.0f;
+        assert_true(gim_bvh_occluded(&b, P(x + 0.2f, y + 0.3f, -1.0f), P(x - 0.2f, y - 0.3f, 1.0f)));
+        assert_true(gim_bvh_occluded(&b, P(x - 0.7f, y + 0.1f, 0.6f), P(x + 0.7f, y - 0.1f, -0.6f)));
+    }
+#undef P
+    gim_bvh_free(&b);
+}
+
+static void closed_forms_at_any_scale(void **state) {
+    (void)state;
+    wall_answers(1.0f, 0.0f, 0.0f, 0.0f);
+    wall_answers(1e-3f, 0.0f, 0.0f, 0.0f);
+    wall_answers(1e3f, 0.0f, 0.0f, 0.0f);
+    wall_answers(1e-12f, 0.0f, 0.0f, 0.0f);
+    wall_answers(1e12f, 0.0f, 0.0f, 0.0f);
+    wall_answers(1.0f, 500.0f, -300.0f, 200.0f);    /* far from the origin: hundreds of walls away */
+    wall_answers(1e3f, -4e5f, 2e5f, 1e5f);
+}
+
+/* Layouts that defeat the surface-area splits (every centroid in one spot, or spaced
+   geometrically) stay within the depth bound and still answer as every triangle does. */
+static void degenerate_layouts(void **state) {
+    test_alloc_stats as;
+    gim_env env = test_env(&as, NULL);
+    enum { N = 3000 };
+    float *pos = (float *)calloc(N * 9, sizeof(float));
+    uint32_t t, i;
+    gim_bvh b;
+    gim_twin_scene s;
+    (void)state;
+    for (t = 0; t < N; ++t) {   /* one triangle repeated */
+        pos[t * 9 + 3] = 1.0f; pos[t * 9 + 7] = 1.0f;
+    }
+    b = build(pos, N, env);
+    check_tree(&b);
+    assert_true(gim_bvh_occluded(&b, gim_v3(0.2f, 0.2f, -1.0f), gim_v3(0.2f, 0.2f, 1.0f)));
+    assert_false(gim_bvh_occluded(&b, gim_v3(0.8f, 0.8f, -1.0f), gim_v3(0.8f, 0.8f, 1.0f)));
+    gim_bvh_free(&b);
+    for (t = 0; t < N; ++t) {   /* geometric spacing: each a tenth smaller and nearer the origin */
+        float x = (float)pow(0.9, (double)t);
+        memset(pos + t * 9, 0, 9 * sizeof(float));
+        pos[t * 9] = x; pos[t * 9 + 3] = x * 1.01f; pos[t * 9 + 7] = x * 0.01f; pos[t * 9 + 2] = 0.0f;
+    }
+    b = build(pos, N, env);
+    check_tree(&b);
+    test_rng_state = 3;
+    for (i = 0; i < 200; ++i) {
+        gim_vec3 p = gim_v3(test_rnd(0.0f, 1.1f), test_rnd(-0.01f, 0.02f), -1.0f), q = gim_v3(p.x, p.y, 1.0f);
+        assert_int_equal(gim_bvh_occluded(&b, p, q), brute(pos, 200, p, q, env) || brute(pos + 200 * 9, N - 200, p, q, env));
+    }
+    gim_bvh_free(&b);
+    /* degenerate triangles (a point, a line) are kept and block nothing */
+    memset(pos, 0, 18 * sizeof(float));
+    pos[3] = 1.0f; pos[6] = 2.0f;
+    b = build(pos, 2, env);
+    assert_false(gim_bvh_occluded(&b, gim_v3(0.0f, 0.0f, -1.0f), gim_v3(0.0f, 0.0f, 1.0f)));
+    assert_false(gim_bvh_occluded(&b, gim_v3(1.0f, -1.0f, 0.0f), gim_v3(1.0f, 1.0f, 0.0f)));
+    gim_bvh_free(&b);
+    /* no triangle: nothing blocks */
+    memset(&s, 0, sizeof s);
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_OK);
+    assert_int_equal(b.node_count, 0);
+    assert_false(gim_bvh_occluded(&b, gim_v3(0, 0, -1), gim_v3(0, 0, 1)));
+    gim_bvh_free(&b);
+    assert_int_equal(as.live, 0);
+    free(pos);
+}
+
+static void bad_input(void **state) {
+    test_alloc_stats as;
+    test_log lg;
+    gim_env env = test_env(&as, &lg);
+    float pos[18], c[3] = {0, 0, 0}, u[3] = {1, 0, 0}, v[3] = {0, 1, 0};
+    gim_twin_scene s;
+    gim_bvh b;
+    long k;
+    (void)state;
+    quad(pos, 0, c, u, v);
+    memset(&s, 0, sizeof s);
+    s.positions = pos;
+    s.triangle_count = 2;
+    assert_int_equal(gim_bvh_build(NULL, env, &b), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_bvh_build(&s, env, NULL), GIM_ERROR_INVALID_ARGUMENT);
+    pos[13] = NAN;
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(lg.last, "triangle 1"));
+    pos[13] = INFINITY;
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_ERROR_INVALID_ARGUMENT);
+    pos[13] = 1.0f;
+    s.triangle_count = GIM_BVH_MAX_TRIANGLES + 1u;
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_ERROR_OUT_OF_RANGE);
+    s.triangle_count = 2;
+    s.positions = NULL;
+    assert_int_equal(gim_bvh_build(&s, env, &b), GIM_ERROR_INVALID_ARGUMENT);
+    s.positions = pos;
+    for (k = 0; k < 5; ++k) {   /* each allocation failing in turn: an error, nothing left */
+        as.fail_after = as.allocs + k;
+        assert_int_equal(gim_bvh_build(&s, env, &b), GIM_ERROR_OUT_OF_MEMORY);
+        assert_int_equal(as.live, 0);
+    }
+    as.fail_after = -1;
+    b = build(pos, 2, env);
+    assert_false(gim_bvh_occluded(NULL, gim_v3(0, 0, -1), gim_v3(0, 0, 1)));
+    assert_false(gim_bvh_occluded(&b, gim_v3(0.2f, 0.2f, NAN), gim_v3(0.2f, 0.2f, 1)));
+    assert_false(gim_bvh_occluded(&b, gim_v3(0.2f, 0.2f, -1), gim_v3(0.2f, 0.2f, INFINITY)));
+    assert_true(gim_bvh_occluded(&b, gim_v3(0.2f, 0.2f, -1), gim_v3(0.2f, 0.2f, 1)));
+    gim_bvh_free(&b);
+    gim_bvh_free(&b);   /* twice, and NULL: fine */
+    gim_bvh_free(NULL);
+    assert_int_equal(as.live, 0);
+}
+
+/* A floor z = 0 in [-4, 4]^2 split by a wall x = 0 (y from -4 to 4, z up to 2); caches on both
+   sides of the wall, receivers on its left. */
+static void neighbour_rows(void **state) {
+    test_alloc_stats as;
+    test_log lg;
+    gim_env env = test_env(&as, &lg);
+    float pos[18], c[3] = {0, -4, 0}, u[3] = {0, 8, 0}, v[3] = {0, 0, 2};
+    gim_cache caches[6];
+    gim_receiver rc[3];
+    uint32_t idx[3 * 4], cnt[3], oi[3 * 4], oc[3], i;
+    float od[3];
+    gim_neighbour_rays_desc d;
+    gim_neighbour_result out;
+    gim_bvh b;
+    (void)state;
+    quad(pos, 0, c, u, v);
+    b = build(pos, 2, env);
+    memset(caches, 0, sizeof caches);
+    for (i = 0; i < 6; ++i) {   /* left at x = -0.5, -1.5, -2.5; right at x = 0.5, 1.5, 2.5 */
+        caches[i].position[0] = i < 3 ? -0.5f - (float)i : 0.5f + (float)(i - 3);
+        caches[i].position[1] = 0.25f * (float)i;
+        caches[i].normal[2] = 1.0f;
+        caches[i].area = 1.0f;
+    }
+    memset(rc, 0, sizeof rc);
+    rc[0].position[0] = -0.25f; rc[0].normal[2] = 1.0f;   /* beside the wall, on its left */
+    rc[1].position[0] = -2.0f; rc[1].position[1] = 1.0f; rc[1].normal[2] = 1.0f;
+    rc[2].position[0] = 0.25f; rc[2].normal[2] = 1.0f;    /* on the right, its row all on the left */
+    /* rows nearest first, mixed sides */
+    idx[0] = 0; idx[1] = 3; idx[2] = 1; idx[3] = 4; cnt[0] = 4;
+    idx[4] = 1; idx[5] = 2; idx[6] = 0; idx[7] = 3; cnt[1] = 4;
+    idx[8] = 0; idx[9] = 1; idx[10] = UINT32_MAX; idx[11] = UINT32_MAX; cnt[2] = 2;
+    memset(&d, 0, sizeof d);
+    d.bvh = &b; d.caches = caches; d.cache_count = 6; d.receivers = rc; d.receiver_count = 3;
+    d.neighbour_index = idx; d.neighbour_count = cnt; d.neighbour_stride = 4; d.scene_scale = 10.0f; d.env = env;
+    out.index = oi; out.count = oc; out.d_cmax = od;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_OK);
+    assert_int_equal(oc[0], 2);
+    assert_int_equal(oi[0], 0); assert_int_equal(oi[1], 1); assert_int_equal(oi[2], UINT32_MAX);
+    assert_float_equal(od[0], (float)sqrt(1.25 * 1.25 + 0.25 * 0.25), 1e-6f);   /* cache 1 at (-1.5, 0.25) */
+    assert_int_equal(oc[1], 3);
+    assert_int_equal(oi[4], 1); assert_int_equal(oi[5], 2); assert_int_equal(oi[6], 0); assert_int_equal(oi[7], UINT32_MAX);
+    assert_int_equal(oc[2], 2);   /* sees neither: keeps both */
+    assert_int_equal(oi[8], 0); assert_int_equal(oi[9], 1);
+    assert_float_equal(od[2], (float)sqrt(1.75 * 1.75 + 0.25 * 0.25), 1e-6f);
+    /* in place */
+    out.index = idx; out.count = cnt;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_OK);
+    assert_memory_equal(idx, oi, sizeof oi);
+    assert_memory_equal(cnt, oc, sizeof oc);
+    /* an empty hierarchy hides nothing */
+    {
+        gim_bvh none;
+        memset(&none, 0, sizeof none);
+        idx[0] = 0; idx[1] = 3; idx[2] = 1; idx[3] = 4; cnt[0] = 4;
+        d.bvh = &none;
+        d.receiver_count = 1;
+        assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_OK);
+        assert_int_equal(cnt[0], 4);
+        assert_int_equal(idx[1], 3);
+        d.bvh = &b;
+        d.receiver_count = 3;
+    }
+    /* bad input: refused with a line */
+    out.index = oi; out.count = oc;
+    idx[0] = 6; cnt[0] = 4;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_non_null(strstr(lg.last, "cache 6"));
+    idx[0] = 0; cnt[0] = 5;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    cnt[0] = 4;
+    d.scene_scale = 0.0f;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    d.scene_scale = 10.0f;
+    d.neighbour_stride = GIM_MAX_NEIGHBOUR_CACHES + 1u;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    d.neighbour_stride = 4;
+    d.bvh = NULL;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    d.bvh = &b;
+    out.d_cmax = NULL;
+    assert_int_equal(gim_neighbour_rays_twin(&d, &out), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_neighbour_rays_twin(NULL, &out), GIM_ERROR_INVALID_ARGUMENT);
+    gim_bvh_free(&b);
+    assert_int_equal(as.live, 0);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(traversal_equals_every_triangle),
+        cmocka_unit_test(triangle_test_is_exact_away_from_edges),
+        cmocka_unit_test(closed_forms_at_any_scale),
+        cmocka_unit_test(degenerate_layouts),
+        cmocka_unit_test(bad_input),
+        cmocka_unit_test(neighbour_rows),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
