@@ -30,7 +30,7 @@ typedef struct demo_options {
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
-    int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS */
+    int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS, 3 RAYS */
     int neighbour_rays;      /* brsm, full: 1 turns on gim_frame.visibility.neighbour_rays */
     uint32_t ism_size;       /* its map side (0: gimany's default) */
     uint32_t ism_points;     /* points splatted per map (0: gimany's default) */
@@ -74,6 +74,8 @@ static const char demo_usage_text[] =
     "  --shadow-maps         clustered, ssvp: one shadow map per VPL rendered from the triangles instead\n"
     "                        of its ISM (exact at each texel; a draw of the scene per map made);\n"
     "                        --ism-size N their side\n"
+    "  --rays                brsm, full: each VAL's light at each cache tested by a ray through a bounding\n"
+    "                        volume hierarchy of the scene instead of the caches' ISMs (--ism)\n"
     "  --neighbour-rays      brsm, full: each pixel interpolates only the neighbour caches it sees, by rays\n"
     "                        through a bounding volume hierarchy of the scene (with or without --ism)\n"
     "  --no-glossy           every material's glossy colour set to 0\n"
@@ -129,6 +131,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (len == 16 && !strncmp(a, "--vpl-importance", 16)) flag = 5;
         else if (len == 13 && !strncmp(a, "--shadow-maps", 13)) flag = 6;
         else if (len == 16 && !strncmp(a, "--neighbour-rays", 16)) flag = 7;
+        else if (len == 6 && !strncmp(a, "--rays", 6)) flag = 8;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
             if (flag == 1) d->glossy = 0;
@@ -137,6 +140,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             else if (flag == 4) d->ism = 1;
             else if (flag == 6) d->ism = 2;
             else if (flag == 7) d->neighbour_rays = 1;
+            else if (flag == 8) d->ism = 3;
             else d->vpl_importance = 1;
             continue;
         }
@@ -232,7 +236,10 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->lightskin.shade_block = d->shade_block;
     f->lightskin.neighbour_count = d->neighbours;
     f->lightskin.rotate_view_samples = 1;
-    f->visibility.mode = d->ism == 2 ? GIM_VISIBILITY_SHADOW_MAPS : d->ism ? GIM_VISIBILITY_ISM : GIM_VISIBILITY_OFF;
+    f->visibility.mode = d->ism == 3   ? GIM_VISIBILITY_RAYS
+                         : d->ism == 2 ? GIM_VISIBILITY_SHADOW_MAPS
+                         : d->ism      ? GIM_VISIBILITY_ISM
+                                       : GIM_VISIBILITY_OFF;
     f->visibility.ism_size = d->ism_size;
     f->visibility.ism_points = d->ism_points;
     f->visibility.neighbour_rays = d->neighbour_rays ? 1u : 0u;
@@ -245,7 +252,8 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
      clustered, ssvp   pixels x VPLs / k^2 (interleaving: 4x4 clustered, 8x8 ssvp), second bounce included
-     LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384
+     LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384;
+               with --rays 64 a ray, caches x VALs
    memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
    Measured on llvmpipe (2 cores): 3.9e7 terms/s (full, the Cornell box's 8960 caches x 256^2
    in 15 s), so DEMO_MAX_TERMS is about a minute a frame; a GPU is 100x faster: --allow-slow. */
@@ -267,7 +275,9 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
         double k2 = cl ? 16.0 : 64.0;                           /* interleave k^2 */
         t = px * (L * v + (bounces == 2 || (!cl && bounces != 1) ? 256.0 : 0.0)) / k2;
     }
-    if (ls) t += px * 16.0 + (d->ism ? (double)caches * 16384.0 : 0.0);   /* the library's default points per map */
+    if (ls) t += px * 16.0 + (d->ism == 1 ? (double)caches * 16384.0 : 0.0);   /* the library's default points per map */
+    if (ls && d->ism == 3)   /* --rays: a walk of the hierarchy per VAL and cache, counted as 64 terms */
+        t += 64.0 * L * (double)caches * (!strcmp(d->method, "full") ? texels : (double)d->vals);
     *terms = t;
     *bytes = L * texels * (52.0 + (!strcmp(d->method, "brsm") ? 12.0 : 0.0)) + px * 140.0;
 }

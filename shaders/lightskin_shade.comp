@@ -76,7 +76,9 @@ layout(location = 16) uniform uint slabs;       /* 0: a tile's list in slabs whe
 
 /* flags 8 (gim_frame_visibility.neighbour_rays): each search's neighbours that its receiver
    cannot see dropped (gim_neighbour_rays_twin), by a ray through the scene's hierarchy from
-   ray_lift above the receiver to ray_lift above the cache */
+   ray_lift above the receiver to ray_lift above the cache. A walk takes 83 loop iterations on
+   average in Sponza's hierarchy, 838 at most measured: an invocation's up to 4 searches of 16
+   walks stay under llvmpipe's 65535 iterations an invocation but for walks far past that */
 layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
 layout(location = 17) uniform uint bvh_nodes;
 layout(location = 18) uniform uint bvh_triangles;   /* the triangles' first vec4 */

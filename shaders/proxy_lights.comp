@@ -9,7 +9,8 @@
    invocations (gim__proxy_lanes), 1 where the caches alone give that many. The lane is the
    work group's, so every invocation reads the same tile entry at a time (a broadcast). The formulas,
    guards and clamps are the twin's (see gim_proxy_lights_twin in gimany.h); the sums are in float
-   here (double in the twin). A VAL that is not finite or has a negative area, weight or flux
+   here (double in the twin). Visibility per VAL from the cache's imperfect shadow map or, with
+   rays, a walk of the scene's hierarchy (bvh.glsl). A VAL that is not finite or has a negative area, weight or flux
    adds nothing (the twin rejects it; the GPU gather zeroes it), and every output is finite. */
 #include "common.glsl"
 #include "near_field.glsl"
@@ -87,6 +88,15 @@ float ism_visibility(uint i, vec3 o, vec3 t, vec3 b, vec3 n, vec3 x, vec3 nl) {
     float tn = cl * ISM_MAX_TAN > sn ? sn / cl : ISM_MAX_TAN;
     return z < ISM_EMPTY && dref > z + dist * (ism_bias + ism_texel * tn) ? 0.0 : 1.0;
 }
+
+/* GIM_VISIBILITY_RAYS (rays 1, instead of the maps): a VAL is seen where no triangle crosses
+   the segment from ray_lift above the cache to ray_lift above the VAL (gim_val_rays_twin) */
+layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
+layout(location = 17) uniform uint bvh_nodes;
+layout(location = 18) uniform uint bvh_triangles;   /* the triangles' first vec4 */
+layout(location = 19) uniform uint rays;
+layout(location = 20) uniform float ray_lift;       /* GIM_NEIGHBOUR_RAY_LIFT scene_scale */
+#include "bvh.glsl"
 
 shared vec4 tile_pa[TILE];    /* position, area */
 shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
@@ -234,6 +244,12 @@ void accumulate(inout Sums sd, inout Sums sg, inout float en, inout float shift,
                 vec3 p, vec3 nl, vec3 phi, uint ii, vec3 ism_o, vec3 ism_t, vec3 ism_b, vec3 n, bool glossy, vec3 v,
                 float k) {
     if (ism_size != 0u && e_n * cos_x > 0.0) e_n *= ism_visibility(ii, ism_o, ism_t, ism_b, n, p, nl);
+    if (rays != 0u && e_n * cos_x > 0.0) {
+        vec3 c = cache[ii].position_area.xyz;
+        precise vec3 o = vec3(c.x + ray_lift * n.x, c.y + ray_lift * n.y, c.z + ray_lift * n.z);
+        precise vec3 t = vec3(p.x + ray_lift * nl.x, p.y + ray_lift * nl.y, p.z + ray_lift * nl.z);
+        if (bvh_occluded(o, t)) e_n = 0.0;
+    }
     float e = e_n * cos_x;
     if (!(e > 0.0)) return;   /* behind, grazing, coincident or weight 0 */
     float lphi = dot(LUM, phi);

@@ -9,12 +9,14 @@
                       LightSkin BRSM and FULL, Dong et al.'s clustered VPLs, SSVP (two bounces,
                       against a two-bounce reference; with its paraboloid maps' visibility and
                       with imperfect shadow maps) and LightSkin BRSM with imperfect shadow
-                      maps (Ritschel et al. 2008); each one's rel. MAE and its image mean
+                      maps (Ritschel et al. 2008), and with rays (each pixel's neighbour caches,
+                      GIM_VISIBILITY_RAYS at the caches); each one's rel. MAE and its image mean
                       against the reference's (energy).
      courtyard_pillar the built-in courtyard (scene/scene.cpp): a pillar between a sunlit
                       floor and a wall the sun does not reach. The wall behind the pillar gets
                       less of the floor's light; with visibility (ISM) LightSkin BRSM must
-                      show that shadow and match the reference there, without it it cannot.
+                      show that shadow and match the reference there, without it it cannot;
+                      so must it with the rays (neighbour rays with ISM, and with RAYS).
 
    The references are cached in build/refcheck/ (one folder per scene, size, paths, bounces and
    seed) and rendered again when this binary is newer than the cache: a clean build renders
@@ -209,6 +211,9 @@ typedef struct method_row {
      SSVP, 8, 2 bounces 0.167 (0.108-0.269)   1.020   (0.169, 1.063 before its near field and second-bounce ISMs)
      SSVP + ISM        0.157                  0.996
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
+     BRSM + ISM, each pixel's neighbour rays (2026-12-01)  0.040  0.974 (every neighbour in sight)
+     BRSM + RAYS (a ray per VAL and cache) + neighbour rays (2026-12-01)  0.031  0.996 (the
+                       exact-visibility floor of LightSkin here: 0.023, docs/methods.md)
    SSVP's second bounce lands on the first surface its ray meets since the attribute maps have
    their own near skip (before, they skipped the visibility's Delta / 2 and 0.175 of
    the second bounce's flux landed behind a nearer surface): SSVP with ISM went from 0.163 and
@@ -232,6 +237,7 @@ static const method_row cornell_rows[] = {
     {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05, 0},
     {"LightSkin BRSM + ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 0},
     {"BRSM + ISM + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 1},
+    {"BRSM + RAYS + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_RAYS, 1, 0.040, 0.1, 1},
 };
 #define ROW_COUNT (sizeof cornell_rows / sizeof cornell_rows[0])
 
@@ -334,7 +340,8 @@ static void courtyard_pillar(void **state) {
     refimg ref;
     char err[256];
     float *on = (float *)malloc(YW * YH * 12), *off = (float *)malloc(YW * YH * 12), *rays = (float *)malloc(YW * YH * 12);
-    double ref_sh, ref_open, on_sh, on_open, off_sh, off_open, rays_sh, rays_open;
+    float *exact = (float *)malloc(YW * YH * 12);
+    double ref_sh, ref_open, on_sh, on_open, off_sh, off_open, rays_sh, rays_open, ex_sh, ex_open;
     uint32_t n_sh, n_open;
     gim_frame f;
     int failed = 0;
@@ -353,6 +360,8 @@ static void courtyard_pillar(void **state) {
     render(&r, &f, 1, on);
     f.visibility.neighbour_rays = 1;
     render(&r, &f, 1, rays);
+    f.visibility.mode = GIM_VISIBILITY_RAYS;
+    render(&r, &f, 1, exact);
     f.visibility.neighbour_rays = 0;
     f.visibility.mode = GIM_VISIBILITY_OFF;
     render(&r, &f, 1, off);
@@ -365,12 +374,15 @@ static void courtyard_pillar(void **state) {
     off_open = wall_mean(off, &ref, 1.6, 10.0, NULL);
     rays_sh = wall_mean(rays, &ref, 0.0, 0.4, NULL);
     rays_open = wall_mean(rays, &ref, 1.6, 10.0, NULL);
+    ex_sh = wall_mean(exact, &ref, 0.0, 0.4, NULL);
+    ex_open = wall_mean(exact, &ref, 1.6, 10.0, NULL);
     print_message("wall behind the pillar (%u px) / open wall (%u px), mean luminance: reference %.4g / %.4g (%.3f), "
                   "ISM %.4g / %.4g (%.3f), no visibility %.4g / %.4g (%.3f)\n", n_sh, n_open, ref_sh, ref_open,
                   ref_sh / ref_open, on_sh, on_open, on_sh / on_open, off_sh, off_open, off_sh / off_open);
-    print_message("ISM + neighbour rays %.4g / %.4g (%.3f)\n", rays_sh, rays_open, rays_sh / rays_open);
-    print_message("whole image rel. MAE: ISM %.3f, ISM + neighbour rays %.3f, no visibility %.3f\n", rel_mae(on, &ref),
-                  rel_mae(rays, &ref), rel_mae(off, &ref));
+    print_message("ISM + neighbour rays %.4g / %.4g (%.3f), RAYS + neighbour rays %.4g / %.4g (%.3f)\n", rays_sh, rays_open,
+                  rays_sh / rays_open, ex_sh, ex_open, ex_sh / ex_open);
+    print_message("whole image rel. MAE: ISM %.3f, ISM + neighbour rays %.3f, RAYS + neighbour rays %.3f, no visibility %.3f\n",
+                  rel_mae(on, &ref), rel_mae(rays, &ref), rel_mae(exact, &ref), rel_mae(off, &ref));
     /* Measured 2026-11-24 (llvmpipe, 80x45, RSM 128^2, caches at 1/32 of the scene scale): the
        reference's wall is 0.862 as bright behind the pillar as beside it; ISM 0.872, within 1.0%
        of the reference behind the pillar (0.0494 against 0.0499); without visibility 1.001, 15%
@@ -386,10 +398,13 @@ static void courtyard_pillar(void **state) {
     /* the pixels' own rays keep the shadow and the contrast */
     CHECK(failed, fabs(rays_sh / ref_sh - 1.0) < 0.06);
     CHECK(failed, fabs(rays_sh / rays_open - ref_sh / ref_open) < 0.04);
+    CHECK(failed, fabs(ex_sh / ref_sh - 1.0) < 0.06);
+    CHECK(failed, fabs(ex_sh / ex_open - ref_sh / ref_open) < 0.04);
     refimg_free(&ref);
     free(on);
     free(off);
     free(rays);
+    free(exact);
     assert_int_equal(failed, 0);
     GLTEST_END();
 }

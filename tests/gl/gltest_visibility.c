@@ -348,6 +348,85 @@ static void maps_are_the_twins(void **state) {
     GLTEST_END();
 }
 
+/* GIM_VISIBILITY_RAYS: the frame's proxy lights are gim_proxy_lights_twin's with the visibility
+   matrix of gim_val_rays_twin on the frame's caches and VALs (the hierarchy of the room's
+   triangles); the room stays dark inside, with and without each pixel's neighbour rays; the
+   ISMs are not made, the hierarchy is. */
+static void rays_are_the_twins(void **state) {
+    scene_fx s;
+    gim_frame_outputs o;
+    gim_debug_outputs od;
+    gim_cache *caches;
+    gim_val *vals;
+    gim_proxy_light *gpu, *cpu;
+    gim_proxy_desc pd;
+    gim_twin_scene ts;
+    gim_bvh bvh;
+    float pos[MAX_Q * 2 * 9], *vis;
+    uint32_t t, k, n, nv, off = 0, hidden = 0, lit = 0;
+    double rays, both;
+    (void)state;
+    GLTEST_BEGIN();
+    setup(&s);
+    s.fr.visibility.mode = GIM_VISIBILITY_RAYS;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    rays = inside(&s);
+    o = gim_outputs(s.f.ctx);
+    od = gim_debug(s.f.ctx);
+    assert_int_equal(od.ism_maps, 0);
+    assert_int_equal(s.f.ctx->ism_points, 0);
+    assert_true(s.f.ctx->ls.bvh != 0);
+    n = od.cache_count;
+    nv = od.val_count;
+    caches = (gim_cache *)malloc(n * sizeof *caches);
+    vals = (gim_val *)malloc(nv * sizeof *vals);
+    gpu = (gim_proxy_light *)malloc(n * sizeof *gpu);
+    cpu = (gim_proxy_light *)malloc(n * sizeof *cpu);
+    vis = (float *)malloc((size_t)n * nv * sizeof *vis);
+    gltest_read_buffer(od.caches, n * sizeof *caches, caches);
+    gltest_read_buffer(od.vals, nv * sizeof *vals, vals);
+    gltest_read_buffer(od.proxy_diffuse, n * sizeof *gpu, gpu);
+    for (t = 0; t < s.r.quads * 2; ++t)
+        for (k = 0; k < 3; ++k) memcpy(pos + t * 9 + k * 3, s.r.pos + s.r.idx[t * 3 + k] * 3, 12);
+    memset(&ts, 0, sizeof ts);
+    ts.positions = pos; ts.triangle_count = s.r.quads * 2;
+    assert_int_equal(gim_bvh_build(&ts, s.f.env, &bvh), GIM_OK);
+    assert_int_equal(gim_val_rays_twin(&bvh, caches, n, vals, nv, o.scene_scale, s.f.env, vis), GIM_OK);
+    for (k = 0; k < n * nv; ++k) hidden += vis[k] == 0.0f;
+    memset(&pd, 0, sizeof pd);
+    pd.caches = caches; pd.cache_count = n; pd.vals = vals; pd.val_count = nv;
+    pd.scene_scale = o.scene_scale; pd.visibility = vis; pd.env = s.f.env;
+    assert_int_equal(gim_proxy_lights_twin(&pd, cpu, NULL), GIM_OK);
+    for (k = 0; k < n; ++k) {
+        double fc = cpu[k].flux[0] + cpu[k].flux[1] + cpu[k].flux[2], fg = gpu[k].flux[0] + gpu[k].flux[1] + gpu[k].flux[2];
+        lit += fc > 0.0;
+        if (fabs(fg - fc) > 2e-4 * fc + 1e-12) {
+            if (off < 3) print_message("  cache %u: gpu flux %.6g, twin %.6g\n", k, fg, fc);
+            ++off;
+        }
+    }
+    print_message("rays: %u caches x %u VALs, %u of the pairs hidden; %u lit caches; %u caches' proxy flux off the twin's; "
+                  "mean inside %.4f\n", n, nv, hidden, lit, off, rays);
+    assert_true(hidden > n * nv / 4 && lit > n / 4);
+    assert_true(off <= n / 200);   /* a ray through a triangle's edge rounded the other way */
+    assert_true(rays < 0.01);
+    s.fr.visibility.neighbour_rays = 1;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    both = inside(&s);
+    print_message("rays at the caches and the pixels: mean inside %.4f (%.2f %% of the pixels above 5 %%)\n", both,
+                  100.0 * above(&s, 0.05));
+    assert_true(both < 0.01 && above(&s, 0.05) < 0.01);
+    gltest_state_unchanged(&s.f);
+    s.fr.visibility.mode = GIM_VISIBILITY_OFF;
+    s.fr.visibility.neighbour_rays = 0;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
+    assert_int_equal(s.f.ctx->ls.bvh, 0);   /* neither: released */
+    gim_bvh_free(&bvh);
+    free(caches); free(vals); free(gpu); free(cpu); free(vis);
+    teardown(&s);
+    GLTEST_END();
+}
+
 /* How many texels of the last frame's lit VPLs' maps differ from gim_ism_render_twin's on the
    frame's VPLs (taken as caches, map i of VPL i of the frame's VPL buffer) and the points of the
    world triangles, pool 4 P; *lit, *lit2 (second bounce), *texels count what was compared. */
@@ -521,8 +600,14 @@ static void bad_settings(void **state) {
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
     s.fr.method = GIM_METHOD_RSM_GATHER;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
-    assert_int_equal(s.f.log.errors, 3);
-    assert_true(strstr(s.f.log.last, "neighbour_rays") != NULL);
+    s.fr.visibility.neighbour_rays = 0;
+    s.fr.visibility.mode = GIM_VISIBILITY_RAYS;   /* the caches' rays: LightSkin only too */
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.method = GIM_METHOD_SSVP;
+    assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_ERROR_INVALID_ARGUMENT);
+    s.fr.visibility.mode = GIM_VISIBILITY_ISM;
+    assert_int_equal(s.f.log.errors, 5);
+    assert_true(strstr(s.f.log.last, "RAYS") != NULL);
     s.f.log.errors = 0;
     assert_int_equal(s.f.ctx->ls.bvh, 0);
     s.fr.visibility.neighbour_rays = 0;
@@ -1221,6 +1306,7 @@ int main(void) {
         cmocka_unit_test(no_light_through_walls),
         cmocka_unit_test(vpl_methods_no_light_through_walls),
         cmocka_unit_test(maps_are_the_twins),
+        cmocka_unit_test(rays_are_the_twins),
         cmocka_unit_test(vpl_maps_are_the_twins),
         cmocka_unit_test(bad_settings),
         cmocka_unit_test(maps_split_over_blocks),

@@ -6,7 +6,8 @@
    wall between two points, a segment stopping short of it, grazing along it); the same answers
    in millimetres, kilometres and far from the origin; the depth bound on the worst layouts;
    the neighbour rows (the hidden dropped in order, d_cmax the farthest kept, a receiver that
-   sees none keeps its row); bad input refused; no leak, allocation failures handled. */
+   sees none keeps its row); the caches' visibility matrix of GIM_VISIBILITY_RAYS against a
+   plate's exact shadow; bad input refused; no leak, allocation failures handled. */
 #define GIMANY_IMPLEMENTATION
 #include "testutil.h"
 
@@ -363,6 +364,76 @@ static void neighbour_rows(void **state) {
     assert_int_equal(as.live, 0);
 }
 
+/* The caches' side (gim_val_rays_twin): a plate [-0.5, 0.5]^2 at y = 1 over VALs on the floor
+   y = 0, caches at y = 2 facing down; each entry against the exact crossing of the lifted
+   segment with the plate, where it lies clear of the plate's edges. */
+static void val_rays_matrix(void **state) {
+    test_alloc_stats as;
+    test_log lg;
+    gim_env env = test_env(&as, &lg);
+    float pos[18], c[3] = {-0.5f, 1.0f, -0.5f}, u[3] = {0, 0, 1}, v[3] = {1, 0, 0};
+    enum { C = 20, V = 60 };
+    gim_cache caches[C];
+    gim_val vals[V];
+    float m[C * V];
+    uint32_t i, j, checked = 0, hidden = 0;
+    gim_bvh b;
+    (void)state;
+    quad(pos, 0, c, u, v);
+    b = build(pos, 2, env);
+    test_rng_state = 5;
+    memset(caches, 0, sizeof caches);
+    memset(vals, 0, sizeof vals);
+    for (i = 0; i < C; ++i) {
+        caches[i].position[0] = test_rnd(-1.0f, 1.0f); caches[i].position[1] = 2.0f; caches[i].position[2] = test_rnd(-1.0f, 1.0f);
+        caches[i].normal[1] = -1.0f;
+        caches[i].area = 0.1f;
+    }
+    for (j = 0; j < V; ++j) {
+        vals[j].position[0] = test_rnd(-2.0f, 2.0f); vals[j].position[2] = test_rnd(-2.0f, 2.0f);
+        vals[j].normal[1] = 1.0f;
+        vals[j].area = 0.1f; vals[j].weight = 1.0f; vals[j].flux[0] = vals[j].flux[1] = vals[j].flux[2] = 1.0f;
+    }
+    assert_int_equal(gim_val_rays_twin(&b, caches, C, vals, V, 1.0f, env, m), GIM_OK);
+    for (i = 0; i < C; ++i)
+        for (j = 0; j < V; ++j) {
+            double y0 = 2.0 - 1e-3, y1 = 1e-3, t = (y0 - 1.0) / (y0 - y1);
+            double x = caches[i].position[0] + t * (vals[j].position[0] - caches[i].position[0]);
+            double z = caches[i].position[2] + t * (vals[j].position[2] - caches[i].position[2]);
+            double edge = fmin(0.5 - fabs(x), 0.5 - fabs(z));
+            assert_true(m[i * V + j] == 0.0f || m[i * V + j] == 1.0f);
+            if (fabs(edge) < 1e-3) continue;
+            assert_true(m[i * V + j] == (edge > 0.0 ? 0.0f : 1.0f));
+            hidden += edge > 0.0;
+            ++checked;
+        }
+    assert_true(checked > C * V * 9 / 10 && hidden > 50 && hidden < checked - 50);
+    /* the same scene a million times larger, far from the origin: the same matrix */
+    {
+        float big[18], m2[C * V];
+        gim_cache c2[C];
+        gim_val v2[V];
+        gim_bvh b2;
+        uint32_t k;
+        for (k = 0; k < 18; ++k) big[k] = pos[k] * 1e6f + (k % 3 == 0 ? 3e8f : 0.0f);
+        memcpy(c2, caches, sizeof c2);
+        memcpy(v2, vals, sizeof v2);
+        for (i = 0; i < C; ++i) for (k = 0; k < 3; ++k) c2[i].position[k] = c2[i].position[k] * 1e6f + (k == 0 ? 3e8f : 0.0f);
+        for (j = 0; j < V; ++j) for (k = 0; k < 3; ++k) v2[j].position[k] = v2[j].position[k] * 1e6f + (k == 0 ? 3e8f : 0.0f);
+        b2 = build(big, 2, env);
+        assert_int_equal(gim_val_rays_twin(&b2, c2, C, v2, V, 1e6f, env, m2), GIM_OK);
+        for (k = 0, checked = 0; k < C * V; ++k) checked += m2[k] != m[k];
+        assert_true(checked <= C * V / 200);   /* only where a crossing lies within float rounding of an edge */
+        gim_bvh_free(&b2);
+    }
+    assert_int_equal(gim_val_rays_twin(NULL, caches, C, vals, V, 1.0f, env, m), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_val_rays_twin(&b, caches, C, vals, V, 0.0f, env, m), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_val_rays_twin(&b, caches, C, NULL, V, 1.0f, env, m), GIM_ERROR_INVALID_ARGUMENT);
+    assert_int_equal(gim_val_rays_twin(&b, caches, C, NULL, 0, 1.0f, env, m), GIM_OK);   /* no VAL: nothing to test */
+    gim_bvh_free(&b);
+    assert_int_equal(as.live, 0);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(traversal_equals_every_triangle),
@@ -371,6 +442,7 @@ int main(void) {
         cmocka_unit_test(degenerate_layouts),
         cmocka_unit_test(bad_input),
         cmocka_unit_test(neighbour_rows),
+        cmocka_unit_test(val_rays_matrix),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
