@@ -100,7 +100,8 @@
      GIM_VISIBILITY_SHADOW_MAPS: CLUSTERED's and SSVP's per VPL drawn from the triangles, as
      instant radiosity [6] has them; off by default, and off costs nothing.
      f.visibility.neighbour_rays (LightSkin): each pixel interpolates only the neighbour caches
-     it sees, tested by rays through a bounding volume hierarchy of the scene (gim_bvh_build). f.lightskin.temporal_steps (32 by default) keeps
+     it sees, tested by rays through a bounding volume hierarchy of the scene (gim_bvh_build);
+     GIM_VISIBILITY_RAYS (LightSkin): each VAL at each cache by such a ray instead of the ISMs. f.lightskin.temporal_steps (32 by default) keeps
      the VALs coherent from frame to frame (the aim of incremental instant radiosity [7]).
      Measured speed and error of each: README.md, docs/methods.md.
 
