@@ -2129,9 +2129,9 @@ GIMANY_API gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const fl
    here and in lightskin_shade.comp (shaders/bvh.glsl, the same steps in float), and each pixel
    drops the neighbours it cannot see (gim_frame_visibility.neighbour_rays). */
 
-/* One node, 32 bytes as the GPU buffer holds it: the box (grown by a millionth of its size
-   and of its distance from the origin, so float rounding in the slab test never misses a
-   triangle on its face), then either an inner node (count 0: the first child is the next
+/* One node, 32 bytes as the GPU buffer holds it: the box (grown by 5e-4 of its size and a
+   millionth of its distance from the origin, past its triangles as the segment test grows
+   them), then either an inner node (count 0: the first child is the next
    node, the second is node `index`) or a leaf (count triangles from triangle `index` on). */
 typedef struct gim_bvh_node {
     float lo[3];
@@ -2140,10 +2140,15 @@ typedef struct gim_bvh_node {
     uint32_t count;
 } gim_bvh_node;
 
-/* A hierarchy made by gim_bvh_build (free it with gim_bvh_free). */
+/* A hierarchy made by gim_bvh_build (free it with gim_bvh_free). Its boxes and triangles are
+   in the frame x' = (x - origin) scale, the bounds' centre and a power of two near the inverse of
+   their diagonal, so that the segment test's triple products stay in float's range at any
+   scene size (at 1e15 they overflow, at 1e-15 they underflow) and keep their precision far
+   from the origin; gim_bvh_occluded takes world points. */
 typedef struct gim_bvh {
     gim_bvh_node *nodes;        /* node_count, depth first; node 0 is the root (none: nothing blocks) */
     float *triangles;           /* triangle_count * 12 in the leaves' order: (v0, 0), (v1 - v0, 0), (v2 - v0, 0) */
+    float origin[3], scale;     /* the frame of nodes and triangles */
     uint32_t node_count, triangle_count;
     uint32_t depth;             /* of the deepest leaf (the root's is 0), < GIM_BVH_MAX_DEPTH */
     gim_env env;                /* what allocated the arrays */
@@ -2158,7 +2163,8 @@ typedef struct gim_bvh {
    albedo are not read): binned surface-area heuristic splits (16 bins on the longest axis of
    the triangles' centroids) for 24 levels, then halves by count, leaves of at most
    GIM_BVH_LEAF triangles. Unit-free (no length threshold). A vertex that is not finite is
-   GIM_ERROR_INVALID_ARGUMENT, more than GIM_BVH_MAX_TRIANGLES GIM_ERROR_OUT_OF_RANGE; degenerate
+   GIM_ERROR_INVALID_ARGUMENT; more than GIM_BVH_MAX_TRIANGLES, or bounds whose extent is not a
+   finite float, GIM_ERROR_OUT_OF_RANGE; degenerate
    triangles are kept (they block nothing); 0 triangles give an empty hierarchy. out is written
    only on GIM_OK and owns arrays allocated through env. */
 GIMANY_API gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gim_bvh *out);
@@ -2169,7 +2175,10 @@ GIMANY_API void gim_bvh_free(gim_bvh *bvh);
    (Moller and Trumbore 1997 without the division, signs flipped where det < 0) and g = 1e-4
    det, a hit is det != 0, s . p >= -g, d . q >= -g, s . p + d . q <= det + g and 0 < e2 . q <
    det (each triangle grown by 1e-4 of itself, so no segment slips between two that share an
-   edge); all in float, in this order. 0 for an empty hierarchy or a non-finite end. */
+   edge); all in float, in this order, in the hierarchy's frame (the ends taken there first:
+   (x - origin) scale). The nodes' boxes are conservative (grown past the grown
+   triangles, the slab test with a relative slack of 1e-6), so the walk answers exactly what
+   testing every triangle answers. 0 for an empty hierarchy or a non-finite end. */
 GIMANY_API int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to);
 
 /* Input of gim_neighbour_rays_twin: the neighbour rows of gim_cache_neighbours and the
@@ -7860,7 +7869,8 @@ GIMANY_DEF gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const fl
 
 /* The build's working set: each triangle's box and centroid, and the triangles' order. */
 typedef struct gim__bvh_build {
-    const float *pos;          /* the scene's triangles, 9 floats each */
+    const float *pos;          /* the scene's triangles, 9 floats each, in the hierarchy's frame */
+    float *local;              /* the same, owned */
     float *box;                /* triangle_count * 6: lo xyz, hi xyz */
     float *centroid;           /* triangle_count * 3 */
     uint32_t *order;           /* the leaves' order */
@@ -7919,16 +7929,18 @@ static void gim__bvh_node_make(gim__bvh_build *b, uint32_t begin, uint32_t end, 
             if (c[a] > chi[a]) chi[a] = c[a];
         }
     }
-    /* grown by 1e-6 of its size and of its distance from the origin: the slab test's rounding
-       (and a GPU's approximate reciprocal) cannot lose a triangle lying on a face */
+    /* grown past the triangles grown by GIM__BVH_GROW (5e-4 of its size) and by 1e-6 of its
+       distance from the origin, for the rounding of the box's coordinates: no hit of a grown
+       triangle lies outside its nodes' boxes (the slab test's own rounding is gim_bvh_occluded's
+       relative slack) */
     for (a = 0; a < 3; ++a) {
         float e = hi[a] - lo[a], f = fabsf(lo[a]) > fabsf(hi[a]) ? fabsf(lo[a]) : fabsf(hi[a]);
         if (e > ext) ext = e;
         if (f > far_) far_ = f;
     }
     for (a = 0; a < 3; ++a) {
-        node->lo[a] = lo[a] - 1e-6f * (ext + far_);
-        node->hi[a] = hi[a] + 1e-6f * (ext + far_);
+        node->lo[a] = lo[a] - (5e-4f * ext + 1e-6f * far_);
+        node->hi[a] = hi[a] + (5e-4f * ext + 1e-6f * far_);
     }
     if (depth > b->depth) b->depth = depth;
     if (count <= (uint32_t)GIM_BVH_LEAF) {
@@ -8002,6 +8014,7 @@ static void gim__bvh_node_make(gim__bvh_build *b, uint32_t begin, uint32_t end, 
 GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gim_bvh *out) {
     static const char where[] = "gim_bvh_build";
     gim__bvh_build b;
+    gim_bvh res;
     uint32_t n, i;
     if (!scene || !out) return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "scene or out is NULL");
     n = scene->triangle_count;
@@ -8012,21 +8025,49 @@ GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gi
         if (!gim__all_finite(scene->positions + (size_t)i * 9u, 9))
             return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "triangle %u has a vertex that is not finite", i);
     memset(&b, 0, sizeof b);
-    memset(out, 0, sizeof *out);
-    out->env = env;
-    if (n == 0) return GIM_OK;
+    memset(&res, 0, sizeof res);
+    res.env = env;
+    res.scale = 1.0f;
+    if (n == 0) {
+        *out = res;
+        return GIM_OK;
+    }
+    {   /* the frame: the bounds' centre, a power of two near 1 / their diagonal */
+        double lo[3] = {HUGE_VAL, HUGE_VAL, HUGE_VAL}, hi[3] = {-HUGE_VAL, -HUGE_VAL, -HUGE_VAL}, diag = 0.0;
+        size_t k;
+        int a, e;
+        for (k = 0; k < (size_t)n * 9u; ++k) {
+            a = (int)(k % 3u);
+            if (scene->positions[k] < lo[a]) lo[a] = scene->positions[k];
+            if (scene->positions[k] > hi[a]) hi[a] = scene->positions[k];
+        }
+        for (a = 0; a < 3; ++a) {
+            res.origin[a] = (float)(0.5 * lo[a] + 0.5 * hi[a]);
+            diag += (hi[a] - lo[a]) * (hi[a] - lo[a]);
+        }
+        diag = sqrt(diag);
+        if (!(diag <= (double)FLT_MAX))
+            return gim__fail(&env, GIM_ERROR_OUT_OF_RANGE, where, "the triangles' bounds (%g across) exceed a float", diag);
+        if (diag > 0.0) {
+            (void)frexp(diag, &e);
+            res.scale = (float)ldexp(1.0, e > 126 ? -126 : e < -126 ? 126 : -e);   /* the diagonal becomes 0.5 .. 1 */
+        }
+    }
     b.pos = scene->positions;
     b.box = (float *)gim__alloc_array(&env, n, 6u * sizeof(float));
     b.centroid = (float *)gim__alloc_array(&env, n, 3u * sizeof(float));
     b.order = (uint32_t *)gim__alloc_array(&env, n, sizeof(uint32_t));
     b.nodes = (gim_bvh_node *)gim__alloc_array(&env, 2u * (size_t)n, sizeof(gim_bvh_node));
-    out->triangles = (float *)gim__alloc_array(&env, n, 12u * sizeof(float));
-    if (!b.box || !b.centroid || !b.order || !b.nodes || !out->triangles) {
+    res.triangles = (float *)gim__alloc_array(&env, n, 12u * sizeof(float));
+    b.local = (float *)gim__alloc_array(&env, n, 9u * sizeof(float));
+    if (!b.box || !b.centroid || !b.order || !b.nodes || !res.triangles || !b.local) {
         gim__free(&env, b.box); gim__free(&env, b.centroid); gim__free(&env, b.order); gim__free(&env, b.nodes);
-        gim__free(&env, out->triangles);
-        out->triangles = NULL;
+        gim__free(&env, res.triangles); gim__free(&env, b.local);
+        res.triangles = NULL;
         return gim__fail(&env, GIM_ERROR_OUT_OF_MEMORY, where, "a hierarchy of %u triangles", n);
     }
+    for (i = 0; i < n * 9u; ++i) b.local[i] = (b.pos[i] - res.origin[i % 3u]) * res.scale;
+    b.pos = b.local;
     for (i = 0; i < n; ++i) {
         const float *v = b.pos + (size_t)i * 9u;
         float *bx = b.box + (size_t)i * 6u;
@@ -8045,7 +8086,7 @@ GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gi
     gim__bvh_node_make(&b, 0, n, 0);
     for (i = 0; i < n; ++i) {   /* the triangles in the leaves' order, as v0 and the two edges */
         const float *v = b.pos + (size_t)b.order[i] * 9u;
-        float *t = out->triangles + (size_t)i * 12u;
+        float *t = res.triangles + (size_t)i * 12u;
         int a;
         for (a = 0; a < 3; ++a) {
             t[a] = v[a];
@@ -8057,10 +8098,12 @@ GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gi
     gim__free(&env, b.box);
     gim__free(&env, b.centroid);
     gim__free(&env, b.order);
-    out->nodes = b.nodes;   /* 2n - 1 at most were used */
-    out->node_count = b.node_count;
-    out->triangle_count = n;
-    out->depth = b.depth;
+    gim__free(&env, b.local);
+    res.nodes = b.nodes;   /* 2n - 1 at most were used */
+    res.node_count = b.node_count;
+    res.triangle_count = n;
+    res.depth = b.depth;
+    *out = res;
     return GIM_OK;
 }
 
@@ -8071,6 +8114,8 @@ GIMANY_DEF void gim_bvh_free(gim_bvh *bvh) {
     bvh->nodes = NULL;
     bvh->triangles = NULL;
     bvh->node_count = bvh->triangle_count = bvh->depth = 0;
+    bvh->origin[0] = bvh->origin[1] = bvh->origin[2] = 0.0f;
+    bvh->scale = 1.0f;
 }
 
 /* Each triangle grown by 1e-4 of its size (in barycentrics): a segment through the edge two
@@ -8099,26 +8144,45 @@ static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
     return u >= -g && v >= -g && u + v <= det + g && t > 0.0f && t < det;
 }
 
+/* The segment from -> to in the hierarchy's frame: its start o and its vector d; 0 where one is
+   not finite. */
+static int gim__bvh_segment(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, float *o, float *d) {
+    float e[3];
+    o[0] = (from.x - bvh->origin[0]) * bvh->scale;
+    o[1] = (from.y - bvh->origin[1]) * bvh->scale;
+    o[2] = (from.z - bvh->origin[2]) * bvh->scale;
+    e[0] = (to.x - bvh->origin[0]) * bvh->scale;
+    e[1] = (to.y - bvh->origin[1]) * bvh->scale;
+    e[2] = (to.z - bvh->origin[2]) * bvh->scale;
+    d[0] = e[0] - o[0]; d[1] = e[1] - o[1]; d[2] = e[2] - o[2];
+    return gim__all_finite(o, 3) && gim__all_finite(d, 3);
+}
+
 GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) {
     uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0;
     float o[3], d[3], inv[3];
     int a;
     if (!bvh || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
-    o[0] = from.x; o[1] = from.y; o[2] = from.z;
-    d[0] = to.x - from.x; d[1] = to.y - from.y; d[2] = to.z - from.z;
-    if (!gim__all_finite(o, 3) || !gim__all_finite(d, 3)) return 0;
-    /* a reciprocal that is never infinite, so no slab gives 0 x inf */
-    for (a = 0; a < 3; ++a) inv[a] = 1.0f / (d[a] >= 0.0f ? (d[a] > 1e-30f ? d[a] : 1e-30f) : (d[a] < -1e-30f ? d[a] : -1e-30f));
+    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
+    /* an axis along which the segment barely moves (|d| < 1e-30, whose reciprocal may be
+       infinite) is tested by the segment's extent on it instead of a slab */
+    for (a = 0; a < 3; ++a) inv[a] = fabsf(d[a]) >= 1e-30f ? 1.0f / d[a] : 0.0f;
     for (;;) {
         const gim_bvh_node *nd = bvh->nodes + node;
         float tn = 0.0f, tf = 1.0f;
         for (a = 0; a < 3; ++a) {
-            float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
-            float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
-            tn = lo_ > tn ? lo_ : tn;
-            tf = hi_ < tf ? hi_ : tf;
+            if (inv[a] != 0.0f) {
+                float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
+                float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
+                tn = lo_ > tn ? lo_ : tn;
+                tf = hi_ < tf ? hi_ : tf;
+            } else if (o[a] + fabsf(d[a]) < nd->lo[a] || o[a] - fabsf(d[a]) > nd->hi[a]) {
+                tf = -1.0f;
+            }
         }
-        if (tn <= tf) {
+        /* each t within 3 rounding steps of its value (Ize 2013): the slack keeps the test
+           conservative wherever the segment starts */
+        if (tn <= tf * 1.000001f) {
             if (nd->count == 0) {
                 stack[sp++] = nd->index;
                 node = node + 1u;
@@ -9214,8 +9278,9 @@ typedef struct gim__lightskin_gpu {
     uint64_t exponents_bytes;
     uint32_t *material;           /* CPU: the material of each world cache, in the grid's order */
     uint64_t exponents_for;       /* the materials_version the exponents were made from; 0: not made */
-    gim__GLuint bvh;              /* neighbour_rays: the scene's hierarchy, gim_bvh's nodes then triangles */
+    gim__GLuint bvh;              /* neighbour_rays, RAYS: the scene's hierarchy, gim_bvh's nodes then triangles */
     uint64_t bvh_bytes, bvh_version;  /* the scene_version it was built for */
+    float bvh_origin[3], bvh_scale;   /* its frame (gim_bvh.origin, scale) */
     uint32_t bvh_nodes;           /* its node count (the triangles start at vec4 2 bvh_nodes) */
 } gim__lightskin_gpu;
 
@@ -10144,6 +10209,7 @@ typedef struct gim__gl_ism {
     float bias, slope;
     gim__GLuint bvh;      /* GIM_VISIBILITY_RAYS instead of maps: the hierarchy (gim__gl_bvh's buffer), or 0 */
     uint32_t bvh_nodes;
+    float bvh_origin[3], bvh_scale;   /* its frame */
 } gim__gl_ism;
 
 static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches, uint32_t cache_count, gim__GLuint vals,
@@ -10254,6 +10320,9 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
     gl->Uniform1ui(18, with_rays ? ism->bvh_nodes * 2u : 0u);
     gl->Uniform1ui(19, with_rays ? 1u : 0u);
     gl->Uniform1f(20, GIM_NEIGHBOUR_RAY_LIFT * scene_scale);
+    gl->Uniform3f(21, with_rays ? ism->bvh_origin[0] : 0.0f, with_rays ? ism->bvh_origin[1] : 0.0f,
+                  with_rays ? ism->bvh_origin[2] : 0.0f);
+    gl->Uniform1f(22, with_rays ? ism->bvh_scale : 1.0f);
     /* per range of caches whose maps fit one storage block (all caches in one without maps):
        sums over the VALs chunk by chunk (mode 0), the near VALs past a cache's first
        GIM__VAL_NEAR_CAP (mode 3), the dark caches' positions (mode 1), the proxy lights (mode 2);
@@ -12313,6 +12382,7 @@ typedef struct gim__shade_args {
                                     in every tile */
     gim__GLuint bvh;             /* neighbour_rays: the hierarchy (gim__gl_bvh's layout), or 0: no rays */
     uint32_t bvh_nodes;          /* its nodes (0: nothing blocks) */
+    float bvh_origin[3], bvh_scale;  /* its frame (gim_bvh.origin, scale) */
     gim__GLuint indirect;        /* width x height texture of format */
     gim__GLenum format;          /* RGBA16F or RGBA32F */
 } gim__shade_args;
@@ -12365,6 +12435,8 @@ static gim_result gim__gl_lightskin_shade(gim_context *ctx, const gim__shade_arg
     gl->Uniform1ui(17, a->bvh ? a->bvh_nodes : 0u);
     gl->Uniform1ui(18, a->bvh_nodes * 2u);
     gl->Uniform1f(19, GIM_NEIGHBOUR_RAY_LIFT * a->scene_scale);
+    gl->Uniform3f(20, a->bvh_origin[0], a->bvh_origin[1], a->bvh_origin[2]);
+    gl->Uniform1f(21, a->bvh ? a->bvh_scale : 1.0f);
     gl->DispatchCompute((a->width + 8u * block - 1u) / (8u * block), (a->height + 8u * block - 1u) / (8u * block), 1u);
     gl->MemoryBarrier(GIM__GL_TEXTURE_FETCH_BARRIER_BIT | GIM__GL_SHADER_IMAGE_ACCESS_BARRIER_BIT |
                       GIM__GL_TEXTURE_UPDATE_BARRIER_BIT);
@@ -12545,6 +12617,8 @@ static gim_result gim__gl_bvh(gim_context *ctx, const char *where) {
     }
     if (r == GIM_OK) {
         ls->bvh_nodes = bvh.node_count;
+        memcpy(ls->bvh_origin, bvh.origin, sizeof ls->bvh_origin);
+        ls->bvh_scale = bvh.scale;
         ls->bvh_version = ctx->scene_version;
     }
     gim_bvh_free(&bvh);
@@ -12766,6 +12840,8 @@ vals:
     if (f->visibility.mode == GIM_VISIBILITY_RAYS) {   /* each VAL at each cache by a ray */
         ism.bvh = ls->bvh;
         ism.bvh_nodes = ls->bvh_nodes;
+        memcpy(ism.bvh_origin, ls->bvh_origin, sizeof ism.bvh_origin);
+        ism.bvh_scale = ls->bvh_scale;
     }
     r = gim__gl_proxy_lights_ism(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
                                  glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
@@ -12794,6 +12870,8 @@ vals:
     sa.block = f->lightskin.shade_block;
     sa.bvh = f->visibility.neighbour_rays ? ls->bvh : 0u;
     sa.bvh_nodes = ls->bvh_nodes;
+    memcpy(sa.bvh_origin, ls->bvh_origin, sizeof sa.bvh_origin);
+    sa.bvh_scale = ls->bvh_scale;
     r = gim__gl_lightskin_shade(ctx, &sa);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_SHADE);

@@ -3,8 +3,10 @@
    this file in place of a shader's line `#include "bvh.glsl"`, which must come after the
    shader's declaration of the hierarchy, `vec4 bvh[]` (gim_bvh's nodes, two vec4 each: lo and
    the index bits, hi and the count bits; then from vec4 bvh_triangles on its triangles, three
-   vec4 each: v0, v1 - v0, v2 - v0), and of the uniforms bvh_triangles and bvh_nodes (0: an
-   empty hierarchy, nothing blocks). lightskin_shade.comp tests a pixel's neighbour caches. */
+   vec4 each: v0, v1 - v0, v2 - v0, all in the frame (x - bvh_origin) bvh_scale), and of the
+   uniforms bvh_triangles, bvh_nodes (0: an empty hierarchy, nothing blocks), bvh_origin and
+   bvh_scale (gim_bvh.origin, scale). lightskin_shade.comp tests a pixel's neighbour caches,
+   proxy_lights.comp each VAL at each cache. */
 #define BVH_STACK 48   /* GIM_BVH_MAX_DEPTH */
 
 /* The open segment o + t d, 0 < t < 1, against the triangle from vec4 at on (Moller and
@@ -32,23 +34,31 @@ bool bvh_triangle(uint at, vec3 o, vec3 d) {
 /* true when a triangle crosses the open segment from -> to */
 bool bvh_occluded(vec3 from, vec3 to) {
     if (bvh_nodes == 0u) return false;
-    precise vec3 o = from;
-    precise vec3 d = vec3(to.x - from.x, to.y - from.y, to.z - from.z);
-    vec3 inv;
-    for (int a = 0; a < 3; ++a) {   /* never infinite: no slab gives 0 x inf */
-        float da = d[a] >= 0.0 ? (d[a] > 1e-30 ? d[a] : 1e-30) : (d[a] < -1e-30 ? d[a] : -1e-30);
-        inv[a] = 1.0 / da;
-    }
+    precise vec3 o = vec3((from.x - bvh_origin.x) * bvh_scale, (from.y - bvh_origin.y) * bvh_scale,
+                          (from.z - bvh_origin.z) * bvh_scale);
+    precise vec3 e = vec3((to.x - bvh_origin.x) * bvh_scale, (to.y - bvh_origin.y) * bvh_scale,
+                          (to.z - bvh_origin.z) * bvh_scale);
+    precise vec3 d = vec3(e.x - o.x, e.y - o.y, e.z - o.z);
+    if (!finite3(o) || !finite3(d)) return false;
+    vec3 inv;   /* 0: an axis along which the segment barely moves, tested by its extent */
+    for (int a = 0; a < 3; ++a) inv[a] = abs(d[a]) >= 1e-30 ? 1.0 / d[a] : 0.0;
     uint stack[BVH_STACK];
     uint sp = 0u, node = 0u;
     for (;;) {
         vec4 lo = bvh[2u * node], hi = bvh[2u * node + 1u];
-        precise vec3 t0 = vec3((lo.x - o.x) * inv.x, (lo.y - o.y) * inv.y, (lo.z - o.z) * inv.z);
-        precise vec3 t1 = vec3((hi.x - o.x) * inv.x, (hi.y - o.y) * inv.y, (hi.z - o.z) * inv.z);
-        vec3 tlo = min(t0, t1), thi = max(t0, t1);
-        float tn = max(max(max(tlo.x, 0.0), tlo.y), tlo.z);
-        float tf = min(min(min(thi.x, 1.0), thi.y), thi.z);
-        if (tn <= tf) {
+        float tn = 0.0, tf = 1.0;
+        for (int a = 0; a < 3; ++a) {
+            if (inv[a] != 0.0) {
+                precise float t0 = (lo[a] - o[a]) * inv[a], t1 = (hi[a] - o[a]) * inv[a];
+                tn = max(tn, min(t0, t1));
+                tf = min(tf, max(t0, t1));
+            } else {
+                precise float e0 = o[a] + abs(d[a]), e1 = o[a] - abs(d[a]);
+                if (e0 < lo[a] || e1 > hi[a]) tf = -1.0;
+            }
+        }
+        precise float slack = tf * 1.000001;   /* each t within 3 rounding steps (Ize 2013) */
+        if (tn <= slack) {
             uint index = floatBitsToUint(lo.w), count = floatBitsToUint(hi.w);
             if (count == 0u) {
                 stack[sp++] = index;

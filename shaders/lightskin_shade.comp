@@ -83,6 +83,8 @@ layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
 layout(location = 17) uniform uint bvh_nodes;
 layout(location = 18) uniform uint bvh_triangles;   /* the triangles' first vec4 */
 layout(location = 19) uniform float ray_lift;       /* GIM_NEIGHBOUR_RAY_LIFT scene_scale */
+layout(location = 20) uniform vec3 bvh_origin;      /* the hierarchy's frame */
+layout(location = 21) uniform float bvh_scale;
 #include "bvh.glsl"
 
 uint cell_hash(ivec3 c) {   /* the runtime's gim__grid_hash */

@@ -96,6 +96,8 @@ layout(location = 17) uniform uint bvh_nodes;
 layout(location = 18) uniform uint bvh_triangles;   /* the triangles' first vec4 */
 layout(location = 19) uniform uint rays;
 layout(location = 20) uniform float ray_lift;       /* GIM_NEIGHBOUR_RAY_LIFT scene_scale */
+layout(location = 21) uniform vec3 bvh_origin;      /* the hierarchy's frame */
+layout(location = 22) uniform float bvh_scale;
 #include "bvh.glsl"
 
 shared vec4 tile_pa[TILE];    /* position, area */

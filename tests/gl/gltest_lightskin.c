@@ -310,6 +310,8 @@ static void run_shade_case(const shade_case *sc, float L, const float origin[3])
     sa.slabs = sc->slabs;
     sa.bvh = b_bvh;
     sa.bvh_nodes = bvh_nodes;
+    memcpy(sa.bvh_origin, bvh.origin, sizeof sa.bvh_origin);
+    sa.bvh_scale = bvh.scale;
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_lightskin_shade(f.ctx, &sa), GIM_OK);
     assert_int_equal(gim__gl_leave(f.ctx, GIM_OK), GIM_OK);
