@@ -2176,9 +2176,11 @@ GIMANY_API void gim_bvh_free(gim_bvh *bvh);
    det, a hit is det != 0, s . p >= -g, d . q >= -g, s . p + d . q <= det + g and 0 < e2 . q <
    det (each triangle grown by 1e-4 of itself, so no segment slips between two that share an
    edge); all in float, in this order, in the hierarchy's frame (the ends taken there first:
-   (x - origin) scale). The nodes' boxes are conservative (grown past the grown
-   triangles, the slab test with a relative slack of 1e-6), so the walk answers exactly what
-   testing every triangle answers. 0 for an empty hierarchy or a non-finite end. */
+   (x - origin) scale). The nodes' boxes are conservative (grown past the grown triangles, the
+   slab test with a relative slack of 1e-6): the walk's hits are its triangles' hits, and it
+   loses none that lies inside a triangle by more than float's rounding (a segment in or nearly
+   in a triangle's plane gets rounding's verdict, which a box may cut: tests/fuzz/fuzz_bvh.c).
+   0 for an empty hierarchy or a non-finite end. */
 GIMANY_API int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to);
 
 /* Input of gim_neighbour_rays_twin: the neighbour rows of gim_cache_neighbours and the
