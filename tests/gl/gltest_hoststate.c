@@ -309,7 +309,8 @@ static void same_image_vis(gim_method m, int reset, gim_visibility vis) {
     frame_small(&ff, m);
     ff.fr.vpl.kmeans_restart = 1;
     ff.fr.visibility.mode = vis;
-    if (vis != GIM_VISIBILITY_OFF) ff.fr.visibility.ism_size = 8;
+    if (vis == GIM_VISIBILITY_ISM || vis == GIM_VISIBILITY_SHADOW_MAPS) ff.fr.visibility.ism_size = 8;
+    ff.fr.visibility.neighbour_rays = vis == GIM_VISIBILITY_RAYS;   /* the caches' rays and the pixels' */
     if (reset) ff.f.ctx->gl_state = GIM_GL_STATE_RESET;   /* as gim_create sets it from gim_desc.gl_state */
     set_default(NULL);
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
@@ -320,7 +321,7 @@ static void same_image_vis(gim_method m, int reset, gim_visibility vis) {
     set_hostile(&h);
     ff.f.ctx->ism_vpl_key = ff.f.ctx->ism_vpl_layout = 0;   /* the VPLs' maps made again */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
-    if (vis != GIM_VISIBILITY_OFF) {
+    if (vis == GIM_VISIBILITY_ISM || vis == GIM_VISIBILITY_SHADOW_MAPS) {
         gim_stats st;
         assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
         assert_true(st.ism_maps_made > 16u);   /* of the 64 + 16 VPLs, the lit ones */
@@ -351,6 +352,12 @@ static void vpl_maps(void **state) {
 }
 
 static void lightskin_brsm(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_BRSM, 0); }
+/* LightSkin with rays at its caches and its pixels (binding 6 in the proxy and shading passes), both state modes */
+static void lightskin_rays(void **state) {
+    (void)state;
+    same_image_vis(GIM_METHOD_LIGHTSKIN_BRSM, 0, GIM_VISIBILITY_RAYS);
+    same_image_vis(GIM_METHOD_LIGHTSKIN_BRSM, 1, GIM_VISIBILITY_RAYS);
+}
 static void lightskin_full(void **state) { (void)state; same_image(GIM_METHOD_LIGHTSKIN_FULL, 0); }
 static void rsm_gather(void **state) { (void)state; same_image(GIM_METHOD_RSM_GATHER, 0); }
 static void clustered(void **state) { (void)state; same_image(GIM_METHOD_CLUSTERED, 0); }
@@ -449,7 +456,8 @@ static void deleted_host_program(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_full), cmocka_unit_test(rsm_gather),
+        cmocka_unit_test(lightskin_brsm), cmocka_unit_test(lightskin_rays), cmocka_unit_test(lightskin_full),
+        cmocka_unit_test(rsm_gather),
         cmocka_unit_test(clustered), cmocka_unit_test(ssvp), cmocka_unit_test(no_current_context),
         cmocka_unit_test(deleted_host_program), cmocka_unit_test(reset_every_method), cmocka_unit_test(vpl_maps), cmocka_unit_test(gl_state_desc)};
     int r = cmocka_run_group_tests(tests, NULL, NULL);
