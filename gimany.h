@@ -8200,6 +8200,12 @@ GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) 
     }
 }
 
+/* A ray's end: p lifted by l along n, each component a float multiply-add in this order (the
+   shaders' `precise` steps). */
+static gim_vec3 gim__ray_end(const float *p, const float *n, float l) {
+    return gim_v3(p[0] + l * n[0], p[1] + l * n[1], p[2] + l * n[2]);
+}
+
 GIMANY_DEF gim_result gim_neighbour_rays_twin(const gim_neighbour_rays_desc *desc, gim_neighbour_result *out) {
     static const char where[] = "gim_neighbour_rays_twin";
     const gim_env *env;
@@ -8231,13 +8237,10 @@ GIMANY_DEF gim_result gim_neighbour_rays_twin(const gim_neighbour_rays_desc *des
         const gim_receiver *rc = desc->receivers + r;
         const uint32_t *row = desc->neighbour_index + (size_t)r * n;
         uint32_t kept[GIM_MAX_NEIGHBOUR_CACHES], cnt = desc->neighbour_count[r], nk = 0, k;
-        gim_vec3 x = gim_v3(rc->position[0] + lift * rc->normal[0], rc->position[1] + lift * rc->normal[1],
-                            rc->position[2] + lift * rc->normal[2]);
+        gim_vec3 x = gim__ray_end(rc->position, rc->normal, lift);
         for (k = 0; k < cnt; ++k) {
             const gim_cache *c = desc->caches + row[k];
-            gim_vec3 t = gim_v3(c->position[0] + lift * c->normal[0], c->position[1] + lift * c->normal[1],
-                                c->position[2] + lift * c->normal[2]);
-            if (!gim_bvh_occluded(desc->bvh, x, t)) kept[nk++] = row[k];
+            if (!gim_bvh_occluded(desc->bvh, x, gim__ray_end(c->position, c->normal, lift))) kept[nk++] = row[k];
         }
         if (nk == 0)   /* sees none: keeps them all */
             for (k = 0; k < cnt; ++k) kept[nk++] = row[k];
@@ -8265,15 +8268,10 @@ GIMANY_DEF gim_result gim_val_rays_twin(const gim_bvh *bvh, const gim_cache *cac
         return gim__fail(&env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
     lift = GIM_NEIGHBOUR_RAY_LIFT * scene_scale;
     for (c = 0; c < cache_count; ++c) {
-        const gim_cache *k = caches + c;
-        gim_vec3 o = gim_v3(k->position[0] + lift * k->normal[0], k->position[1] + lift * k->normal[1],
-                            k->position[2] + lift * k->normal[2]);
-        for (j = 0; j < val_count; ++j) {
-            const gim_val *v = vals + j;
-            gim_vec3 t = gim_v3(v->position[0] + lift * v->normal[0], v->position[1] + lift * v->normal[1],
-                                v->position[2] + lift * v->normal[2]);
-            out[(size_t)c * val_count + j] = gim_bvh_occluded(bvh, o, t) ? 0.0f : 1.0f;
-        }
+        gim_vec3 o = gim__ray_end(caches[c].position, caches[c].normal, lift);
+        for (j = 0; j < val_count; ++j)
+            out[(size_t)c * val_count + j] =
+                gim_bvh_occluded(bvh, o, gim__ray_end(vals[j].position, vals[j].normal, lift)) ? 0.0f : 1.0f;
     }
     return GIM_OK;
 }

@@ -244,13 +244,11 @@ void load(uint j, uint end, uint slot) {
    cosine cos_x: visibility, then the diffuse and glossy sums */
 void accumulate(inout Sums sd, inout Sums sg, inout float en, inout float shift, vec3 d, float inv, float cos_x, float e_n,
                 vec3 p, vec3 nl, vec3 phi, uint ii, vec3 ism_o, vec3 ism_t, vec3 ism_b, vec3 n, bool glossy, vec3 v,
-                float k) {
+                float k, vec3 ray_o) {
     if (ism_size != 0u && e_n * cos_x > 0.0) e_n *= ism_visibility(ii, ism_o, ism_t, ism_b, n, p, nl);
-    if (rays != 0u && e_n * cos_x > 0.0) {
-        vec3 c = cache[ii].position_area.xyz;
-        precise vec3 o = vec3(c.x + ray_lift * n.x, c.y + ray_lift * n.y, c.z + ray_lift * n.z);
+    if (rays != 0u && e_n * cos_x > 0.0) {   /* ray_o: ray_lift above the cache, made once per cache */
         precise vec3 t = vec3(p.x + ray_lift * nl.x, p.y + ray_lift * nl.y, p.z + ray_lift * nl.z);
-        if (bvh_occluded(o, t)) e_n = 0.0;
+        if (bvh_occluded(ray_o, t)) e_n = 0.0;
     }
     float e = e_n * cos_x;
     if (!(e > 0.0)) return;   /* behind, grazing, coincident or weight 0 */
@@ -308,6 +306,7 @@ void main() {
     uint mine = tile0 + (lane + deal - tile0 % deal) % deal;
     vec3 ism_o = vec3(c.x + ism_lift * n.x, c.y + ism_lift * n.y, c.z + ism_lift * n.z), ism_t = vec3(0.0), ism_b = vec3(0.0);
     if (ism_size != 0u) basis(n, ism_t, ism_b);
+    precise vec3 ray_o = vec3(c.x + ray_lift * n.x, c.y + ray_lift * n.y, c.z + ray_lift * n.z);
     if (mode == 0u) {
         for (uint tile = mine; tile < tile1; tile += deal) {
             uint base = tile * uint(TILE);
@@ -329,7 +328,7 @@ void main() {
                         continue;
                     }
                     accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii, ism_o,
-                               ism_t, ism_b, n, glossy, v, k);
+                               ism_t, ism_b, n, glossy, v, k, ray_o);
                 }
             barrier();
         }
@@ -347,7 +346,7 @@ void main() {
             float e_n = den > 0.0 ? nw.w * cos_l / den : 0.0;
             e_n = val_near(d, n, nw.xyz, pa.w, nw.w, e_n, cos_x);
             accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, pa.xyz, nw.xyz, val[j].flux.rgb, ii, ism_o, ism_t, ism_b, n,
-                       glossy, v, k);
+                       glossy, v, k, ray_o);
         }
     } else if (mode == 3u) {
         /* the near VALs past the first NEAR_CAP of a cache (many VALs on one spot: BRSM's
@@ -394,7 +393,7 @@ void main() {
                     float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;
                     e_n = val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, tile_nw[t].w, e_n, cos_x);
                     accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii,
-                               ism_o, ism_t, ism_b, n, glossy, v, k);
+                               ism_o, ism_t, ism_b, n, glossy, v, k, ray_o);
                 }
                 barrier();
             }
