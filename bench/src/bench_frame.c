@@ -23,7 +23,9 @@
    relative difference to FULL's image (the paper's Fig. 3/5 comparison); the relative MAE
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
    standard error alone gives against the true image); flicker; for a row with visibility
-   (brsm-ism: imperfect shadow maps per cache; clustered-ism, ssvp-ism: one per VPL) its frame over
+   (brsm-ism: imperfect shadow maps per cache; brsm-rays: rays through the scene's hierarchy at the
+   caches and from the pixels, not on Sponza's views, whose frames take minutes here;
+   clustered-ism, ssvp-ism: one map per VPL) its frame over
    the same method's frame without (visibility_over_off: the maps' lookups; the maps are reused
    while the scene and the light stand still) and the time of the frame that makes the maps'
    pass (ism_build_ms, timing 2: GIM_PASS_ISM, the VPL methods' GIM_PASS_PARABOLOID; on the row of
@@ -116,6 +118,15 @@ static void setup_vpl_ism(gim_frame *f, const bench_method *m) {
     f->visibility.mode = GIM_VISIBILITY_ISM;
 }
 
+/* LightSkin with rays through the scene's hierarchy on both sides of the interpolation: each
+   VAL at each cache (GIM_VISIBILITY_RAYS) and each pixel to its neighbour caches
+   (neighbour_rays); its visibility_over_off against the same method's row without visibility */
+static void setup_rays(gim_frame *f, const bench_method *m) {
+    (void)m;
+    f->visibility.mode = GIM_VISIBILITY_RAYS;
+    f->visibility.neighbour_rays = 1;
+}
+
 static void setup_anew(gim_frame *f, const bench_method *m) {
     (void)m;
     f->lightskin.temporal_steps = 1;   /* new offsets every frame (the default drifts 1/32 of their spacing) */
@@ -157,6 +168,7 @@ static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
     {"brsm", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, NULL, 1, 0},
     {"brsm-ism", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_ism, 1, 0},
+    {"brsm-rays", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_rays, 3, 0},
     {"brsm-anew", GIM_METHOD_LIGHTSKIN_BRSM, 0, 0, 0, 1, setup_anew, 1, 0},
     /* Dong et al.: clusters 4 / 8 / 16 / 32 (30 is the library's default) */
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
@@ -675,13 +687,15 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.lightskin.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.lightskin.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
-                    if (fm.visibility.mode == GIM_VISIBILITY_ISM || fm.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS) {
+                    if (fm.visibility.mode != GIM_VISIBILITY_OFF) {
                         /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
-                           a frame without them frees them, the next makes them */
+                           a frame without them frees them, the next makes them (RAYS: the hierarchy's
+                           build, stamped GIM_PASS_ISM) */
                         if (vi == 0 && si == 0) {
                             gim_frame off = fm, build = fm;
                             gim_stats st;
                             off.visibility.mode = GIM_VISIBILITY_OFF;
+                            off.visibility.neighbour_rays = 0;
                             update(ctx, &off);
                             build.timing = 2;
                             update(ctx, &build);
@@ -691,6 +705,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                         }
                         if (mi > 0 && methods[mi - 1].method == bm->method &&
                             (!methods[mi - 1].setup || (bm->vpl && methods[mi - 1].setup == setup_vpl) ||
+                             (bm->setup == setup_rays && methods[mi - 1].setup == setup_ism) ||
                              (bm->setup == setup_vpl_ism_imp && methods[mi - 1].setup == setup_vpl_imp)))
                             t_off = off_ms[vi][si];
                     }

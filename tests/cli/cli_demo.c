@@ -192,6 +192,28 @@ static void neighbours_option(void **state) {
     free(b);
 }
 
+/* --interleave reaches the frame: clustered with every VPL at every pixel (1) lights the box
+   otherwise than its 4 x 4 subsets. */
+static void interleave_option(void **state) {
+    char *out = NULL;
+    float *a, *b;
+    uint32_t i, differ = 0;
+    (void)state;
+    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4",
+                          OUT "/k4", &out), 0);
+    free(out);
+    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4 "
+                          "--interleave 1", OUT "/k1", &out), 0);
+    free(out);
+    a = read_image(OUT "/k4", "indirect.pfm", 32, 24);
+    b = read_image(OUT "/k1", "indirect.pfm", 32, 24);
+    for (i = 0; i < 32 * 24 * 3; ++i) differ += a[i] != b[i];
+    print_message("--interleave 1 against the default 4: %u of %u values differ\n", differ, 32 * 24 * 3);
+    assert_true(differ > 32 * 24);
+    free(a);
+    free(b);
+}
+
 /* The direct light against its closed form: a spot of our own at p = (0.12, 0.5, -0.12) (away
    from the blocks) pointing down, and a camera at p looking straight down: the middle pixels see
    the white floor under it lit at normal incidence from d = 0.5 m, L = rho / pi I / d^2. A
@@ -319,6 +341,8 @@ static void bad_input(void **state) {
         {"--view-samples -4", "--view-samples"},
         {"--neighbours 0", "--neighbours"},
         {"--neighbours 17", "--neighbours"},
+        {"--method clustered --interleave 0", "--interleave"},
+        {"--method clustered --interleave 65", "--interleave"},
         {"--method nope", "--method"},
         {"--bounces 2", "--bounces 2 needs --method clustered or ssvp"},
         {"--method gather --bounces 2", "--bounces 2 needs"},
@@ -493,6 +517,7 @@ static void stale_outputs_removed(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),     cmocka_unit_test(neighbours_option),
+        cmocka_unit_test(interleave_option),
         cmocka_unit_test(direct_closed_form), cmocka_unit_test(direct_glossy), cmocka_unit_test(methods),
         cmocka_unit_test(bad_input),       cmocka_unit_test(no_triangles),    cmocka_unit_test(hostile_gltf),
         cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),        cmocka_unit_test(stale_outputs_removed),
