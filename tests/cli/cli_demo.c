@@ -172,46 +172,46 @@ static void sky_is_zero(void **state) {
     free(dir);
 }
 
+/* Values of two demo runs' 32x24 indirect images that differ: base alone into OUT/dir_a, base
+   and extra into OUT/dir_b. */
+static uint32_t option_changes(const char *base, const char *extra, const char *dir_a, const char *dir_b) {
+    char *out = NULL, args[512], da[128], db[128];
+    float *a, *b;
+    uint32_t i, differ = 0;
+    snprintf(da, sizeof da, OUT "/%s", dir_a);
+    snprintf(db, sizeof db, OUT "/%s", dir_b);
+    snprintf(args, sizeof args, "%s %s", base, extra);
+    assert_int_equal(demo(base, da, &out), 0);
+    free(out);
+    assert_int_equal(demo(args, db, &out), 0);
+    free(out);
+    a = read_image(da, "indirect.pfm", 32, 24);
+    b = read_image(db, "indirect.pfm", 32, 24);
+    for (i = 0; i < 32 * 24 * 3; ++i) differ += a[i] != b[i];
+    free(a);
+    free(b);
+    return differ;
+}
+
 /* --neighbours reaches the frame: one cache per pixel lights the box otherwise than 16 (the
    same draw: frame 1 of the same settings). */
 static void neighbours_option(void **state) {
-    char *out = NULL;
-    float *a, *b;
-    uint32_t i, differ = 0;
+    uint32_t differ;
     (void)state;
-    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", OUT "/n16", &out), 0);
-    free(out);
-    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64 --neighbours 1", OUT "/n1", &out), 0);
-    free(out);
-    a = read_image(OUT "/n16", "indirect.pfm", 32, 24);
-    b = read_image(OUT "/n1", "indirect.pfm", 32, 24);
-    for (i = 0; i < 32 * 24 * 3; ++i) differ += a[i] != b[i];
+    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", "--neighbours 1", "n16", "n1");
     print_message("--neighbours 1 against 16: %u of %u values differ\n", differ, 32 * 24 * 3);
     assert_true(differ > 32 * 24);
-    free(a);
-    free(b);
 }
 
 /* --interleave reaches the frame: clustered with every VPL at every pixel (1) lights the box
    otherwise than its 4 x 4 subsets. */
 static void interleave_option(void **state) {
-    char *out = NULL;
-    float *a, *b;
-    uint32_t i, differ = 0;
+    uint32_t differ;
     (void)state;
-    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4",
-                          OUT "/k4", &out), 0);
-    free(out);
-    assert_int_equal(demo("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4 "
-                          "--interleave 1", OUT "/k1", &out), 0);
-    free(out);
-    a = read_image(OUT "/k4", "indirect.pfm", 32, 24);
-    b = read_image(OUT "/k1", "indirect.pfm", 32, 24);
-    for (i = 0; i < 32 * 24 * 3; ++i) differ += a[i] != b[i];
+    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4",
+                            "--interleave 1", "k4", "k1");
     print_message("--interleave 1 against the default 4: %u of %u values differ\n", differ, 32 * 24 * 3);
     assert_true(differ > 32 * 24);
-    free(a);
-    free(b);
 }
 
 /* The direct light against its closed form: a spot of our own at p = (0.12, 0.5, -0.12) (away
