@@ -24,7 +24,7 @@
    against the reference and the reference's own noise floor (ref_noise_mae: the MAE its
    standard error alone gives against the true image); flicker; for a row with visibility
    (brsm-ism: imperfect shadow maps per cache; brsm-rays: rays through the scene's hierarchy at the
-   caches and from the pixels, not on Sponza's views, whose frames take minutes here;
+   caches and from the pixels, on the street in `make bench` only: its frames take 6-23 s here;
    clustered-ism, ssvp-ism: one map per VPL) its frame over
    the same method's frame without (visibility_over_off: the maps' lookups; the maps are reused
    while the scene and the light stand still) and the time of the frame that makes the maps'
@@ -84,7 +84,9 @@ struct bench_method {
     void (*setup)(gim_frame *f, const bench_method *m);
     int ci;                       /* in `make bench`: 1 on every scene, 2 on the Cornell box only, 3 on every scene
                                      but Sponza's views (whose frame that makes the maps takes minutes on
-                                     llvmpipe), 0 not (bench-full) */
+                                     llvmpipe), 4 on the street only and never in bench-full (a frame of
+                                     rays takes 6-23 s there, the Cornell box's 8,980 caches 2.7x that),
+                                     0 not (bench-full) */
     int vpl;                      /* 1: a VPL method (no caches, VPLs from the RSM): run at one RSM size, the
                                      flicker size; its reference has its bounces */
 };
@@ -168,7 +170,7 @@ static const bench_method methods[] = {
     {"gather", GIM_METHOD_RSM_GATHER, 0, 0, 0, 1, setup_gather, 1, 0},
     {"brsm", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, NULL, 1, 0},
     {"brsm-ism", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_ism, 1, 0},
-    {"brsm-rays", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_rays, 3, 0},
+    {"brsm-rays", GIM_METHOD_LIGHTSKIN_BRSM, 1, 0, 0, 1, setup_rays, 4, 0},
     {"brsm-anew", GIM_METHOD_LIGHTSKIN_BRSM, 0, 0, 0, 1, setup_anew, 1, 0},
     /* Dong et al.: clusters 4 / 8 / 16 / 32 (30 is the library's default) */
     {"clustered", GIM_METHOD_CLUSTERED, 0, 4, 0, 1, setup_vpl, 2, 1},
@@ -675,6 +677,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
         for (mi = 0; mi < (int)METHOD_COUNT; ++mi) {
             const bench_method *bm = &methods[mi];
             int nv = bm->per_val ? sw->vals_n : 1, ns = bm->per_val ? sw->vs_n : 1;
+            if (bm->ci == 4 && (which != 0 || strcmp(bs->name, "street") != 0)) continue;
             if (which == 0 && (bm->ci == 0 || (bm->ci == 2 && strcmp(bs->name, "cornell") != 0) ||
                                (bm->ci == 3 && strncmp(bs->name, "sponza", 6) == 0)))
                 continue;
