@@ -29,6 +29,7 @@ typedef struct demo_options {
     float defensive_share;   /* brsm: VALs drawn by luminance alone (0: gimany's default; < 0: none) */
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     uint32_t interleave;     /* clustered, ssvp: k of the k x k interleaved subsets (0: the method's default) */
+    uint32_t second_vpls;    /* --bounces 2: second-bounce VPLs in all (0: the library's default, 256) */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS, 3 RAYS */
@@ -64,8 +65,10 @@ static const char demo_usage_text[] =
     "                        4096, 8 ssvp); --bounces 2 (a scene option, default 1 as for the reference) adds\n"
     "                        the second bounce to either\n"
     "  --interleave K        clustered, ssvp: each pixel of a K x K block shades its own subset of the VPLs,\n"
-    "                        a geometry-aware K x K blur joins them (1..64; 1: every VPL at every pixel;\n"
+    "                        a geometry-aware K x K blur joins them (1..32; 1: every VPL at every pixel;\n"
     "                        default 4 clustered, 8 ssvp)\n"
+    "  --second-bounce-vpls N  with --bounces 2: the second bounce's VPLs in all, split over the clusters\n"
+    "                        (1..65536; default 256)\n"
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --vpl-importance      clustered, ssvp: the VPLs drawn where their light reaches the view (BRSM's\n"
     "                        importance with --view-samples, --importance-tile, --defensive-share), each\n"
@@ -120,7 +123,8 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         {"--rsm", 16, 8192}, {"--vals", 1, 1u << 20}, {"--view-samples", 1, 65536},
         {"--vpls", 1, 32768}, {"--clusters", 1, 256}, {"--frames", 1, 100000}, {"--ism-size", 4, 64},
         {"--ism-points", 1, 65536}, {"--importance-tile", 1, 32}, {"--shade-block", 1, 2},
-        {"--neighbours", 1, GIM_MAX_NEIGHBOUR_CACHES}, {"--interleave", 1, 64}};
+        {"--neighbours", 1, GIM_MAX_NEIGHBOUR_CACHES}, {"--interleave", 1, 32},
+        {"--second-bounce-vpls", 1, 65536}};
     int i, n = 0;
     rest[n++] = argv[0];
     for (i = 1; i < argc; ++i) {
@@ -165,11 +169,11 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (i + 1 < argc) v = argv[++i];
         else { snprintf(err, cap, "option %.*s needs a value (see --help)", (int)len, a); return -1; }
         if (num >= 0) {
-            uint32_t x, *dst[12];
+            uint32_t x, *dst[13];
             dst[0] = &d->rsm; dst[1] = &d->vals; dst[2] = &d->view_samples;
             dst[3] = &d->vpls; dst[4] = &d->clusters; dst[5] = &d->frames; dst[6] = &d->ism_size; dst[7] = &d->ism_points;
             dst[8] = &d->importance_tile; dst[9] = &d->shade_block; dst[10] = &d->neighbours;
-            dst[11] = &d->interleave;
+            dst[11] = &d->interleave; dst[12] = &d->second_vpls;
             if (!demo_parse_u32(v, nums[num].lo, nums[num].hi, &x)) {
                 snprintf(err, cap, "%s wants an integer in %u..%u, got '%.200s'", nums[num].name, (unsigned)nums[num].lo,
                          (unsigned)nums[num].hi, v);
@@ -232,6 +236,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->vpl.count = d->vpls;
     f->vpl.cluster_count = d->clusters;
     if (d->interleave) f->vpl.interleave = d->interleave;
+    f->vpl.second_bounce_vpls = d->second_vpls;
     f->vpl.bounces = (uint32_t)bounces;
     f->vpl.no_visibility = d->no_visibility;
     f->vpl.importance = d->vpl_importance;
@@ -279,7 +284,8 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
         int cl = !strcmp(d->method, "clustered");
         double v = d->vpls ? d->vpls : cl ? 2048.0 : 4096.0;   /* the library's defaults: VPLs and */
         double k = d->interleave ? d->interleave : cl ? 4.0 : 8.0, k2 = k * k;   /* interleave k^2 */
-        t = px * (L * v + (bounces == 2 || (!cl && bounces != 1) ? 256.0 : 0.0)) / k2;
+        double second = d->second_vpls ? d->second_vpls : 256.0;   /* the library's default */
+        t = px * (L * v + (bounces == 2 || (!cl && bounces != 1) ? second : 0.0)) / k2;
     }
     if (ls) t += px * 16.0 + (d->ism == 1 ? (double)caches * 16384.0 : 0.0);   /* the library's default points per map */
     if (ls && d->ism == 3)   /* --rays: a walk of the hierarchy per VAL and cache, counted as 64 terms */

@@ -214,6 +214,17 @@ static void interleave_option(void **state) {
     assert_true(differ > 32 * 24);
 }
 
+/* --second-bounce-vpls reaches the frame: SSVP's two bounces with 16 second-bounce VPLs light
+   the box otherwise than with the default 256. */
+static void second_bounce_option(void **state) {
+    uint32_t differ;
+    (void)state;
+    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
+                            "--second-bounce-vpls 16", "s256", "s16");
+    print_message("--second-bounce-vpls 16 against the default 256: %u of %u values differ\n", differ, 32 * 24 * 3);
+    assert_true(differ > 32 * 24);
+}
+
 /* The direct light against its closed form: a spot of our own at p = (0.12, 0.5, -0.12) (away
    from the blocks) pointing down, and a camera at p looking straight down: the middle pixels see
    the white floor under it lit at normal incidence from d = 0.5 m, L = rho / pi I / d^2. A
@@ -342,7 +353,8 @@ static void bad_input(void **state) {
         {"--neighbours 0", "--neighbours"},
         {"--neighbours 17", "--neighbours"},
         {"--method clustered --interleave 0", "--interleave"},
-        {"--method clustered --interleave 65", "--interleave"},
+        {"--method clustered --interleave 33", "--interleave"},
+        {"--method ssvp --second-bounce-vpls 0", "--second-bounce-vpls"},
         {"--method nope", "--method"},
         {"--bounces 2", "--bounces 2 needs --method clustered or ssvp"},
         {"--method gather --bounces 2", "--bounces 2 needs"},
@@ -517,7 +529,7 @@ static void stale_outputs_removed(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),     cmocka_unit_test(neighbours_option),
-        cmocka_unit_test(interleave_option),
+        cmocka_unit_test(interleave_option),     cmocka_unit_test(second_bounce_option),
         cmocka_unit_test(direct_closed_form), cmocka_unit_test(direct_glossy), cmocka_unit_test(methods),
         cmocka_unit_test(bad_input),       cmocka_unit_test(no_triangles),    cmocka_unit_test(hostile_gltf),
         cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),        cmocka_unit_test(stale_outputs_removed),
