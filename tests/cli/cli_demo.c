@@ -193,36 +193,25 @@ static uint32_t option_changes(const char *base, const char *extra, const char *
     return differ;
 }
 
-/* --neighbours reaches the frame: one cache per pixel lights the box otherwise than 16 (the
-   same draw: frame 1 of the same settings). */
-static void neighbours_option(void **state) {
-    uint32_t differ;
+/* Options reach the frame: each changes the image of the same draw (frame 1 of the same
+   settings) against its default: one cache per pixel against 16 (--neighbours), clustered
+   with every VPL at every pixel against its 4 x 4 subsets (--interleave), SSVP's two bounces
+   with 16 second-bounce VPLs against 256 (--second-bounce-vpls). */
+static void options_reach_the_frame(void **state) {
+    static const char *const cases[][4] = {
+        {"--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", "--neighbours 1", "n16", "n1"},
+        {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4", "--interleave 1",
+         "k4", "k1"},
+        {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
+         "--second-bounce-vpls 16", "s256", "s16"},
+    };
+    size_t k;
     (void)state;
-    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", "--neighbours 1", "n16", "n1");
-    print_message("--neighbours 1 against 16: %u of %u values differ\n", differ, 32 * 24 * 3);
-    assert_true(differ > 32 * 24);
-}
-
-/* --interleave reaches the frame: clustered with every VPL at every pixel (1) lights the box
-   otherwise than its 4 x 4 subsets. */
-static void interleave_option(void **state) {
-    uint32_t differ;
-    (void)state;
-    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4",
-                            "--interleave 1", "k4", "k1");
-    print_message("--interleave 1 against the default 4: %u of %u values differ\n", differ, 32 * 24 * 3);
-    assert_true(differ > 32 * 24);
-}
-
-/* --second-bounce-vpls reaches the frame: SSVP's two bounces with 16 second-bounce VPLs light
-   the box otherwise than with the default 256. */
-static void second_bounce_option(void **state) {
-    uint32_t differ;
-    (void)state;
-    differ = option_changes("--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
-                            "--second-bounce-vpls 16", "s256", "s16");
-    print_message("--second-bounce-vpls 16 against the default 256: %u of %u values differ\n", differ, 32 * 24 * 3);
-    assert_true(differ > 32 * 24);
+    for (k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        uint32_t differ = option_changes(cases[k][0], cases[k][1], cases[k][2], cases[k][3]);
+        print_message("%s against the default: %u of %u values differ\n", cases[k][1], differ, 32 * 24 * 3);
+        assert_true(differ > 32 * 24);
+    }
 }
 
 /* The direct light against its closed form: a spot of our own at p = (0.12, 0.5, -0.12) (away
@@ -528,8 +517,7 @@ static void stale_outputs_removed(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),     cmocka_unit_test(neighbours_option),
-        cmocka_unit_test(interleave_option),     cmocka_unit_test(second_bounce_option),
+        cmocka_unit_test(cornell_default), cmocka_unit_test(sky_is_zero),     cmocka_unit_test(options_reach_the_frame),
         cmocka_unit_test(direct_closed_form), cmocka_unit_test(direct_glossy), cmocka_unit_test(methods),
         cmocka_unit_test(bad_input),       cmocka_unit_test(no_triangles),    cmocka_unit_test(hostile_gltf),
         cmocka_unit_test(cornell_gltf),    cmocka_unit_test(too_slow),        cmocka_unit_test(stale_outputs_removed),

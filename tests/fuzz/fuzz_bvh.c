@@ -14,11 +14,7 @@
 #include <string.h>
 #include <math.h>
 
-typedef struct fz_alloc { long live; } fz_alloc;
-static void *fz_malloc(size_t n, void *u) { ((fz_alloc *)u)->live++; return malloc(n); }
-static void fz_free(void *p, void *u) { ((fz_alloc *)u)->live--; free(p); }
-
-#define FZ_CHECK(x) do { if (!(x)) __builtin_trap(); } while (0)
+#include "fuzzutil.h"
 
 /* the next float from data: raw bits (flags & 1) or a small integer grid value */
 static float fz_float(const uint8_t *data, size_t size, size_t *at, unsigned flags) {

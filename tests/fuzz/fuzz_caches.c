@@ -12,11 +12,7 @@
 #include <string.h>
 #include <math.h>
 
-typedef struct fz_alloc { long live; } fz_alloc;
-static void *fz_malloc(size_t n, void *u) { ((fz_alloc *)u)->live++; return malloc(n); }
-static void fz_free(void *p, void *u) { ((fz_alloc *)u)->live--; free(p); }
-
-#define FZ_CHECK(x) do { if (!(x)) __builtin_trap(); } while (0)
+#include "fuzzutil.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {

@@ -1,9 +1,17 @@
-/* Shared libFuzzer helpers: read the input as a stream of values, zero-filled past its end. */
+/* Shared libFuzzer helpers: read the input as a stream of values, zero-filled past its end; an
+   allocator that counts live blocks (gim_env's, for the leak checks); a check that traps. */
 #ifndef GIMANY_FUZZUTIL_H
 #define GIMANY_FUZZUTIL_H
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
+
+typedef struct fz_alloc { long live; } fz_alloc;
+static inline void *fz_malloc(size_t n, void *u) { ((fz_alloc *)u)->live++; return malloc(n); }
+static inline void fz_free(void *p, void *u) { ((fz_alloc *)u)->live--; free(p); }
+
+#define FZ_CHECK(x) do { if (!(x)) __builtin_trap(); } while (0)
 
 typedef struct reader { const uint8_t *p; size_t n; } reader;
 
