@@ -262,7 +262,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
                caches x VALs, per light
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
-     clustered, ssvp   pixels x VPLs / k^2 (interleaving: 4x4 clustered, 8x8 ssvp), second bounce included
+     clustered, ssvp   pixels x VPLs / k^2 (--interleave k; 4 clustered, 8 ssvp), second bounce included
      LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384;
                with --rays 64 a ray, caches x VALs
    memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
