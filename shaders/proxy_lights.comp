@@ -105,6 +105,24 @@ shared vec4 tile_nw[TILE];    /* normal, weight (0: skipped) */
 shared vec3 tile_flux[TILE];
 shared uint any_work;   /* an invocation of the group has work in mode 1 or 3 */
 
+/* A VAL at p with normal nl seen from the cache at c with normal n: d = p - c, d2 = |d|^2,
+   inv = 1 / |d| (0 nearer than coincident2: no direction, no light), and the cosines at the
+   cache and at the VAL (gim_proxy_lights_twin's float steps) */
+void val_geometry(vec3 p, vec3 nl, vec3 c, vec3 n, out vec3 d, out float d2, out float inv, out float cos_x,
+                  out float cos_l) {
+    d = p - c;
+    d2 = dot(d, d);
+    inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
+    cos_x = max(dot(n, d) * inv, 0.0);
+    cos_l = max(-dot(nl, d) * inv, 0.0);
+}
+
+/* eq. 3/14's irradiance term per unit flux of a VAL of area a and weight w */
+float val_e_n(float a, float w, float cos_l, float d2) {
+    float den = a + PI * d2;
+    return den > 0.0 ? w * cos_l / den : 0.0;
+}
+
 /* Near field of a VAL (gim__val_near, the same float steps): within d < 2 sqrt(A) the VAL is
    a regular octagon of area A in its plane, clipped to the receiver's hemisphere, with vector
    form factor Phi by Lambert's contour formula (near_patch in near_field.glsl). Returns the E_n
@@ -315,13 +333,10 @@ void main() {
             uint count = min(uint(TILE), end - base);
             if (inside)
                 for (uint t = base < first ? first - base : 0u; t < count; ++t) {
-                    vec3 d = tile_pa[t].xyz - c;
-                    float d2 = dot(d, d);
-                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;   /* no direction: no light */
-                    float cos_x = max(dot(n, d) * inv, 0.0);
-                    float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
-                    float den = tile_pa[t].w + PI * d2;
-                    float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;   /* eq. 3/14 per unit flux */
+                    vec3 d;
+                    float d2, inv, cos_x, cos_l;
+                    val_geometry(tile_pa[t].xyz, tile_nw[t].xyz, c, n, d, d2, inv, cos_x, cos_l);
+                    float e_n = val_e_n(tile_pa[t].w, tile_nw[t].w, cos_l, d2);
                     if (d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0) {
                         if (near_seen < float(NEAR_CAP)) near_list[near_n++] = base + t;   /* the near field after the loop */
                         near_seen += 1.0;
@@ -337,13 +352,10 @@ void main() {
         for (uint q = 0u; q < near_n; ++q) {
             uint j = near_list[q];
             vec4 pa = val[j].position_area, nw = val[j].normal_weight;
-            vec3 d = pa.xyz - c;
-            float d2 = dot(d, d);
-            float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
-            float cos_x = max(dot(n, d) * inv, 0.0);
-            float cos_l = max(-dot(nw.xyz, d) * inv, 0.0);
-            float den = pa.w + PI * d2;
-            float e_n = den > 0.0 ? nw.w * cos_l / den : 0.0;
+            vec3 d;
+            float d2, inv, cos_x, cos_l;
+            val_geometry(pa.xyz, nw.xyz, c, n, d, d2, inv, cos_x, cos_l);
+            float e_n = val_e_n(pa.w, nw.w, cos_l, d2);
             e_n = val_near(d, n, nw.xyz, pa.w, nw.w, e_n, cos_x);
             accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, pa.xyz, nw.xyz, val[j].flux.rgb, ii, ism_o, ism_t, ism_b, n,
                        glossy, v, k, ray_o);
@@ -370,11 +382,9 @@ void main() {
                 uint late_n = 0u;
                 if (over)
                     for (uint t = base < first ? first - base : 0u; t < count; ++t) {
-                        vec3 d = tile_pa[t].xyz - c;
-                        float d2 = dot(d, d);
-                        float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
-                        float cos_x = max(dot(n, d) * inv, 0.0);
-                        float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                        vec3 d;
+                        float d2, inv, cos_x, cos_l;
+                        val_geometry(tile_pa[t].xyz, tile_nw[t].xyz, c, n, d, d2, inv, cos_x, cos_l);
                         if (!(d2 < VAL_NEAR * VAL_NEAR * tile_pa[t].w && cos_l > 0.0 && cos_x > 0.0)) continue;
                         aux += 1.0;
                         if (aux <= float(NEAR_CAP)) continue;   /* listed in mode 0 */
@@ -384,13 +394,10 @@ void main() {
                     }
                 for (uint q = 0u; q < late_n; ++q) {
                     uint t = (late[q >> 2u] >> ((q & 3u) * 8u)) & 0xffu;
-                    vec3 d = tile_pa[t].xyz - c;
-                    float d2 = dot(d, d);
-                    float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
-                    float cos_x = max(dot(n, d) * inv, 0.0);
-                    float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
-                    float den = tile_pa[t].w + PI * d2;
-                    float e_n = den > 0.0 ? tile_nw[t].w * cos_l / den : 0.0;
+                    vec3 d;
+                    float d2, inv, cos_x, cos_l;
+                    val_geometry(tile_pa[t].xyz, tile_nw[t].xyz, c, n, d, d2, inv, cos_x, cos_l);
+                    float e_n = val_e_n(tile_pa[t].w, tile_nw[t].w, cos_l, d2);
                     e_n = val_near(d, n, tile_nw[t].xyz, tile_pa[t].w, tile_nw[t].w, e_n, cos_x);
                     accumulate(sd, sg, en, shift, d, inv, cos_x, e_n, tile_pa[t].xyz, tile_nw[t].xyz, tile_flux[t], ii,
                                ism_o, ism_t, ism_b, n, glossy, v, k, ray_o);
@@ -419,11 +426,9 @@ void main() {
                 uint count = min(uint(TILE), end - base);
                 if (aux > 0.0)
                     for (uint t = base < first ? first - base : 0u; t < count; ++t) {
-                        vec3 d = tile_pa[t].xyz - c;
-                        float d2 = dot(d, d);
-                        float inv = d2 > coincident2 ? 1.0 / sqrt(d2) : 0.0;
-                        float cos_x = max(dot(n, d) * inv, 0.0);
-                        float cos_l = max(-dot(tile_nw[t].xyz, d) * inv, 0.0);
+                        vec3 d;
+                        float d2, inv, cos_x, cos_l;
+                        val_geometry(tile_pa[t].xyz, tile_nw[t].xyz, c, n, d, d2, inv, cos_x, cos_l);
                         float den = tile_pa[t].w + PI * d2;
                         float f = den > 0.0 ? tile_nw[t].w * tile_pa[t].w * cos_l * cos_x / den : 0.0;   /* F */
                         if (!(f > 0.0)) continue;
