@@ -508,9 +508,10 @@ typedef enum gim_method {
                                        cluster_count VALs, one paraboloid soft shadow map each; every VPL
                                        shades with its VAL's visibility */
     GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric) into
-                                       cluster_count clusters, a paraboloid map per cluster with
-                                       position, normal and albedo whose unit-disk samples are the
-                                       second-bounce VPLs; both bounces shade (bounces = 2 by default) */
+                                       cluster_count clusters with a paraboloid map each; second-bounce
+                                       VPLs where rays from the VPLs land (gim_frame_vpl.second_bounce;
+                                       MAPS: the paper's, each cluster's map of position, normal and albedo
+                                       sampled over the unit disk); both bounces shade (bounces = 2 by default) */
 } gim_method;
 
 /* Visibility of the indirect light (docs/design.md sec. 8). The VPL methods (CLUSTERED, SSVP) have
@@ -541,6 +542,19 @@ typedef enum gim_visibility {
                                        thin silhouettes, for a ray per VAL and cache every frame. CLUSTERED,
                                        SSVP: refused */
 } gim_visibility;
+
+/* Where the VPL methods' second bounce leaves from (gim_frame.vpl.second_bounce, with bounces 2). */
+typedef enum gim_second_bounce {
+    GIM_SECOND_BOUNCE_DEFAULT = 0,  /* = RAYS */
+    GIM_SECOND_BOUNCE_RAYS,         /* rays from first-bounce VPLs picked by flux to the nearest triangle
+                                       (Keller 1997's instant radiosity; gim_second_bounce_rays_twin), through
+                                       a bounding volume hierarchy of the scene's triangles built when the
+                                       scene changes; no attribute maps */
+    GIM_SECOND_BOUNCE_MAPS          /* SSVP sec. 3.C: each cluster's paraboloid map of position, normal and
+                                       albedo, its unit-disk samples the VPLs, the cluster's flux emitted
+                                       from its centre (gim_second_bounce_vpls_twin), which lies on no
+                                       surface: 1.3-4x the second bounce inside Sponza (docs/methods.md) */
+} gim_second_bounce;
 
 /* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
 typedef struct gim_frame_gbuffer {
@@ -633,10 +647,12 @@ typedef struct gim_frame_vpl {
                                    from the last frame's centres (SSVP sec. 3.B), an empty cluster re-seeded;
                                    warm keeps the clusters from jumping between frames */
     uint32_t paraboloid_size;   /* side of each paraboloid map; 0: 256 */
-    int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (SSVP's second bounce
-                                   still renders its attribute maps) */
-    uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs from the maps */
+    int no_visibility;          /* 1: VPLs shade unshadowed and no depth maps exist (a second bounce from
+                                   MAPS still renders its attribute maps) */
+    uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs (second_bounce) */
     uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
+    gim_second_bounce second_bounce; /* where the second bounce leaves from: RAYS (default: from the
+                                   first-bounce VPLs) or MAPS (SSVP's paper: from each cluster's centre) */
     uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
                                    k x k; 0: 4 (CLUSTERED) or 8 (SSVP; Dong sec. 6 uses 8); 1: every VPL at
                                    every pixel, no blur (docs/methods.md: the trade) */
@@ -2147,7 +2163,8 @@ typedef struct gim_bvh_node {
    from the origin; gim_bvh_occluded takes world points. */
 typedef struct gim_bvh {
     gim_bvh_node *nodes;        /* node_count, depth first; node 0 is the root (none: nothing blocks) */
-    float *triangles;           /* triangle_count * 12 in the leaves' order: (v0, 0), (v1 - v0, 0), (v2 - v0, 0) */
+    float *triangles;           /* triangle_count * 12 in the leaves' order: (v0, i), (v1 - v0, 0), (v2 - v0, 0),
+                                   i the bits of the triangle's index in the scene (a uint32_t) */
     float origin[3], scale;     /* the frame of nodes and triangles */
     uint32_t node_count, triangle_count;
     uint32_t depth;             /* of the deepest leaf (the root's is 0), < GIM_BVH_MAX_DEPTH */
@@ -2182,6 +2199,20 @@ GIMANY_API void gim_bvh_free(gim_bvh *bvh);
    in a triangle's plane gets rounding's verdict, which a box may cut: tests/fuzz/fuzz_bvh.c).
    0 for an empty hierarchy or a non-finite end. */
 GIMANY_API int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to);
+
+/* The nearest crossing of the open segment from -> to, gim_bvh_occluded's test on every
+   triangle (either side) the walk meets: hit->slot its triangle in bvh->triangles, hit->triangle
+   its index in the scene the hierarchy was built from, hit->t its place along the segment (the
+   hit is from + t (to - from), 0 <= t <= 1: e2 . q / det of a crossing, 0 < e2 . q < det,
+   rounded). Of two crossings the one with the smaller e2 . q / det
+   wins, compared as the products (e2 . q) det' < (e2 . q)' det so that no division decides (a
+   tie keeps the first met); a node whose box starts past the nearest so far is skipped. 1 on a
+   hit; 0 (hit untouched) for none, an empty hierarchy or a non-finite end. */
+typedef struct gim_bvh_hit {
+    uint32_t slot, triangle;
+    float t;
+} gim_bvh_hit;
+GIMANY_API int gim_bvh_nearest(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, gim_bvh_hit *hit);
 
 /* Input of gim_neighbour_rays_twin: the neighbour rows of gim_cache_neighbours and the
    receivers they are for. */
@@ -2244,6 +2275,40 @@ typedef struct gim_second_bounce_desc {
    cancelling between the irradiance and the area the sample stands for. A texel with no hit
    gives an unlit VPL. out[vpl_count], in map order. */
 GIMANY_API gim_result gim_second_bounce_vpls_twin(const gim_second_bounce_desc *desc, gim_vpl *out);
+
+/* Input of gim_second_bounce_rays_twin. */
+typedef struct gim_second_bounce_rays_desc {
+    const gim_bvh *bvh;             /* the scene's triangles (gim_bvh_build); empty: every VPL unlit */
+    const float *albedo;            /* the scene's triangle_count * 3 diffuse rgb, by the scene's triangle index */
+    const gim_vpl *vpls;            /* the first-bounce VPLs */
+    uint32_t vpl_count;             /* N, 1..GIM_SECOND_RAYS_MAX_VPLS */
+    uint32_t count;                 /* S second-bounce VPLs, 1..65536 */
+    float scene_scale;              /* > 0: the rays' lift */
+    gim_env env;
+} gim_second_bounce_rays_desc;
+
+#define GIM_SECOND_RAYS_MAX_VPLS 32768u   /* first-bounce VPLs of the scan (second_bounce_rays.comp) */
+#define GIM_SECOND_RAY_LIFT 1e-4f         /* a second-bounce ray's start above its VPL, in scene scales */
+
+/* Second-bounce VPLs by rays (Keller 1997's instant radiosity; GIM_SECOND_BOUNCE_RAYS),
+   the twin of second_bounce_rays.comp: each of S rays starts on a first-bounce VPL picked with
+   probability p_i proportional to its weight w_i = (Phi_r + Phi_g) + Phi_b (0 for an unlit or
+   non-finite VPL), leaves it cosine-distributed about its normal and lands on the nearest
+   triangle (gim_bvh_nearest), where it is a VPL of flux
+     Phi = albedo Phi_i / (S p_i)
+   (the cosine emitter's Phi_i cos / pi over the cosine pdf: only the pick is left), the
+   triangle's unit normal turned towards the ray's start, area 0; a miss is an unlit VPL.
+   Ray j: the pick u = (j + 0.5) / S through the running sums of w (in float, in 256 chunks of
+   ceil(N / 256) VPLs each summed in order, then the chunks' sums in order: the scan's own
+   order), the first VPL whose sum exceeds u W, p_i its own step of the sums over W; the
+   direction gim_square_to_disk of (radical inverses base 2 and 3 of j), lifted to the
+   hemisphere, in gim_basis of the VPL's normal; the ray from the VPL lifted
+   GIM_SECOND_RAY_LIFT scene scales along its normal, 4 / bvh->scale long (past the scene).
+   Where light goes after its first bounce decides the second: with a cluster's centre as the
+   emitter (gim_second_bounce_vpls_twin) it leaves from points on no surface; here it leaves
+   from the VPLs themselves, so the second bounce converges to the real one as S grows.
+   out[count]. */
+GIMANY_API gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_desc *desc, gim_vpl *out);
 
 /* Input of gim_vpl_shade_twin; zero means default. */
 typedef struct gim_vpl_shade_desc {
@@ -8095,7 +8160,8 @@ GIMANY_DEF gim_result gim_bvh_build(const gim_twin_scene *scene, gim_env env, gi
             t[4 + a] = v[3 + a] - v[a];
             t[8 + a] = v[6 + a] - v[a];
         }
-        t[3] = t[7] = t[11] = 0.0f;
+        memcpy(t + 3, &b.order[i], sizeof(uint32_t));   /* which scene triangle: gim_bvh_hit.triangle */
+        t[7] = t[11] = 0.0f;
     }
     gim__free(&env, b.box);
     gim__free(&env, b.centroid);
@@ -8125,8 +8191,9 @@ GIMANY_DEF void gim_bvh_free(gim_bvh *bvh) {
    it 152 of 2000 segments through the diagonal of tests/unit/test_bvh.c's wall slipped through. */
 #define GIM__BVH_GROW 1e-4f
 
-/* The segment o + t d, 0 < t < 1, against one triangle (gim_bvh_occluded's steps; bvh.glsl). */
-static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
+/* The segment o + t d, 0 < t < 1, against one triangle (gim_bvh_occluded's steps; bvh.glsl);
+   on a hit *tt and *dd the crossing's e2 . q and det (sign-flipped where det < 0). */
+static int gim__bvh_triangle_at(const float *tri, const float *o, const float *d, float *tt, float *dd) {
     float px, py, pz, det, sx, sy, sz, u, qx, qy, qz, v, t, g;
     const float *e1 = tri + 4, *e2 = tri + 8;
     px = d[1] * e2[2] - d[2] * e2[1];
@@ -8143,7 +8210,14 @@ static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
     t = e2[0] * qx + e2[1] * qy + e2[2] * qz;
     if (det < 0.0f) { det = -det; u = -u; v = -v; t = -t; }
     g = GIM__BVH_GROW * det;   /* a ray along the edge two triangles share hits one of them */
+    *tt = t;
+    *dd = det;
     return u >= -g && v >= -g && u + v <= det + g && t > 0.0f && t < det;
+}
+
+static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
+    float t, det;
+    return gim__bvh_triangle_at(tri, o, d, &t, &det);
 }
 
 /* The segment from -> to in the hierarchy's frame: its start o and its vector d; 0 where one is
@@ -8200,10 +8274,184 @@ GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) 
     }
 }
 
+GIMANY_DEF int gim_bvh_nearest(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, gim_bvh_hit *hit) {
+    uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0, best = UINT32_MAX;
+    float o[3], d[3], inv[3], bt = 1.0f, bd = 1.0f, reach = 1.0f;
+    int a;
+    if (!bvh || !hit || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
+    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
+    for (a = 0; a < 3; ++a) inv[a] = fabsf(d[a]) >= 1e-30f ? 1.0f / d[a] : 0.0f;
+    for (;;) {   /* gim_bvh_occluded's walk, the segment cut at the nearest crossing so far */
+        const gim_bvh_node *nd = bvh->nodes + node;
+        float tn = 0.0f, tf = reach;
+        for (a = 0; a < 3; ++a) {
+            if (inv[a] != 0.0f) {
+                float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
+                float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
+                tn = lo_ > tn ? lo_ : tn;
+                tf = hi_ < tf ? hi_ : tf;
+            } else if (o[a] + fabsf(d[a]) < nd->lo[a] || o[a] - fabsf(d[a]) > nd->hi[a]) {
+                tf = -1.0f;
+            }
+        }
+        if (tn <= tf * 1.000001f) {
+            if (nd->count == 0) {
+                stack[sp++] = nd->index;
+                node = node + 1u;
+                continue;
+            } else {
+                uint32_t k;
+                for (k = 0; k < nd->count; ++k) {
+                    float t, det;
+                    if (gim__bvh_triangle_at(bvh->triangles + (size_t)(nd->index + k) * 12u, o, d, &t, &det) &&
+                        t * bd < bt * det) {
+                        bt = t;
+                        bd = det;
+                        best = nd->index + k;
+                        reach = bt / bd;
+                    }
+                }
+            }
+        }
+        if (sp == 0) break;
+        node = stack[--sp];
+    }
+    if (best == UINT32_MAX) return 0;
+    hit->slot = best;
+    memcpy(&hit->triangle, bvh->triangles + (size_t)best * 12u + 3u, sizeof(uint32_t));
+    hit->t = bt / bd;
+    return 1;
+}
+
 /* A ray's end: p lifted by l along n, each component a float multiply-add in this order (the
    shaders' `precise` steps). */
 static gim_vec3 gim__ray_end(const float *p, const float *n, float l) {
     return gim_v3(p[0] + l * n[0], p[1] + l * n[1], p[2] + l * n[2]);
+}
+
+/* --- the second bounce by rays (gim_second_bounce_rays_twin; second_bounce_rays.comp) --- */
+
+#define GIM__SECOND_RAYS_GROUP 256u   /* the scan's chunks: second_bounce_rays.comp's work group */
+
+/* Ray j of s: the pick u, the direction's (x, y) in the VPL's frame and its z (in [0, 1]). */
+static void gim__second_ray_sample(uint32_t j, uint32_t s, float *out4) {
+    gim_vec2 p = gim_square_to_disk((float)gim_van_der_corput(j), (float)gim_radical_inverse(3u, j));
+    double z2 = 1.0 - (double)p.x * p.x - (double)p.y * p.y;
+    out4[0] = (float)((j + 0.5) / s);
+    out4[1] = p.x;
+    out4[2] = p.y;
+    out4[3] = (float)(z2 > 0.0 ? sqrt(z2) : 0.0);
+}
+
+/* A first-bounce VPL's pick weight: (Phi_r + Phi_g) + Phi_b of a lit VPL with finite position,
+   normal and non-negative finite flux, else 0. */
+static float gim__second_ray_weight(const gim_vpl *v) {
+    if (!(v->lit > 0.0f) || !gim__all_finite(v->position, 3) || !gim__all_finite(v->normal, 3) ||
+        !gim__all_finite(v->flux, 3) || !(v->flux[0] >= 0.0f && v->flux[1] >= 0.0f && v->flux[2] >= 0.0f))
+        return 0.0f;
+    return (v->flux[0] + v->flux[1]) + v->flux[2];
+}
+
+/* The running sums cdf[0..n-1] of the weights in the scan's order; returns their total. */
+static float gim__second_ray_cdf(const gim_vpl *vpls, uint32_t n, float *cdf) {
+    float part[GIM__SECOND_RAYS_GROUP], run = 0.0f;
+    uint32_t c = (n + GIM__SECOND_RAYS_GROUP - 1u) / GIM__SECOND_RAYS_GROUP, k, i;
+    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {   /* each chunk's sum */
+        float sum = 0.0f;
+        for (i = k * c; i < k * c + c && i < n; ++i) sum += gim__second_ray_weight(vpls + i);
+        part[k] = sum;
+    }
+    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {   /* exclusive sums of the chunks, in order */
+        float p = part[k];
+        part[k] = run;
+        run += p;
+    }
+    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {
+        float sum = 0.0f;
+        for (i = k * c; i < k * c + c && i < n; ++i) {
+            sum += gim__second_ray_weight(vpls + i);
+            cdf[i] = part[k] + sum;
+        }
+    }
+    return run;
+}
+
+GIMANY_DEF gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_desc *desc, gim_vpl *out) {
+    static const char where[] = "gim_second_bounce_rays_twin";
+    const gim_env *env = desc ? &desc->env : NULL;
+    const gim_bvh *bvh;
+    float *cdf, total, lift, far;
+    uint32_t j, n, s;
+    if (!desc || !out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
+    bvh = desc->bvh;
+    n = desc->vpl_count;
+    s = desc->count;
+    if (!bvh || !desc->vpls) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "bvh or vpls is NULL");
+    if (bvh->triangle_count && !desc->albedo) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "albedo is NULL");
+    for (j = 0; j < bvh->triangle_count * 3u; ++j)
+        if (!gim__isfinitef(desc->albedo[j]) || desc->albedo[j] < 0.0f)
+            return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "albedo %u is not finite and >= 0", (unsigned)j);
+    if (n == 0 || n > GIM_SECOND_RAYS_MAX_VPLS || s == 0 || s > 65536u)
+        return gim__fail(env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs (1..%u) or %u rays (1..65536)", (unsigned)n,
+                         GIM_SECOND_RAYS_MAX_VPLS, (unsigned)s);
+    if (!(desc->scene_scale > 0.0f) || !gim__isfinitef(desc->scene_scale))
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
+    cdf = (float *)gim__alloc_array(env, n, sizeof(float));
+    if (!cdf) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "%u sums", (unsigned)n);
+    total = gim__second_ray_cdf(desc->vpls, n, cdf);
+    lift = GIM_SECOND_RAY_LIFT * desc->scene_scale;
+    far = 4.0f / bvh->scale;
+    for (j = 0; j < s; ++j) {
+        gim_vpl *o = out + j;
+        float smp[4], target, width, k, dir[3], org[3], end[3], nn[3], l;
+        const float *e1, *e2, *alb;
+        const gim_vpl *v;
+        gim_vec3 t, b, nv;
+        gim_bvh_hit h;
+        uint32_t lo = 0, hi = n - 1u, a;
+        memset(o, 0, sizeof *o);
+        if (!(total > 0.0f) || !gim__isfinitef(total)) continue;
+        gim__second_ray_sample(j, s, smp);
+        target = smp[0] * total;
+        while (lo < hi) {   /* the first running sum above the target */
+            uint32_t mid = (lo + hi) / 2u;
+            if (cdf[mid] > target) hi = mid;
+            else lo = mid + 1u;
+        }
+        if (!(cdf[lo] > target)) continue;
+        width = cdf[lo] - (lo ? cdf[lo - 1u] : 0.0f);
+        if (!(width > 0.0f)) continue;
+        v = desc->vpls + lo;
+        nv = gim_v3(v->normal[0], v->normal[1], v->normal[2]);
+        gim__basis(nv, &t, &b);
+        dir[0] = (t.x * smp[1] + b.x * smp[2]) + nv.x * smp[3];
+        dir[1] = (t.y * smp[1] + b.y * smp[2]) + nv.y * smp[3];
+        dir[2] = (t.z * smp[1] + b.z * smp[2]) + nv.z * smp[3];
+        for (a = 0; a < 3; ++a) {
+            org[a] = v->position[a] + lift * v->normal[a];
+            end[a] = org[a] + far * dir[a];
+        }
+        if (!gim_bvh_nearest(bvh, gim_v3(org[0], org[1], org[2]), gim_v3(end[0], end[1], end[2]), &h)) continue;
+        e1 = bvh->triangles + (size_t)h.slot * 12u + 4u;
+        e2 = e1 + 4;
+        nn[0] = e1[1] * e2[2] - e1[2] * e2[1];
+        nn[1] = e1[2] * e2[0] - e1[0] * e2[2];
+        nn[2] = e1[0] * e2[1] - e1[1] * e2[0];
+        l = sqrtf(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
+        if (!(l > 0.0f) || !gim__isfinitef(l)) continue;
+        if (nn[0] * dir[0] + nn[1] * dir[1] + nn[2] * dir[2] > 0.0f) l = -l;   /* towards the ray's start */
+        k = total / (width * (float)s);
+        alb = desc->albedo + (size_t)h.triangle * 3u;
+        for (a = 0; a < 3; ++a) {
+            float f = alb[a] * (v->flux[a] * k);
+            o->position[a] = org[a] + h.t * (end[a] - org[a]);
+            o->normal[a] = nn[a] / l;
+            o->flux[a] = f < FLT_MAX ? f : FLT_MAX;
+        }
+        o->lit = 1.0f;
+    }
+    gim__free(env, cdf);
+    return GIM_OK;
 }
 
 GIMANY_DEF gim_result gim_neighbour_rays_twin(const gim_neighbour_rays_desc *desc, gim_neighbour_result *out) {
@@ -9188,6 +9436,7 @@ typedef enum gim__program_id {
     GIM__PROGRAM_CACHES_FOLLOW,      /* a deforming mesh's caches moved with their triangles; its bounds */
     GIM__PROGRAM_IMPORTANCE_TILES,   /* eq. 10-11 per tile of the two-level map, texel weights */
     GIM__PROGRAM_ISM_FROM_PARABOLOID, /* the VPLs' triangle shadow maps into the ISM format */
+    GIM__PROGRAM_SECOND_BOUNCE_RAYS, /* second-bounce VPLs by rays from the first (Keller 1997) */
     GIM__PROGRAM_COUNT
 } gim__program_id;
 
@@ -9217,7 +9466,8 @@ static const char *const gim__program_files[GIM__PROGRAM_COUNT][3] = {
     {"gbuffer_decode.comp", NULL},
     {"caches_follow.comp", NULL},
     {"importance_tiles.comp", NULL},
-    {"ism_from_paraboloid.comp", NULL}};
+    {"ism_from_paraboloid.comp", NULL},
+    {"second_bounce_rays.comp", NULL}};
 
 /* One uploaded mesh (a slot; used == 0: free). */
 typedef struct gim__mesh {
@@ -9278,11 +9528,16 @@ typedef struct gim__lightskin_gpu {
     uint64_t exponents_bytes;
     uint32_t *material;           /* CPU: the material of each world cache, in the grid's order */
     uint64_t exponents_for;       /* the materials_version the exponents were made from; 0: not made */
-    gim__GLuint bvh;              /* neighbour_rays, RAYS: the scene's hierarchy, gim_bvh's nodes then triangles */
-    uint64_t bvh_bytes, bvh_version;  /* the scene_version it was built for */
-    float bvh_origin[3], bvh_scale;   /* its frame (gim_bvh.origin, scale) */
-    uint32_t bvh_nodes;           /* its node count (the triangles start at vec4 2 bvh_nodes) */
 } gim__lightskin_gpu;
+
+/* The scene's hierarchy on the GPU (neighbour_rays, RAYS, the second bounce's rays): gim_bvh's
+   nodes then its triangles, each triangle's first vec4 w its material (gim__gl_bvh). */
+typedef struct gim__bvh_gpu {
+    gim__GLuint buffer;
+    uint64_t bytes, version;      /* the scene_version it was built for */
+    float origin[3], scale;       /* its frame (gim_bvh.origin, scale) */
+    uint32_t nodes;               /* its node count (the triangles start at vec4 2 nodes) */
+} gim__bvh_gpu;
 
 /* The GPU state of the VPL methods (see "the VPL frame"), sized to what the last frame used. */
 typedef struct gim__vpl_gpu {
@@ -9304,6 +9559,11 @@ typedef struct gim__vpl_gpu {
     gim__GLuint made;             /* two uints: the VPLs' imperfect shadow maps made so far (ism.comp), and that
                                      count before this frame's maps */
     uint64_t made_bytes;
+    /* the second bounce by rays (GIM_SECOND_BOUNCE_RAYS): the rays' samples (kept while their
+       count stays: ray_key) and the first-bounce VPLs' running sums */
+    gim__GLuint ray_samples, ray_sums;
+    uint64_t ray_samples_bytes, ray_sums_bytes;
+    uint32_t ray_key;
 } gim__vpl_gpu;
 
 #define GIM__MAX_STAMPS 96   /* timestamps a frame may take (a pass run per light merges into one) */
@@ -9368,6 +9628,7 @@ struct gim_context {
     uint32_t indirect_width, indirect_height;
     gim__GLenum indirect_format;
     gim__lightskin_gpu ls;
+    gim__bvh_gpu bvh;             /* the scene's hierarchy, while a frame's rays use it */
     gim__GLuint ism_maps, ism_points;  /* visibility ISM: the caches' (or VPLs') maps and the scene's points */
     uint64_t ism_maps_bytes, ism_points_bytes, ism_version;
     gim__GLuint ism_cluster_maps;      /* SSVP's second bounce with ISM: one map per cluster */
@@ -11818,6 +12079,7 @@ GIMANY_DEF gim_result gim_set_lights_buffer(gim_context *ctx, uint32_t buffer, u
 }
 
 static void gim__lightskin_drop(gim_context *ctx);
+static void gim__bvh_release(gim_context *ctx);
 static void gim__ism_release(gim_context *ctx);
 static uint32_t gim__ism_frame_size(const gim_frame *f, uint64_t caches);
 
@@ -11841,6 +12103,7 @@ static void gim__scene_destroy(gim_context *ctx) {
     t[0] = ctx->decoded_normal; t[1] = ctx->decoded_depth;
     gl->DeleteTextures(2, t);
     gim__lightskin_drop(ctx);
+    gim__bvh_release(ctx);
     gim__free(&ctx->env, ctx->material_exponent);
     b[0] = ctx->gather_samples; b[1] = ctx->gather_sum;
     gl->DeleteBuffers(2, b);
@@ -12588,12 +12851,33 @@ static gim_result gim__gl_ism_scene_points(gim_context *ctx, uint32_t count, con
     return r;
 }
 
-/* neighbour_rays' hierarchy of the scene's world triangles (gim_bvh_build), in one buffer: the
-   nodes (32 bytes each), then the triangles (48 bytes each); made again when the scene changes
-   (scene_version), not per frame. */
+/* Every instance's world triangles' material ids, in gim__gl_world_triangles' order, read back
+   from the meshes' triangle_material buffers into *ids (allocated through ctx->env; count of
+   them: that function's). */
+static gim_result gim__gl_world_materials(gim_context *ctx, uint32_t **ids, const char *where) {
+    const gim__gl *gl = &ctx->gl;
+    uint32_t i, tris = 0, t = 0;
+    uint32_t *out;
+    *ids = NULL;
+    for (i = 0; i < ctx->instance_count; ++i) tris += gim__mesh_get(ctx, ctx->instances[i].mesh)->triangle_count;
+    out = (uint32_t *)gim__alloc_array(&ctx->env, (size_t)tris + 1u, sizeof(uint32_t));
+    if (!out) return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "the materials of %u triangles", (unsigned)tris);
+    for (i = 0; i < ctx->instance_count; ++i) {
+        const gim__mesh *m = gim__mesh_get(ctx, ctx->instances[i].mesh);
+        gl->BindBuffer(GIM__GL_COPY_READ_BUFFER, m->triangle_material);
+        gl->GetBufferSubData(GIM__GL_COPY_READ_BUFFER, 0, (gim__GLsizeiptr)m->triangle_count * 4, out + t);
+        t += m->triangle_count;
+    }
+    *ids = out;
+    return GIM_OK;
+}
+
+/* The rays' hierarchy of the scene's world triangles (gim_bvh_build), in one buffer: the nodes
+   (32 bytes each), then the triangles (48 bytes each, the first vec4's w the triangle's
+   material id instead of its scene index: the second bounce's albedo); made again when the
+   scene changes (scene_version), not per frame. */
 static gim_result gim__gl_bvh(gim_context *ctx, const char *where) {
-    gim__lightskin_gpu *ls = &ctx->ls;
-    uint32_t tris;
+    uint32_t tris, *ids = NULL, k;
     float *pos;
     gim_twin_scene sc;
     gim_bvh bvh;
@@ -12606,33 +12890,50 @@ static gim_result gim__gl_bvh(gim_context *ctx, const char *where) {
     r = gim_bvh_build(&sc, ctx->env, &bvh);
     gim__free(&ctx->env, pos);
     if (r != GIM_OK) return r;
+    r = gim__gl_world_materials(ctx, &ids, where);
+    for (k = 0; r == GIM_OK && k < bvh.triangle_count; ++k) {
+        uint32_t at;
+        memcpy(&at, bvh.triangles + (size_t)k * 12u + 3u, sizeof at);
+        memcpy(bvh.triangles + (size_t)k * 12u + 3u, ids + at, sizeof at);
+    }
+    gim__free(&ctx->env, ids);
+    if (r != GIM_OK) {
+        gim_bvh_free(&bvh);
+        return r;
+    }
     {
         uint64_t nb = (uint64_t)bvh.node_count * 32u, tb = (uint64_t)bvh.triangle_count * 48u;
-        r = gim__gl_upload(ctx, &ls->bvh, &ls->bvh_bytes, NULL, nb + tb > 0u ? nb + tb : 32u, where);
+        r = gim__gl_upload(ctx, &ctx->bvh.buffer, &ctx->bvh.bytes, NULL, nb + tb > 0u ? nb + tb : 32u, where);
         if (r == GIM_OK && nb) {
-            ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ls->bvh);
+            ctx->gl.BindBuffer(GIM__GL_COPY_WRITE_BUFFER, ctx->bvh.buffer);
             ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)nb, bvh.nodes);
             ctx->gl.BufferSubData(GIM__GL_COPY_WRITE_BUFFER, (gim__GLintptr)nb, (gim__GLsizeiptr)tb, bvh.triangles);
         }
     }
     if (r == GIM_OK) {
-        ls->bvh_nodes = bvh.node_count;
-        memcpy(ls->bvh_origin, bvh.origin, sizeof ls->bvh_origin);
-        ls->bvh_scale = bvh.scale;
-        ls->bvh_version = ctx->scene_version;
+        ctx->bvh.nodes = bvh.node_count;
+        memcpy(ctx->bvh.origin, bvh.origin, sizeof ctx->bvh.origin);
+        ctx->bvh.scale = bvh.scale;
+        ctx->bvh.version = ctx->scene_version;
     }
     gim_bvh_free(&bvh);
     return r;
+}
+
+/* The scene's hierarchy (a frame without rays keeps none). */
+static void gim__bvh_release(gim_context *ctx) {
+    if (ctx->bvh.buffer) ctx->gl.DeleteBuffers(1, &ctx->bvh.buffer);
+    memset(&ctx->bvh, 0, sizeof ctx->bvh);
 }
 
 /* The LightSkin buffers, the proxy pass's sums and the caches' materials (a frame of another
    method keeps none). */
 static void gim__lightskin_drop(gim_context *ctx) {
     gim__lightskin_gpu *ls = &ctx->ls;
-    gim__GLuint b[9];
+    gim__GLuint b[8];
     b[0] = ls->caches; b[1] = ls->cells; b[2] = ls->buckets; b[3] = ls->vals; b[4] = ls->diffuse; b[5] = ls->glossy;
-    b[6] = ls->exponents; b[7] = ctx->proxy_state; b[8] = ls->bvh;
-    ctx->gl.DeleteBuffers(9, b);
+    b[6] = ls->exponents; b[7] = ctx->proxy_state;
+    ctx->gl.DeleteBuffers(8, b);
     gim__free(&ctx->env, ls->material);
     memset(ls, 0, sizeof *ls);
     ctx->proxy_state = 0;
@@ -12827,21 +13128,18 @@ vals:
         gim__ism_release(ctx);
     }
     rays = f->visibility.neighbour_rays || f->visibility.mode == GIM_VISIBILITY_RAYS;
-    if (rays && (!ls->bvh || ls->bvh_version != ctx->scene_version)) {
+    if (rays && (!ctx->bvh.buffer || ctx->bvh.version != ctx->scene_version)) {
         r = gim__gl_bvh(ctx, where);   /* the rays' hierarchy: made again only when the scene changed */
         if (r != GIM_OK) return r;
         gim__stamp(ctx, f->timing, GIM_PASS_ISM);
-    } else if (!rays && ls->bvh) {   /* off: no buffer */
-        ctx->gl.DeleteBuffers(1, &ls->bvh);
-        ls->bvh = 0;
-        ls->bvh_bytes = ls->bvh_version = 0;
-        ls->bvh_nodes = 0;
+    } else if (!rays && ctx->bvh.buffer) {   /* off: no buffer */
+        gim__bvh_release(ctx);
     }
     if (f->visibility.mode == GIM_VISIBILITY_RAYS) {   /* each VAL at each cache by a ray */
-        ism.bvh = ls->bvh;
-        ism.bvh_nodes = ls->bvh_nodes;
-        memcpy(ism.bvh_origin, ls->bvh_origin, sizeof ism.bvh_origin);
-        ism.bvh_scale = ls->bvh_scale;
+        ism.bvh = ctx->bvh.buffer;
+        ism.bvh_nodes = ctx->bvh.nodes;
+        memcpy(ism.bvh_origin, ctx->bvh.origin, sizeof ism.bvh_origin);
+        ism.bvh_scale = ctx->bvh.scale;
     }
     r = gim__gl_proxy_lights_ism(ctx, ls->caches, total, ls->vals, vals_total, gim_v3(eye[0], eye[1], eye[2]), k_glossy,
                                  glossy ? ls->exponents : 0u, scale, ls->diffuse, glossy ? ls->glossy : 0u, &ism);
@@ -12868,10 +13166,10 @@ vals:
     sa.indirect = ctx->indirect;
     sa.format = format;
     sa.block = f->lightskin.shade_block;
-    sa.bvh = f->visibility.neighbour_rays ? ls->bvh : 0u;
-    sa.bvh_nodes = ls->bvh_nodes;
-    memcpy(sa.bvh_origin, ls->bvh_origin, sizeof sa.bvh_origin);
-    sa.bvh_scale = ls->bvh_scale;
+    sa.bvh = f->visibility.neighbour_rays ? ctx->bvh.buffer : 0u;
+    sa.bvh_nodes = ctx->bvh.nodes;
+    memcpy(sa.bvh_origin, ctx->bvh.origin, sizeof sa.bvh_origin);
+    sa.bvh_scale = ctx->bvh.scale;
     r = gim__gl_lightskin_shade(ctx, &sa);
     if (r != GIM_OK) return r;
     gim__stamp(ctx, f->timing, GIM_PASS_SHADE);
@@ -13619,6 +13917,73 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
 }
 
+/* Second-bounce VPLs by rays on the GPU, the twin of gim_second_bounce_rays_twin on ctx->bvh
+   (gim__gl_bvh: built for this scene) and the materials: the first vpl_count VPLs of vpls (gim_vpl,
+   48 bytes) give count VPLs, written from VPL first on (first >= vpl_count). Two dispatches of
+   second_bounce_rays.comp: the running sums (one work group), then a ray per VPL. */
+static gim_result gim__gl_second_bounce_rays(gim_context *ctx, gim__GLuint vpls, uint32_t vpl_count, uint32_t count,
+                                             uint32_t first, float scene_scale) {
+    static const char where[] = "second-bounce rays (GL)";
+    const gim__gl *gl = &ctx->gl;
+    gim__vpl_gpu *v = &ctx->vpl;
+    gim__GLuint program = 0;
+    gim_result r = GIM_OK;
+    if (!vpls) return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "vpls is 0");
+    if (vpl_count == 0 || vpl_count > GIM_SECOND_RAYS_MAX_VPLS || count == 0 || count > 65536u || first < vpl_count)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs (1..%u), %u rays (1..65536) from %u",
+                         (unsigned)vpl_count, GIM_SECOND_RAYS_MAX_VPLS, (unsigned)count, (unsigned)first);
+    if (!(scene_scale > 0.0f) || !gim__isfinitef(scene_scale))
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
+    if (!ctx->bvh.buffer || ctx->bvh.version != ctx->scene_version)
+        return gim__fail(&ctx->env, GIM_ERROR_INVALID_ARGUMENT, where, "no hierarchy of this scene (gim__gl_bvh first)");
+    if (((uint64_t)first + count) * 48u > (uint64_t)ctx->max_ssbo_bytes)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "%u VPLs exceed the SSBO limit", (unsigned)(first + count));
+    gim__gl_enter(ctx, where);
+    r = gim__gl_check_buffer(ctx, where, "vpls", vpls, ((uint64_t)first + count) * 48u);
+    if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE_RAYS, &program);
+    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->ray_sums, &v->ray_sums_bytes, ((uint64_t)vpl_count + 1u) * 4u, where);
+    if (r == GIM_OK && (!v->ray_samples || v->ray_key != count)) {
+        float *smp = (float *)gim__alloc_array(&ctx->env, count, 4u * sizeof(float));
+        uint32_t j;
+        v->ray_key = 0;
+        if (!smp) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u ray samples", (unsigned)count);
+        for (j = 0; j < count && smp; ++j) gim__second_ray_sample(j, count, smp + (size_t)j * 4u);
+        if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->ray_samples, &v->ray_samples_bytes, (uint64_t)count * 16u, where);
+        if (r == GIM_OK) {
+            gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->ray_samples);
+            gl->BufferSubData(GIM__GL_COPY_WRITE_BUFFER, 0, (gim__GLsizeiptr)count * 16, smp);
+            r = gim__gl_check(ctx, where);
+        }
+        if (r == GIM_OK) v->ray_key = count;
+        gim__free(&ctx->env, smp);
+    }
+    if (r != GIM_OK) return gim__gl_leave(ctx, r);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, v->ray_samples);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, v->ray_sums);
+    /* with no materials, binding 3 is never read (albedo 0) but must name a buffer */
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->materials ? ctx->materials : v->ray_sums);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 6, ctx->bvh.buffer);
+    gl->UseProgram(program);
+    gl->Uniform1ui(1, vpl_count);
+    gl->Uniform1ui(2, count);
+    gl->Uniform1ui(3, first);
+    gl->Uniform1f(4, GIM_SECOND_RAY_LIFT * scene_scale);
+    gl->Uniform1f(5, 4.0f / ctx->bvh.scale);
+    gl->Uniform1ui(6, ctx->materials ? ctx->material_count : 0u);
+    gl->Uniform1ui(17, ctx->bvh.nodes);
+    gl->Uniform1ui(18, ctx->bvh.nodes * 2u);
+    gl->Uniform3f(20, ctx->bvh.origin[0], ctx->bvh.origin[1], ctx->bvh.origin[2]);
+    gl->Uniform1f(21, ctx->bvh.scale);
+    gl->Uniform1ui(0, 0u);
+    gl->DispatchCompute(1u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
+    gl->Uniform1ui(0, 1u);
+    gl->DispatchCompute((count + 255u) / 256u, 1u, 1u);
+    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
+    return gim__gl_leave(ctx, gim__gl_check(ctx, where));
+}
+
 /* --- the frame's settings resolved ---------------------------------------------------------
    gim_update checks the host's frame, then resolves it once: every zero becomes its default
    (gim_frame_defaults), and every pass after that reads the resolved frame. */
@@ -13651,6 +14016,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.vpl.paraboloid_size = 256u;
     f.vpl.bounces = method == GIM_METHOD_SSVP ? 2u : 1u;
     f.vpl.second_bounce_vpls = 256u;
+    f.vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
     f.vpl.interleave = method == GIM_METHOD_CLUSTERED ? 4u : 8u;
     f.vpl.clamp_distance = 0.01f;
     f.vpl.blur_distance = 0.1f;
@@ -13682,6 +14048,7 @@ static void gim__frame_resolve(const gim_frame *in, gim_frame *out) {
     GIM__RESOLVE(vpl.paraboloid_size);
     GIM__RESOLVE(vpl.bounces);
     GIM__RESOLVE(vpl.second_bounce_vpls);
+    GIM__RESOLVE(vpl.second_bounce);
     GIM__RESOLVE(vpl.interleave);
     GIM__RESOLVE(vpl.clamp_distance);
     GIM__RESOLVE(vpl.blur_distance);
@@ -13710,6 +14077,8 @@ static void gim__vpl_release(gim_context *ctx) {
     b[5] = v->texels; b[6] = v->sums; b[7] = v->kmeans_acc;
     ctx->gl.DeleteBuffers(8, b);
     if (v->made) ctx->gl.DeleteBuffers(1, &v->made);
+    b[0] = v->ray_samples; b[1] = v->ray_sums;
+    ctx->gl.DeleteBuffers(2, b);
     memset(v, 0, sizeof *v);
     gim__vpl_raw_release(ctx);
     gim__paraboloid_release(ctx, 1);
@@ -13722,6 +14091,7 @@ static void gim__vpl_release(gim_context *ctx) {
 typedef struct gim__vpl_settings {
     int ssvp, visibility, restart;
     int second_ism;   /* SSVP's second bounce beside the clusters' paraboloid maps: one ISM per second-bounce VPL */
+    int second_rays;  /* the second bounce by rays (vpl.second_bounce_rays), not from attribute maps */
     uint32_t vpls, clusters, iterations, size, bounces, second, interleave;
     float clamp_distance, blur_distance;   /* in scene scales (clamp 0: none) */
 } gim__vpl_settings;
@@ -13740,6 +14110,7 @@ static void gim__vpl_settings_of(const gim_frame *f, gim__vpl_settings *s) {
     s->second = s->bounces == 2u ? f->vpl.second_bounce_vpls : 0u;
     s->second_ism = f->visibility.mode != GIM_VISIBILITY_ISM && f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS &&
                     s->visibility && s->second > 0u;
+    s->second_rays = s->second > 0u && f->vpl.second_bounce != GIM_SECOND_BOUNCE_MAPS;
     s->interleave = f->vpl.interleave;
     s->clamp_distance = f->vpl.clamp_distance < 0.0f ? 0.0f : f->vpl.clamp_distance;
     s->blur_distance = f->vpl.blur_distance;
@@ -13772,6 +14143,9 @@ static gim_result gim__vpl_check(gim_context *ctx, const gim_frame *f, const gim
                          "(blur_distance >= 0)");
     if (f->vpl.importance != 0 && f->vpl.importance != 1)
         return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "vpl.importance %d: 0 or 1", f->vpl.importance);
+    if ((int)f->vpl.second_bounce < 0 || (int)f->vpl.second_bounce > (int)GIM_SECOND_BOUNCE_MAPS)
+        return gim__fail(&ctx->env, GIM_ERROR_OUT_OF_RANGE, where, "vpl.second_bounce %d: DEFAULT, RAYS or MAPS",
+                         (int)f->vpl.second_bounce);
     if (f->method != GIM_METHOD_CLUSTERED && f->method != GIM_METHOD_SSVP) return GIM_OK;
     gim__vpl_settings_of(rf, &s);
     if ((uint64_t)s.vpls * (f->per_light_budget ? lights : 1u) > GIM__VPL_MAX || lights > GIM__VPL_MAX)
@@ -14011,15 +14385,17 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     if (r != GIM_OK) return r;
     /* the paraboloid maps (Dong 4.2; SSVP 3.C): depth for visibility (not with ISMs), attributes
        for the second bounce */
-    if ((s.visibility && !ism) || s.second) {
+    if ((s.visibility && !ism) || (s.second && !s.second_rays)) {
         r = gim__gl_paraboloids(ctx, v->maps, s.clusters, s.size,
-                                !s.second ? GIM__PARA_DISTANCE : s.visibility && !ism ? GIM__PARA_BOTH : GIM__PARA_ATTRIBUTES,
+                                !s.second || s.second_rays ? GIM__PARA_DISTANCE
+                                : s.visibility && !ism     ? GIM__PARA_BOTH
+                                                           : GIM__PARA_ATTRIBUTES,
                                 scale);
         gim__stamp(ctx, f->timing, GIM_PASS_PARABOLOID);
     } else {
         gim__paraboloid_release(ctx, 1);
     }
-    if (r == GIM_OK && ((ism && !tri) || s.second_ism || (tri && s.second))) {
+    if (r == GIM_OK && ((ism && !tri) || s.second_ism || (tri && s.second && !s.second_rays))) {
         /* the scene's points for the imperfect shadow maps (Ritschel et al. 2008), made again
            only when the scene changed; the maps take ctx->ism_maps (a LightSkin frame after
            this one makes its caches' again: ism_size 0 says they are not theirs) */
@@ -14030,7 +14406,16 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         }
         ctx->ism_size = 0;
     }
-    if (r == GIM_OK && s.second) {
+    if (r == GIM_OK && s.second_rays) {
+        /* rays from the first-bounce VPLs through the scene's hierarchy (made again only when
+           the scene changed) */
+        if (!ctx->bvh.buffer || ctx->bvh.version != ctx->scene_version) r = gim__gl_bvh(ctx, where);
+        if (r == GIM_OK) r = gim__gl_second_bounce_rays(ctx, v->vpls, first, s.second, first, scale);
+        gim__stamp(ctx, f->timing, GIM_PASS_SECOND_BOUNCE);
+    } else if (ctx->bvh.buffer) {
+        gim__bvh_release(ctx);
+    }
+    if (r == GIM_OK && s.second && !s.second_rays) {
         gim__gl_ism gi;
         memset(&gi, 0, sizeof gi);
         if (ism) {   /* each cluster's ISM: the hits its paraboloid map found past its near skip, checked */
@@ -14107,7 +14492,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
     } else if (ctx->ism_maps || ctx->ism_points || ctx->ism_cluster_maps) {
         gim__ism_release(ctx);
     }
-    if (r == GIM_OK && ism && !s.second && ctx->ism_cluster_maps) {
+    if (r == GIM_OK && ism && (!s.second || s.second_rays) && ctx->ism_cluster_maps) {
         ctx->gl.DeleteBuffers(1, &ctx->ism_cluster_maps);
         ctx->ism_cluster_maps = 0;
         ctx->ism_cluster_maps_bytes = 0;
@@ -14551,6 +14936,7 @@ static void gim__release_other_methods(gim_context *ctx, const gim_frame *f) {
         ctx->view_sample_key[0] = 0;
     }
     if (!lightskin) gim__lightskin_drop(ctx);
+    if (!lightskin && !vplm) gim__bvh_release(ctx);   /* the rays' hierarchy: theirs only */
     if (!vplm) gim__vpl_release(ctx);
     if (!vplm || f->visibility.mode != GIM_VISIBILITY_SHADOW_MAPS) gim__vsm_release(ctx);   /* SHADOW_MAPS' targets */
     if (!gather) {
@@ -14903,10 +15289,10 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
     b += (uint64_t)ctx->gbuffer_width * ctx->gbuffer_height * 20u + (uint64_t)ctx->decoded_width * ctx->decoded_height * 12u;
     b += (uint64_t)ctx->indirect_width * ctx->indirect_height * (ctx->indirect_format == GIM__GL_RGBA32F ? 16u : 8u);
     b += ctx->ls.caches_bytes + ctx->ls.cells_bytes + ctx->ls.buckets_bytes + ctx->ls.vals_bytes + ctx->ls.diffuse_bytes +
-         ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->ls.bvh_bytes + ctx->gather_samples_bytes +
+         ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->bvh.bytes + ctx->gather_samples_bytes +
          ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
-         ctx->vpl.maps_bytes + ctx->vpl.made_bytes;
+         ctx->vpl.maps_bytes + ctx->vpl.made_bytes + ctx->vpl.ray_samples_bytes + ctx->vpl.ray_sums_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *
              (4u + (ctx->para_attributes != GIM__PARA_ATTRIBUTES ? 4u : 0u) + (ctx->para_attributes != GIM__PARA_DISTANCE ? 48u : 0u)) +
          ctx->para_samples_bytes;
@@ -14964,14 +15350,15 @@ GIMANY_DEF gim_result gim_prepare(gim_context *ctx, const gim_frame *frame) {
         ids[n++] = GIM__PROGRAM_KMEANS_ASSIGN;
         ids[n++] = GIM__PROGRAM_KMEANS_UPDATE;
         /* the clusters' maps, or SHADOW_MAPS' drawn through the same program */
-        if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || s.second) ids[n++] = GIM__PROGRAM_PARABOLOID;
+        if ((s.visibility && f.visibility.mode != GIM_VISIBILITY_ISM) || (s.second && !s.second_rays))
+            ids[n++] = GIM__PROGRAM_PARABOLOID;
         /* ISMs: every VPL's, or the second bounce's (beside the paraboloid maps, or checking
            its clusters' hits with SHADOW_MAPS) */
         if (f.visibility.mode == GIM_VISIBILITY_ISM || s.second_ism ||
-            (f.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS && s.second))
+            (f.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS && s.second && !s.second_rays))
             ids[n++] = GIM__PROGRAM_ISM;
         if (f.visibility.mode == GIM_VISIBILITY_SHADOW_MAPS) ids[n++] = GIM__PROGRAM_ISM_FROM_PARABOLOID;
-        if (s.second) ids[n++] = GIM__PROGRAM_SECOND_BOUNCE;
+        if (s.second) ids[n++] = s.second_rays ? GIM__PROGRAM_SECOND_BOUNCE_RAYS : GIM__PROGRAM_SECOND_BOUNCE;
         ids[n++] = GIM__PROGRAM_VPL_SHADE;
         if (s.interleave > 1u) ids[n++] = GIM__PROGRAM_GEOMETRY_BLUR;
     } else {

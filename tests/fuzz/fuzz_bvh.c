@@ -1,6 +1,6 @@
 /* libFuzzer target: arbitrary triangles into gim_bvh_build (raw float bits: NaN, Inf, huge,
    denormal; or small integer grids: duplicates, degenerates, coplanar walls) and arbitrary
-   segments into gim_bvh_occluded. A refused scene must have a non-finite vertex; a built one
+   segments into gim_bvh_occluded and gim_bvh_nearest. A refused scene must have a non-finite vertex; a built one
    must hold every triangle in one leaf inside its node's box, stay within the depth bound, hit
    only where some triangle's test hits, and answer every segment whose verdict is clear in
    double (no triangle within float's error of it) as the exact test does; bounds wider than a
@@ -103,6 +103,17 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
         if (n && gim__bvh_segment(&b, p, q, o, d))
             for (t = 0; t < n && !any; ++t) any = gim__bvh_triangle(b.triangles + (size_t)t * 12u, o, d);
         FZ_CHECK(!h || any);   /* the walk tests some of the triangles: its hit is one of theirs */
+        {   /* the nearest crossing: found exactly where the walk finds one, a crossing of its own slot */
+            gim_bvh_hit hh;
+            int hn = gim_bvh_nearest(&b, p, q, &hh);
+            FZ_CHECK(hn == h);
+            if (hn) {
+                float tt, dt;
+                FZ_CHECK(hh.slot < n && hh.triangle < n && hh.t >= 0.0f && hh.t <= 1.0f);
+                FZ_CHECK(gim__bvh_segment(&b, p, q, o, d) &&
+                         gim__bvh_triangle_at(b.triangles + (size_t)hh.slot * 12u, o, d, &tt, &dt));
+            }
+        }
         /* where every triangle's verdict is clear in double (the hit inside or outside by more
            than float's error on it: 1e-4 of the condition C = (|s| + |d| + the bounds' diagonal) /
            (sin x the shortest of the edges and the segment)),

@@ -208,8 +208,10 @@ typedef struct method_row {
      LightSkin BRSM    0.157 (0.161)          1.148
      LightSkin FULL    0.157 (0.160)          1.151
      clustered, 30     0.116 (0.092-0.175)    0.994   (0.150 at 4096 VPLs, 8 x 8: coarse at 80x45)
-     SSVP, 8, 2 bounces 0.167 (0.108-0.269)   1.020   (0.169, 1.063 before its near field and second-bounce ISMs)
-     SSVP + ISM        0.157                  0.996
+     SSVP, 8, 2 bounces 0.154 (0.112, RSM 128^2) 1.009 (2026-12-02, the second bounce by rays from the VPLs;
+                       from the clusters' maps 0.167, 1.020; 0.169, 1.063 before its near field and
+                       second-bounce ISMs)
+     SSVP + ISM        0.152                  0.994   (from the maps 0.157, 0.996)
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
      BRSM + ISM, each pixel's neighbour rays (2026-12-01)  0.040  0.974 (every neighbour in sight)
      BRSM + RAYS (a ray per VAL and cache) + neighbour rays (2026-12-01)  0.031  0.996 (the
@@ -233,8 +235,8 @@ static const method_row cornell_rows[] = {
     {"LightSkin BRSM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_OFF, 1, 0.200, 0.2, 0},
     {"LightSkin FULL", GIM_METHOD_LIGHTSKIN_FULL, GIM_VISIBILITY_OFF, 1, 0.200, 0.2, 0},
     {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0.145, 0.1, 0},
-    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.210, 0.1, 0},
-    {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05, 0},
+    {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.195, 0.1, 0},
+    {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.190, 0.05, 0},
     {"LightSkin BRSM + ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 0},
     {"BRSM + ISM + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 1},
     {"BRSM + RAYS + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_RAYS, 1, 0.040, 0.1, 1},

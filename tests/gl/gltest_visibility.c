@@ -157,35 +157,35 @@ static void no_light_through_walls(void **state) {
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);   /* ISM alone */
         assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
         without = st.gpu_bytes;
-        assert_int_equal(s.f.ctx->ls.bvh, 0);
+        assert_int_equal(s.f.ctx->bvh.buffer, 0);
         s.fr.visibility.neighbour_rays = 1;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
         rays = inside(&s);
         print_message("with neighbour rays: %.4f inside\n", rays);
         assert_true(rays < 0.01);
-        made = s.f.ctx->ls.bvh;
-        assert_true(made != 0 && s.f.ctx->ls.bvh_nodes > 0);
+        made = s.f.ctx->bvh.buffer;
+        assert_true(made != 0 && s.f.ctx->bvh.nodes > 0);
         assert_int_equal(gim_frame_stats(s.f.ctx, &st), GIM_OK);
-        assert_true(st.gpu_bytes == without + s.f.ctx->ls.bvh_bytes && s.f.ctx->ls.bvh_bytes >= 48u * 2u * s.r.quads);
+        assert_true(st.gpu_bytes == without + s.f.ctx->bvh.bytes && s.f.ctx->bvh.bytes >= 48u * 2u * s.r.quads);
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_true(s.f.ctx->ls.bvh == made && s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        assert_true(s.f.ctx->bvh.buffer == made && s.f.ctx->bvh.version == s.f.ctx->scene_version);
         in.mesh = s.mesh;
         in.model = gim_mat4_identity();
         in.model.m[12] = 1.0f;   /* moved: made again */
         assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
-        assert_true(s.f.ctx->ls.bvh_version != s.f.ctx->scene_version);
+        assert_true(s.f.ctx->bvh.version != s.f.ctx->scene_version);
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_true(s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        assert_true(s.f.ctx->bvh.version == s.f.ctx->scene_version);
         in.model.m[12] = 0.0f;   /* and back: the first frame's image again */
         assert_int_equal(gim_set_instances(s.f.ctx, &in, 1), GIM_OK);
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_true(s.f.ctx->ls.bvh_version == s.f.ctx->scene_version);
+        assert_true(s.f.ctx->bvh.version == s.f.ctx->scene_version);
         assert_true(fabs(inside(&s) - rays) <= 1e-6 * rays + 1e-12);
         gltest_state_unchanged(&s.f);
         s.fr.visibility.neighbour_rays = 0;
         assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-        assert_int_equal(s.f.ctx->ls.bvh, 0);   /* off: released */
-        assert_int_equal(s.f.ctx->ls.bvh_bytes, 0);
+        assert_int_equal(s.f.ctx->bvh.buffer, 0);   /* off: released */
+        assert_int_equal(s.f.ctx->bvh.bytes, 0);
     }
     s.fr.visibility.mode = GIM_VISIBILITY_OFF;
     s.fr.method = GIM_METHOD_CLUSTERED;
@@ -275,9 +275,10 @@ static void vpl_methods_no_light_through_walls(void **state) {
         {
             gim_debug_outputs od = gim_debug(s.f.ctx);
             assert_true(od.ism_maps != 0 && od.ism_size == 16);
-            /* SSVP's second bounce still needs its attribute maps, no one the distance maps */
-            assert_int_equal(od.paraboloid_position != 0, m);
+            /* no paraboloid map at all: SSVP's second bounce goes by rays (GIM_SECOND_BOUNCE_RAYS) */
+            assert_int_equal(od.paraboloid_position, 0);
             assert_int_equal(od.paraboloid_distance, 0);
+            assert_int_equal(s.f.ctx->bvh.buffer != 0, m);
         }
         s.fr.timing = 0;
     }
@@ -375,7 +376,7 @@ static void rays_are_the_twins(void **state) {
     od = gim_debug(s.f.ctx);
     assert_int_equal(od.ism_maps, 0);
     assert_int_equal(s.f.ctx->ism_points, 0);
-    assert_true(s.f.ctx->ls.bvh != 0);
+    assert_true(s.f.ctx->bvh.buffer != 0);
     n = od.cache_count;
     nv = od.val_count;
     caches = (gim_cache *)malloc(n * sizeof *caches);
@@ -420,7 +421,7 @@ static void rays_are_the_twins(void **state) {
     s.fr.visibility.mode = GIM_VISIBILITY_OFF;
     s.fr.visibility.neighbour_rays = 0;
     assert_int_equal(gim_update(s.f.ctx, &s.fr), GIM_OK);
-    assert_int_equal(s.f.ctx->ls.bvh, 0);   /* neither: released */
+    assert_int_equal(s.f.ctx->bvh.buffer, 0);   /* neither: released */
     gim_bvh_free(&bvh);
     free(caches); free(vals); free(gpu); free(cpu); free(vis);
     teardown(&s);
@@ -609,7 +610,7 @@ static void bad_settings(void **state) {
     assert_int_equal(s.f.log.errors, 5);
     assert_true(strstr(s.f.log.last, "RAYS") != NULL);
     s.f.log.errors = 0;
-    assert_int_equal(s.f.ctx->ls.bvh, 0);
+    assert_int_equal(s.f.ctx->bvh.buffer, 0);
     s.fr.visibility.neighbour_rays = 0;
     s.fr.method = GIM_METHOD_LIGHTSKIN_FULL;
     gltest_state_unchanged(&s.f);
@@ -847,7 +848,7 @@ static void frame_makes(scene_fx *s, uint32_t from, uint32_t to, uint32_t more) 
 
 /* The first-bounce VPLs' maps are kept while the scene and the light stay (the reuse of
    incremental instant radiosity, Laine et al. 2007): a second frame makes none (CLUSTERED) or only
-   the second bounce's and its clusters' (SSVP), with the same image bit for bit. A moved sun, a moved instance, or
+   the second bounce's and its clusters' (SSVP, its second bounce from the maps), with the same image bit for bit. A moved sun, a moved instance, or
    a LightSkin frame between (its caches' maps take the buffer) makes them all again, and the
    image is then the one of maps made from scratch (visibility off for a frame first: the maps
    released, or SSVP's second-bounce maps written in their place). Fails when the key misses the RSM's camera (the moved sun keeps stale maps). */
@@ -867,9 +868,11 @@ static void vpl_maps_kept(void **state) {
         gim_light sun;
         gim_instance in;
         float *a, *b;
-        /* SSVP: each lit second-bounce VPL's map and each of its 8 clusters' (their hits checked) every frame */
+        /* SSVP with its second bounce from the clusters' maps (GIM_SECOND_BOUNCE_MAPS): each lit
+           second-bounce VPL's map and each of its 8 clusters' (their hits checked) every frame */
         uint32_t total = m ? 256u + 64u : 256u, more = m ? 8u : 0u;
         s.fr.method = m ? GIM_METHOD_SSVP : GIM_METHOD_CLUSTERED;
+        s.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;
         s.fr.visibility.mode = GIM_VISIBILITY_ISM;
         s.fr.visibility.ism_size = 8;
         s.fr.visibility.ism_points = 512;
@@ -1227,7 +1230,7 @@ static uint32_t shadow_maps_off(scene_fx *s, uint32_t *lit, uint32_t *texels) {
    instant radiosity with real shadow maps): the closed room's targets for both methods (SSVP
    with its second bounce) and with the VPLs drawn by importance; the frame's maps are
    gim_vpl_shadow_maps_twin's on its VPLs; a second frame with nothing moved makes no first-bounce
-   map (SSVP: its second bounce's and its clusters' ISMs) and gives the same image bit for bit;
+   map (SSVP: its second bounce's ISMs) and gives the same image bit for bit;
    with the sun turned a degree only the VPLs not followed get new maps, and every map is still
    the twin's for its VPL;
    leaving the mode releases its targets; LightSkin refuses it before any GL work. */
@@ -1259,7 +1262,8 @@ static void shadow_maps_per_vpl(void **state) {
         assert_true(in < 0.01 && hi < 0.01);
         assert_true(lit > 500u && off <= texels / 1000u);
         a = image(&s);
-        frame_makes(&s, 4096u, total, m ? 8u : 0u);   /* nothing moved: the first bounce's maps kept */
+        frame_makes(&s, 4096u, total, 0u);   /* nothing moved: the first bounce's maps kept (SSVP's second
+                                                bounce by rays: its VPLs' maps, no cluster's) */
         b = image(&s);
         assert_memory_equal(a, b, W * H * 16);
         free(a); free(b);

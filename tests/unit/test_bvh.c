@@ -8,7 +8,9 @@
    from 1e-15 to 1e15 and far from the origin; the depth bound on the worst layouts;
    the neighbour rows (the hidden dropped in order, d_cmax the farthest kept, a receiver that
    sees none keeps its row); the caches' visibility matrix of GIM_VISIBILITY_RAYS against a
-   plate's exact shadow; bad input refused; no leak, allocation failures handled. */
+   plate's exact shadow; the nearest crossing (gim_bvh_nearest) against every triangle; the second
+   bounce by rays (gim_second_bounce_rays_twin) against closed forms; bad input refused; no
+   leak, allocation failures handled. */
 #define GIMANY_IMPLEMENTATION
 #include "testutil.h"
 
@@ -103,6 +105,155 @@ static void traversal_equals_every_triangle(void **state) {
     gim_bvh_free(&b);
     assert_int_equal(as.live, 0);
     free(pos);
+}
+
+/* The nearest crossing (gim_bvh_nearest) is what every triangle tested answers: the smallest
+   e2 . q / det of the crossings, its scene index the triangle whose vertices the slot holds. */
+static void nearest_equals_every_triangle(void **state) {
+    test_alloc_stats as;
+    gim_env env = test_env(&as, NULL);
+    enum { N = 400, SEGMENTS = 1500 };
+    float *pos = (float *)malloc(N * 9 * sizeof(float));
+    uint32_t t, i, hits = 0;
+    gim_bvh b;
+    (void)state;
+    test_rng_state = 11;
+    for (t = 0; t < N; ++t) {
+        gim_vec3 c = rnd_point(0.0f, 1.0f);
+        float s = t % 13 == 0 ? 0.4f : 0.07f;
+        int k;
+        for (k = 0; k < 9; ++k) pos[t * 9 + k] = (k % 3 == 0 ? c.x : k % 3 == 1 ? c.y : c.z) + test_rnd(-s, s);
+    }
+    b = build(pos, N, env);
+    for (i = 0; i < SEGMENTS; ++i) {
+        gim_vec3 p = rnd_point(-0.2f, 1.2f), q = rnd_point(-0.2f, 1.2f);
+        gim_bvh_hit h;
+        float o[3], d[3], best = 2.0f;
+        uint32_t k, arg = UINT32_MAX, scene;
+        int got = gim_bvh_nearest(&b, p, q, &h);
+        assert_true(gim__bvh_segment(&b, p, q, o, d));
+        for (k = 0; k < b.triangle_count; ++k) {
+            float tt, dd;
+            if (gim__bvh_triangle_at(b.triangles + (size_t)k * 12u, o, d, &tt, &dd) && tt / dd < best) {
+                best = tt / dd;
+                arg = k;
+            }
+        }
+        assert_int_equal(got, arg != UINT32_MAX);
+        assert_int_equal(got, gim_bvh_occluded(&b, p, q));
+        if (!got) continue;
+        ++hits;
+        assert_true(h.t > 0.0f && h.t < 1.0f);
+        assert_true(fabsf(h.t - best) <= 1e-6f);   /* the same crossing, or one tied with it */
+        memcpy(&scene, b.triangles + (size_t)h.slot * 12u + 3u, sizeof scene);
+        assert_int_equal(scene, h.triangle);
+        assert_true(scene < N);
+        for (k = 0; k < 3; ++k)   /* the slot holds that scene triangle (in the hierarchy's frame) */
+            assert_true(fabsf(b.triangles[(size_t)h.slot * 12u + k] - (pos[scene * 9 + k] - b.origin[k]) * b.scale) <= 1e-6f);
+    }
+    assert_true(hits > SEGMENTS / 5 && hits < SEGMENTS * 4 / 5);
+    {   /* a wall between: the hit's point on it */
+        float w[18], c[3] = {-1, -1, 0.5f}, u[3] = {2, 0, 0}, v[3] = {0, 2, 0};
+        gim_bvh wb;
+        gim_bvh_hit h;
+        quad(w, 0, c, u, v);
+        wb = build(w, 2, env);
+        assert_true(gim_bvh_nearest(&wb, gim_v3(0.1f, 0.2f, 0.0f), gim_v3(0.1f, 0.2f, 2.0f), &h));
+        assert_true(fabsf(h.t - 0.25f) < 1e-6f && h.triangle < 2u);
+        assert_false(gim_bvh_nearest(&wb, gim_v3(0.1f, 0.2f, 0.0f), gim_v3(0.1f, 0.2f, 0.4f), &h));
+        assert_false(gim_bvh_nearest(&wb, gim_v3(0.1f, 0.2f, NAN), gim_v3(0.1f, 0.2f, 2.0f), &h));
+        gim_bvh_free(&wb);
+    }
+    gim_bvh_free(&b);
+    assert_int_equal(as.live, 0);
+    free(pos);
+}
+
+/* gim_second_bounce_rays_twin's closed forms: a cosine emitter under a large ceiling of albedo
+   rho returns rho Phi in all, R^2 / (R^2 + h^2) of it within R of the point above it; two VPLs
+   of flux 3 and 1 send 3/4 and 1/4 of the rays, every landed VPL of the same flux (1 / (S p)
+   undoes the pick); unlit and non-finite VPLs send none; a closed box keeps every ray (the
+   walls' albedo times the flux). Bad input refused. */
+static void second_bounce_rays_closed_forms(void **state) {
+    test_alloc_stats as;
+    gim_env env = test_env(&as, NULL);
+    enum { S = 8192 };
+    float ceil_[18], box[12 * 9], alb[12 * 3], c[3] = {-500, 1, -500}, u[3] = {1000, 0, 0}, v[3] = {0, 0, 1000};
+    gim_vpl vp[4], *out = (gim_vpl *)malloc(S * sizeof(gim_vpl));
+    gim_second_bounce_rays_desc d;
+    gim_twin_scene sc;
+    gim_bvh b;
+    double total, inside, from0, want;
+    uint32_t j, k, lit;
+    (void)state;
+    quad(ceil_, 0, c, u, v);
+    for (k = 0; k < 12 * 3; ++k) alb[k] = k % 3 == 0 ? 0.5f : k % 3 == 1 ? 0.25f : 0.75f;
+    memset(&sc, 0, sizeof sc);
+    sc.positions = ceil_; sc.triangle_count = 2; sc.albedo = alb;
+    assert_int_equal(gim_bvh_build(&sc, env, &b), GIM_OK);
+    memset(vp, 0, sizeof vp);
+    vp[0].lit = 1.0f; vp[0].normal[1] = 1.0f; vp[0].flux[0] = vp[0].flux[1] = vp[0].flux[2] = 3.0f;
+    vp[1] = vp[0]; vp[1].position[0] = 0.25f; vp[1].flux[0] = vp[1].flux[1] = vp[1].flux[2] = 1.0f;
+    vp[2] = vp[0]; vp[2].lit = 0.0f;                 /* unlit: never picked */
+    vp[3] = vp[0]; vp[3].flux[1] = NAN;              /* not finite: never picked */
+    memset(&d, 0, sizeof d);
+    d.bvh = &b; d.albedo = alb; d.vpls = vp; d.vpl_count = 4; d.count = S; d.scene_scale = 10.0f; d.env = env;
+    assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
+    total = inside = from0 = 0.0;
+    for (j = 0, lit = 0; j < S; ++j) {
+        double x, z, f = out[j].flux[0];
+        if (!(out[j].lit > 0.0f)) continue;
+        ++lit;
+        assert_true(fabsf(out[j].position[1] - 1.0f) < 1e-5f && out[j].normal[1] == -1.0f);
+        assert_true(fabsf(out[j].flux[1] / out[j].flux[0] - 0.5f) < 1e-5f);   /* the albedo's colour */
+        assert_true(fabs(f - 0.5 * 4.0 / S) < 1e-6 * f + 1e-12);            /* Phi_i / (S p_i), the same for all */
+        x = out[j].position[0] - (j < 3u * S / 4u ? 0.0 : 0.25);          /* the first 3/4 of the picks: VPL 0 */
+        z = out[j].position[2];
+        total += f;
+        if (x * x + z * z < 1.0) inside += f;
+        if (j < 3u * S / 4u) from0 += f;
+    }
+    want = 0.5 * 4.0;   /* rho (Phi_0 + Phi_1) */
+    print_message("ceiling: %u of %u rays land, flux %.5f (closed form %.5f), within 1 of the point above %.4f "
+                  "(1 / 2), from the brighter VPL %.4f (3 / 4)\n", lit, (unsigned)S, total, want, inside / total,
+                  from0 / total);
+    assert_true(lit >= S - 4u);   /* a few leave parallel to the ceiling, past its edge */
+    assert_true(fabs(total / want - 1.0) < 2e-3);
+    assert_true(fabs(inside / total - 0.5) < 0.01);
+    assert_true(fabs(from0 / total - 0.75) < 1e-3);
+    gim_bvh_free(&b);
+    {   /* a closed box [-1, 1]^3 (12 triangles): every ray lands, the flux is the walls' albedo times Phi */
+        float cs[6][9] = {{-1, -1, -1, 2, 0, 0, 0, 2, 0}, {-1, -1, 1, 2, 0, 0, 0, 2, 0}, {-1, -1, -1, 0, 2, 0, 0, 0, 2},
+                          {1, -1, -1, 0, 2, 0, 0, 0, 2},  {-1, -1, -1, 2, 0, 0, 0, 0, 2}, {-1, 1, -1, 2, 0, 0, 0, 0, 2}};
+        double got = 0.0;
+        for (k = 0; k < 6; ++k) quad(box, 2 * k, cs[k], cs[k] + 3, cs[k] + 6);
+        sc.positions = box; sc.triangle_count = 12;
+        assert_int_equal(gim_bvh_build(&sc, env, &b), GIM_OK);
+        vp[0].position[0] = 0.3f; vp[0].position[1] = -1.0f; vp[0].position[2] = -0.2f;
+        d.vpl_count = 1; d.count = 1024; d.scene_scale = 3.5f;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
+        for (j = 0; j < 1024u; ++j) {
+            assert_true(out[j].lit == 1.0f);
+            got += out[j].flux[2];
+        }
+        print_message("closed box: flux %.6f (closed form %.6f)\n", got, 0.75 * 3.0);
+        assert_true(fabs(got / (0.75 * 3.0) - 1.0) < 1e-5);
+        /* bad input */
+        d.count = 0;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_OUT_OF_RANGE);
+        d.count = 16; d.vpl_count = 0;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_OUT_OF_RANGE);
+        d.vpl_count = 1; d.scene_scale = 0.0f;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        d.scene_scale = 1.0f; d.albedo = NULL;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        alb[4] = -1.0f; d.albedo = alb;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_INVALID_ARGUMENT);
+        assert_int_equal(gim_second_bounce_rays_twin(&d, NULL), GIM_ERROR_INVALID_ARGUMENT);
+        gim_bvh_free(&b);
+    }
+    assert_int_equal(as.live, 0);
+    free(out);
 }
 
 /* The triangle test against an exact one in double where the hit is clear of the triangle's
@@ -442,6 +593,8 @@ static void val_rays_matrix(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(traversal_equals_every_triangle),
+        cmocka_unit_test(nearest_equals_every_triangle),
+        cmocka_unit_test(second_bounce_rays_closed_forms),
         cmocka_unit_test(triangle_test_is_exact_away_from_edges),
         cmocka_unit_test(closed_forms_at_any_scale),
         cmocka_unit_test(degenerate_layouts),

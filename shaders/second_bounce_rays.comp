@@ -1,0 +1,207 @@
+/* Second-bounce VPLs by rays (Keller 1997's instant radiosity), the GPU twin of
+   gim_second_bounce_rays_twin: rays from first-bounce VPLs picked by flux to the nearest
+   triangle of the scene's hierarchy (bvh.glsl's walk, the segment cut at each nearer crossing).
+     mode 0 (one work group): the running sums of the VPLs' pick weights, cdf[0..N-1], and
+             their total in cdf[N], in the twin's order (256 chunks each summed in order, then
+             the chunks' sums in order by one invocation);
+     mode 1 (one invocation per ray): ray j's pick, walk and VPL, written to vpl[first + j].
+   The rays' samples (pick u, direction x, y, z in the VPL's frame) are the twin's, computed on
+   the CPU (gim__second_ray_sample). The hierarchy's triangles carry their material in the w
+   of their first vec4 (gim__gl_bvh). */
+#include "common.glsl"
+layout(local_size_x = 256) in;
+
+struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit; area; kept */
+layout(std430, binding = 0) buffer Vpls { Vpl vpl[]; };   /* reads [0, N), writes [first, first + S) */
+layout(std430, binding = 1) readonly buffer Samples { vec4 sample_point[]; };
+layout(std430, binding = 2) buffer Sums { float cdf[]; };
+struct Material { vec4 diffuse; vec4 glossy; };
+layout(std430, binding = 3) readonly buffer Materials { Material material[]; };
+layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
+
+layout(location = 0) uniform uint mode;
+layout(location = 1) uniform uint vpl_count;
+layout(location = 2) uniform uint count;
+layout(location = 3) uniform uint first;
+layout(location = 4) uniform float lift;          /* GIM_SECOND_RAY_LIFT scene_scale */
+layout(location = 5) uniform float far_length;    /* 4 / bvh_scale */
+layout(location = 6) uniform uint material_count; /* 0: albedo 0 */
+layout(location = 17) uniform uint bvh_nodes;
+layout(location = 18) uniform uint bvh_triangles;
+layout(location = 20) uniform vec3 bvh_origin;
+layout(location = 21) uniform float bvh_scale;
+#include "bvh.glsl"
+
+/* gim__second_ray_weight */
+float weight(uint i) {
+    Vpl v = vpl[i];
+    uvec3 f = floatBitsToUint(v.flux.rgb);
+    if (!positive(floatBitsToUint(v.position.w)) || !finite3(floatBitsToUint(v.position.xyz)) ||
+        !finite3(floatBitsToUint(v.normal.xyz)) || !finite3(f) || !nonneg3(f))
+        return 0.0;
+    precise float w = (v.flux.r + v.flux.g) + v.flux.b;
+    return w;
+}
+
+/* The open segment o + t d, 0 < t < 1, against the triangle at `at`: bvh_triangle's steps, with
+   the crossing's e2 . q and det (gim__bvh_triangle_at). */
+bool bvh_triangle_at(uint at, vec3 o, vec3 d, out float tt, out float dd) {
+    precise vec3 v0 = bvh[at].xyz, e1 = bvh[at + 1u].xyz, e2 = bvh[at + 2u].xyz;
+    precise float px = d.y * e2.z - d.z * e2.y;
+    precise float py = d.z * e2.x - d.x * e2.z;
+    precise float pz = d.x * e2.y - d.y * e2.x;
+    precise float det = e1.x * px + e1.y * py + e1.z * pz;
+    tt = 0.0;
+    dd = 0.0;
+    if (det == 0.0) return false;
+    precise float sx = o.x - v0.x, sy = o.y - v0.y, sz = o.z - v0.z;
+    precise float u = sx * px + sy * py + sz * pz;
+    precise float qx = sy * e1.z - sz * e1.y;
+    precise float qy = sz * e1.x - sx * e1.z;
+    precise float qz = sx * e1.y - sy * e1.x;
+    precise float v = d.x * qx + d.y * qy + d.z * qz;
+    precise float t = e2.x * qx + e2.y * qy + e2.z * qz;
+    if (det < 0.0) { det = -det; u = -u; v = -v; t = -t; }
+    precise float g = 1e-4 * det;
+    precise float uv = u + v, dg = det + g;
+    tt = t;
+    dd = det;
+    return u >= -g && v >= -g && uv <= dg && t > 0.0 && t < det;
+}
+
+/* gim_bvh_nearest: the slot of the nearest triangle the segment from -> to crosses (or
+   0xffffffff) and its place t along it. */
+uint bvh_nearest(vec3 from, vec3 to, out float hit_t) {
+    hit_t = 1.0;
+    if (bvh_nodes == 0u) return 0xffffffffu;
+    precise vec3 o = vec3((from.x - bvh_origin.x) * bvh_scale, (from.y - bvh_origin.y) * bvh_scale,
+                          (from.z - bvh_origin.z) * bvh_scale);
+    precise vec3 e = vec3((to.x - bvh_origin.x) * bvh_scale, (to.y - bvh_origin.y) * bvh_scale,
+                          (to.z - bvh_origin.z) * bvh_scale);
+    precise vec3 d = vec3(e.x - o.x, e.y - o.y, e.z - o.z);
+    if (!finite3(o) || !finite3(d)) return 0xffffffffu;
+    vec3 inv;
+    for (int a = 0; a < 3; ++a) inv[a] = abs(d[a]) >= 1e-30 ? 1.0 / d[a] : 0.0;
+    uint stack[BVH_STACK];
+    uint sp = 0u, node = 0u, best = 0xffffffffu;
+    precise float bt = 1.0, bd = 1.0;
+    float reach = 1.0;
+    for (;;) {
+        vec4 lo = bvh[2u * node], hi = bvh[2u * node + 1u];
+        float tn = 0.0, tf = reach;
+        for (int a = 0; a < 3; ++a) {
+            if (inv[a] != 0.0) {
+                precise float t0 = (lo[a] - o[a]) * inv[a], t1 = (hi[a] - o[a]) * inv[a];
+                tn = max(tn, min(t0, t1));
+                tf = min(tf, max(t0, t1));
+            } else {
+                precise float e0 = o[a] + abs(d[a]), e1 = o[a] - abs(d[a]);
+                if (e0 < lo[a] || e1 > hi[a]) tf = -1.0;
+            }
+        }
+        precise float slack = tf * 1.000001;
+        if (tn <= slack) {
+            uint index = floatBitsToUint(lo.w), n = floatBitsToUint(hi.w);
+            if (n == 0u) {
+                stack[sp++] = index;
+                node += 1u;
+                continue;
+            }
+            for (uint k = 0u; k < n; ++k) {
+                float t, det;
+                if (bvh_triangle_at(bvh_triangles + 3u * (index + k), o, d, t, det)) {
+                    precise float lhs = t * bd, rhs = bt * det;
+                    if (lhs < rhs) {
+                        bt = t;
+                        bd = det;
+                        best = index + k;
+                        reach = bt / bd;
+                    }
+                }
+            }
+        }
+        if (sp == 0u) break;
+        node = stack[--sp];
+    }
+    hit_t = bt / bd;
+    return best;
+}
+
+shared float part[256];
+
+void main() {
+    uint k = gl_LocalInvocationID.x;
+    if (mode == 0u) {
+        uint c = (vpl_count + 255u) / 256u, b = k * c;
+        precise float sum = 0.0;
+        for (uint i = b; i < b + c && i < vpl_count; ++i) sum += weight(i);
+        part[k] = sum;
+        barrier();
+        if (k == 0u) {
+            precise float run = 0.0;
+            for (uint q = 0u; q < 256u; ++q) {
+                float p = part[q];
+                part[q] = run;
+                run += p;
+            }
+            cdf[vpl_count] = run;
+        }
+        barrier();
+        float base = part[k];
+        sum = 0.0;
+        for (uint i = b; i < b + c && i < vpl_count; ++i) {
+            sum += weight(i);
+            precise float at = base + sum;
+            cdf[i] = at;
+        }
+        return;
+    }
+    uint j = gl_GlobalInvocationID.x;
+    if (j >= count) return;
+    Vpl o;
+    o.position = vec4(0.0);
+    o.normal = vec4(0.0);
+    o.flux = vec4(0.0);
+    float total = cdf[vpl_count];
+    if (total > 0.0 && finite3(vec3(total))) {
+        vec4 smp = sample_point[j];
+        precise float target = smp.x * total;
+        uint lo = 0u, hi = vpl_count - 1u;
+        while (lo < hi) {
+            uint mid = (lo + hi) / 2u;
+            if (cdf[mid] > target) hi = mid;
+            else lo = mid + 1u;
+        }
+        precise float width = cdf[lo] - (lo != 0u ? cdf[lo - 1u] : 0.0);
+        if (cdf[lo] > target && width > 0.0) {
+            Vpl v = vpl[lo];
+            vec3 n = v.normal.xyz, t, b;
+            basis_precise(n, t, b);
+            precise vec3 dir = vec3((t.x * smp.y + b.x * smp.z) + n.x * smp.w, (t.y * smp.y + b.y * smp.z) + n.y * smp.w,
+                                    (t.z * smp.y + b.z * smp.z) + n.z * smp.w);
+            precise vec3 org = vec3(v.position.x + lift * n.x, v.position.y + lift * n.y, v.position.z + lift * n.z);
+            precise vec3 end = vec3(org.x + far_length * dir.x, org.y + far_length * dir.y, org.z + far_length * dir.z);
+            float ht;
+            uint slot = bvh_nearest(org, end, ht);
+            if (slot != 0xffffffffu) {
+                uint at = bvh_triangles + 3u * slot;
+                precise vec3 e1 = bvh[at + 1u].xyz, e2 = bvh[at + 2u].xyz;
+                precise vec3 nn = vec3(e1.y * e2.z - e1.z * e2.y, e1.z * e2.x - e1.x * e2.z, e1.x * e2.y - e1.y * e2.x);
+                precise float l = sqrt(nn.x * nn.x + nn.y * nn.y + nn.z * nn.z);
+                precise float side = nn.x * dir.x + nn.y * dir.y + nn.z * dir.z;
+                if (l > 0.0 && finite3(vec3(l))) {
+                    if (side > 0.0) l = -l;
+                    precise float kk = total / (width * float(count));
+                    uint id = floatBitsToUint(bvh[at].w);
+                    vec3 albedo = material_count > 0u ? material[min(id, material_count - 1u)].diffuse.rgb : vec3(0.0);
+                    precise vec3 f = vec3(albedo.r * (v.flux.r * kk), albedo.g * (v.flux.g * kk), albedo.b * (v.flux.b * kk));
+                    precise vec3 p = vec3(org.x + ht * (end.x - org.x), org.y + ht * (end.y - org.y), org.z + ht * (end.z - org.z));
+                    o.position = vec4(p, 1.0);
+                    o.normal = vec4(nn / l, 0.0);
+                    o.flux = vec4(min(f, vec3(FLT_MAX)), 0.0);
+                }
+            }
+        }
+    }
+    vpl[first + j] = o;
+}
