@@ -45,6 +45,13 @@ static void timing_and_scale(void **state) {
     fr.lightskin.shade_block = 1;
     assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
     fr = ff.fr;
+    fr.vpl.second_bounce = (gim_second_bounce)3;   /* DEFAULT, RAYS or MAPS, refused in any method's frame */
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE, "vpl.second_bounce 3: DEFAULT, RAYS or MAPS");
+    fr.vpl.second_bounce = (gim_second_bounce)-1;
+    expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE, "vpl.second_bounce -1");
+    fr.vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;
+    assert_int_equal(gim_update(ff.f.ctx, &fr), GIM_OK);
+    fr = ff.fr;
     fr.scene_scale = 1e30f;
     expect_error(&ff, gim_update(ff.f.ctx, &fr), GIM_ERROR_OUT_OF_RANGE, "valid within 0.001..1000 diagonals");
     fr.scene_scale = 1e-6f;   /* the box is about 1.7 across */
