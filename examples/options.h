@@ -51,7 +51,7 @@ static const char demo_usage_text[] =
     "  --method M            brsm (default: LightSkin + bidirectional RSM importance sampling), full (LightSkin,\n"
     "                        every RSM texel a VAL), gather (RSM gather, Dachsbacher 2005: the baseline),\n"
     "                        clustered (Dong et al.: k-means VALs with paraboloid soft shadows), ssvp (two\n"
-    "                        bounces from paraboloid maps, Aranha et al.), none (direct light only)\n"
+    "                        bounces, Aranha et al.; the second by rays), none (direct light only)\n"
     "  --rsm N               RSM side per light in texels (default 256)\n"
     "  --vals N              VALs per light for brsm (default 2048)\n"
     "  --view-samples N      view samples for the importance map (default 128)\n"
