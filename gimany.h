@@ -8215,7 +8215,8 @@ static int gim__bvh_triangle_at(const float *tri, const float *o, const float *d
     return u >= -g && v >= -g && u + v <= det + g && t > 0.0f && t < det;
 }
 
-static int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
+/* ... without the crossing (the tests' every-triangle answers) */
+static GIM__UNUSED int gim__bvh_triangle(const float *tri, const float *o, const float *d) {
     float t, det;
     return gim__bvh_triangle_at(tri, o, d, &t, &det);
 }
@@ -8234,67 +8235,40 @@ static int gim__bvh_segment(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, floa
     return gim__all_finite(o, 3) && gim__all_finite(d, 3);
 }
 
-GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) {
-    uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0;
-    float o[3], d[3], inv[3];
+/* The slab test of node nd against the segment o + t d, 0 <= t <= reach (inv: 1 / d, 0 on an
+   axis along which the segment barely moves, tested by its extent there instead). Each t is
+   within 3 rounding steps of its value (Ize 2013): the slack keeps the test conservative
+   wherever the segment starts. bvh.glsl's bvh_box. */
+static int gim__bvh_box(const gim_bvh_node *nd, const float *o, const float *d, const float *inv, float reach) {
+    float tn = 0.0f, tf = reach;
     int a;
-    if (!bvh || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
-    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
+    for (a = 0; a < 3; ++a) {
+        if (inv[a] != 0.0f) {
+            float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
+            float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
+            tn = lo_ > tn ? lo_ : tn;
+            tf = hi_ < tf ? hi_ : tf;
+        } else if (o[a] + fabsf(d[a]) < nd->lo[a] || o[a] - fabsf(d[a]) > nd->hi[a]) {
+            tf = -1.0f;
+        }
+    }
+    return tn <= tf * 1.000001f;
+}
+
+/* The walk: the slot of the first triangle met that the segment o + t d crosses (any), or of the
+   nearest (the segment cut at each nearer crossing, compared as e2 . q det' < e2 . q' det, no
+   division deciding; *bt / *bd its e2 . q and det); UINT32_MAX for none. */
+static uint32_t gim__bvh_walk(const gim_bvh *bvh, const float *o, const float *d, int any, float *bt, float *bd) {
+    uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0, best = UINT32_MAX;
+    float inv[3], reach = 1.0f;
+    int a;
+    *bt = *bd = 1.0f;
     /* an axis along which the segment barely moves (|d| < 1e-30, whose reciprocal may be
        infinite) is tested by the segment's extent on it instead of a slab */
     for (a = 0; a < 3; ++a) inv[a] = fabsf(d[a]) >= 1e-30f ? 1.0f / d[a] : 0.0f;
     for (;;) {
         const gim_bvh_node *nd = bvh->nodes + node;
-        float tn = 0.0f, tf = 1.0f;
-        for (a = 0; a < 3; ++a) {
-            if (inv[a] != 0.0f) {
-                float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
-                float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
-                tn = lo_ > tn ? lo_ : tn;
-                tf = hi_ < tf ? hi_ : tf;
-            } else if (o[a] + fabsf(d[a]) < nd->lo[a] || o[a] - fabsf(d[a]) > nd->hi[a]) {
-                tf = -1.0f;
-            }
-        }
-        /* each t within 3 rounding steps of its value (Ize 2013): the slack keeps the test
-           conservative wherever the segment starts */
-        if (tn <= tf * 1.000001f) {
-            if (nd->count == 0) {
-                stack[sp++] = nd->index;
-                node = node + 1u;
-                continue;
-            } else {
-                uint32_t k;
-                for (k = 0; k < nd->count; ++k)
-                    if (gim__bvh_triangle(bvh->triangles + (size_t)(nd->index + k) * 12u, o, d)) return 1;
-            }
-        }
-        if (sp == 0) return 0;
-        node = stack[--sp];
-    }
-}
-
-GIMANY_DEF int gim_bvh_nearest(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, gim_bvh_hit *hit) {
-    uint32_t stack[GIM_BVH_MAX_DEPTH], sp = 0, node = 0, best = UINT32_MAX;
-    float o[3], d[3], inv[3], bt = 1.0f, bd = 1.0f, reach = 1.0f;
-    int a;
-    if (!bvh || !hit || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
-    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
-    for (a = 0; a < 3; ++a) inv[a] = fabsf(d[a]) >= 1e-30f ? 1.0f / d[a] : 0.0f;
-    for (;;) {   /* gim_bvh_occluded's walk, the segment cut at the nearest crossing so far */
-        const gim_bvh_node *nd = bvh->nodes + node;
-        float tn = 0.0f, tf = reach;
-        for (a = 0; a < 3; ++a) {
-            if (inv[a] != 0.0f) {
-                float t0 = (nd->lo[a] - o[a]) * inv[a], t1 = (nd->hi[a] - o[a]) * inv[a];
-                float lo_ = t0 < t1 ? t0 : t1, hi_ = t0 < t1 ? t1 : t0;
-                tn = lo_ > tn ? lo_ : tn;
-                tf = hi_ < tf ? hi_ : tf;
-            } else if (o[a] + fabsf(d[a]) < nd->lo[a] || o[a] - fabsf(d[a]) > nd->hi[a]) {
-                tf = -1.0f;
-            }
-        }
-        if (tn <= tf * 1.000001f) {
+        if (gim__bvh_box(nd, o, d, inv, reach)) {
             if (nd->count == 0) {
                 stack[sp++] = nd->index;
                 node = node + 1u;
@@ -8304,18 +8278,34 @@ GIMANY_DEF int gim_bvh_nearest(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, g
                 for (k = 0; k < nd->count; ++k) {
                     float t, det;
                     if (gim__bvh_triangle_at(bvh->triangles + (size_t)(nd->index + k) * 12u, o, d, &t, &det) &&
-                        t * bd < bt * det) {
-                        bt = t;
-                        bd = det;
+                        t * *bd < *bt * det) {
+                        *bt = t;
+                        *bd = det;
                         best = nd->index + k;
-                        reach = bt / bd;
+                        if (any) return best;
+                        reach = *bt / *bd;
                     }
                 }
             }
         }
-        if (sp == 0) break;
+        if (sp == 0) return best;
         node = stack[--sp];
     }
+}
+
+GIMANY_DEF int gim_bvh_occluded(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to) {
+    float o[3], d[3], bt, bd;
+    if (!bvh || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
+    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
+    return gim__bvh_walk(bvh, o, d, 1, &bt, &bd) != UINT32_MAX;
+}
+
+GIMANY_DEF int gim_bvh_nearest(const gim_bvh *bvh, gim_vec3 from, gim_vec3 to, gim_bvh_hit *hit) {
+    float o[3], d[3], bt, bd;
+    uint32_t best;
+    if (!bvh || !hit || !bvh->node_count || !bvh->nodes || !bvh->triangles) return 0;
+    if (!gim__bvh_segment(bvh, from, to, o, d)) return 0;
+    best = gim__bvh_walk(bvh, o, d, 0, &bt, &bd);
     if (best == UINT32_MAX) return 0;
     hit->slot = best;
     memcpy(&hit->triangle, bvh->triangles + (size_t)best * 12u + 3u, sizeof(uint32_t));

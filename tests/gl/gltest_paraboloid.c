@@ -700,6 +700,32 @@ static void landing(const twin_soup *soup, const gim_paraboloid *m, const gim_vp
     *on_box = box;
 }
 
+/* The room [-2, 2] x [0, 2] x [-2, 2] (open at +z) with the box [0.1, 0.5] x [0, 0.3] x [-0.5, 0.5]
+   standing in it, as two instances of f's context (materials set) and as the twin's soup (the
+   box's triangles from *box_first on). */
+static void room_and_box(gltest_fixture *f, twin_soup *soup, gim_instance inst[2], uint32_t *box_first) {
+    gim_mesh_desc md;
+    gim_mesh room, box;
+    make_meshes();
+    memset(&md, 0, sizeof md);
+    md.data.positions = cb_pos; md.data.normals = cb_nrm; md.data.vertex_count = 20;
+    md.data.indices = cb_idx; md.data.index_count = 30; md.data.index_type = GIM_INDEX_U16;
+    md.data.triangle_material = cb_mat;
+    assert_int_equal(gim_add_mesh(f->ctx, &md, &room), GIM_OK);
+    memset(&md, 0, sizeof md);
+    md.data.positions = blk_pos; md.data.vertex_count = 24;
+    md.data.indices = blk_idx; md.data.index_count = 36; md.data.triangle_material = blk_mat;
+    assert_int_equal(gim_add_mesh(f->ctx, &md, &box), GIM_OK);
+    assert_int_equal(gim_set_materials(f->ctx, materials, 4), GIM_OK);
+    inst[0].mesh = room; inst[0].model = scale3(2.0f, 1.0f, 2.0f);
+    inst[1].mesh = box; inst[1].model = gim_mat4_mul(translate(0.3f, 0.15f, 0.0f), scale3(0.2f, 0.15f, 0.5f));
+    assert_int_equal(gim_set_instances(f->ctx, inst, 2), GIM_OK);
+    soup->n = 0;
+    soup_add(soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
+    *box_first = soup->n;
+    soup_add(soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+}
+
 /* The second bounce lands on the first surface its ray meets: a strip of floor VPLs
    beside a low box (gim_cluster_paraboloids_twin: Delta 1.008, near_distance 0.504, the box's face
    0.225 from the centre), S = 4096 second-bounce VPLs of its map, made by the GPU passes the
@@ -715,8 +741,6 @@ static void second_bounce_lands_first(void **state) {
     gltest_fixture f;
     twin_soup *soup = (twin_soup *)malloc(sizeof *soup);
     gim_twin_scene twin;
-    gim_mesh room, box;
-    gim_mesh_desc md;
     gim_instance inst[2];
     gim_vpl *vpls = (gim_vpl *)calloc(NX * NZ, sizeof(gim_vpl)), *gpu = (gim_vpl *)malloc(S * sizeof(gim_vpl));
     gim_vpl *cpu = (gim_vpl *)malloc(S * sizeof(gim_vpl));
@@ -733,25 +757,7 @@ static void second_bounce_lands_first(void **state) {
     (void)state;
     GLTEST_BEGIN();
     gltest_fixture_begin(&f);
-    make_meshes();
-    memset(&md, 0, sizeof md);
-    md.data.positions = cb_pos; md.data.normals = cb_nrm; md.data.vertex_count = 20;
-    md.data.indices = cb_idx; md.data.index_count = 30; md.data.index_type = GIM_INDEX_U16;
-    md.data.triangle_material = cb_mat;
-    assert_int_equal(gim_add_mesh(f.ctx, &md, &room), GIM_OK);
-    memset(&md, 0, sizeof md);
-    md.data.positions = blk_pos; md.data.vertex_count = 24;
-    md.data.indices = blk_idx; md.data.index_count = 36; md.data.triangle_material = blk_mat;
-    assert_int_equal(gim_add_mesh(f.ctx, &md, &box), GIM_OK);
-    assert_int_equal(gim_set_materials(f.ctx, materials, 4), GIM_OK);
-    /* the room [-2, 2] x [0, 2] x [-2, 2] (open at +z), the box [0.1, 0.5] x [0, 0.3] x [-0.5, 0.5] */
-    inst[0].mesh = room; inst[0].model = scale3(2.0f, 1.0f, 2.0f);
-    inst[1].mesh = box; inst[1].model = gim_mat4_mul(translate(0.3f, 0.15f, 0.0f), scale3(0.2f, 0.15f, 0.5f));
-    assert_int_equal(gim_set_instances(f.ctx, inst, 2), GIM_OK);
-    soup->n = 0;
-    soup_add(soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
-    box_first = soup->n;
-    soup_add(soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    room_and_box(&f, soup, inst, &box_first);
     memset(&twin, 0, sizeof twin);
     twin.positions = soup->pos; twin.normals = soup->nrm; twin.albedo = soup->alb; twin.triangle_count = soup->n;
     /* the cluster: a strip of floor along the box, x in [-0.3, 0.05], z in [-1.5, 1.5] */
@@ -933,8 +939,6 @@ static void second_bounce_rays_match_twin(void **state) {
     gltest_fixture f;
     twin_soup *soup = (twin_soup *)malloc(sizeof *soup);
     gim_twin_scene twin;
-    gim_mesh room, box;
-    gim_mesh_desc md;
     gim_instance inst[2];
     gim_vpl *buf = (gim_vpl *)calloc(N + S, sizeof(gim_vpl)), *gpu = (gim_vpl *)malloc((N + S) * sizeof(gim_vpl));
     gim_vpl *cpu = (gim_vpl *)malloc(S * sizeof(gim_vpl));
@@ -947,24 +951,7 @@ static void second_bounce_rays_match_twin(void **state) {
     (void)state;
     GLTEST_BEGIN();
     gltest_fixture_begin(&f);
-    make_meshes();
-    memset(&md, 0, sizeof md);
-    md.data.positions = cb_pos; md.data.normals = cb_nrm; md.data.vertex_count = 20;
-    md.data.indices = cb_idx; md.data.index_count = 30; md.data.index_type = GIM_INDEX_U16;
-    md.data.triangle_material = cb_mat;
-    assert_int_equal(gim_add_mesh(f.ctx, &md, &room), GIM_OK);
-    memset(&md, 0, sizeof md);
-    md.data.positions = blk_pos; md.data.vertex_count = 24;
-    md.data.indices = blk_idx; md.data.index_count = 36; md.data.triangle_material = blk_mat;
-    assert_int_equal(gim_add_mesh(f.ctx, &md, &box), GIM_OK);
-    assert_int_equal(gim_set_materials(f.ctx, materials, 4), GIM_OK);
-    inst[0].mesh = room; inst[0].model = scale3(2.0f, 1.0f, 2.0f);
-    inst[1].mesh = box; inst[1].model = gim_mat4_mul(translate(0.3f, 0.15f, 0.0f), scale3(0.2f, 0.15f, 0.5f));
-    assert_int_equal(gim_set_instances(f.ctx, inst, 2), GIM_OK);
-    soup->n = 0;
-    soup_add(soup, cb_pos, cb_nrm, cb_idx, 1, 30, cb_mat, 0, inst[0].model);
-    box_first = soup->n;
-    soup_add(soup, blk_pos, NULL, blk_idx, 0, 36, NULL, 3, inst[1].model);
+    room_and_box(&f, soup, inst, &box_first);
     for (i = 0; i < N; ++i) {   /* a strip of floor beside the box, fluxes 1..4, every 7th unlit */
         buf[i].position[0] = -0.3f + 0.35f * ((i % NX) + 0.5f) / NX;
         buf[i].position[2] = -1.5f + 3.0f * ((i / NX) + 0.5f) / NZ;

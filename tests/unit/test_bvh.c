@@ -73,25 +73,32 @@ static int brute(const gim_bvh *bvh, gim_vec3 a, gim_vec3 b) {
 
 static gim_vec3 rnd_point(float lo, float hi) { return gim_v3(test_rnd(lo, hi), test_rnd(lo, hi), test_rnd(lo, hi)); }
 
+/* n random triangles around points of the unit cube into pos: every big_every-th of half-size
+   big, the others small; every flat_every-th flat in z (0: none). */
+static void random_soup(float *pos, uint32_t n, uint32_t big_every, float big, float small, uint32_t flat_every) {
+    uint32_t t;
+    for (t = 0; t < n; ++t) {
+        gim_vec3 c = rnd_point(0.0f, 1.0f);
+        float s = t % big_every == 0 ? big : small;
+        int k;
+        for (k = 0; k < 3; ++k) {
+            pos[t * 9 + k * 3] = c.x + test_rnd(-s, s);
+            pos[t * 9 + k * 3 + 1] = c.y + test_rnd(-s, s);
+            pos[t * 9 + k * 3 + 2] = c.z + (flat_every && t % flat_every == 0 ? 0.0f : test_rnd(-s, s));
+        }
+    }
+}
+
 static void traversal_equals_every_triangle(void **state) {
     test_alloc_stats as;
     gim_env env = test_env(&as, NULL);
     enum { N = 400, SEGMENTS = 1500 };
     float *pos = (float *)malloc(N * 9 * sizeof(float));
-    uint32_t t, i, hits = 0;
+    uint32_t i, hits = 0;
     gim_bvh b;
     (void)state;
     test_rng_state = 7;
-    for (t = 0; t < N; ++t) {   /* small triangles in the unit cube, some sliver, some large */
-        gim_vec3 c = rnd_point(0.0f, 1.0f);
-        float s = t % 17 == 0 ? 0.5f : 0.06f;
-        int k;
-        for (k = 0; k < 3; ++k) {
-            pos[t * 9 + k * 3] = c.x + test_rnd(-s, s);
-            pos[t * 9 + k * 3 + 1] = c.y + test_rnd(-s, s);
-            pos[t * 9 + k * 3 + 2] = c.z + (t % 5 == 0 ? 0.0f : test_rnd(-s, s));
-        }
-    }
+    random_soup(pos, N, 17, 0.5f, 0.06f, 5);   /* small triangles in the unit cube, some sliver, some large */
     b = build(pos, N, env);
     check_tree(&b);
     for (i = 0; i < SEGMENTS; ++i) {
@@ -114,16 +121,11 @@ static void nearest_equals_every_triangle(void **state) {
     gim_env env = test_env(&as, NULL);
     enum { N = 400, SEGMENTS = 1500 };
     float *pos = (float *)malloc(N * 9 * sizeof(float));
-    uint32_t t, i, hits = 0;
+    uint32_t i, hits = 0;
     gim_bvh b;
     (void)state;
     test_rng_state = 11;
-    for (t = 0; t < N; ++t) {
-        gim_vec3 c = rnd_point(0.0f, 1.0f);
-        float s = t % 13 == 0 ? 0.4f : 0.07f;
-        int k;
-        for (k = 0; k < 9; ++k) pos[t * 9 + k] = (k % 3 == 0 ? c.x : k % 3 == 1 ? c.y : c.z) + test_rnd(-s, s);
-    }
+    random_soup(pos, N, 13, 0.4f, 0.07f, 0);
     b = build(pos, N, env);
     for (i = 0; i < SEGMENTS; ++i) {
         gim_vec3 p = rnd_point(-0.2f, 1.2f), q = rnd_point(-0.2f, 1.2f);
