@@ -275,10 +275,11 @@ static void vpl_methods_no_light_through_walls(void **state) {
         {
             gim_debug_outputs od = gim_debug(s.f.ctx);
             assert_true(od.ism_maps != 0 && od.ism_size == 16);
-            /* no paraboloid map at all: SSVP's second bounce goes by rays (GIM_SECOND_BOUNCE_RAYS) */
-            assert_int_equal(od.paraboloid_position, 0);
+            /* SSVP's second bounce from the maps (the default) still needs their attributes, no
+               one the distance maps, and no one the hierarchy */
+            assert_int_equal(od.paraboloid_position != 0, m);
             assert_int_equal(od.paraboloid_distance, 0);
-            assert_int_equal(s.f.ctx->bvh.buffer != 0, m);
+            assert_int_equal(s.f.ctx->bvh.buffer, 0);
         }
         s.fr.timing = 0;
     }
@@ -1247,7 +1248,8 @@ static void shadow_maps_per_vpl(void **state) {
     s.fr.vpl.kmeans_restart = 1;   /* the same clusters every frame: images comparable across frames */
     s.fr.visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
     s.fr.visibility.ism_size = 16;
-    s.fr.visibility.ism_points = 1024;   /* SSVP's clusters' ISMs (its second bounce's hits checked) */
+    s.fr.visibility.ism_points = 1024;
+    s.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;   /* SSVP: its second bounce by rays, no cluster's ISM */
     for (m = 0; m < 2; ++m) {
         uint32_t total = m ? 4096u + 128u : 4096u, off, lit, texels;
         double in, hi;
@@ -1263,7 +1265,7 @@ static void shadow_maps_per_vpl(void **state) {
         assert_true(lit > 500u && off <= texels / 1000u);
         a = image(&s);
         frame_makes(&s, 4096u, total, 0u);   /* nothing moved: the first bounce's maps kept (SSVP's second
-                                                bounce by rays: its VPLs' maps, no cluster's) */
+                                                bounce by rays, set below: its VPLs' maps, no cluster's) */
         b = image(&s);
         assert_memory_equal(a, b, W * H * 16);
         free(a); free(b);
