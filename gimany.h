@@ -556,7 +556,8 @@ typedef enum gim_second_bounce {
     GIM_SECOND_BOUNCE_MAPS          /* SSVP sec. 3.C: each cluster's paraboloid map of position, normal and
                                        albedo, its unit-disk samples the VPLs, the cluster's flux emitted
                                        from its centre (gim_second_bounce_vpls_twin), which lies on no
-                                       surface: 1.3-4x the second bounce inside Sponza (docs/methods.md) */
+                                       surface: 2-4x the second bounce inside Sponza with VPLs by importance
+                                       (docs/methods.md) */
 } gim_second_bounce;
 
 /* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
