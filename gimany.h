@@ -280,8 +280,8 @@ typedef struct gim_light {
     int square_cone;        /* SPOT: 1: every direction of its square RSM frustum (half-angle
                                cone_angle to the sides' middles) is lit, as on a cube face; 0: a
                                round cone. POINT: ignored */
-    float extent;           /* DIRECTIONAL: half-width of the orthographic RSM (lengths);
-                               0: the radius of the scene bounds' sphere, so it covers the scene */
+    float extent;           /* DIRECTIONAL: half-width of a square orthographic RSM (lengths);
+                               0: the rectangle the scene bounds' shadow fills on the light's plane */
     uint32_t rsm_size;      /* RSM side in texels (POINT: of each cube face); 0: 512; below 16 a
                                warning (few VALs) */
     int fit_view;           /* DIRECTIONAL: 1 centres the orthographic RSM on what the camera sees
@@ -545,19 +545,20 @@ typedef enum gim_visibility {
 
 /* Where the VPL methods' second bounce leaves from (gim_frame.vpl.second_bounce, with bounces 2). */
 typedef enum gim_second_bounce {
-    GIM_SECOND_BOUNCE_DEFAULT = 0,  /* = MAPS */
-    GIM_SECOND_BOUNCE_RAYS,         /* rays from first-bounce VPLs picked by flux to the nearest triangle
-                                       (Keller 1997's instant radiosity; gim_second_bounce_rays_twin), through
-                                       a bounding volume hierarchy of the scene's triangles built when the
-                                       scene changes; no attribute maps. Less error everywhere measured
-                                       (street 0.355 -> 0.289, Cornell box 0.157 -> 0.112), but the picks
-                                       jump between VPLs while the light moves: 8.8x the flicker on the
-                                       street (docs/methods.md, "The second bounce by rays"), so opt-in */
+    GIM_SECOND_BOUNCE_DEFAULT = 0,  /* = RAYS */
+    GIM_SECOND_BOUNCE_RAYS,         /* rays from first-bounce VPLs, one per stratum of the VPL list picked by
+                                       flux, to the nearest triangle (Keller 1997's instant radiosity;
+                                       gim_second_bounce_rays_twin), through a bounding volume hierarchy of
+                                       the scene's triangles built when the scene changes; no attribute maps.
+                                       Less error than MAPS everywhere measured (mean over six second-bounce
+                                       counts: street 0.430 -> 0.239, Cornell box 0.164 -> 0.130, the atrium
+                                       1.216 -> 1.017), the same flicker (docs/methods.md, "The second bounce
+                                       by rays") */
     GIM_SECOND_BOUNCE_MAPS          /* SSVP sec. 3.C: each cluster's paraboloid map of position, normal and
                                        albedo, its unit-disk samples the VPLs, the cluster's flux emitted
                                        from its centre (gim_second_bounce_vpls_twin), which lies on no
-                                       surface: 2-4x the second bounce inside Sponza with VPLs by importance
-                                       (docs/methods.md) */
+                                       surface: 2.5x the street's second bounce, 2-4x inside Sponza with VPLs
+                                       by importance (docs/methods.md) */
 } gim_second_bounce;
 
 /* The host's G-buffer instead of gimany's (gim_frame.gbuffer; all 0: gimany draws one). */
@@ -655,8 +656,8 @@ typedef struct gim_frame_vpl {
                                    MAPS still renders its attribute maps) */
     uint32_t bounces;           /* 1 or 2; 0: 1 (CLUSTERED) or 2 (SSVP). 2: second-bounce VPLs (second_bounce) */
     uint32_t second_bounce_vpls; /* S, second-bounce VPLs in all (split over the clusters); 0: 256 */
-    gim_second_bounce second_bounce; /* where the second bounce leaves from: MAPS (default, SSVP's paper:
-                                   each cluster's centre) or RAYS (the first-bounce VPLs themselves) */
+    gim_second_bounce second_bounce; /* where the second bounce leaves from: RAYS (default: the first-bounce
+                                   VPLs themselves) or MAPS (SSVP's paper: each cluster's centre) */
     uint32_t interleave;        /* k: interleaved sampling in k x k pixel blocks + geometry-aware blur over
                                    k x k; 0: 4 (CLUSTERED) or 8 (SSVP; Dong sec. 6 uses 8); 1: every VPL at
                                    every pixel, no blur (docs/methods.md: the trade) */
@@ -1765,8 +1766,8 @@ GIMANY_API gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_ca
        over the cosine at the surface, A = w d^2 / cos (eq. 1 of Bischoff 2017 is the on-axis
        case w = s^2, with s the texel side on the plane at distance 1; the exact
        w = s^2 / (1 + u^2 + v^2)^(3/2) at image-plane point (u, v) makes the texels' w sum to
-       the cone's solid angle); for the orthographic sun A = a / cos with a = (2 extent /
-       size)^2 the texel's area perpendicular to the light. cos is clamped below at
+       the cone's solid angle); for the orthographic sun A = a / cos with a = (width / size) x
+       (height / size) of its window, the texel's area perpendicular to the light. cos is clamped below at
        GIM_RSM_MIN_COS so a grazing texel's A stays finite.
      flux Phi (W) = albedo x the power arriving on the footprint: the sun's E x a (E cos on
        an area a / cos: the tilt cancels), the spot's I x w (I w over A = w d^2 / cos is
@@ -1779,8 +1780,9 @@ GIMANY_API gim_result gim_caches_follow_twin(const gim_follow_desc *desc, gim_ca
 /* The light's camera: a look-at view and a projection fitted to the scene bounds (bmin, bmax:
    the world bounds of everything that casts or receives). SPOT: perspective of field of view
    2 x cone_angle, aspect 1, far just past the farthest bounds corner, near at the bounds (or
-   far / 10^4 when the light is inside them). DIRECTIONAL: orthographic +-extent around the
-   bounds' centre, the bounds' sphere inside its depth range. The GL runtime uses the same. */
+   far / 10^4 when the light is inside them). DIRECTIONAL: orthographic, +-extent around the
+   bounds' centre or (extent 0) the rectangle of the 8 bounds corners seen along the light plus
+   0.1% of the bounds' radius each side, the bounds' sphere inside its depth range. The GL runtime uses the same. */
 GIMANY_API gim_result gim_light_camera(const gim_light *light, const float bmin[3], const float bmax[3],
                                        gim_mat4 *view, gim_mat4 *proj);
 
@@ -2291,23 +2293,27 @@ typedef struct gim_second_bounce_rays_desc {
     gim_env env;
 } gim_second_bounce_rays_desc;
 
-#define GIM_SECOND_RAYS_MAX_VPLS 32768u   /* first-bounce VPLs of the scan (second_bounce_rays.comp) */
+#define GIM_SECOND_RAYS_MAX_VPLS 32768u   /* first-bounce VPLs: a ray's stratum loop (one ray: all), strata in 32 bits */
 #define GIM_SECOND_RAY_LIFT 1e-4f         /* a second-bounce ray's start above its VPL, in scene scales */
 
 /* Second-bounce VPLs by rays (Keller 1997's instant radiosity; GIM_SECOND_BOUNCE_RAYS),
-   the twin of second_bounce_rays.comp: each of S rays starts on a first-bounce VPL picked with
-   probability p_i proportional to its weight w_i = (Phi_r + Phi_g) + Phi_b (0 for an unlit or
-   non-finite VPL), leaves it cosine-distributed about its normal and lands on the nearest
-   triangle (gim_bvh_nearest), where it is a VPL of flux
-     Phi = albedo Phi_i / (S p_i)
+   the twin of second_bounce_rays.comp: each of S rays starts on a first-bounce VPL of its own
+   stratum, leaves it cosine-distributed about its normal and lands on the nearest triangle
+   (gim_bvh_nearest), where it is a VPL of flux
+     Phi = albedo Phi_i W_j / w_i
    (the cosine emitter's Phi_i cos / pi over the cosine pdf: only the pick is left), the
    triangle's unit normal turned towards the ray's start, area 0; a miss is an unlit VPL.
-   Ray j: the pick u = (j + 0.5) / S through the running sums of w (in float, in 256 chunks of
-   ceil(N / 256) VPLs each summed in order, then the chunks' sums in order: the scan's own
-   order), the first VPL whose sum exceeds u W, p_i its own step of the sums over W; the
-   direction gim_square_to_disk of (radical inverses base 2 and 3 of j), lifted to the
-   hemisphere, in gim_basis of the VPL's normal; the ray from the VPL lifted
+   Ray j's stratum is [j N / S, (j + 1) N / S) of the VPL list (VPL i covering [i, i + 1));
+   it picks VPL i with probability w_i o_ij / W_j, w_i = (Phi_r + Phi_g) + Phi_b (0 for an
+   unlit or non-finite VPL), o_ij the share of VPL i inside the stratum, W_j = sum_i w_i o_ij;
+   since sum_j o_ij = 1 the S VPLs' mean is the first bounce's albedo-weighted flux, unbiased
+   for any N and S. The pick: u = radical inverse base 5 of j times W_j against the running sum
+   (in float, in VPL order); the direction gim_square_to_disk of (radical inverses base 2 and 3
+   of j), lifted to the hemisphere, in gim_basis of the VPL's normal; the ray from the VPL lifted
    GIM_SECOND_RAY_LIFT scene scales along its normal, 4 / bvh->scale long (past the scene).
+   Strata keep the picks still: a VPL followed from the last frame (vpl.redraw 0) keeps its
+   rays while the fluxes change a little, where one pick over the running sums of all N moved
+   every ray to a distant VPL (the street's flicker 0.160 against the maps' 0.018).
    Where light goes after its first bounce decides the second: with a cluster's centre as the
    emitter (gim_second_bounce_vpls_twin) it leaves from points on no surface; here it leaves
    from the VPLs themselves, so the second bounce converges to the real one as S grows.
@@ -6885,12 +6891,33 @@ static gim_result gim__light_camera_kept(const gim_light *light, const float bmi
         *proj = gim_mat4_perspective(2.0f * light->cone_angle, 1.0f, (float)near_d, (float)far_d);
     } else {
         gim_vec3 l = gim_v3_normalize(light->direction);
-        float e = light->extent > 0.0f ? light->extent : (float)radius, R = (float)radius;
-        double eye[3];
+        float e = light->extent, R = (float)radius;
+        double eye[3], lo[2] = {0.0, 0.0}, hi[2] = {0.0, 0.0};
+        int k;
         /* the eye 2R out along the light: the bounds' sphere lies between depths R and 3R */
         eye[0] = c[0] + 2.0 * R * l.x; eye[1] = c[1] + 2.0 * R * l.y; eye[2] = c[2] + 2.0 * R * l.z;
         *view = gim__look_along(eye, gim__v3_scale(l, -1.0f), gim__up_kept(l, up_axis, up_dir));
-        *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
+        if (e > 0.0f) {
+            *proj = gim_mat4_ortho(-e, e, -e, e, 0.5f * R, 3.5f * R);
+        } else {
+            /* the window is the bounds' shadow on the light's plane, a rectangle: the sphere's
+               square left a long scene's texels mostly empty (the street: 22% of them lit) */
+            for (k = 0; k < 8; ++k) {
+                double x = (k & 1) ? bmax[0] : bmin[0], y = (k & 2) ? bmax[1] : bmin[1], z = (k & 4) ? bmax[2] : bmin[2];
+                double u = view->m[0] * x + view->m[4] * y + view->m[8] * z + view->m[12];
+                double v = view->m[1] * x + view->m[5] * y + view->m[9] * z + view->m[13];
+                if (k == 0 || u < lo[0]) lo[0] = u;
+                if (k == 0 || u > hi[0]) hi[0] = u;
+                if (k == 0 || v < lo[1]) lo[1] = v;
+                if (k == 0 || v > hi[1]) hi[1] = v;
+            }
+            for (k = 0; k < 2; ++k) {   /* a margin of 0.1% of the sphere; a flat scene edge-on stays 0.1% wide */
+                double m = 0.5 * (lo[k] + hi[k]), h = 0.5 * (hi[k] - lo[k]) + 1e-3 * R;
+                lo[k] = m - h;
+                hi[k] = m + h;
+            }
+            *proj = gim_mat4_ortho((float)lo[0], (float)hi[0], (float)lo[1], (float)hi[1], 0.5f * R, 3.5f * R);
+        }
     }
     if (!gim__mat4_isfinite(*view) || !gim__mat4_isfinite(*proj))
         return gim__fail(NULL, GIM_ERROR_OUT_OF_RANGE, where, "the light's camera is not finite");
@@ -7123,8 +7150,7 @@ GIMANY_DEF gim_result gim_rsm_texel_twin(const gim_twin_scene *scene, const gim_
         out->lit = light->square_cone || inside >= cos((double)light->cone_angle);
         a_perp = omega;
     } else {
-        double side = 2.0 / proj.m[0] / size; /* 2 extent / size */
-        a_perp = side * side;
+        a_perp = (2.0 / proj.m[0] / size) * (2.0 / proj.m[5] / size); /* the window's width / size x height / size */
         out->area = (float)gim__min_d(a_perp / cosv, FLT_MAX);
         out->lit = 1;
     }
@@ -8325,13 +8351,12 @@ static gim_vec3 gim__ray_end(const float *p, const float *n, float l) {
 
 /* --- the second bounce by rays (gim_second_bounce_rays_twin; second_bounce_rays.comp) --- */
 
-#define GIM__SECOND_RAYS_GROUP 256u   /* the scan's chunks: second_bounce_rays.comp's work group */
-
-/* Ray j of s: the pick u, the direction's (x, y) in the VPL's frame and its z (in [0, 1]). */
-static void gim__second_ray_sample(uint32_t j, uint32_t s, float *out4) {
+/* Ray j: its pick u inside its stratum, the direction's (x, y) in the VPL's frame and its z
+   (in [0, 1]). */
+static void gim__second_ray_sample(uint32_t j, float *out4) {
     gim_vec2 p = gim_square_to_disk((float)gim_van_der_corput(j), (float)gim_radical_inverse(3u, j));
     double z2 = 1.0 - (double)p.x * p.x - (double)p.y * p.y;
-    out4[0] = (float)((j + 0.5) / s);
+    out4[0] = (float)gim_radical_inverse(5u, j);
     out4[1] = p.x;
     out4[2] = p.y;
     out4[3] = (float)(z2 > 0.0 ? sqrt(z2) : 0.0);
@@ -8346,35 +8371,25 @@ static float gim__second_ray_weight(const gim_vpl *v) {
     return (v->flux[0] + v->flux[1]) + v->flux[2];
 }
 
-/* The running sums cdf[0..n-1] of the weights in the scan's order; returns their total. */
-static float gim__second_ray_cdf(const gim_vpl *vpls, uint32_t n, float *cdf) {
-    float part[GIM__SECOND_RAYS_GROUP], run = 0.0f;
-    uint32_t c = (n + GIM__SECOND_RAYS_GROUP - 1u) / GIM__SECOND_RAYS_GROUP, k, i;
-    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {   /* each chunk's sum */
-        float sum = 0.0f;
-        for (i = k * c; i < k * c + c && i < n; ++i) sum += gim__second_ray_weight(vpls + i);
-        part[k] = sum;
-    }
-    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {   /* exclusive sums of the chunks, in order */
-        float p = part[k];
-        part[k] = run;
-        run += p;
-    }
-    for (k = 0; k < GIM__SECOND_RAYS_GROUP; ++k) {
-        float sum = 0.0f;
-        for (i = k * c; i < k * c + c && i < n; ++i) {
-            sum += gim__second_ray_weight(vpls + i);
-            cdf[i] = part[k] + sum;
-        }
-    }
-    return run;
+/* Ray j's stratum of n VPLs among s rays: [j n, (j + 1) n) in units of 1 / s VPL, VPL i
+   covering [i s, (i + 1) s); the VPLs lo..hi it overlaps. */
+static void gim__second_ray_stratum(uint32_t j, uint32_t n, uint32_t s, uint32_t *lo, uint32_t *hi) {
+    *lo = (uint32_t)((uint64_t)j * n / s);
+    *hi = (uint32_t)(((uint64_t)j * n + n - 1u) / s);
+}
+
+/* VPL i's weight in ray j's stratum: its pick weight times its overlap (units of 1 / s VPL). */
+static float gim__second_ray_share(const gim_vpl *vpls, uint32_t i, uint32_t j, uint32_t n, uint32_t s) {
+    uint64_t a = (uint64_t)j * n, b = a + n, c = (uint64_t)i * s, d = c + s;
+    uint64_t ov = (b < d ? b : d) - (a > c ? a : c);
+    return gim__second_ray_weight(vpls + i) * (float)ov;
 }
 
 GIMANY_DEF gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_desc *desc, gim_vpl *out) {
     static const char where[] = "gim_second_bounce_rays_twin";
     const gim_env *env = desc ? &desc->env : NULL;
     const gim_bvh *bvh;
-    float *cdf, total, lift, far;
+    float lift, far;
     uint32_t j, n, s;
     if (!desc || !out) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "desc or out is NULL");
     bvh = desc->bvh;
@@ -8390,32 +8405,30 @@ GIMANY_DEF gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_d
                          GIM_SECOND_RAYS_MAX_VPLS, (unsigned)s);
     if (!(desc->scene_scale > 0.0f) || !gim__isfinitef(desc->scene_scale))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, where, "scene_scale must be finite and > 0");
-    cdf = (float *)gim__alloc_array(env, n, sizeof(float));
-    if (!cdf) return gim__fail(env, GIM_ERROR_OUT_OF_MEMORY, where, "%u sums", (unsigned)n);
-    total = gim__second_ray_cdf(desc->vpls, n, cdf);
     lift = GIM_SECOND_RAY_LIFT * desc->scene_scale;
     far = 4.0f / bvh->scale;
     for (j = 0; j < s; ++j) {
         gim_vpl *o = out + j;
-        float smp[4], target, width, k, dir[3], org[3], end[3], nn[3], l;
+        float smp[4], total = 0.0f, run = 0.0f, target, w = 0.0f, k, dir[3], org[3], end[3], nn[3], l;
         const float *e1, *e2, *alb;
         const gim_vpl *v;
         gim_vec3 t, b, nv;
         gim_bvh_hit h;
-        uint32_t lo = 0, hi = n - 1u, a;
+        uint32_t lo, hi, i, a;
         memset(o, 0, sizeof *o);
+        gim__second_ray_stratum(j, n, s, &lo, &hi);
+        for (i = lo; i <= hi; ++i) total += gim__second_ray_share(desc->vpls, i, j, n, s);
         if (!(total > 0.0f) || !gim__isfinitef(total)) continue;
-        gim__second_ray_sample(j, s, smp);
+        gim__second_ray_sample(j, smp);
         target = smp[0] * total;
-        while (lo < hi) {   /* the first running sum above the target */
-            uint32_t mid = (lo + hi) / 2u;
-            if (cdf[mid] > target) hi = mid;
-            else lo = mid + 1u;
+        for (i = lo; i <= hi; ++i) {   /* the first VPL whose running sum passes the target */
+            run += gim__second_ray_share(desc->vpls, i, j, n, s);
+            if (run > target) break;
         }
-        if (!(cdf[lo] > target)) continue;
-        width = cdf[lo] - (lo ? cdf[lo - 1u] : 0.0f);
-        if (!(width > 0.0f)) continue;
-        v = desc->vpls + lo;
+        if (i > hi) continue;
+        w = gim__second_ray_weight(desc->vpls + i);
+        if (!(w > 0.0f)) continue;
+        v = desc->vpls + i;
         nv = gim_v3(v->normal[0], v->normal[1], v->normal[2]);
         gim__basis(nv, &t, &b);
         dir[0] = (t.x * smp[1] + b.x * smp[2]) + nv.x * smp[3];
@@ -8434,7 +8447,7 @@ GIMANY_DEF gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_d
         l = sqrtf(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
         if (!(l > 0.0f) || !gim__isfinitef(l)) continue;
         if (nn[0] * dir[0] + nn[1] * dir[1] + nn[2] * dir[2] > 0.0f) l = -l;   /* towards the ray's start */
-        k = total / (width * (float)s);
+        k = total / (w * (float)s);
         alb = desc->albedo + (size_t)h.triangle * 3u;
         for (a = 0; a < 3; ++a) {
             float f = alb[a] * (v->flux[a] * k);
@@ -8444,7 +8457,6 @@ GIMANY_DEF gim_result gim_second_bounce_rays_twin(const gim_second_bounce_rays_d
         }
         o->lit = 1.0f;
     }
-    gim__free(env, cdf);
     return GIM_OK;
 }
 
@@ -9554,9 +9566,9 @@ typedef struct gim__vpl_gpu {
                                      count before this frame's maps */
     uint64_t made_bytes;
     /* the second bounce by rays (GIM_SECOND_BOUNCE_RAYS): the rays' samples (kept while their
-       count stays: ray_key) and the first-bounce VPLs' running sums */
-    gim__GLuint ray_samples, ray_sums;
-    uint64_t ray_samples_bytes, ray_sums_bytes;
+       count stays: ray_key) */
+    gim__GLuint ray_samples;
+    uint64_t ray_samples_bytes;
     uint32_t ray_key;
 } gim__vpl_gpu;
 
@@ -12264,7 +12276,7 @@ static gim_result gim__gl_rsm(gim_context *ctx, uint32_t i, const gim_light *l, 
         gl->Uniform4f(7, axis.x, axis.y, axis.z, l->square_cone ? -2.0f : cosf(l->cone_angle));   /* -2: all lit */
         gl->Uniform4f(8, (float)size, tan_half, s * s, 0.0f);
     } else {
-        float side = 2.0f / g->proj.m[0] / (float)size, a = side * side;  /* perpendicular texel area */
+        float a = (float)((2.0 / g->proj.m[0] / size) * (2.0 / g->proj.m[5] / size));   /* perpendicular texel area */
         gl->Uniform1i(5, 0);
         gl->Uniform3f(6, power[0] * a, power[1] * a, power[2] * a);     /* flux = albedo E a */
         gl->Uniform4f(7, 0.0f, 0.0f, 0.0f, -2.0f);
@@ -13913,8 +13925,8 @@ static gim_result gim__gl_second_bounce_ism(gim_context *ctx, gim__GLuint maps_s
 
 /* Second-bounce VPLs by rays on the GPU, the twin of gim_second_bounce_rays_twin on ctx->bvh
    (gim__gl_bvh: built for this scene) and the materials: the first vpl_count VPLs of vpls (gim_vpl,
-   48 bytes) give count VPLs, written from VPL first on (first >= vpl_count). Two dispatches of
-   second_bounce_rays.comp: the running sums (one work group), then a ray per VPL. */
+   48 bytes) give count VPLs, written from VPL first on (first >= vpl_count): second_bounce_rays.comp,
+   an invocation per ray. */
 static gim_result gim__gl_second_bounce_rays(gim_context *ctx, gim__GLuint vpls, uint32_t vpl_count, uint32_t count,
                                              uint32_t first, float scene_scale) {
     static const char where[] = "second-bounce rays (GL)";
@@ -13935,13 +13947,12 @@ static gim_result gim__gl_second_bounce_rays(gim_context *ctx, gim__GLuint vpls,
     gim__gl_enter(ctx, where);
     r = gim__gl_check_buffer(ctx, where, "vpls", vpls, ((uint64_t)first + count) * 48u);
     if (r == GIM_OK) r = gim__gl_program(ctx, GIM__PROGRAM_SECOND_BOUNCE_RAYS, &program);
-    if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->ray_sums, &v->ray_sums_bytes, ((uint64_t)vpl_count + 1u) * 4u, where);
     if (r == GIM_OK && (!v->ray_samples || v->ray_key != count)) {
         float *smp = (float *)gim__alloc_array(&ctx->env, count, 4u * sizeof(float));
         uint32_t j;
         v->ray_key = 0;
         if (!smp) r = gim__fail(&ctx->env, GIM_ERROR_OUT_OF_MEMORY, where, "%u ray samples", (unsigned)count);
-        for (j = 0; j < count && smp; ++j) gim__second_ray_sample(j, count, smp + (size_t)j * 4u);
+        for (j = 0; j < count && smp; ++j) gim__second_ray_sample(j, smp + (size_t)j * 4u);
         if (r == GIM_OK) r = gim__gl_sized_buffer(ctx, &v->ray_samples, &v->ray_samples_bytes, (uint64_t)count * 16u, where);
         if (r == GIM_OK) {
             gl->BindBuffer(GIM__GL_COPY_WRITE_BUFFER, v->ray_samples);
@@ -13954,9 +13965,8 @@ static gim_result gim__gl_second_bounce_rays(gim_context *ctx, gim__GLuint vpls,
     if (r != GIM_OK) return gim__gl_leave(ctx, r);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 0, vpls);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 1, v->ray_samples);
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 2, v->ray_sums);
     /* with no materials, binding 3 is never read (albedo 0) but must name a buffer */
-    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->materials ? ctx->materials : v->ray_sums);
+    gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 3, ctx->materials ? ctx->materials : v->ray_samples);
     gl->BindBufferBase(GIM__GL_SHADER_STORAGE_BUFFER, 6, ctx->bvh.buffer);
     gl->UseProgram(program);
     gl->Uniform1ui(1, vpl_count);
@@ -13969,10 +13979,6 @@ static gim_result gim__gl_second_bounce_rays(gim_context *ctx, gim__GLuint vpls,
     gl->Uniform1ui(18, ctx->bvh.nodes * 2u);
     gl->Uniform3f(20, ctx->bvh.origin[0], ctx->bvh.origin[1], ctx->bvh.origin[2]);
     gl->Uniform1f(21, ctx->bvh.scale);
-    gl->Uniform1ui(0, 0u);
-    gl->DispatchCompute(1u, 1u, 1u);
-    gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT);
-    gl->Uniform1ui(0, 1u);
     gl->DispatchCompute((count + 255u) / 256u, 1u, 1u);
     gl->MemoryBarrier(GIM__GL_SHADER_STORAGE_BARRIER_BIT | GIM__GL_BUFFER_UPDATE_BARRIER_BIT);
     return gim__gl_leave(ctx, gim__gl_check(ctx, where));
@@ -14010,7 +14016,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
     f.vpl.paraboloid_size = 256u;
     f.vpl.bounces = method == GIM_METHOD_SSVP ? 2u : 1u;
     f.vpl.second_bounce_vpls = 256u;
-    f.vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;
+    f.vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
     f.vpl.interleave = method == GIM_METHOD_CLUSTERED ? 4u : 8u;
     f.vpl.clamp_distance = 0.01f;
     f.vpl.blur_distance = 0.1f;
@@ -14071,8 +14077,7 @@ static void gim__vpl_release(gim_context *ctx) {
     b[5] = v->texels; b[6] = v->sums; b[7] = v->kmeans_acc;
     ctx->gl.DeleteBuffers(8, b);
     if (v->made) ctx->gl.DeleteBuffers(1, &v->made);
-    b[0] = v->ray_samples; b[1] = v->ray_sums;
-    ctx->gl.DeleteBuffers(2, b);
+    if (v->ray_samples) ctx->gl.DeleteBuffers(1, &v->ray_samples);
     memset(v, 0, sizeof *v);
     gim__vpl_raw_release(ctx);
     gim__paraboloid_release(ctx, 1);
@@ -15286,7 +15291,7 @@ static uint64_t gim__context_bytes(const gim_context *ctx) {
          ctx->ls.glossy_bytes + ctx->ls.exponents_bytes + ctx->bvh.bytes + ctx->gather_samples_bytes +
          ctx->gather_sum_bytes;
     b += ctx->vpl.vpls_bytes + ctx->vpl.staging_bytes + ctx->vpl.cluster_of_bytes + ctx->vpl.centres_bytes +
-         ctx->vpl.maps_bytes + ctx->vpl.made_bytes + ctx->vpl.ray_samples_bytes + ctx->vpl.ray_sums_bytes;
+         ctx->vpl.maps_bytes + ctx->vpl.made_bytes + ctx->vpl.ray_samples_bytes;
     b += (uint64_t)ctx->para_size * ctx->para_size * ctx->para_count *
              (4u + (ctx->para_attributes != GIM__PARA_ATTRIBUTES ? 4u : 0u) + (ctx->para_attributes != GIM__PARA_DISTANCE ? 48u : 0u)) +
          ctx->para_samples_bytes;

@@ -376,6 +376,7 @@ int main(int argc, char **argv) {
     if (pr == 1) {
         fputs("usage: gimany-demo [options]\n", stdout);
         fputs(demo_usage_text, stdout);
+        fputs(demo_usage_text2, stdout);
         fputs("  --frames N            frames to render; timings are medians over them (default 3)\n", stdout);
         fputs(scene_usage(0), stdout);
         free(rest);

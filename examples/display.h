@@ -16,7 +16,7 @@
 
    Visibility V(x) reads the light's RSM depth (gimany's gim_light_outputs.rsm_depth with its
    view and proj) as a shadow map, 3x3 texels averaged (PCF). The bias, unit-free: t is the
-   world size of one RSM texel at x (sun: 2 extent / size; spot: 2 z tan(cone) / size at light
+   world size of one RSM texel at x, its longer side (sun: the window's width or height / size; spot: 2 z tan(cone) / size at light
    distance z along the axis). x is moved by 1.5 t along n towards the lit side (normal offset:
    removes self-shadowing on slanted surfaces, whose depth changes by up to t tan(theta) within
    a texel), then x is lit where its light-space distance is at most the stored one + t. So
@@ -83,8 +83,8 @@ static const char display_direct_src[] =
     "float visibility(vec3 x, vec3 n) {\n"
     "    ivec2 sm = textureSize(shadow_map, 0);\n"
     "    float z = -(light_view * vec4(x, 1.0)).z;\n"
-    /* world size of one texel at x: 2 / (P00 size), times z in perspective (P33 = 0) */
-    "    float t = 2.0 / (light_proj[0][0] * float(sm.x)) * (light_proj[3][3] == 0.0 ? max(z, 0.0) : 1.0);\n"
+    /* world size of one texel at x, its longer side: 2 / (min(P00, P11) size), times z in perspective (P33 = 0) */
+    "    float t = 2.0 / (min(light_proj[0][0], light_proj[1][1]) * float(sm.x)) * (light_proj[3][3] == 0.0 ? max(z, 0.0) : 1.0);\n"
     "    vec3 xo = x + n * (1.5 * t);\n"
     "    vec4 v = light_view * vec4(xo, 1.0);\n"
     "    vec4 c = light_proj * v;\n"

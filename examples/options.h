@@ -30,7 +30,8 @@ typedef struct demo_options {
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
     uint32_t interleave;     /* clustered, ssvp: k of the k x k interleaved subsets (0: the method's default) */
     uint32_t second_vpls;    /* --bounces 2: second-bounce VPLs in all (0: the library's default, 256) */
-    int second_rays;         /* --bounces 2: 1 lands them by rays from the first-bounce VPLs (GIM_SECOND_BOUNCE_RAYS) */
+    int second_rays;         /* --bounces 2: 1 by rays from the first-bounce VPLs (GIM_SECOND_BOUNCE_RAYS, the
+                                default), -1 from the clusters' maps (MAPS), 0 the library's default */
     int no_visibility;       /* clustered, ssvp: 1 skips the paraboloid visibility */
     int vpl_importance;      /* clustered, ssvp: 1 draws the VPLs by BRSM's importance (gim_frame_vpl.importance) */
     int ism;                 /* 1 turns on gim_frame.visibility.mode = ISM, 2 SHADOW_MAPS, 3 RAYS */
@@ -47,6 +48,7 @@ typedef struct demo_options {
 
 #define DEMO_PARSE_VIEWER 1u /* accept --screenshot; --frames defaults to 0 (run until closed) */
 
+/* the usage, in two strings (C99 guarantees 4095 characters a literal), printed one after the other */
 static const char demo_usage_text[] =
     "  --method M            brsm (default: LightSkin + bidirectional RSM importance sampling), full (LightSkin,\n"
     "                        every RSM texel a VAL), gather (RSM gather, Dachsbacher 2005: the baseline),\n"
@@ -70,7 +72,10 @@ static const char demo_usage_text[] =
     "                        default 4 clustered, 8 ssvp)\n"
     "  --second-bounce-vpls N  with --bounces 2: the second bounce's VPLs in all, split over the clusters\n"
     "                        (1..65536; default 256)\n"
-    "  --second-bounce-rays  with --bounces 2: second-bounce VPLs by rays from the first, not the maps\n"
+    "  --second-bounce-maps  with --bounces 2: second-bounce VPLs from the clusters' attribute maps (SSVP's\n"
+    "                        paper) instead of by rays from the first-bounce VPLs (--second-bounce-rays, default)\n"
+    ;
+static const char demo_usage_text2[] =
     "  --no-visibility       clustered, ssvp: VPLs shade unshadowed, no paraboloid depth maps\n"
     "  --vpl-importance      clustered, ssvp: the VPLs drawn where their light reaches the view (BRSM's\n"
     "                        importance with --view-samples, --importance-tile, --defensive-share), each\n"
@@ -143,6 +148,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
         else if (len == 16 && !strncmp(a, "--neighbour-rays", 16)) flag = 7;
         else if (len == 6 && !strncmp(a, "--rays", 6)) flag = 8;
         else if (len == 20 && !strncmp(a, "--second-bounce-rays", 20)) flag = 9;
+        else if (len == 20 && !strncmp(a, "--second-bounce-maps", 20)) flag = 10;
         if (flag >= 0) {
             if (eq) { snprintf(err, cap, "%.*s takes no value", (int)len, a); return -1; }
             if (flag == 1) d->glossy = 0;
@@ -153,6 +159,7 @@ DEMO_OPTIONS_FN int demo_parse(int argc, char **argv, unsigned flags, demo_optio
             else if (flag == 7) d->neighbour_rays = 1;
             else if (flag == 8) d->ism = 3;
             else if (flag == 9) d->second_rays = 1;
+            else if (flag == 10) d->second_rays = -1;
             else d->vpl_importance = 1;
             continue;
         }
@@ -241,7 +248,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
     f->vpl.cluster_count = d->clusters;
     if (d->interleave) f->vpl.interleave = d->interleave;
     f->vpl.second_bounce_vpls = d->second_vpls;
-    if (d->second_rays) f->vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
+    if (d->second_rays) f->vpl.second_bounce = d->second_rays > 0 ? GIM_SECOND_BOUNCE_RAYS : GIM_SECOND_BOUNCE_MAPS;
     f->vpl.bounces = (uint32_t)bounces;
     f->vpl.no_visibility = d->no_visibility;
     f->vpl.importance = d->vpl_importance;

@@ -280,6 +280,7 @@ int main(int argc, char **argv) {
         if (pr == 1) {
             fputs("usage: gimany-viewer [options]\n", stdout);
             fputs(demo_usage_text, stdout);
+            fputs(demo_usage_text2, stdout);
             fputs("  --frames N            render N frames and exit (default: until the window closes)\n"
                   "  --screenshot FILE     write the last frame as a PNG (with --frames)\n", stdout);
             fputs(scene_usage(0), stdout);

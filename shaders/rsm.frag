@@ -3,7 +3,7 @@
    footprint area A in w, and reflected flux Phi = albedo x the power arriving on the footprint.
      spot: w = s^2 / (1 + u^2 + v^2)^(3/2), the texel's solid angle at image-plane point (u, v);
            Phi = albedo I w; A = w d^2 / cos (eq. 1 of Bischoff 2017, exact off the axis)
-     sun:  a = (2 extent / size)^2, the texel's area perpendicular to the light;
+     sun:  a = (width / size) (height / size), the texel's area perpendicular to the light;
            Phi = albedo E a (E cos on a / cos); A = a / cos
    cos is clamped below at min_cos so A stays finite at grazing angles. */
 #include "common.glsl"

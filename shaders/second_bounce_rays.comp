@@ -1,25 +1,20 @@
 /* Second-bounce VPLs by rays (Keller 1997's instant radiosity), the GPU twin of
-   gim_second_bounce_rays_twin: rays from first-bounce VPLs picked by flux to the nearest
-   triangle of the scene's hierarchy (bvh.glsl's walk, the segment cut at each nearer crossing).
-     mode 0 (one work group): the running sums of the VPLs' pick weights, cdf[0..N-1], and
-             their total in cdf[N], in the twin's order (256 chunks each summed in order, then
-             the chunks' sums in order by one invocation);
-     mode 1 (one invocation per ray): ray j's pick, walk and VPL, written to vpl[first + j].
-   The rays' samples (pick u, direction x, y, z in the VPL's frame) are the twin's, computed on
-   the CPU (gim__second_ray_sample). The hierarchy's triangles carry their material in the w
-   of their first vec4 (gim__gl_bvh). */
+   gim_second_bounce_rays_twin: one invocation per ray. Ray j picks a first-bounce VPL of its
+   stratum by flux (the VPLs it overlaps, [j N, (j + 1) N) in units of 1 / S VPL), walks the
+   scene's hierarchy from it to the nearest triangle (bvh.glsl, the segment cut at each nearer
+   crossing) and writes its VPL to vpl[first + j]. The rays' samples (pick u, direction x, y, z
+   in the VPL's frame) are the twin's, computed on the CPU (gim__second_ray_sample). The
+   hierarchy's triangles carry their material in the w of their first vec4 (gim__gl_bvh). */
 #include "common.glsl"
 layout(local_size_x = 256) in;
 
 struct Vpl { vec4 position; vec4 normal; vec4 flux; };   /* w: lit; area; kept */
 layout(std430, binding = 0) buffer Vpls { Vpl vpl[]; };   /* reads [0, N), writes [first, first + S) */
 layout(std430, binding = 1) readonly buffer Samples { vec4 sample_point[]; };
-layout(std430, binding = 2) buffer Sums { float cdf[]; };
 struct Material { vec4 diffuse; vec4 glossy; };
 layout(std430, binding = 3) readonly buffer Materials { Material material[]; };
 layout(std430, binding = 6) readonly buffer Bvh { vec4 bvh[]; };
 
-layout(location = 0) uniform uint mode;
 layout(location = 1) uniform uint vpl_count;
 layout(location = 2) uniform uint count;
 layout(location = 3) uniform uint first;
@@ -43,54 +38,33 @@ float weight(uint i) {
     return w;
 }
 
-shared float part[256];
+/* gim__second_ray_share: weight(i) times VPL i's overlap of ray j's stratum */
+float share(uint i, uint j) {
+    uint a = j * vpl_count, b = a + vpl_count, c = i * count, d = c + count;
+    precise float s = weight(i) * float(min(b, d) - max(a, c));
+    return s;
+}
 
 void main() {
-    uint k = gl_LocalInvocationID.x;
-    if (mode == 0u) {
-        uint c = (vpl_count + 255u) / 256u, b = k * c;
-        precise float sum = 0.0;
-        for (uint i = b; i < b + c && i < vpl_count; ++i) sum += weight(i);
-        part[k] = sum;
-        barrier();
-        if (k == 0u) {
-            precise float run = 0.0;
-            for (uint q = 0u; q < 256u; ++q) {
-                float p = part[q];
-                part[q] = run;
-                run += p;
-            }
-            cdf[vpl_count] = run;
-        }
-        barrier();
-        float base = part[k];
-        sum = 0.0;
-        for (uint i = b; i < b + c && i < vpl_count; ++i) {
-            sum += weight(i);
-            precise float at = base + sum;
-            cdf[i] = at;
-        }
-        return;
-    }
     uint j = gl_GlobalInvocationID.x;
     if (j >= count) return;
     Vpl o;
     o.position = vec4(0.0);
     o.normal = vec4(0.0);
     o.flux = vec4(0.0);
-    float total = cdf[vpl_count];
+    uint lo = j * vpl_count / count, hi = (j * vpl_count + vpl_count - 1u) / count, i;
+    precise float total = 0.0, run = 0.0;
+    for (i = lo; i <= hi; ++i) total += share(i, j);
     if (total > 0.0 && finite3(vec3(total))) {
         vec4 smp = sample_point[j];
         precise float target = smp.x * total;
-        uint lo = 0u, hi = vpl_count - 1u;
-        while (lo < hi) {
-            uint mid = (lo + hi) / 2u;
-            if (cdf[mid] > target) hi = mid;
-            else lo = mid + 1u;
+        for (i = lo; i <= hi; ++i) {
+            run += share(i, j);
+            if (run > target) break;
         }
-        precise float width = cdf[lo] - (lo != 0u ? cdf[lo - 1u] : 0.0);
-        if (cdf[lo] > target && width > 0.0) {
-            Vpl v = vpl[lo];
+        float w = i <= hi ? weight(i) : 0.0;
+        if (w > 0.0) {
+            Vpl v = vpl[i];
             vec3 n = v.normal.xyz, t, b;
             basis_precise(n, t, b);
             precise vec3 dir = vec3((t.x * smp.y + b.x * smp.z) + n.x * smp.w, (t.y * smp.y + b.y * smp.z) + n.y * smp.w,
@@ -107,7 +81,7 @@ void main() {
                 precise float side = nn.x * dir.x + nn.y * dir.y + nn.z * dir.z;
                 if (l > 0.0 && finite3(vec3(l))) {
                     if (side > 0.0) l = -l;
-                    precise float kk = total / (width * float(count));
+                    precise float kk = total / (w * float(count));
                     uint id = floatBitsToUint(bvh[at].w);
                     vec3 albedo = material_count > 0u ? material[min(id, material_count - 1u)].diffuse.rgb : vec3(0.0);
                     precise vec3 f = vec3(albedo.r * (v.flux.r * kk), albedo.g * (v.flux.g * kk), albedo.b * (v.flux.b * kk));

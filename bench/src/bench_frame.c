@@ -48,7 +48,9 @@
    MIN_RSM^2 on), appended to the sweep's results.csv in place of their rows there from
    MIN_RSM^2 on (to finish or redo part of a sweep); a
    prefix up to a '-' names every view of a scene ("sponza": sponza-atrium and sponza-gallery);
-   the scenes of named_scenes (the courtyard) run only so. */
+   the scenes of named_scenes (the courtyard) run only so. GIMANY_BENCH_ROWS=NAME[,NAME...]: only
+   the rows of those methods (FULL always: the flicker and the ratios are against it), written to
+   the sweep's rows.csv (made anew) instead of results.csv: a quick look at a few rows. */
 #include "benchutil.h"
 #include <sys/stat.h>
 #define GIMANY_IMPLEMENTATION
@@ -155,6 +157,13 @@ static void setup_vpl_ism_imp(gim_frame *f, const bench_method *m) {
 
 /* the VPL rows with one shadow map per VPL drawn from the triangles (GIM_VISIBILITY_SHADOW_MAPS)
    instead of its ISM: at the sequence's VPLs (followed) and drawn by importance */
+/* SSVP's second bounce by rays from the first-bounce VPLs (GIM_SECOND_BOUNCE_RAYS) instead of
+   the clusters' attribute maps, right after the same row with the maps */
+static void setup_vpl_rays(gim_frame *f, const bench_method *m) {
+    setup_vpl(f, m);
+    f->vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
+}
+
 static void setup_vpl_sm(gim_frame *f, const bench_method *m) {
     setup_vpl(f, m);
     f->visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
@@ -191,6 +200,7 @@ static const bench_method methods[] = {
     {"ssvp", GIM_METHOD_SSVP, 0, 4, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl, 1, 1},
+    {"ssvp-rays", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_rays, 1, 1},
     {"ssvp-ism", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism, 1, 1},
     {"ssvp-ism-anew", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_anew, 1, 1},
     {"ssvp-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_imp, 1, 1},
@@ -349,6 +359,22 @@ static double mean_rel_diff(const float *a, const float *b) {
         for (c = 0; c < 3; ++c) { d += fabs((double)a[i * 4 + c] - b[i * 4 + c]); m += b[i * 4 + c]; }
     }
     return m > 0.0 ? d / m : 0.0;
+}
+
+/* Whether GIMANY_BENCH_ROWS (a comma-separated list of row names; unset: every row) names this
+   row's method. */
+static int row_wanted(const char *name) {
+    const char *list = getenv("GIMANY_BENCH_ROWS"), *p;
+    size_t n = strlen(name);
+    if (!list) return 1;
+    for (p = list; *p; ) {
+        const char *e = strchr(p, ',');
+        size_t k = e ? (size_t)(e - p) : strlen(p);
+        if (k == n && strncmp(p, name, n) == 0) return 1;
+        if (!e) break;
+        p = e + 1;
+    }
+    return 0;
 }
 
 /* Temporal flicker: sw->flicker_frames frames while the sun turns by STEP_DEG about
@@ -682,6 +708,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                                (bm->ci == 3 && strncmp(bs->name, "sponza", 6) == 0)))
                 continue;
             if (bm->vpl && rsm != sw->flicker_rsm) continue;   /* VPL methods: one RSM size */
+            if (!row_wanted(bm->name)) continue;
             for (vi = 0; vi < nv; ++vi)
                 for (si = 0; si < ns; ++si) {
                     gim_frame fm = f;
@@ -825,14 +852,15 @@ int main(int argc, char **argv) {
     d.env.logger.func = gim_log_stderr;
     if (gim_create(&d, &ctx) != GIM_OK) return 1;
     printf("renderer: %s; sweep %s\n", renderer_name(), sw->name);
-    snprintf(path, sizeof path, "%s/results.csv", sw->dir);
+    snprintf(path, sizeof path, "%s/%s.csv", sw->dir, getenv("GIMANY_BENCH_ROWS") ? "rows" : "results");
+    if (getenv("GIMANY_BENCH_ROWS")) append = 0;
     if (scene_make_dir(sw->dir, err, sizeof err) == 0) csv = fopen(path, append ? "a" : "w");
     if (csv) fseek(csv, 0, SEEK_END);
     if (csv && ftell(csv) == 0) csv_header();
     for (i = 0; i < SCENE_COUNT + NAMED_COUNT; ++i) {
         const bench_scene *bs = i < SCENE_COUNT ? &scenes[i] : &named_scenes[i - SCENE_COUNT];
         uint32_t min_rsm = 0;
-        int run = !append && i < SCENE_COUNT;
+        int run = argc <= 2 && i < SCENE_COUNT;
         for (a = 2; a < argc; ++a) {
             const char *colon = strchr(argv[a], ':');
             size_t n = colon ? (size_t)(colon - argv[a]) : strlen(argv[a]);

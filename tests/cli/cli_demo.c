@@ -196,8 +196,8 @@ static uint32_t option_changes(const char *base, const char *extra, const char *
 /* Options reach the frame: each changes the image of the same draw (frame 1 of the same
    settings) against its default: one cache per pixel against 16 (--neighbours), clustered
    with every VPL at every pixel against its 4 x 4 subsets (--interleave), SSVP's two bounces
-   with 16 second-bounce VPLs against 256 (--second-bounce-vpls), and by rays against the
-   clusters' maps (--second-bounce-rays). */
+   with 16 second-bounce VPLs against 256 (--second-bounce-vpls), and from the clusters' maps
+   against the default, by rays (--second-bounce-maps). */
 static void options_reach_the_frame(void **state) {
     static const char *const cases[][4] = {
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", "--neighbours 1", "n16", "n1"},
@@ -206,7 +206,7 @@ static void options_reach_the_frame(void **state) {
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
          "--second-bounce-vpls 16", "s256", "s16"},
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
-         "--second-bounce-rays", "smaps", "srays"},
+         "--second-bounce-maps", "srays", "smaps"},
     };
     size_t k;
     (void)state;

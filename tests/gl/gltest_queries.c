@@ -122,7 +122,7 @@ static int programs_built(const gim_context *ctx) {
 /* gim_prepare builds every program the frame then uses: the first gim_update after it builds
    none (variant: 0 defaults, 1 visibility ISM, 2 one bounce without visibility or blur, 3 two
    bounces, 4 VPLs drawn by importance, vpl.importance: BRSM's selection, no rsm_vpls.comp; 5 a shadow map per VPL,
-   SHADOW_MAPS: no ism.comp but for SSVP's second bounce from the maps, whose hits its maps check; 6 the same with the second bounce by rays: none). A bad frame is refused before any program is built. */
+   SHADOW_MAPS: no ism.comp (SSVP's second bounce by rays, the default); 6 the same with the second bounce from the maps, whose hits its ISMs check). A bad frame is refused before any program is built. */
 static void prepared(gim_method m, int variant) {
     frame_fixture ff;
     int before;
@@ -134,7 +134,7 @@ static void prepared(gim_method m, int variant) {
     if (variant == 3) ff.fr.vpl.bounces = 2;
     if (variant == 4) ff.fr.vpl.importance = 1;
     if (variant >= 5) ff.fr.visibility.mode = GIM_VISIBILITY_SHADOW_MAPS;
-    if (variant == 6) ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
+    if (variant == 6) ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;
     ff.fr.width = 0;
     assert_int_equal(gim_prepare(ff.f.ctx, &ff.fr), GIM_ERROR_OUT_OF_RANGE);
     assert_int_equal(programs_built(ff.f.ctx), 0);
@@ -151,11 +151,11 @@ static void prepared(gim_method m, int variant) {
     if (variant == 4) assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_RSM_VPLS], 0);   /* only what the frame uses */
     if (variant >= 5) {   /* the ISM program only to check the second bounce's map hits (the maps') */
         assert_true(ff.f.ctx->programs[GIM__PROGRAM_ISM_FROM_PARABOLOID] != 0);
-        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_ISM] != 0, ff.fr.method == GIM_METHOD_SSVP && variant == 5);
+        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_ISM] != 0, ff.fr.method == GIM_METHOD_SSVP && variant == 6);
     }
     if (ff.fr.method == GIM_METHOD_SSVP) {   /* the second bounce's one program: the maps', or rays */
-        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_SECOND_BOUNCE_RAYS] != 0, variant == 6);
-        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_SECOND_BOUNCE] != 0, variant != 6);
+        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_SECOND_BOUNCE_RAYS] != 0, variant != 6);
+        assert_int_equal(ff.f.ctx->programs[GIM__PROGRAM_SECOND_BOUNCE] != 0, variant == 6);
     }
     frame_end(&ff);
     GLTEST_END();

@@ -209,10 +209,15 @@ typedef struct method_row {
      LightSkin BRSM    0.157 (0.161)          1.148
      LightSkin FULL    0.157 (0.160)          1.151
      clustered, 30     0.116 (0.092-0.175)    0.994   (0.150 at 4096 VPLs, 8 x 8: coarse at 80x45)
-     SSVP, 8, 2 bounces 0.167 (0.108-0.269)   1.020   (0.169, 1.063 before its near field and second-bounce ISMs)
-     SSVP + ISM        0.158                  0.999   (0.157, 0.996 before; the same at 9f17a1f, 2026-12-02)
-     SSVP, its second bounce by rays (GIM_SECOND_BOUNCE_RAYS, 2026-12-02)  0.154 (0.112)  1.009
-     SSVP + ISM, by rays                                                 0.152          0.994
+     SSVP, 8, 2 bounces 0.146 (0.125)         0.976   (2026-12-02: its second bounce by rays, one per stratum
+                                                       of the VPLs, the default; 0.154, 1.009 with one pick over
+                                                       all VPLs' running sums)
+     SSVP + ISM        0.148                  0.962   (0.152, 0.994 with that pick)
+     SSVP, the second bounce from the maps (GIM_SECOND_BOUNCE_MAPS)  0.167 (0.157)  1.025   (1.020 before the
+                                                       sun's window fit, 2026-12-02; 0.169, 1.063 before its near
+                                                       field and second-bounce ISMs)
+     SSVP + ISM, from the maps                                      0.158          1.003   (0.999; 0.157, 0.996
+                                                       before; the same at 9f17a1f)
      BRSM + ISM        0.040 (64^2 maps; 0.075 at 32^2)  0.974
      BRSM + ISM, each pixel's neighbour rays (2026-12-01)  0.040  0.974 (every neighbour in sight)
      BRSM + RAYS (a ray per VAL and cache) + neighbour rays (2026-12-01)  0.031  0.996 (the
@@ -238,8 +243,8 @@ static const method_row cornell_rows[] = {
     {"clustered", GIM_METHOD_CLUSTERED, GIM_VISIBILITY_OFF, 1, 0.145, 0.1, 0, GIM_SECOND_BOUNCE_DEFAULT},
     {"SSVP", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.210, 0.1, 0, GIM_SECOND_BOUNCE_DEFAULT},
     {"SSVP + ISM", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05, 0, GIM_SECOND_BOUNCE_DEFAULT},
-    {"SSVP, 2nd by rays", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.195, 0.05, 0, GIM_SECOND_BOUNCE_RAYS},
-    {"SSVP + ISM, by rays", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.190, 0.05, 0, GIM_SECOND_BOUNCE_RAYS},
+    {"SSVP, 2nd from maps", GIM_METHOD_SSVP, GIM_VISIBILITY_OFF, 2, 0.210, 0.1, 0, GIM_SECOND_BOUNCE_MAPS},
+    {"SSVP + ISM, from maps", GIM_METHOD_SSVP, GIM_VISIBILITY_ISM, 2, 0.200, 0.05, 0, GIM_SECOND_BOUNCE_MAPS},
     {"LightSkin BRSM + ISM", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 0, GIM_SECOND_BOUNCE_DEFAULT},
     {"BRSM + ISM + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_ISM, 1, 0.050, 0.1, 1, GIM_SECOND_BOUNCE_DEFAULT},
     {"BRSM + RAYS + rays", GIM_METHOD_LIGHTSKIN_BRSM, GIM_VISIBILITY_RAYS, 1, 0.040, 0.1, 1, GIM_SECOND_BOUNCE_DEFAULT},

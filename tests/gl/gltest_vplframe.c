@@ -341,7 +341,7 @@ static void only_what_is_enabled(void **state) {
                   (unsigned long long)without);
     assert_true(without + 8ull * 64 * 64 * 8 <= with_maps);   /* 8 maps of 64^2: distance + depth */
     ff.fr.vpl.bounces = 2;   /* by rays: the scene's hierarchy, no map at all */
-    ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
+    ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_DEFAULT;   /* RAYS */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     od = gim_debug(ff.f.ctx);
     assert_true(od.paraboloid_distance == 0 && od.paraboloid_position == 0 && od.paraboloid_albedo == 0);
@@ -349,7 +349,7 @@ static void only_what_is_enabled(void **state) {
     assert_int_equal(od.vpl_count, od.first_bounce_count + 256u);
     assert_int_equal(gim_frame_stats(ff.f.ctx, &st), GIM_OK);
     assert_true(st.gpu_bytes >= without + 256u * 48u + ff.f.ctx->bvh.bytes && st.gpu_bytes < without + 8ull * 64 * 64 * 48);
-    ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_DEFAULT;   /* from the maps (the default): their attributes, no hierarchy */
+    ff.fr.vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;   /* from the maps: their attributes, no hierarchy */
     assert_int_equal(gim_update(ff.f.ctx, &ff.fr), GIM_OK);
     od = gim_debug(ff.f.ctx);
     assert_int_equal(ff.f.ctx->bvh.buffer, 0);

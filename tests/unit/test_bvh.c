@@ -172,10 +172,12 @@ static void nearest_equals_every_triangle(void **state) {
 }
 
 /* gim_second_bounce_rays_twin's closed forms: a cosine emitter under a large ceiling of albedo
-   rho returns rho Phi in all, R^2 / (R^2 + h^2) of it within R of the point above it; two VPLs
-   of flux 3 and 1 send 3/4 and 1/4 of the rays, every landed VPL of the same flux (1 / (S p)
-   undoes the pick); unlit and non-finite VPLs send none; a closed box keeps every ray (the
-   walls' albedo times the flux). Bad input refused. */
+   rho returns rho Phi in all, R^2 / (R^2 + h^2) of it within R of the point above it; of four
+   VPLs (flux 3, 1, unlit, not finite) each owns a quarter of the rays (its stratum), the unlit
+   and non-finite ones send none, the others carry rho Phi_i / (S / 4) each; a closed box keeps
+   every ray, and for grey VPLs its flux is the walls' albedo times sum Phi exactly for any N
+   and S (sum_j W_j = sum_i w_i); fluxes changed by 1% move few rays (the strata), where one
+   pick over all VPLs' running sums moved nearly all. Bad input refused. */
 static void second_bounce_rays_closed_forms(void **state) {
     test_alloc_stats as;
     gim_env env = test_env(&as, NULL);
@@ -208,18 +210,20 @@ static void second_bounce_rays_closed_forms(void **state) {
         ++lit;
         assert_true(fabsf(out[j].position[1] - 1.0f) < 1e-5f && out[j].normal[1] == -1.0f);
         assert_true(fabsf(out[j].flux[1] / out[j].flux[0] - 0.5f) < 1e-5f);   /* the albedo's colour */
-        assert_true(fabs(f - 0.5 * 4.0 / S) < 1e-6 * f + 1e-12);            /* Phi_i / (S p_i), the same for all */
-        x = out[j].position[0] - (j < 3u * S / 4u ? 0.0 : 0.25);          /* the first 3/4 of the picks: VPL 0 */
+        assert_true(j < S / 2u);                                           /* strata 2, 3: unlit, not finite */
+        want = 0.5 * (j < S / 4u ? 3.0 : 1.0) * 4.0 / S;                   /* rho Phi_i / (S / 4) */
+        assert_true(fabs(f - want) < 1e-6 * want);
+        x = out[j].position[0] - (j < S / 4u ? 0.0 : 0.25);               /* stratum 0: VPL 0 */
         z = out[j].position[2];
         total += f;
         if (x * x + z * z < 1.0) inside += f;
-        if (j < 3u * S / 4u) from0 += f;
+        if (j < S / 4u) from0 += f;
     }
     want = 0.5 * 4.0;   /* rho (Phi_0 + Phi_1) */
     print_message("ceiling: %u of %u rays land, flux %.5f (closed form %.5f), within 1 of the point above %.4f "
                   "(1 / 2), from the brighter VPL %.4f (3 / 4)\n", lit, (unsigned)S, total, want, inside / total,
                   from0 / total);
-    assert_true(lit >= S - 4u);   /* a few leave parallel to the ceiling, past its edge */
+    assert_true(lit >= S / 2u - 4u);   /* a few leave parallel to the ceiling, past its edge */
     assert_true(fabs(total / want - 1.0) < 2e-3);
     assert_true(fabs(inside / total - 0.5) < 0.01);
     assert_true(fabs(from0 / total - 0.75) < 1e-3);
@@ -227,19 +231,49 @@ static void second_bounce_rays_closed_forms(void **state) {
     {   /* a closed box [-1, 1]^3 (12 triangles): every ray lands, the flux is the walls' albedo times Phi */
         float cs[6][9] = {{-1, -1, -1, 2, 0, 0, 0, 2, 0}, {-1, -1, 1, 2, 0, 0, 0, 2, 0}, {-1, -1, -1, 0, 2, 0, 0, 0, 2},
                           {1, -1, -1, 0, 2, 0, 0, 0, 2},  {-1, -1, -1, 2, 0, 0, 0, 0, 2}, {-1, 1, -1, 2, 0, 0, 0, 0, 2}};
+        static const uint32_t ns[4] = {1, 5, 64, 4096}, ss[5] = {1, 3, 7, 256, 1024};
+        gim_vpl *many = (gim_vpl *)calloc(4096, sizeof(gim_vpl)), *again = (gim_vpl *)malloc(S * sizeof(gim_vpl));
+        uint32_t ni, si, moved = 0;
         double got = 0.0;
         for (k = 0; k < 6; ++k) quad(box, 2 * k, cs[k], cs[k] + 3, cs[k] + 6);
         sc.positions = box; sc.triangle_count = 12;
         assert_int_equal(gim_bvh_build(&sc, env, &b), GIM_OK);
-        vp[0].position[0] = 0.3f; vp[0].position[1] = -1.0f; vp[0].position[2] = -0.2f;
-        d.vpl_count = 1; d.count = 1024; d.scene_scale = 3.5f;
-        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
-        for (j = 0; j < 1024u; ++j) {
-            assert_true(out[j].lit == 1.0f);
-            got += out[j].flux[2];
+        test_rng_state = 11;
+        for (k = 0; k < 4096u; ++k) {   /* grey VPLs on the floor, fluxes 0.5..1.5 */
+            gim_vpl *m = many + k;
+            m->lit = 1.0f; m->normal[1] = 1.0f;
+            m->position[0] = test_rnd(-0.9f, 0.9f); m->position[1] = -1.0f; m->position[2] = test_rnd(-0.9f, 0.9f);
+            m->flux[0] = m->flux[1] = m->flux[2] = test_rnd(0.5f, 1.5f);
         }
-        print_message("closed box: flux %.6f (closed form %.6f)\n", got, 0.75 * 3.0);
-        assert_true(fabs(got / (0.75 * 3.0) - 1.0) < 1e-5);
+        d.vpls = many; d.scene_scale = 3.5f;
+        for (ni = 0; ni < 4u; ++ni)
+            for (si = 0; si < 5u; ++si) {
+                double sum = 0.0;
+                got = 0.0;
+                d.vpl_count = ns[ni]; d.count = ss[si];
+                for (k = 0; k < ns[ni]; ++k) sum += many[k].flux[2];
+                assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
+                for (j = 0; j < ss[si]; ++j) {
+                    assert_true(out[j].lit == 1.0f);
+                    got += out[j].flux[2];
+                }
+                if (fabs(got / (0.75 * sum) - 1.0) >= 1e-4)
+                    print_message("closed box, %u VPLs, %u rays: flux %.6f (closed form %.6f)\n", (unsigned)ns[ni],
+                                  (unsigned)ss[si], got, 0.75 * sum);
+                assert_true(fabs(got / (0.75 * sum) - 1.0) < 1e-4);
+            }
+        /* 4096 VPLs, 256 rays: every flux changed by up to 1% moves few rays */
+        d.vpl_count = 4096; d.count = 256;
+        assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
+        for (k = 0; k < 4096u; ++k) many[k].flux[0] = many[k].flux[1] = many[k].flux[2] *= test_rnd(0.99f, 1.01f);
+        assert_int_equal(gim_second_bounce_rays_twin(&d, again), GIM_OK);
+        for (j = 0; j < 256u; ++j) moved += memcmp(out[j].position, again[j].position, sizeof out[j].position) != 0;
+        print_message("closed box: fluxes changed by up to 1%%: %u of 256 rays moved\n", (unsigned)moved);
+        assert_true(moved < 26u);
+        free(many);
+        free(again);
+        d.vpls = vp;
+        d.vpl_count = 1; d.count = 1024;
         /* bad input */
         d.count = 0;
         assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_ERROR_OUT_OF_RANGE);

@@ -162,6 +162,34 @@ static void light_camera(void **state) {
         gim_vec3 d = gim_v3_normalize(l.direction), f = gim_v3(-v.m[2], -v.m[6], -v.m[10]);
         assert_true(fabsf(gim__v3_dot(d, f) + 1.0f) < 1e-5f);
     }
+    {   /* extent 0: the window is the bounds' shadow, a rectangle the corners touch on all four
+           sides (within the margin, 0.1% of the bounds' radius): a long street under a high sun fills it, where the
+           sphere's square left 78% of it empty; extent > 0 a square of that half-width */
+        float lmin[3] = {-50, 0, -4}, lmax[3] = {50, 6, 4}, lo[2] = {2, 2}, hi[2] = {-2, -2};
+        l.direction = gim_v3(0.1f, 1.0f, 0.05f);
+        assert_int_equal(gim_light_camera(&l, lmin, lmax, &v, &p), GIM_OK);
+        vp = gim_mat4_mul(p, v);
+        for (k = 0; k < 8; ++k) {
+            gim_vec3 q = gim_mat4_point(vp, gim_v3((k & 1) ? lmax[0] : lmin[0], (k & 2) ? lmax[1] : lmin[1],
+                                                   (k & 4) ? lmax[2] : lmin[2]));
+            if (q.x < lo[0]) lo[0] = q.x;
+            if (q.x > hi[0]) hi[0] = q.x;
+            if (q.y < lo[1]) lo[1] = q.y;
+            if (q.y > hi[1]) hi[1] = q.y;
+        }
+        for (k = 0; k < 2; ++k) assert_true(lo[k] > -1.0f && lo[k] < -0.98f && hi[k] < 1.0f && hi[k] > 0.98f);
+        /* the window: 100.x long, 8.x wide (the street seen from above), not the sphere's 100.9 square */
+        {
+            float w = 2.0f / p.m[0], h = 2.0f / p.m[5], big = w > h ? w : h, small = w > h ? h : w;
+            print_message("sun window %.3f x %.3f\n", w, h);
+            assert_true(big > 100.0f && big < 104.0f && small > 8.0f && small < 20.0f);
+        }
+        l.extent = 30.0f;
+        assert_int_equal(gim_light_camera(&l, lmin, lmax, &v, &p), GIM_OK);
+        assert_true(fabsf(2.0f / p.m[0] - 60.0f) < 1e-3f && fabsf(2.0f / p.m[5] - 60.0f) < 1e-3f);
+        l.extent = 0.0f;
+        l.direction = gim_v3(0.2f, 1.0f, -0.3f);
+    }
     /* errors: NULL, empty or non-finite bounds, bad light */
     assert_int_equal(gim_light_camera(NULL, bmin, bmax, &v, &p), GIM_ERROR_INVALID_ARGUMENT);
     bmin[0] = NAN;
