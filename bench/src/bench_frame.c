@@ -157,11 +157,11 @@ static void setup_vpl_ism_imp(gim_frame *f, const bench_method *m) {
 
 /* the VPL rows with one shadow map per VPL drawn from the triangles (GIM_VISIBILITY_SHADOW_MAPS)
    instead of its ISM: at the sequence's VPLs (followed) and drawn by importance */
-/* SSVP's second bounce by rays from the first-bounce VPLs (GIM_SECOND_BOUNCE_RAYS) instead of
-   the clusters' attribute maps, right after the same row with the maps */
-static void setup_vpl_rays(gim_frame *f, const bench_method *m) {
+/* SSVP's second bounce from the clusters' attribute maps (GIM_SECOND_BOUNCE_MAPS, SSVP's paper)
+   instead of by rays from the first-bounce VPLs (the default), right after the default's row */
+static void setup_vpl_maps(gim_frame *f, const bench_method *m) {
     setup_vpl(f, m);
-    f->vpl.second_bounce = GIM_SECOND_BOUNCE_RAYS;
+    f->vpl.second_bounce = GIM_SECOND_BOUNCE_MAPS;
 }
 
 static void setup_vpl_sm(gim_frame *f, const bench_method *m) {
@@ -200,7 +200,7 @@ static const bench_method methods[] = {
     {"ssvp", GIM_METHOD_SSVP, 0, 4, 1024, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 64, 2, setup_vpl, 2, 1},
     {"ssvp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl, 1, 1},
-    {"ssvp-rays", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_rays, 1, 1},
+    {"ssvp-maps", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_maps, 1, 1},
     {"ssvp-ism", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism, 1, 1},
     {"ssvp-ism-anew", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_ism_anew, 1, 1},
     {"ssvp-imp", GIM_METHOD_SSVP, 0, 8, 256, 2, setup_vpl_imp, 1, 1},
