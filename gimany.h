@@ -93,8 +93,10 @@
                            no caches, no visibility; f.gather
      CLUSTERED             VPLs clustered by k-means into VALs with paraboloid soft shadow maps
                            [3]; f.vpl
-     SSVP                  two bounces from one paraboloid map per cluster [4], the second
-                           shadowed by one imperfect shadow map [5] per second-bounce VPL; f.vpl
+     SSVP                  two bounces: clustered VPLs with one paraboloid map per cluster [4],
+                           the second bounce by rays from the VPLs [6] (or from the clusters' maps,
+                           [4]'s), shadowed by one imperfect shadow map [5] per second-bounce
+                           VPL; f.vpl
      Visibility (f.visibility.mode = GIM_VISIBILITY_ISM): imperfect shadow maps [5], one per
      cache (LightSkin) or per VPL (instant radiosity [6] when vpl.count == vpl.cluster_count);
      GIM_VISIBILITY_SHADOW_MAPS: CLUSTERED's and SSVP's per VPL drawn from the triangles, as
@@ -508,10 +510,10 @@ typedef enum gim_method {
                                        cluster_count VALs, one paraboloid soft shadow map each; every VPL
                                        shades with its VAL's visibility */
     GIM_METHOD_SSVP                 /* Aranha et al.: vpl_count Hammersley VPLs, k-means (SSVP metric) into
-                                       cluster_count clusters, a paraboloid map per cluster with
-                                       position, normal and albedo whose unit-disk samples are the
-                                       second-bounce VPLs (gim_frame_vpl.second_bounce: or by rays from the
-                                       VPLs); both bounces shade (bounces = 2 by default) */
+                                       cluster_count clusters, a paraboloid map per cluster, second-bounce
+                                       VPLs by rays from the VPLs (gim_frame_vpl.second_bounce: or, the
+                                       paper's, from the clusters' maps of position, normal and albedo);
+                                       both bounces shade (bounces = 2 by default) */
 } gim_method;
 
 /* Visibility of the indirect light (docs/design.md sec. 8). The VPL methods (CLUSTERED, SSVP) have
@@ -748,7 +750,8 @@ GIMANY_API gim_frame gim_frame_defaults(gim_method method);
    same seeds every frame; an empty cluster re-seeded from the farthest lit VPL) -> the clusters' VALs
    (gim_cluster_paraboloids_twin) -> layered passes of paraboloid maps (distance for visibility,
    past near_distance; position, normal and albedo at two bounces, past attribute_near: with
-   both, two passes) -> second-bounce VPLs (gim_second_bounce_vpls_twin)
+   both, two passes) -> second-bounce VPLs (by rays, gim_second_bounce_rays_twin; from the maps,
+   gim_second_bounce_vpls_twin)
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
    With visibility ISM the VPL methods make no depth maps: one imperfect shadow map per VPL of
