@@ -717,7 +717,7 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.lightskin.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.lightskin.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
-                    if (fm.visibility.mode != GIM_VISIBILITY_OFF) {
+                    if (fm.visibility.mode != GIM_VISIBILITY_OFF && fm.visibility.mode != GIM_VISIBILITY_DEFAULT) {
                         /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
                            a frame without them frees them, the next makes them (RAYS: the hierarchy's
                            build, stamped GIM_PASS_ISM) */

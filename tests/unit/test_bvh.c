@@ -177,7 +177,10 @@ static void nearest_equals_every_triangle(void **state) {
    and non-finite ones send none, the others carry rho Phi_i / (S / 4) each; a closed box keeps
    every ray, and for grey VPLs its flux is the walls' albedo times sum Phi exactly for any N
    and S (sum_j W_j = sum_i w_i); fluxes changed by 1% move few rays (the strata), where one
-   pick over all VPLs' running sums moved nearly all. Bad input refused. */
+   pick over all VPLs' running sums moved nearly all. Each ray's area is one over the landings'
+   density had every VPL sent its flux's share of the rays (closed form); where the strata
+   share them so, the areas tile the ceiling (their sum over a disc its area). Bad input
+   refused. */
 static void second_bounce_rays_closed_forms(void **state) {
     test_alloc_stats as;
     gim_env env = test_env(&as, NULL);
@@ -227,6 +230,31 @@ static void second_bounce_rays_closed_forms(void **state) {
     assert_true(fabs(total / want - 1.0) < 2e-3);
     assert_true(fabs(inside / total - 0.5) < 0.01);
     assert_true(fabs(from0 / total - 0.75) < 1e-3);
+    /* the areas: one over the landings' density as if each VPL sent its flux's share S w_i / W
+       of the rays, S (9 / d_0^4 + 3 / d_1^4) / (pi 12) at h = 1 */
+    for (j = 0; j < S; ++j) {
+        double x0 = out[j].position[0], x1 = x0 - 0.25, z = out[j].position[2], d0, d1, a;
+        if (!(out[j].lit > 0.0f)) continue;
+        d0 = x0 * x0 + z * z + 1.0;
+        d1 = x1 * x1 + z * z + 1.0;
+        a = 3.14159265358979 * 12.0 / (S * (9.0 / (d0 * d0) + 3.0 / (d1 * d1)));
+        if (fabs(out[j].area - a) > 2e-4 * a) print_message("ray %u: area %.6g, closed form %.6g\n", j, out[j].area, a);
+        assert_true(fabs(out[j].area - a) < 2e-4 * a);
+    }
+    /* where the strata share the rays by flux (two VPLs of one flux, S / 2 rays each) the areas
+       tile the ceiling: those landing within 1 of the point above VPL 0 sum to pi */
+    vp[0].flux[0] = vp[0].flux[1] = vp[0].flux[2] = 1.0f;
+    d.vpl_count = 2;
+    assert_int_equal(gim_second_bounce_rays_twin(&d, out), GIM_OK);
+    for (j = 0, inside = 0.0, lit = 0; j < S; ++j) {
+        double x0 = out[j].position[0], z = out[j].position[2];
+        if (out[j].lit > 0.0f && x0 * x0 + z * z < 1.0) inside += out[j].area, ++lit;
+    }
+    print_message("ceiling, two VPLs of one flux: the areas of the %u rays landing within 1 of the point above "
+                  "VPL 0 sum to %.4f (pi)\n", lit, inside);
+    assert_true(fabs(inside / 3.14159265358979 - 1.0) < 0.02);
+    vp[0].flux[0] = vp[0].flux[1] = vp[0].flux[2] = 3.0f;
+    d.vpl_count = 4;
     gim_bvh_free(&b);
     {   /* a closed box [-1, 1]^3 (12 triangles): every ray lands, the flux is the walls' albedo times Phi */
         float cs[6][9] = {{-1, -1, -1, 2, 0, 0, 0, 2, 0}, {-1, -1, 1, 2, 0, 0, 0, 2, 0}, {-1, -1, -1, 0, 2, 0, 0, 0, 2},
