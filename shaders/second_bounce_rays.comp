@@ -29,8 +29,7 @@ layout(location = 21) uniform float bvh_scale;
 #include "bvh.glsl"
 
 /* gim__second_ray_weight */
-float weight(uint i) {
-    Vpl v = vpl[i];
+float weight_of(Vpl v) {
     uvec3 f = floatBitsToUint(v.flux.rgb);
     if (!positive(floatBitsToUint(v.position.w)) || !finite3(floatBitsToUint(v.position.xyz)) ||
         !finite3(floatBitsToUint(v.normal.xyz)) || !finite3(f) || !nonneg3(f))
@@ -38,6 +37,8 @@ float weight(uint i) {
     precise float w = (v.flux.r + v.flux.g) + v.flux.b;
     return w;
 }
+
+float weight(uint i) { return weight_of(vpl[i]); }
 
 /* gim__second_ray_share: weight(i) times VPL i's overlap of ray j's stratum */
 float share(uint i, uint j) {
@@ -49,9 +50,9 @@ float share(uint i, uint j) {
 /* VPL i's terms of gim__second_ray_area at x (normal nx): its weight w and w cos_i cos_x / d^2
    (0 behind either side) */
 vec2 density_terms(uint i, vec3 x, vec3 nx) {
-    float w = weight(i);
-    if (!(w > 0.0)) return vec2(0.0);
     Vpl v = vpl[i];
+    float w = weight_of(v);
+    if (!(w > 0.0)) return vec2(0.0);
     precise float dx = x.x - v.position.x, dy = x.y - v.position.y, dz = x.z - v.position.z;
     precise float d2 = (dx * dx + dy * dy) + dz * dz;
     precise float ci = (v.normal.x * dx + v.normal.y * dy) + v.normal.z * dz;

@@ -930,8 +930,8 @@ static void empty_scene_and_no_materials(void **state) {
 /* The second bounce by rays (second_bounce_rays.comp) against gim_second_bounce_rays_twin on
    the hierarchy of the same world triangles: the room and its box, 96 floor VPLs of unequal
    flux (every 7th unlit), S = 4096 rays. Every ray's VPL the same to float rounding (lit flag,
-   position, normal, flux, area > 0; a ray grazing a shared edge may land on the neighbour: at most 0.5%),
-   and the physics: the flux landing on the box over its albedo against the VPLs' flux-weighted
+   position, normal, flux, area > 0; a ray grazing a shared edge may land on the neighbour: at
+   most 0.5%), and the physics: the flux landing on the box over its albedo against the VPLs' flux-weighted
    form factor to the box (this test's own ray cast in double, 4096 cosine directions a VPL),
    within 5%; the flux in all against the same cast's albedo-weighted landing. */
 static void second_bounce_rays_match_twin(void **state) {
