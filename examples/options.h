@@ -28,7 +28,7 @@ typedef struct demo_options {
     uint32_t neighbours;     /* brsm, full: caches interpolated per pixel (0: gimany's default, 16) */
     float defensive_share;   /* brsm: VALs drawn by luminance alone (0: gimany's default; < 0: none) */
     uint32_t vpls, clusters; /* clustered, ssvp: VPLs per light and clusters; 0: the method's defaults */
-    uint32_t interleave;     /* clustered, ssvp: k of the k x k interleaved subsets (0: the method's default) */
+    uint32_t interleave;     /* clustered, ssvp: k of the k x k interleaved subsets (0: the library's, by the image) */
     uint32_t second_vpls;    /* --bounces 2: second-bounce VPLs in all (0: the library's default, 256) */
     int second_rays;         /* --bounces 2: 1 by rays from the first-bounce VPLs (GIM_SECOND_BOUNCE_RAYS, the
                                 default), -1 from the clusters' maps (MAPS), 0 the library's default */
@@ -69,7 +69,7 @@ static const char demo_usage_text[] =
     "                        the second bounce to either\n"
     "  --interleave K        clustered, ssvp: each pixel of a K x K block shades its own subset of the VPLs,\n"
     "                        a geometry-aware K x K blur joins them (1..32; 1: every VPL at every pixel;\n"
-    "                        default 4 clustered, 8 ssvp)\n"
+    "                        default 4 clustered, 8 ssvp from 720 rows up, in proportion below)\n"
     "  --second-bounce-vpls N  with --bounces 2: the second bounce's VPLs in all, split over the clusters\n"
     "                        (1..65536; default 256)\n"
     "  --second-bounce-maps  with --bounces 2: second-bounce VPLs from the clusters' attribute maps (SSVP's\n"
@@ -274,7 +274,7 @@ DEMO_OPTIONS_FN void demo_frame_settings(const demo_options *d, int bounces, gim
                caches x VALs, per light
      full      caches x rsm^2 per light
      gather    pixels x 256 pattern texels per light
-     clustered, ssvp   pixels x VPLs / k^2 (--interleave k; 4 clustered, 8 ssvp), second bounce included
+     clustered, ssvp   pixels x VPLs / k^2 (--interleave k; 0: gim_vpl_default_interleave), second bounce included
      LightSkin interpolation pixels x 16 neighbours; with --ism the maps' surfels, caches x 16384;
                with --rays 64 a ray, caches x VALs
    memory: 52 bytes an RSM texel (+ 12 with brsm's tables) per light, about 140 a pixel.
@@ -295,7 +295,10 @@ DEMO_OPTIONS_FN void demo_cost(const demo_options *d, uint32_t width, uint32_t h
     else if (!strcmp(d->method, "clustered") || !strcmp(d->method, "ssvp")) {
         int cl = !strcmp(d->method, "clustered");
         double v = d->vpls ? d->vpls : cl ? 2048.0 : 4096.0;   /* the library's defaults: VPLs and */
-        double k = d->interleave ? d->interleave : cl ? 4.0 : 8.0, k2 = k * k;   /* interleave k^2 */
+        double k = d->interleave ? d->interleave                      /* interleave k^2 */
+                                 : gim_vpl_default_interleave(cl ? GIM_METHOD_CLUSTERED : GIM_METHOD_SSVP, width, height,
+                                                              (uint32_t)v),
+               k2 = k * k;
         double second = d->second_vpls ? d->second_vpls : 256.0;   /* the library's default */
         t = px * (L * v + (bounces == 2 || (!cl && bounces != 1) ? second : 0.0)) / k2;
     }

@@ -37,6 +37,11 @@
    clustered-imp, clustered-ism-imp, ssvp-imp, ssvp-ism-imp: the VPL rows with their VPLs drawn
    where the light reaches the view (gim_frame_vpl.importance: BRSM's importance, 256 view
    samples; no VPL is followed, a pick that stays on its point keeps its map).
+   The VPL rows run the interleave of a 720-row frame (CLUSTERED 4 x 4, SSVP 8 x 8), the
+   library's default from 720 rows up: at these sizes its default is every VPL at every pixel
+   (gim_vpl_default_interleave), 15-25x the frame here (the street's SSVP 0.8 -> 20 s), so the
+   errors below carry a blur that spans more of these small images than of a frame's
+   (docs/methods.md, "The interleave by the view").
    clustered-sm, clustered-sm-imp, ssvp-sm, ssvp-sm-imp: the same with one shadow map per VPL
    drawn from the triangles (GIM_VISIBILITY_SHADOW_MAPS) instead of its ISM; the -imp ones only in
    bench-full (while the sun turns every pick's map is made again, a draw of the street per map:
@@ -717,6 +722,8 @@ static void bench_scene_run(gim_context *ctx, gim_env env, const bench_scene *bs
                     fm.lightskin.val_count = bm->per_val ? sw->vals[vi] : 0;
                     fm.lightskin.view_sample_count = bm->per_val ? sw->view_samples[si] : 0;
                     if (bm->setup) bm->setup(&fm, bm);
+                    if ((fm.method == GIM_METHOD_CLUSTERED || fm.method == GIM_METHOD_SSVP) && fm.vpl.interleave == 0)
+                        fm.vpl.interleave = gim_vpl_default_interleave(fm.method, 1280, 720, fm.vpl.count);   /* 720 rows' */
                     if (fm.visibility.mode != GIM_VISIBILITY_OFF && fm.visibility.mode != GIM_VISIBILITY_DEFAULT) {
                         /* the maps' own pass, once per RSM size (the other VAL counts reuse the maps):
                            a frame without them frees them, the next makes them (RAYS: the hierarchy's

@@ -195,14 +195,15 @@ static uint32_t option_changes(const char *base, const char *extra, const char *
 
 /* Options reach the frame: each changes the image of the same draw (frame 1 of the same
    settings) against its default: one cache per pixel against 16 (--neighbours), clustered
-   with every VPL at every pixel against its 4 x 4 subsets (--interleave), SSVP's two bounces
+   with 4 x 4 subsets against every VPL at every pixel (--interleave; the default at 24 rows),
+   SSVP's two bounces
    with 16 second-bounce VPLs against 256 (--second-bounce-vpls), and from the clusters' maps
    against the default, by rays (--second-bounce-maps). */
 static void options_reach_the_frame(void **state) {
     static const char *const cases[][4] = {
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --vals 64", "--neighbours 1", "n16", "n1"},
-        {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4", "--interleave 1",
-         "k4", "k1"},
+        {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method clustered --vpls 256 --clusters 4", "--interleave 4",
+         "k1", "k4"},
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",
          "--second-bounce-vpls 16", "s256", "s16"},
         {"--scene cornell --size 32x24 --frames 1 --rsm 32 --method ssvp --vpls 256 --bounces 2",

@@ -364,8 +364,10 @@ static void glossy_sizes_and_no_caches(void **state) {
 /* gim_frame_defaults writes out the documented defaults, and a frame of them renders exactly
    what the zero frame renders (gim_update resolves every zero from gim_frame_defaults once):
    every method, and ISM visibility with LightSkin and CLUSTERED, each on a fresh context (the
-   k-means start warm from a context's last frame). Shown to fail: with gim__frame_resolve
-   leaving vpl.interleave 0, CLUSTERED's zero frame is refused. */
+   k-means start warm from a context's last frame). vpl.interleave, like kmeans_iterations, is
+   left 0: its default is the view's (gim_vpl_default_interleave, checked here at its corners).
+   Shown to fail: with gim_frame_defaults writing the methods' 4 and 8, CLUSTERED's frame of
+   defaults (4 x 4) differs from its zero frame (every VPL at every pixel at 96 rows). */
 static void frame_defaults_render_as_zero(void **state) {
     static const gim_method methods[] = {GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_LIGHTSKIN_FULL, GIM_METHOD_RSM_GATHER,
                                          GIM_METHOD_CLUSTERED, GIM_METHOD_SSVP, GIM_METHOD_LIGHTSKIN_BRSM, GIM_METHOD_CLUSTERED};
@@ -390,15 +392,32 @@ static void frame_defaults_render_as_zero(void **state) {
     assert_int_equal(d.vpl.bounces, 1);
     assert_int_equal(d.vpl.paraboloid_size, 256);
     assert_int_equal(d.vpl.second_bounce_vpls, 256);
-    assert_int_equal(d.vpl.interleave, 8);
+    assert_int_equal(d.vpl.interleave, 0);
     assert_true(d.vpl.clamp_distance == 0.01f && d.vpl.blur_distance == 0.1f);
     assert_true(d.width == 0 && d.height == 0 && d.gbuffer.depth == 0 && d.scene_scale == 0.0f && d.vpl.kmeans_iterations == 0);
     d = gim_frame_defaults(GIM_METHOD_SSVP);
     assert_true(d.method == GIM_METHOD_SSVP && d.vpl.cluster_count == 8 && d.vpl.bounces == 2 && d.visibility.ism_points == 2048);
-    assert_true(d.vpl.count == 4096 && d.vpl.interleave == 8);
+    assert_true(d.vpl.count == 4096 && d.vpl.interleave == 0);
+    /* k_m = 8 from 720 rows up, 8 x rows / 720 rounded up below; k^2 at most the VPLs */
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1920, 1080, 0), 8);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1280, 720, 0), 8);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 720, 1280, 0), 8);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1280, 719, 0), 8);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 640, 360, 0), 4);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 642, 361, 0), 5);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 160, 90, 0), 1);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 64, 36, 0), 1);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, W, H, 0), 2);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 0, 0, 0), 1);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1920, 1080, 63), 7);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1920, 1080, 1), 1);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 65535, 65535, 0), 8);
     d = gim_frame_defaults(GIM_METHOD_CLUSTERED);
     assert_true(d.vpl.cluster_count == 30 && d.vpl.bounces == 1 && d.visibility.ism_size == 64 && d.visibility.ism_points == 2048);
-    assert_true(d.vpl.count == 2048 && d.vpl.interleave == 4);
+    assert_true(d.vpl.count == 2048 && d.vpl.interleave == 0);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_CLUSTERED, 1920, 1080, 0), 4);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_CLUSTERED, 640, 360, 0), 2);
+    assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_CLUSTERED, W, H, 0), 1);
     img[0] = (float *)malloc(W * H * 16);
     img[1] = (float *)malloc(W * H * 16);
     for (mi = 0; mi < sizeof methods / sizeof methods[0]; ++mi) {
