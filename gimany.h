@@ -14083,7 +14083,7 @@ GIMANY_DEF gim_frame gim_frame_defaults(gim_method method) {
 GIMANY_DEF uint32_t gim_vpl_default_interleave(gim_method method, uint32_t width, uint32_t height, uint32_t count) {
     uint32_t km = method == GIM_METHOD_CLUSTERED ? 4u : 8u, side = width < height ? width : height;
     uint64_t k = ((uint64_t)km * side + 719u) / 720u;   /* the smallest k of at most 720 rows' work */
-    if (count == 0u) count = method == GIM_METHOD_CLUSTERED ? 2048u : 4096u;
+    if (count == 0u) count = gim_frame_defaults(method).vpl.count;
     if (k > km) k = km;
     while (k > 1u && k * k > count) --k;
     return k > 1u ? (uint32_t)k : 1u;

@@ -39,7 +39,8 @@
    samples; no VPL is followed, a pick that stays on its point keeps its map).
    The VPL rows run the interleave of a 720-row frame (CLUSTERED 4 x 4, SSVP 8 x 8), the
    library's default from 720 rows up: at these sizes its default is every VPL at every pixel
-   (gim_vpl_default_interleave), 15-25x the frame here (the street's SSVP 0.8 -> 20 s), so the
+   (gim_vpl_default_interleave), 3-15x the frame here (one demo frame: the street's SSVP
+   1.5 -> 20 s, clustered 3.7 -> 12 s; the Cornell box's 0.4 -> 3.3 and 6.8 s), so the
    errors below carry a blur that spans more of these small images than of a frame's
    (docs/methods.md, "The interleave by the view").
    clustered-sm, clustered-sm-imp, ssvp-sm, ssvp-sm-imp: the same with one shadow map per VPL
