@@ -2078,7 +2078,18 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
                                          tests/gl/gltest_physics.c) */
 #define GIM_ISM_VPL_SLOPE 0.05f
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
-#define GIM_ISM_SPLAT_TEXELS 3        /* a surfel covers at most (2 x 3 + 1)^2 texels */
+/* A cache's surfels cover only the texels whose centre ray meets their disk, up to 8 texels out:
+   written also to the texel its point lands in (the VPLs' below), a surfel widens every
+   silhouette by up to a texel (false shadow), and cut at 3 texels the near ones leave holes
+   (light through them). Against the VPLs' set, on the Cornell box BRSM + ISM 0.0429 -> 0.0370
+   rel. MAE, Sponza's atrium 0.358 -> 0.352, the closed room 0.0047 -> 0.0030 inside
+   (docs/methods.md, "The surfels' reach"). */
+#define GIM_ISM_SPLAT_TEXELS 8        /* a surfel covers at most (2 x 8 + 1)^2 texels */
+/* The VPL methods' maps have 8x fewer points (GIM_ISM_DEFAULT_VPL_POINTS): their near surfels,
+   metres wide in Sponza, overhang its columns unless cut at 3 texels (the atrium, clustered +
+   importance: 0.508 at 3, 0.613 at 8), and each also writes the texel its point lands in, which
+   fills the holes the cut leaves near the VPL. */
+#define GIM_ISM_VPL_SPLAT_TEXELS 3
 
 /* count points area-uniform over the scene's triangles, deterministic and low-discrepancy:
    point i takes u = (i + 0.5) / count of the cumulative area (which picks the triangle and a
@@ -2102,6 +2113,8 @@ typedef struct gim_ism_desc {
     float bias;                     /* relative depth bias; 0: GIM_ISM_BIAS */
     float slope;                    /* slope bias; 0: GIM_ISM_SLOPE */
     float scene_scale;              /* > 0 */
+    uint32_t vpl_surfels;           /* nonzero: the maps are VPLs' (each surfel also on its own texel,
+                                       GIM_ISM_VPL_SPLAT_TEXELS); 0: caches' (GIM_ISM_SPLAT_TEXELS) */
     gim_env env;
 } gim_ism_desc;
 
@@ -2112,10 +2125,11 @@ typedef struct gim_ism_desc {
    in front of the map's plane (w.z > 0) at distance dist > GIM_ISM_LIFT scene_scale lands in
    the texel under w.xy / (1 + w.z) (floor, clamped). As a surfel of radius
    rs = GIM_ISM_SPLAT sqrt(a / pi) in its plane it covers each texel within
-   R = min(ceil(rs / dist size / 2), GIM_ISM_SPLAT_TEXELS) of that one whose centre ray meets
+   R = min(ceil(rs / dist size / 2), T) of that one whose centre ray meets
    the plane (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's
-   distance; its own texel wherever the ray meets the plane beyond the lift, else at dist. The
-   nearest wins; texels nothing covered are GIM_PARABOLOID_EMPTY before pull-push. Pull: each
+   distance; T = GIM_ISM_SPLAT_TEXELS. With vpl_surfels, T = GIM_ISM_VPL_SPLAT_TEXELS and the
+   surfel also covers its own texel wherever the ray meets the plane beyond the lift, else at
+   dist. The nearest wins; texels nothing covered are GIM_PARABOLOID_EMPTY before pull-push. Pull: each
    coarser texel is the farthest of its non-empty children (the paper's mean lets a near
    occluder's depth into the holes around it: false shadow); push: an empty texel takes its
    parent's value, from the coarsest level down. A map no point reached stays empty (sees
@@ -7815,7 +7829,8 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
 
 /* One surfel into a map (see gim_ism_render_twin), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
-                           const float *p, float area) {
+                           const float *p, float area, int vpl) {
+    const int32_t cap = vpl ? GIM_ISM_VPL_SPLAT_TEXELS : GIM_ISM_SPLAT_TEXELS;
     float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
     int32_t tx, cx, cy, x, y, r, own;
     d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
@@ -7828,7 +7843,7 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
     rs2 = rs * rs;
     rf = ceilf(rs / dist * fs * 0.5f);
-    r = rf < (float)GIM_ISM_SPLAT_TEXELS ? (int32_t)rf : GIM_ISM_SPLAT_TEXELS;
+    r = rf < (float)cap ? (int32_t)rf : cap;
     dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
     own = 0;
     for (y = cy - r; y <= cy + r; ++y)
@@ -7841,13 +7856,13 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
             s = dn / den;
             if (!(s > lift)) continue;
             h[0] = s * dir[0] - d[0]; h[1] = s * dir[1] - d[1]; h[2] = s * dir[2] - d[2];
-            /* its own texel is its plane's wherever the ray meets it (a texel seen at a grazing
-               angle spans depths far beyond rs) */
-            if (!(x == cx && y == cy) && h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
+            /* a VPL's surfel: its own texel is its plane's wherever the ray meets it (a texel
+               seen at a grazing angle spans depths far beyond rs) */
+            if (!(vpl && x == cx && y == cy) && h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
             if (s < map[y * (int32_t)size + x]) map[y * (int32_t)size + x] = s;
             own |= x == cx && y == cy;
         }
-    if (!own && dist < map[tx]) map[tx] = dist;         /* its own texel, where the ray misses */
+    if (vpl && !own && dist < map[tx]) map[tx] = dist;  /* its own texel, where the ray misses */
 }
 
 GIMANY_DEF uint16_t gim_ism_quantize(float d) {
@@ -7885,7 +7900,7 @@ GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *dista
         gim__ism_frame(desc->caches[m].position, desc->caches[m].normal, lift, o, &t, &b, &n);
         for (k = 0; k < n_take; ++k) {
             const float *p = desc->points + (size_t)(off + k * stride) * 8;
-            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
+            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3], desc->vpl_surfels != 0u);
         }
         gim__ism_pull_push(map, size, scratch);
         for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(map[q]));
@@ -10684,7 +10699,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    depths, two to a uint (texel 2k in the low half; gim_ism_quantize), size^2 / 2 uints a map,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
-   work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each. */
+   work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each (VPLs: _VPL_SPLAT_TEXELS). */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
@@ -10779,7 +10794,8 @@ static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1ui(3, take);
     gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
     gl->Uniform1f(5, GIM_ISM_SPLAT);
-    gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
+    gl->Uniform1i(6, source_vec4s == 3u ? GIM_ISM_VPL_SPLAT_TEXELS : GIM_ISM_SPLAT_TEXELS);
+    gl->Uniform1ui(11, source_vec4s == 3u ? 1u : 0u);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
     gl->Uniform1ui(10, !made ? 0u : keep ? 2u : 1u);
