@@ -2082,7 +2082,7 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
    written also to the texel its point lands in (the VPLs' below), a surfel widens every
    silhouette by up to a texel (false shadow), and cut at 3 texels the near ones leave holes
    (light through them). Against the VPLs' set, on the Cornell box BRSM + ISM 0.0429 -> 0.0370
-   rel. MAE, Sponza's atrium 0.358 -> 0.352, the closed room 0.0047 -> 0.0030 inside
+   rel. MAE, the closed room 0.0047 -> 0.0030 inside, Sponza's atrium 0.358 -> 0.352 (one draw)
    (docs/methods.md, "The surfels' reach"). */
 #define GIM_ISM_SPLAT_TEXELS 8        /* a surfel covers at most (2 x 8 + 1)^2 texels */
 /* The VPL methods' maps have 8x fewer points (GIM_ISM_DEFAULT_VPL_POINTS): their near surfels,
@@ -10699,7 +10699,8 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    depths, two to a uint (texel 2k in the low half; gim_ism_quantize), size^2 / 2 uints a map,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
-   work. Cost: cache_count P surfels of up to (2 GIM_ISM_SPLAT_TEXELS + 1)^2 texels each (VPLs: _VPL_SPLAT_TEXELS). */
+   work. Cost: cache_count P surfels of up to (2 T + 1)^2 texels each, T = GIM_ISM_SPLAT_TEXELS
+   (VPLs: GIM_ISM_VPL_SPLAT_TEXELS). */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
