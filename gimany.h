@@ -5423,10 +5423,13 @@ static int gim__unit_or_zero(const float *n, int zero_ok) {
     if (zero_ok && l2 == 0.0f) return 1;
     return l2 > 0.999f && l2 < 1.001f;
 }
-/* Phong lobe value ((r . v)+)^k; k = 0 is the constant lobe (pow(0, 0) = 1). */
+/* Phong lobe value ((r . v)+)^k; k = 0 is the constant lobe (pow(0, 0) = 1). r . v is held to
+   1: a VAL's near field blends its cos_x and direction apart, so r = 2 cos_x n - d is not quite
+   unit there, and 1.0001^1e6 is no float (a fuzzed glossy proxy's sums became inf, its
+   position NaN). */
 static float gim__lobe(float cos_e, float k) {
     if (k == 0.0f) return 1.0f;
-    return cos_e > 0.0f ? powf(cos_e, k) : 0.0f;
+    return cos_e > 0.0f ? powf(cos_e < 1.0f ? cos_e : 1.0f, k) : 0.0f;
 }
 static float gim__clamp_flt(double x) { return x < (double)FLT_MAX ? (float)x : FLT_MAX; }
 

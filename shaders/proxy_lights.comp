@@ -165,7 +165,7 @@ bool finite4(vec4 v) {   /* exponent bits, not isinf/isnan, which fast-math may 
 const float NO_LOBE = -1e30;
 float log2_lobe(float c, float k) {
     if (k == 0.0) return 0.0;
-    float l = c > 0.0 ? k * log2(c) : NO_LOBE;
+    float l = c > 0.0 ? k * log2(min(c, 1.0)) : NO_LOBE;   /* r . v held to 1, as the twin's gim__lobe */
     return l >= -149.0 ? l : NO_LOBE;
 }
 
