@@ -587,7 +587,7 @@ typedef struct gim_frame_visibility {
                                    up to 32,768 caches, 32^2 up to 131,072) and refuses an explicit side whose
                                    maps exceed GIM_ISM_MAX_BYTES (1 GiB); CLUSTERED, SSVP keep 64 */
     uint32_t ism_points;        /* points per map; 0: GIM_ISM_DEFAULT_POINTS (16384; CLUSTERED, SSVP:
-                                   GIM_ISM_DEFAULT_VPL_POINTS, 2048); at most GIM_ISM_MAX_POINTS */
+                                   GIM_ISM_DEFAULT_VPL_POINTS, 65536); at most GIM_ISM_MAX_POINTS */
     uint32_t neighbour_rays;    /* LightSkin, with any mode: 1 = each pixel interpolates only the neighbour
                                    caches it sees, tested by a ray through a bounding volume hierarchy of the
                                    scene's triangles (gim_neighbour_rays_twin; built when the scene changes,
@@ -2062,34 +2062,40 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
 #define GIM_ISM_MAX_POINTS 65536u
 #define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (docs/methods.md) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
-#define GIM_ISM_DEFAULT_VPL_POINTS 2048u  /* the VPL methods' maps, made whenever the light moves: on the Cornell box
-                                             (4096 VPLs, 32^2) 16384 points cost 15 s a frame on llvmpipe
-                                             for the same error as 2048 at 3.7 s (docs/methods.md) */
+#define GIM_ISM_DEFAULT_VPL_POINTS 65536u /* the VPL methods' maps, made for the VPLs new in a frame: inside
+                                             Sponza's atrium clustered 0.458 -> 0.278 rel. MAE against 2048
+                                             points (first frame 1.9 -> 6.6 s on llvmpipe; docs/methods.md,
+                                             "The VPLs' surfels") */
 #define GIM_ISM_BUDGET_BYTES (256u << 20)  /* LightSkin's default side halves until the caches' maps fit */
 #define GIM_ISM_MAX_BYTES (1u << 30)      /* the most an explicit side may take (maps of 16 bits a texel) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
-#define GIM_ISM_VPL_BIAS 0.01f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
+#define GIM_ISM_VPL_BIAS 0.04f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
                                          wall of thickness t once the VPL is t / b away (0.15: 2 m of ground
-                                         lit through the 0.3 walls of tests/gl/gltest_visibility.c; 0.01 there
-                                         leaves 0.4 % inside, and removes 0.3 % of an open corner's light,
-                                         tests/gl/gltest_physics.c) */
+                                         lit through the 0.3 walls of tests/gl/gltest_visibility.c; 0.04 there
+                                         leaves 0.1 % inside; 0.02 removes 1.2 % of an open corner's light,
+                                         0.04 0.4-0.9 %, tests/gl/gltest_physics.c) */
 #define GIM_ISM_VPL_SLOPE 0.05f
+#define GIM_VPL_SHADOW_MAP_BIAS 0.01f  /* GIM_VISIBILITY_SHADOW_MAPS' maps (from the triangles, exact at each
+                                          texel): 0.04 there leaves 1.4 % of the closed room's pixels above
+                                          5 % with importance VPLs (0.87 % at 0.02) */
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
-/* A cache's surfels cover only the texels whose centre ray meets their disk, up to 8 texels out:
-   written also to the texel its point lands in (the VPLs' below), a surfel widens every
-   silhouette by up to a texel (false shadow), and cut at 3 texels the near ones leave holes
-   (light through them). Against the VPLs' set, on the Cornell box BRSM + ISM 0.0429 -> 0.0370
+/* A surfel covers only the texels whose centre ray meets its disk, up to 8 texels out: written
+   also to the texel its point lands in (the VPLs' maps until 2026-12-04, below), a surfel widens
+   every silhouette by up to a texel (false shadow), and cut at 3 texels the near ones leave holes
+   (light through them). Against that set, on the Cornell box BRSM + ISM 0.0429 -> 0.0370
    rel. MAE, the closed room 0.0047 -> 0.0030 inside, Sponza's atrium 0.358 -> 0.352 (one draw)
    (docs/methods.md, "The surfels' reach"). */
 #define GIM_ISM_SPLAT_TEXELS 8        /* a surfel covers at most (2 x 8 + 1)^2 texels */
-/* The VPL methods' maps have 8x fewer points (GIM_ISM_DEFAULT_VPL_POINTS): their near surfels,
-   metres wide in Sponza, overhang its columns unless cut at 3 texels (the atrium, clustered +
-   importance: 0.508 at 3, 0.613 at 8), and each also writes the texel its point lands in, which
-   fills the holes the cut leaves near the VPL. */
-#define GIM_ISM_VPL_SPLAT_TEXELS 3
+/* The VPL methods' maps take the same surfels. Until 2026-12-04 they had 2048 points, each also
+   written to the texel it lands in and cut at 3 texels (metres-wide surfels in Sponza overhang
+   its columns); at 65,536 points these disks take Sponza's atrium from 0.508 to 0.282 rel. MAE
+   (clustered + importance) and the Cornell box from 0.068 to 0.043 (docs/methods.md, "The VPLs'
+   surfels"). Smaller disks (1.2) measured better there (0.2495) but leave holes in surfaces seen
+   at grazing angles, which pull-push fills with nearer depths: an open corner lost 1.2-1.9 % of
+   its light, pixels near the contact edge over 20 % (tests/gl/gltest_physics.c). */
 
 /* count points area-uniform over the scene's triangles, deterministic and low-discrepancy:
    point i takes u = (i + 0.5) / count of the cumulative area (which picks the triangle and a
@@ -2113,8 +2119,6 @@ typedef struct gim_ism_desc {
     float bias;                     /* relative depth bias; 0: GIM_ISM_BIAS */
     float slope;                    /* slope bias; 0: GIM_ISM_SLOPE */
     float scene_scale;              /* > 0 */
-    uint32_t vpl_surfels;           /* nonzero: the maps are VPLs' (each surfel also on its own texel,
-                                       GIM_ISM_VPL_SPLAT_TEXELS); 0: caches' (GIM_ISM_SPLAT_TEXELS) */
     gim_env env;
 } gim_ism_desc;
 
@@ -2125,20 +2129,18 @@ typedef struct gim_ism_desc {
    in front of the map's plane (w.z > 0) at distance dist > GIM_ISM_LIFT scene_scale lands in
    the texel under w.xy / (1 + w.z) (floor, clamped). As a surfel of radius
    rs = GIM_ISM_SPLAT sqrt(a / pi) in its plane it covers each texel within
-   R = min(ceil(rs / dist size / 2), T) of that one whose centre ray meets
-   the plane (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's
-   distance; T = GIM_ISM_SPLAT_TEXELS. With vpl_surfels, T = GIM_ISM_VPL_SPLAT_TEXELS and the
-   surfel also covers its own texel wherever the ray meets the plane beyond the lift, else at
-   dist. The nearest wins; texels nothing covered are GIM_PARABOLOID_EMPTY before pull-push. Pull: each
-   coarser texel is the farthest of its non-empty children (the paper's mean lets a near
-   occluder's depth into the holes around it: false shadow); push: an empty texel takes its
-   parent's value, from the coarsest level down. A map no point reached stays empty (sees
-   nothing: visibility 1). Float arithmetic in the order of ism.comp. Stored in 16 bits a
-   texel (the GPU packs two to a uint: Sponza's 24,863 caches at 64^2 take 204 MB): the
-   upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7 mantissa bits,
-   relative error at most 2^-8, far below the bias); distance_out holds those
-   values as floats, bit for bit what the GPU's maps decode to. An empty texel stays
-   >= GIM_PARABOLOID_EMPTY. */
+   R = min(ceil(rs / dist size / 2), T) of that one whose centre ray meets the plane
+   (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's distance;
+   T = GIM_ISM_SPLAT_TEXELS. The nearest wins; texels nothing covered are
+   GIM_PARABOLOID_EMPTY before pull-push. Pull: each coarser texel is the farthest of its
+   non-empty children (the paper's mean lets a near occluder's depth into the holes around it:
+   false shadow); push: an empty texel takes its parent's value, from the coarsest level down.
+   A map no point reached stays empty (sees nothing: visibility 1). Float arithmetic in the order of
+   ism.comp. Stored in 16 bits a texel (the GPU packs two to a uint: Sponza's 24,863 caches at 64^2
+   take 204 MB): the upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7
+   mantissa bits, relative error at most 2^-8, far below the bias); distance_out holds those values
+   as floats, bit for bit what the GPU's maps decode to. An empty texel stays >=
+   GIM_PARABOLOID_EMPTY. */
 GIMANY_API gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *distance_out);
 
 /* The 16-bit depth of an ISM texel: (bits of d + 0x8000) >> 16 for d >= 0 (ism.comp's
@@ -7832,10 +7834,10 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
 
 /* One surfel into a map (see gim_ism_render_twin), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
-                           const float *p, float area, int vpl) {
-    const int32_t cap = vpl ? GIM_ISM_VPL_SPLAT_TEXELS : GIM_ISM_SPLAT_TEXELS;
+                           const float *p, float area) {
+    const int32_t cap = GIM_ISM_SPLAT_TEXELS;
     float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
-    int32_t tx, cx, cy, x, y, r, own;
+    int32_t tx, cx, cy, x, y, r;
     d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
     dist = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
     if (!(dist > lift)) return;                         /* the cache's own point */
@@ -7848,7 +7850,6 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     rf = ceilf(rs / dist * fs * 0.5f);
     r = rf < (float)cap ? (int32_t)rf : cap;
     dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
-    own = 0;
     for (y = cy - r; y <= cy + r; ++y)
         for (x = cx - r; x <= cx + r; ++x) {
             float dir[3], den, s, h[3];
@@ -7859,13 +7860,9 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
             s = dn / den;
             if (!(s > lift)) continue;
             h[0] = s * dir[0] - d[0]; h[1] = s * dir[1] - d[1]; h[2] = s * dir[2] - d[2];
-            /* a VPL's surfel: its own texel is its plane's wherever the ray meets it (a texel
-               seen at a grazing angle spans depths far beyond rs) */
-            if (!(vpl && x == cx && y == cy) && h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
+            if (h[0] * h[0] + h[1] * h[1] + h[2] * h[2] > rs2) continue;
             if (s < map[y * (int32_t)size + x]) map[y * (int32_t)size + x] = s;
-            own |= x == cx && y == cy;
         }
-    if (vpl && !own && dist < map[tx]) map[tx] = dist;  /* its own texel, where the ray misses */
 }
 
 GIMANY_DEF uint16_t gim_ism_quantize(float d) {
@@ -7903,7 +7900,7 @@ GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *dista
         gim__ism_frame(desc->caches[m].position, desc->caches[m].normal, lift, o, &t, &b, &n);
         for (k = 0; k < n_take; ++k) {
             const float *p = desc->points + (size_t)(off + k * stride) * 8;
-            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3], desc->vpl_surfels != 0u);
+            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
         }
         gim__ism_pull_push(map, size, scratch);
         for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(map[q]));
@@ -10702,8 +10699,7 @@ static gim_result gim__gl_proxy_lights_ism(gim_context *ctx, gim__GLuint caches,
    depths, two to a uint (texel 2k in the low half; gim_ism_quantize), size^2 / 2 uints a map,
    written. size a power of two in GIM_ISM_MIN_SIZE..GIM_ISM_MAX_SIZE, points_per_map in
    1..GIM_ISM_MAX_POINTS (at most point_count taken), scene_scale > 0: checked before any GL
-   work. Cost: cache_count P surfels of up to (2 T + 1)^2 texels each, T = GIM_ISM_SPLAT_TEXELS
-   (VPLs: GIM_ISM_VPL_SPLAT_TEXELS). */
+   work. Cost: cache_count P surfels of up to (2 T + 1)^2 texels each, T = GIM_ISM_SPLAT_TEXELS. */
 static gim_result gim__gl_ism_render_of(gim_context *ctx, gim__GLuint caches, uint32_t source_vec4s, uint32_t source_first,
                                         uint32_t map_first, uint32_t cache_count, gim__GLuint points, uint32_t point_count,
                                         uint32_t size, uint32_t points_per_map, float scene_scale, gim__GLuint maps_out);
@@ -10798,8 +10794,7 @@ static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1ui(3, take);
     gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
     gl->Uniform1f(5, GIM_ISM_SPLAT);
-    gl->Uniform1i(6, source_vec4s == 3u ? GIM_ISM_VPL_SPLAT_TEXELS : GIM_ISM_SPLAT_TEXELS);
-    gl->Uniform1ui(11, source_vec4s == 3u ? 1u : 0u);
+    gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);
     gl->Uniform1ui(10, !made ? 0u : keep ? 2u : 1u);
@@ -13769,8 +13764,8 @@ static GIM__UNUSED gim_result gim__gl_paraboloids(gim_context *ctx, gim__GLuint 
    (ctx->vsm_list). In batches of up to GIM__VSM_LAYERS layers: the paraboloid pass draws VPL
    list[first + l] into layer l, ism_from_paraboloid.comp stores the layers, a dispatch per
    storage range of maps; made (one uint) counts the maps made. Cost: every triangle of the
-   scene once per map made, each covered texel a ray-triangle test: far more than an ISM's 2048
-   surfels on a large scene, but only for the VPLs new this frame. */
+   scene once per map made, each covered texel a ray-triangle test (an ISM splats 65,536
+   surfels), only for the VPLs new this frame. */
 static gim_result gim__gl_vpl_shadow_maps(gim_context *ctx, gim__GLuint vpls, uint32_t source_first, uint32_t map_first,
                                           uint32_t count, uint32_t size, float scene_scale, gim__GLuint maps_out,
                                           gim__GLuint made, int keep) {
@@ -14611,7 +14606,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.ism = ism || s.second_ism ? ctx->ism_maps : 0u;
         a.ism_first = s.second_ism ? first : 0u;
         a.ism_size = ism_size;
-        a.ism_bias = GIM_ISM_VPL_BIAS;
+        a.ism_bias = f->visibility.mode == GIM_VISIBILITY_SHADOW_MAPS ? GIM_VPL_SHADOW_MAP_BIAS : GIM_ISM_VPL_BIAS;
         a.ism_slope = GIM_ISM_VPL_SLOPE;
         a.map_size = s.size;
         a.interleave = s.interleave;

@@ -84,7 +84,7 @@ static const char demo_usage_text2[] =
     "                        cache, clustered, ssvp one per VPL; --ism-size N their side, a power of two in\n"
     "                        4..64 (default 64; LightSkin halves it where the maps exceed 256 MiB);\n"
     "                        --ism-points N\n"
-    "                        the points splatted into each, 1..65536 (default 16384)\n"
+    "                        the points splatted into each, 1..65536 (default 16384; clustered, ssvp 65536)\n"
     "  --shadow-maps         clustered, ssvp: one shadow map per VPL rendered from the triangles instead\n"
     "                        of its ISM (exact at each texel; a draw of the scene per map made);\n"
     "                        --ism-size N their side\n"

@@ -25,14 +25,13 @@ layout(location = 2) uniform uint stride;      /* point_count / P */
 layout(location = 3) uniform uint count;       /* P: points per map */
 layout(location = 4) uniform float lift;       /* GIM_ISM_LIFT scene_scale */
 layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
-layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS, GIM_ISM_VPL_SPLAT_TEXELS */
+layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 layout(location = 8) uniform uint source_first; /* map m's origin is source entry source_first + m */
 layout(location = 9) uniform uint out_first;    /* Maps is bound from map out_first on (a block holds a range) */
 layout(location = 10) uniform uint vpl_mode;    /* 0: every map made. VPLs (gim_vpl): 1: not an unlit VPL's (its
                                                    light is 0, no pass reads its map), the maps made counted in
                                                    made; 2: nor a kept VPL's (flux.w 1), which keeps its map */
-layout(location = 11) uniform uint conservative; /* 1: VPLs' surfels, each also on the texel its point lands in */
 layout(std430, binding = 3) buffer Made { uint made; };
 
 shared uint level0[MAX_SIZE * MAX_SIZE];
@@ -54,7 +53,6 @@ void splat_point(vec3 o, vec3 t, vec3 b, vec3 n, Point p, float area) {
     int r = rf < float(max_texels) ? int(rf) : max_texels;
     vec3 pn = p.normal.xyz;
     float dn = d.x * pn.x + d.y * pn.y + d.z * pn.z;
-    bool own = false;
     for (int y = cy - r; y <= cy + r; ++y)
         for (int x = cx - r; x <= cx + r; ++x) {
             if (x < 0 || y < 0 || x >= int(size) || y >= int(size)) continue;
@@ -64,11 +62,9 @@ void splat_point(vec3 o, vec3 t, vec3 b, vec3 n, Point p, float area) {
             float s = dn / den;
             if (!(s > lift)) continue;
             vec3 h = vec3(s * dir.x - d.x, s * dir.y - d.y, s * dir.z - d.z);
-            if (!(conservative != 0u && x == cx && y == cy) && h.x * h.x + h.y * h.y + h.z * h.z > rs2) continue;
+            if (h.x * h.x + h.y * h.y + h.z * h.z > rs2) continue;
             put(y * int(size) + x, s);
-            own = own || (x == cx && y == cy);
         }
-    if (conservative != 0u && !own) put(tx, dist);
 }
 
 float fetch(uint level, uint off, uint sz, uint x, uint y) {

@@ -396,7 +396,7 @@ static void frame_defaults_render_as_zero(void **state) {
     assert_true(d.vpl.clamp_distance == 0.01f && d.vpl.blur_distance == 0.1f);
     assert_true(d.width == 0 && d.height == 0 && d.gbuffer.depth == 0 && d.scene_scale == 0.0f && d.vpl.kmeans_iterations == 0);
     d = gim_frame_defaults(GIM_METHOD_SSVP);
-    assert_true(d.method == GIM_METHOD_SSVP && d.vpl.cluster_count == 8 && d.vpl.bounces == 2 && d.visibility.ism_points == 2048);
+    assert_true(d.method == GIM_METHOD_SSVP && d.vpl.cluster_count == 8 && d.vpl.bounces == 2 && d.visibility.ism_points == 65536u);
     assert_true(d.vpl.count == 4096 && d.vpl.interleave == 0);
     /* k_m = 8 from 720 rows up, 8 x rows / 720 rounded up below; k^2 at most the VPLs */
     assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1920, 1080, 0), 8);
@@ -413,7 +413,7 @@ static void frame_defaults_render_as_zero(void **state) {
     assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 1920, 1080, 1), 1);
     assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_SSVP, 65535, 65535, 0), 8);
     d = gim_frame_defaults(GIM_METHOD_CLUSTERED);
-    assert_true(d.vpl.cluster_count == 30 && d.vpl.bounces == 1 && d.visibility.ism_size == 64 && d.visibility.ism_points == 2048);
+    assert_true(d.vpl.cluster_count == 30 && d.vpl.bounces == 1 && d.visibility.ism_size == 64 && d.visibility.ism_points == 65536u);
     assert_true(d.vpl.count == 2048 && d.vpl.interleave == 0);
     assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_CLUSTERED, 1920, 1080, 0), 4);
     assert_int_equal(gim_vpl_default_interleave(GIM_METHOD_CLUSTERED, 640, 360, 0), 2);

@@ -138,7 +138,6 @@ static void maps_of_vpls_match(void **state) {
     memset(&d, 0, sizeof d);
     d.caches = s.caches; d.cache_count = NC; d.points = s.points; d.point_count = NP;
     d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
-    d.vpl_surfels = 1;   /* a VPL's map: the VPLs' surfels */
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);

@@ -250,8 +250,8 @@ static void corner_ism_removes_nothing(void **state) {
         p->fr.vpl.count = 1024;
         p->fr.vpl.interleave = 4;
         p->fr.vpl.bounces = 1;
-        p->fr.visibility.ism_size = 16;
-        p->fr.visibility.ism_points = 1024;
+        p->fr.visibility.ism_size = 0;   /* the default maps, 64^2 x 65536 points */
+        p->fr.visibility.ism_points = 0;
         for (m = 0; m < 4; ++m) {
             float *none = (float *)malloc(W * H * 16), *ism = (float *)malloc(W * H * 16);
             double sn = 0.0, si = 0.0;

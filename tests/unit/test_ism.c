@@ -86,7 +86,7 @@ static int clear(const float *pos, uint32_t tris, const float o[3], const float 
 
 /* Three caches 1.6 above a lit floor facing down, the plate at height 1 between: the share of
    (cache, VAL) pairs whose ISM visibility differs from an exact segment test. */
-static double plate_error(float s, uint32_t size, int vpl, uint32_t *wrong_out) {
+static double plate_error(float s, uint32_t size, uint32_t *wrong_out) {
     float pos[4 * 9], alb[4 * 3], *pts, *maps, *vis;
     gim_cache caches[3];
     gim_val vals[400];
@@ -118,7 +118,6 @@ static double plate_error(float s, uint32_t size, int vpl, uint32_t *wrong_out) 
     d.points = pts; d.point_count = n;
     d.scene_scale = 5.7f * s;
     d.size = size;
-    d.vpl_surfels = (uint32_t)vpl;
     maps = (float *)malloc(3 * 64 * 64 * sizeof(float));
     vis = (float *)malloc(3 * 400 * sizeof(float));
     assert_int_equal(gim_ism_render_twin(&d, maps), GIM_OK);
@@ -137,20 +136,17 @@ static double plate_error(float s, uint32_t size, int vpl, uint32_t *wrong_out) 
 }
 
 /* Caches above a plate see the floor around its shadow and not under it. What differs from
-   exact segment tests is the plate's silhouette: a cache's surfels overhang it by their disk's
-   reach past the edge; a VPL's (vpl_surfels) also write the texel each point lands in, which
-   dilates the silhouette by up to a texel, so they are wrong more often. The same in any unit. */
+   exact segment tests is the plate's silhouette: a surfel overhangs it by its disk's reach past
+   the edge. The same in any unit. */
 static void plate_shadow(void **state) {
-    uint32_t w1, w2, w3, w4, w5, w6;
-    double e1 = plate_error(1.0f, 32, 0, &w1), e2 = plate_error(1e-3f, 32, 0, &w2), e3 = plate_error(1e3f, 32, 0, &w3);
-    double e4 = plate_error(1.0f, 64, 0, &w4), e5 = plate_error(1.0f, 32, 1, &w5), e6 = plate_error(1.0f, 64, 1, &w6);
+    uint32_t w1, w2, w3, w4;
+    double e1 = plate_error(1.0f, 32, &w1), e2 = plate_error(1e-3f, 32, &w2), e3 = plate_error(1e3f, 32, &w3);
+    double e4 = plate_error(1.0f, 64, &w4);
     (void)state;
-    print_message("plate: %.4f of the pairs wrong at 32^2 (mm %.4f, km %.4f), %.4f at 64^2; VPL surfels %.4f, %.4f\n", e1,
-                  e2, e3, e4, e5, e6);
-    assert_true(e1 <= 0.08);
-    assert_true(e4 <= 0.04);
-    assert_true(e5 <= 0.08 && e6 <= 0.04);
-    assert_true(w1 < w5 && w4 < w6);   /* the caches' surfels do not dilate the silhouette */
+    print_message("plate: %.4f of the pairs wrong at 32^2 (mm %.4f, km %.4f), %.4f at 64^2\n", e1, e2, e3, e4);
+    assert_true(e1 <= 0.05);
+    assert_true(e4 <= 0.035);
+    assert_true(w4 < w1);   /* finer maps, a narrower overhang */
     assert_true(w2 == w1 && w3 == w1);   /* unit-free (float rounding could move a texel; it does not here) */
 }
 
@@ -159,9 +155,9 @@ static void plate_shadow(void **state) {
    closed form of its centre ray (0.6 / w.z through the plate, 1.6 / w.z onto the floor, empty past
    the floor's edge), within the 16-bit rounding (2^-8 relative), but within 1e-3 of an edge; an
    unlit VPL's map is empty. Through the same lookup as the ISMs (gim_ism_visibility_twin) the
-   floor's VALs are wrong against exact segments at most half as often as with the points' maps
-   (plate_shadow: 7% at 32^2; here 2.7%): only where a texel's centre ray and the VAL fall on the
-   two sides of the plate's edge, where a surfel also overhangs it. */
+   floor's VALs are wrong against exact segments less often than with the points' maps
+   (plate_shadow: 4.4% at 32^2; here 2.7%): only where a texel's centre
+   ray and the VAL fall on the two sides of the plate's edge, where a surfel also overhangs it. */
 static void shadow_maps_plate(void **state) {
     enum { S = 32 };
     float pos[4 * 9], alb[4 * 3], *maps = (float *)malloc(4 * S * S * sizeof(float)), *vis = (float *)malloc(3 * 400 * 4);
@@ -240,7 +236,7 @@ static void shadow_maps_plate(void **state) {
     }
     memset(&d, 0, sizeof d);
     d.caches = caches; d.cache_count = 3; d.size = S; d.scene_scale = 5.7f;
-    d.bias = GIM_ISM_VPL_BIAS; d.slope = GIM_ISM_VPL_SLOPE;
+    d.bias = GIM_VPL_SHADOW_MAP_BIAS; d.slope = GIM_ISM_VPL_SLOPE;
     assert_int_equal(gim_ism_visibility_twin(&d, maps, vals, 400, vis), GIM_OK);
     for (i = 0; i < 3; ++i)
         for (j = 0; j < 400; ++j) {
@@ -250,10 +246,10 @@ static void shadow_maps_plate(void **state) {
         }
     {
         uint32_t ism_wrong;
-        plate_error(1.0f, S, 1, &ism_wrong);   /* the same pairs through the points' maps */
+        plate_error(1.0f, S, &ism_wrong);   /* the same pairs through the points' maps */
         print_message("shadow maps over the plate: %u of %u VPL-VAL pairs wrong at %u^2 (the ISMs: %u)\n", wrong, total, S,
                       ism_wrong);
-        assert_true(wrong <= total * 3u / 100u && 2u * wrong <= ism_wrong);
+        assert_true(wrong <= total * 3u / 100u && 3u * wrong <= 2u * ism_wrong);   /* 32 against 53 */
     }
     assert_int_equal(gim_vpl_shadow_maps_twin(&sc, v, 4, 24, 5.7f, maps, env), GIM_ERROR_INVALID_ARGUMENT);
     assert_int_equal(gim_vpl_shadow_maps_twin(&sc, v, 4, S, 0.0f, maps, env), GIM_ERROR_INVALID_ARGUMENT);

@@ -394,7 +394,6 @@ static void shade_uses_vpl_ism(void **state) {
     memset(&id, 0, sizeof id);
     id.caches = &c; id.cache_count = 1; id.points = pts; id.point_count = NPT; id.size = IS; id.scene_scale = 4.0f;
     id.env = env;
-    id.vpl_surfels = 1;
     assert_int_equal(gim_ism_render_twin(&id, ism), GIM_OK);
     r[0] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
     r[1] = rec(gim_v3(3, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
