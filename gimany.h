@@ -2062,10 +2062,12 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
 #define GIM_ISM_MAX_POINTS 65536u
 #define GIM_ISM_DEFAULT_SIZE 64u      /* the paper has 32^2; 64^2 halves the Cornell box's error (docs/methods.md) */
 #define GIM_ISM_DEFAULT_POINTS 16384u
-#define GIM_ISM_DEFAULT_VPL_POINTS 65536u /* the VPL methods' maps, made for the VPLs new in a frame: inside
-                                             Sponza's atrium clustered 0.458 -> 0.278 rel. MAE against 2048
-                                             points (first frame 1.9 -> 6.6 s on llvmpipe; docs/methods.md,
-                                             "The VPLs' surfels") */
+#define GIM_ISM_DEFAULT_VPL_POINTS 65536u /* the VPL methods' maps, made for the VPLs new in a frame (SSVP's
+                                             second bounce: every frame): with the caches' surfels and bias
+                                             0.04, inside Sponza's atrium clustered 0.458 -> 0.278 rel. MAE
+                                             against 2048 points and the old surfels (first frame 1.9 -> 6.6 s
+                                             on llvmpipe; SSVP + ISM on the Cornell box 326 -> 1523 ms a
+                                             frame; docs/methods.md, "The VPLs' surfels") */
 #define GIM_ISM_BUDGET_BYTES (256u << 20)  /* LightSkin's default side halves until the caches' maps fit */
 #define GIM_ISM_MAX_BYTES (1u << 30)      /* the most an explicit side may take (maps of 16 bits a texel) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
@@ -7835,7 +7837,6 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
 /* One surfel into a map (see gim_ism_render_twin), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
                            const float *p, float area) {
-    const int32_t cap = GIM_ISM_SPLAT_TEXELS;
     float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
     int32_t tx, cx, cy, x, y, r;
     d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
@@ -7848,7 +7849,7 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
     rs2 = rs * rs;
     rf = ceilf(rs / dist * fs * 0.5f);
-    r = rf < (float)cap ? (int32_t)rf : cap;
+    r = rf < (float)GIM_ISM_SPLAT_TEXELS ? (int32_t)rf : GIM_ISM_SPLAT_TEXELS;
     dn = d[0] * p[4] + d[1] * p[5] + d[2] * p[6];
     for (y = cy - r; y <= cy + r; ++y)
         for (x = cx - r; x <= cx + r; ++x) {
@@ -14606,7 +14607,7 @@ static gim_result gim__gl_vpl_frame(gim_context *ctx, const gim_frame *f, gim__G
         a.ism = ism || s.second_ism ? ctx->ism_maps : 0u;
         a.ism_first = s.second_ism ? first : 0u;
         a.ism_size = ism_size;
-        a.ism_bias = f->visibility.mode == GIM_VISIBILITY_SHADOW_MAPS ? GIM_VPL_SHADOW_MAP_BIAS : GIM_ISM_VPL_BIAS;
+        a.ism_bias = tri ? GIM_VPL_SHADOW_MAP_BIAS : GIM_ISM_VPL_BIAS;
         a.ism_slope = GIM_ISM_VPL_SLOPE;
         a.map_size = s.size;
         a.interleave = s.interleave;
