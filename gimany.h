@@ -767,8 +767,8 @@ GIMANY_API uint32_t gim_vpl_default_interleave(gim_method method, uint32_t width
    -> every VPL shades each pixel of its interleaved subset with its cluster's soft visibility
    (gim_vpl_shade_twin) -> the geometry-aware blur (gim_geometry_blur_twin) into the indirect texture.
    With visibility ISM the VPL methods make no depth maps: one imperfect shadow map per VPL of
-   both bounces (gim_ism_render_twin with the VPLs as caches; a first-bounce VPL's kept with the
-   VPL, incremental instant radiosity after Laine et al. 2007; SSVP's second-bounce hits
+   both bounces (gim_ism_render_twin with the VPLs as caches and GIM_ISM_VPL_SPLAT; a
+   first-bounce VPL's kept with the VPL, incremental instant radiosity after Laine et al. 2007; SSVP's second-bounce hits
    first checked in one map per cluster, gim_second_bounce_desc.ism), and each VPL shades with
    its own map's hard visibility (gim_vpl_shade_desc.ism; bias GIM_ISM_VPL_BIAS, _SLOPE).
    Needs at least one instance; every material id of an instanced
@@ -2067,23 +2067,31 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
                                              0.04, inside Sponza's atrium clustered 0.458 -> 0.278 rel. MAE
                                              against 2048 points and the old surfels (first frame 1.9 -> 6.6 s
                                              on llvmpipe; SSVP + ISM on the Cornell box 326 -> 1523 ms a
-                                             frame; docs/methods.md, "The VPLs' surfels") */
+                                             frame; docs/methods.md, "The VPLs' surfels"); 0.259 since
+                                             (GIM_ISM_VPL_SPLAT) */
 #define GIM_ISM_BUDGET_BYTES (256u << 20)  /* LightSkin's default side halves until the caches' maps fit */
 #define GIM_ISM_MAX_BYTES (1u << 30)      /* the most an explicit side may take (maps of 16 bits a texel) */
 #define GIM_ISM_LIFT 1e-4f            /* map origin above its cache, in scene scales */
 #define GIM_ISM_BIAS 0.15f            /* depth bias, a fraction of the distance (unit-free; bench_ism) */
 #define GIM_ISM_SLOPE 0.25f           /* slope bias: texels of angle per unit of tan(theta_l) */
 #define GIM_ISM_MAX_TAN 8.0f          /* tan(theta_l) at most (84 degrees) */
-#define GIM_ISM_VPL_BIAS 0.04f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
+#define GIM_ISM_VPL_BIAS 0.03f        /* the VPL methods' maps: a relative bias b lets a VPL's light through a
                                          wall of thickness t once the VPL is t / b away (0.15: 2 m of ground
-                                         lit through the 0.3 walls of tests/gl/gltest_visibility.c; 0.04 there
-                                         leaves 0.1 % inside; 0.02 removes 1.2 % of an open corner's light,
-                                         0.04 0.4-0.9 %, tests/gl/gltest_physics.c) */
+                                         lit through the 0.3 walls of tests/gl/gltest_visibility.c; 0.03
+                                         there leaves 0.1 % inside). With GIM_ISM_VPL_SPLAT's disks, Sponza's
+                                         atrium (clustered + importance) 0.249 / 0.237 / 0.236 rel. MAE at
+                                         0.02 / 0.03 / 0.04, its mean 1.01 / 1.04 / 1.06x the reference's;
+                                         an open corner loses 0.3-0.6 / 0.2-0.5 % at 0.02 / 0.03
+                                         (tests/gl/gltest_physics.c; docs/methods.md, "The slope's fill") */
 #define GIM_ISM_VPL_SLOPE 0.05f
 #define GIM_VPL_SHADOW_MAP_BIAS 0.01f  /* GIM_VISIBILITY_SHADOW_MAPS' maps (from the triangles, exact at each
                                           texel): 0.04 there leaves 1.4 % of the closed room's pixels above
                                           5 % with importance VPLs (0.87 % at 0.02) */
 #define GIM_ISM_SPLAT 1.5f            /* surfel radius over the radius of the area a point stands for */
+#define GIM_ISM_VPL_SPLAT 1.2f        /* the VPL methods' maps (65,536 points): smaller disks widen thin things
+                                         less; Sponza's atrium 0.282 -> 0.237 rel. MAE (clustered + importance,
+                                         with the slope's hole fill; docs/methods.md) */
+#define GIM_ISM_MAX_SPLAT 8.0f        /* gim_ism_desc.splat at most */
 /* A surfel covers only the texels whose centre ray meets its disk, up to 8 texels out: written
    also to the texel its point lands in (the VPLs' maps until 2026-12-04, below), a surfel widens
    every silhouette by up to a texel (false shadow), and cut at 3 texels the near ones leave holes
@@ -2091,13 +2099,14 @@ GIMANY_API gim_result gim_paraboloid_visibility_twin(const float *distance, uint
    rel. MAE, the closed room 0.0047 -> 0.0030 inside, Sponza's atrium 0.358 -> 0.352 (one draw)
    (docs/methods.md, "The surfels' reach"). */
 #define GIM_ISM_SPLAT_TEXELS 8        /* a surfel covers at most (2 x 8 + 1)^2 texels */
-/* The VPL methods' maps take the same surfels. Until 2026-12-04 they had 2048 points, each also
-   written to the texel it lands in and cut at 3 texels (metres-wide surfels in Sponza overhang
-   its columns); at 65,536 points these disks take Sponza's atrium from 0.508 to 0.282 rel. MAE
-   (clustered + importance) and the Cornell box from 0.068 to 0.043 (docs/methods.md, "The VPLs'
-   surfels"). Smaller disks (1.2) measured better there (0.2495) but leave holes in surfaces seen
-   at grazing angles, which pull-push fills with nearer depths: an open corner lost 1.2-1.9 % of
-   its light, pixels near the contact edge over 20 % (tests/gl/gltest_physics.c). */
+/* The VPL methods' maps take the same surfels, smaller. Until 2026-12-04 they had 2048 points,
+   each also written to the texel it lands in and cut at 3 texels (metres-wide surfels in Sponza
+   overhang its columns); at 65,536 points disks of 1.5 take Sponza's atrium from 0.508 to 0.282
+   rel. MAE (clustered + importance) and the Cornell box from 0.068 to 0.043 (docs/methods.md,
+   "The VPLs' surfels"). Disks of 1.2 leave holes in surfaces seen at grazing angles; while
+   pull-push filled a hole with its parent alone, a nearer depth, an open corner lost 1.2-1.9 %
+   of its light, pixels near the contact edge over 20 %; the slope's fill (gim_ism_render_twin)
+   takes that to 0.3-0.6 %, none over 20 % (tests/gl/gltest_physics.c). */
 
 /* count points area-uniform over the scene's triangles, deterministic and low-discrepancy:
    point i takes u = (i + 0.5) / count of the cumulative area (which picks the triangle and a
@@ -2120,6 +2129,8 @@ typedef struct gim_ism_desc {
     uint32_t points_per_map;        /* P; 0: GIM_ISM_DEFAULT_POINTS (at most point_count are taken) */
     float bias;                     /* relative depth bias; 0: GIM_ISM_BIAS */
     float slope;                    /* slope bias; 0: GIM_ISM_SLOPE */
+    float splat;                    /* surfel radius over a point's; 0: GIM_ISM_SPLAT (the caches'), the VPL
+                                       methods' maps GIM_ISM_VPL_SPLAT; at most GIM_ISM_MAX_SPLAT */
     float scene_scale;              /* > 0 */
     gim_env env;
 } gim_ism_desc;
@@ -2130,13 +2141,16 @@ typedef struct gim_ism_desc {
    different subset, all evenly spread), each standing for area a = stride x its .w. A point p
    in front of the map's plane (w.z > 0) at distance dist > GIM_ISM_LIFT scene_scale lands in
    the texel under w.xy / (1 + w.z) (floor, clamped). As a surfel of radius
-   rs = GIM_ISM_SPLAT sqrt(a / pi) in its plane it covers each texel within
+   rs = splat sqrt(a / pi) in its plane it covers each texel within
    R = min(ceil(rs / dist size / 2), T) of that one whose centre ray meets the plane
    (|ray . normal| >= 1e-3) beyond the lift and within rs of p, at that ray's distance;
    T = GIM_ISM_SPLAT_TEXELS. The nearest wins; texels nothing covered are
    GIM_PARABOLOID_EMPTY before pull-push. Pull: each coarser texel is the farthest of its
    non-empty children (the paper's mean lets a near occluder's depth into the holes around it:
-   false shadow); push: an empty texel takes its parent's value, from the coarsest level down.
+   false shadow); push, from the coarsest level down: an empty texel takes the farther of its
+   parent and the bilinear blend (9 3 3 1 / 16) of the four parents nearest its centre (the
+   parent alone is a step that puts a nearer depth into the holes of a surface seen at a grazing
+   angle: false shadow).
    A map no point reached stays empty (sees nothing: visibility 1). Float arithmetic in the order of
    ism.comp. Stored in 16 bits a texel (the GPU packs two to a uint: Sponza's 24,863 caches at 64^2
    take 204 MB): the upper half of the float's bits, rounded to nearest (gim_ism_quantize: 7
@@ -7732,13 +7746,14 @@ GIMANY_DEF gim_result gim_ism_points(const gim_twin_scene *scene, uint32_t count
 }
 
 static gim_result gim__ism_check(const gim_ism_desc *d, const char *fn, int points, uint32_t *size, uint32_t *per_map,
-                                 float *bias, float *slope) {
+                                 float *bias, float *slope, float *splat) {
     const gim_env *env = &d->env;
     gim_result r;
     *size = d->size ? d->size : GIM_ISM_DEFAULT_SIZE;
     *per_map = d->points_per_map ? d->points_per_map : GIM_ISM_DEFAULT_POINTS;
     *bias = d->bias > 0.0f ? d->bias : GIM_ISM_BIAS;
     *slope = d->slope > 0.0f ? d->slope : GIM_ISM_SLOPE;
+    *splat = d->splat > 0.0f ? d->splat : GIM_ISM_SPLAT;
     if (!d->caches || d->cache_count == 0) return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "no caches");
     if (*size < GIM_ISM_MIN_SIZE || *size > GIM_ISM_MAX_SIZE || (*size & (*size - 1u)))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "size %u: a power of two in %u..%u", *size, GIM_ISM_MIN_SIZE,
@@ -7749,6 +7764,8 @@ static gim_result gim__ism_check(const gim_ism_desc *d, const char *fn, int poin
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "bias must be in [0, 1]");
     if (!gim__isfinitef(d->slope) || d->slope < 0.0f || *slope > 64.0f)
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "slope must be in [0, 64]");
+    if (!gim__isfinitef(d->splat) || d->splat < 0.0f || *splat > GIM_ISM_MAX_SPLAT)
+        return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "splat must be in [0, %g]", (double)GIM_ISM_MAX_SPLAT);
     if (!gim__isfinitef(d->scene_scale) || !(d->scene_scale > 0.0f))
         return gim__fail(env, GIM_ERROR_INVALID_ARGUMENT, fn, "scene_scale must be finite and > 0");
     if (points) {
@@ -7797,7 +7814,7 @@ static void gim__ism_pull_push(float *map, uint32_t size, float *scratch) {
     uint32_t sz[8], l, levels = 0, x, y;
     size_t off = 0;
     lv[0] = map; sz[0] = size;
-    for (l = 0; sz[l] > 1u; ++l) {      /* pull: the mean of the non-empty children */
+    for (l = 0; sz[l] > 1u; ++l) {      /* pull: the farthest of the non-empty children */
         sz[l + 1] = sz[l] / 2u;
         lv[l + 1] = scratch + off;
         off += (size_t)sz[l + 1] * sz[l + 1];
@@ -7813,12 +7830,32 @@ static void gim__ism_pull_push(float *map, uint32_t size, float *scratch) {
             }
     }
     levels = l;
-    for (l = levels; l-- > 0;)           /* push: holes take the parent's value */
+    /* push: a hole takes the farther of its parent and the bilinear blend (9 3 3 1 / 16) of the
+       four parents nearest its centre. The parent alone is a step: on a surface seen at a grazing
+       angle its depth runs away across a block, and a hole on the block's far side took a nearer
+       depth than the surface there (false shadow); the blend follows the slope, and the farther
+       of the two never brings a near occluder's depth into a hole beside it. */
+    for (l = levels; l-- > 0;) {
+        const float *pv = lv[l + 1];
+        uint32_t ps = sz[l + 1];
         for (y = 0; y < sz[l]; ++y)
             for (x = 0; x < sz[l]; ++x) {
-                float *c = lv[l] + y * sz[l] + x;
-                if (!(*c < GIM_PARABOLOID_EMPTY)) *c = lv[l + 1][(y / 2u) * sz[l + 1] + x / 2u];
+                float *c = lv[l] + y * sz[l] + x, p00, p10, p01, p11, fill;
+                uint32_t xa = x / 2u, ya = y / 2u, xb, yb;
+                if (*c < GIM_PARABOLOID_EMPTY) continue;
+                xb = (x & 1u) ? (xa + 1u < ps ? xa + 1u : ps - 1u) : (xa > 0u ? xa - 1u : 0u);
+                yb = (y & 1u) ? (ya + 1u < ps ? ya + 1u : ps - 1u) : (ya > 0u ? ya - 1u : 0u);
+                p00 = pv[ya * ps + xa]; p10 = pv[ya * ps + xb];
+                p01 = pv[yb * ps + xa]; p11 = pv[yb * ps + xb];
+                fill = p00;
+                if (p00 < GIM_PARABOLOID_EMPTY && p10 < GIM_PARABOLOID_EMPTY && p01 < GIM_PARABOLOID_EMPTY &&
+                    p11 < GIM_PARABOLOID_EMPTY) {
+                    float blend = (9.0f * p00 + 3.0f * p10 + 3.0f * p01 + p11) * 0.0625f;
+                    fill = blend > p00 ? blend : p00;
+                }
+                *c = fill;
             }
+    }
 }
 
 /* The unit direction (world) of texel tx's centre ray. */
@@ -7836,7 +7873,7 @@ static void gim__ism_texel_ray(int32_t tx, uint32_t size, gim_vec3 t, gim_vec3 b
 
 /* One surfel into a map (see gim_ism_render_twin), in float as ism.comp. */
 static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3 t, gim_vec3 b, gim_vec3 n, float lift,
-                           const float *p, float area) {
+                           const float *p, float area, float splat) {
     float d[3], dist, rs, rs2, rf, dn, fs = (float)size;
     int32_t tx, cx, cy, x, y, r;
     d[0] = p[0] - o[0]; d[1] = p[1] - o[1]; d[2] = p[2] - o[2];
@@ -7846,7 +7883,7 @@ static void gim__ism_splat(float *map, uint32_t size, const float o[3], gim_vec3
     if (tx < 0) return;
     cx = tx % (int32_t)size;
     cy = tx / (int32_t)size;
-    rs = GIM_ISM_SPLAT * sqrtf(area / (float)GIM__PI);
+    rs = splat * sqrtf(area / (float)GIM__PI);
     rs2 = rs * rs;
     rf = ceilf(rs / dist * fs * 0.5f);
     r = rf < (float)GIM_ISM_SPLAT_TEXELS ? (int32_t)rf : GIM_ISM_SPLAT_TEXELS;
@@ -7882,11 +7919,11 @@ GIMANY_DEF float gim_ism_dequantize(uint16_t q) {
 GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *distance_out) {
     static const char fn[] = "gim_ism_render_twin";
     uint32_t size, per, m, k, stride, n_take;
-    float bias, slope, lift, *scratch;
+    float bias, slope, splat, lift, *scratch;
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
     if (!distance_out) return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance_out is NULL");
-    if ((r = gim__ism_check(desc, fn, 1, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    if ((r = gim__ism_check(desc, fn, 1, &size, &per, &bias, &slope, &splat)) != GIM_OK) return r;
     scratch = (float *)gim__alloc_array(&desc->env, (size_t)size * size, sizeof(float));
     if (!scratch) return gim__fail(&desc->env, GIM_ERROR_OUT_OF_MEMORY, fn, "%u^2 floats", size);
     lift = GIM_ISM_LIFT * desc->scene_scale;
@@ -7901,7 +7938,7 @@ GIMANY_DEF gim_result gim_ism_render_twin(const gim_ism_desc *desc, float *dista
         gim__ism_frame(desc->caches[m].position, desc->caches[m].normal, lift, o, &t, &b, &n);
         for (k = 0; k < n_take; ++k) {
             const float *p = desc->points + (size_t)(off + k * stride) * 8;
-            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3]);
+            gim__ism_splat(map, size, o, t, b, n, lift, p, (float)stride * p[3], splat);
         }
         gim__ism_pull_push(map, size, scratch);
         for (q = 0; q < (size_t)size * size; ++q) map[q] = gim_ism_dequantize(gim_ism_quantize(map[q]));
@@ -7976,12 +8013,12 @@ GIMANY_DEF gim_result gim_ism_visibility_twin(const gim_ism_desc *desc, const fl
                                          uint32_t val_count, float *out) {
     static const char fn[] = "gim_ism_visibility_twin";
     uint32_t size, per, m, j;
-    float bias, slope, lift, texel;
+    float bias, slope, splat, lift, texel;
     gim_result r;
     if (!desc) return GIM_ERROR_INVALID_ARGUMENT;
     if (!distance || !out || (val_count > 0 && !vals))
         return gim__fail(&desc->env, GIM_ERROR_INVALID_ARGUMENT, fn, "distance, vals and out are required");
-    if ((r = gim__ism_check(desc, fn, 0, &size, &per, &bias, &slope)) != GIM_OK) return r;
+    if ((r = gim__ism_check(desc, fn, 0, &size, &per, &bias, &slope, &splat)) != GIM_OK) return r;
     lift = GIM_ISM_LIFT * desc->scene_scale;
     texel = slope * 2.0f / (float)size;
     for (m = 0; m < desc->cache_count; ++m) {
@@ -10794,7 +10831,7 @@ static gim_result gim__gl_ism_render_ex(gim_context *ctx, gim__GLuint caches, ui
     gl->Uniform1ui(2, stride);
     gl->Uniform1ui(3, take);
     gl->Uniform1f(4, GIM_ISM_LIFT * scene_scale);
-    gl->Uniform1f(5, GIM_ISM_SPLAT);
+    gl->Uniform1f(5, source_vec4s == 3u ? GIM_ISM_VPL_SPLAT : GIM_ISM_SPLAT);
     gl->Uniform1i(6, GIM_ISM_SPLAT_TEXELS);
     gl->Uniform1ui(7, source_vec4s);
     gl->Uniform1ui(8, source_first);

@@ -2,7 +2,8 @@
    per map (a cache's, or a VPL's), the map and its pull-push pyramid in shared memory. Each invocation splats
    the points k = local, local + GROUP, ... of the map's subset (offset + k stride) as surfels
    (atomicMin on the distance's bits: a positive float orders as its bits), then the pyramid
-   is pulled (farthest non-empty child) and pushed (holes take the parent), level by level.
+   is pulled (farthest non-empty child) and pushed (a hole takes the farther of its parent and the
+   bilinear blend of the four nearest parents, which follows a slope), level by level.
    The float arithmetic is the twin's, in its order (see gim_ism_render_twin in gimany.h). Each
    texel is stored in 16 bits, the upper half of its float's bits rounded to nearest
    (gim_ism_quantize), two to a uint: texel 2k in the low half, 2k + 1 in the high. */
@@ -24,7 +25,7 @@ layout(location = 1) uniform uint size;        /* power of two, 4..64 */
 layout(location = 2) uniform uint stride;      /* point_count / P */
 layout(location = 3) uniform uint count;       /* P: points per map */
 layout(location = 4) uniform float lift;       /* GIM_ISM_LIFT scene_scale */
-layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT */
+layout(location = 5) uniform float splat;      /* GIM_ISM_SPLAT (caches), GIM_ISM_VPL_SPLAT (VPLs) */
 layout(location = 6) uniform int max_texels;   /* GIM_ISM_SPLAT_TEXELS */
 layout(location = 7) uniform uint source_vec4s; /* 2: caches; 3: VPLs */
 layout(location = 8) uniform uint source_first; /* map m's origin is source entry source_first + m */
@@ -122,11 +123,20 @@ void main() {
         for (uint j = 1u; j < l + 1u; ++j) { poff += s2 * s2; s2 /= 2u; }
         for (uint q = local; q < lsz * lsz; q += uint(GROUP)) {
             uint x = q % lsz, y = q / lsz;
-            float parent = pyramid[poff + (y / 2u) * psz + x / 2u];
+            uint xa = x / 2u, ya = y / 2u;
+            uint xb = (x & 1u) == 1u ? min(xa + 1u, psz - 1u) : (xa > 0u ? xa - 1u : 0u);
+            uint yb = (y & 1u) == 1u ? min(ya + 1u, psz - 1u) : (ya > 0u ? ya - 1u : 0u);
+            float p00 = pyramid[poff + ya * psz + xa], p10 = pyramid[poff + ya * psz + xb];
+            float p01 = pyramid[poff + yb * psz + xa], p11 = pyramid[poff + yb * psz + xb];
+            float fill = p00;
+            if (p00 < ISM_EMPTY && p10 < ISM_EMPTY && p01 < ISM_EMPTY && p11 < ISM_EMPTY) {
+                float blend = (9.0 * p00 + 3.0 * p10 + 3.0 * p01 + p11) * 0.0625;
+                fill = blend > p00 ? blend : p00;
+            }
             if (l == 0u) {
-                if (!(uintBitsToFloat(level0[q]) < ISM_EMPTY)) level0[q] = floatBitsToUint(parent);
+                if (!(uintBitsToFloat(level0[q]) < ISM_EMPTY)) level0[q] = floatBitsToUint(fill);
             } else if (!(pyramid[loff + q] < ISM_EMPTY)) {
-                pyramid[loff + q] = parent;
+                pyramid[loff + q] = fill;
             }
         }
         barrier();

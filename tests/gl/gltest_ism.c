@@ -110,8 +110,8 @@ static void maps_match(void **state) {
 }
 
 /* One map per VPL (the VPL methods' visibility): ism.comp reads its origins from a gim_vpl
-   buffer (3 vec4 apart) as from the caches; the maps are gim_ism_render_twin's on the VPLs taken
-   as caches. */
+   buffer (3 vec4 apart) as from the caches, with the VPLs' surfels (GIM_ISM_VPL_SPLAT); the maps
+   are gim_ism_render_twin's on the VPLs taken as caches. */
 static void maps_of_vpls_match(void **state) {
     gltest_fixture f;
     ism_scene s;
@@ -137,7 +137,7 @@ static void maps_of_vpls_match(void **state) {
     bm = gltest_ssbo(texels * 4, NULL);
     memset(&d, 0, sizeof d);
     d.caches = s.caches; d.cache_count = NC; d.points = s.points; d.point_count = NP;
-    d.size = n; d.points_per_map = per; d.scene_scale = 6.0f; d.env = f.env;
+    d.size = n; d.points_per_map = per; d.splat = GIM_ISM_VPL_SPLAT; d.scene_scale = 6.0f; d.env = f.env;
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);
     gim__gl_enter(f.ctx, "test");
     assert_int_equal(gim__gl_ism_render_of(f.ctx, bv, 3u, 0u, 0u, NC, bp, NP, n, per, 6.0f, bm), GIM_OK);

@@ -514,7 +514,7 @@ static void second_bounce_ism_matches_twin(void **state) {
     }
     memset(&id, 0, sizeof id);
     id.caches = caches; id.cache_count = NMAPS; id.points = pts; id.point_count = NPT; id.size = IS;
-    id.points_per_map = NPT / 4; id.scene_scale = 2.0f; id.env = s.f.env;
+    id.points_per_map = NPT / 4; id.splat = GIM_ISM_VPL_SPLAT; id.scene_scale = 2.0f; id.env = s.f.env;
     assert_int_equal(gim_ism_render_twin(&id, ism), GIM_OK);
     bism = gltest_ism_ssbo(ism, (size_t)NMAPS * IS * IS);
     out = gltest_ssbo(N * sizeof(gim_vpl), NULL);

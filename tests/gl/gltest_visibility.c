@@ -466,7 +466,7 @@ static uint32_t vpl_maps_off(scene_fx *s, uint32_t *lit, uint32_t *lit2, uint32_
     assert_int_equal(gim_ism_points(&ts, pool, pts), GIM_OK);
     memset(&d, 0, sizeof d);
     d.caches = c; d.cache_count = n; d.points = pts; d.point_count = pool;
-    d.size = size; d.points_per_map = pp; d.scene_scale = o.scene_scale; d.env = s->f.env;
+    d.size = size; d.points_per_map = pp; d.splat = GIM_ISM_VPL_SPLAT; d.scene_scale = o.scene_scale; d.env = s->f.env;
     cpu = (float *)malloc((size_t)n * tex * 4);
     gpu = (float *)malloc((size_t)n * tex * 4);
     assert_int_equal(gim_ism_render_twin(&d, cpu), GIM_OK);

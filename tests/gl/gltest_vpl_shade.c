@@ -170,7 +170,7 @@ static void run_case(const shade_case *sc) {
         }
         memset(&idd, 0, sizeof idd);
         idd.caches = vc + ism_first; idd.cache_count = NV - ism_first; idd.points = pts; idd.point_count = NP;
-        idd.size = IS; idd.points_per_map = NP / 4; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
+        idd.size = IS; idd.points_per_map = NP / 4; idd.splat = GIM_ISM_VPL_SPLAT; idd.scene_scale = 1.7320508f * L; idd.env = f.env;
         ism = (float *)malloc((size_t)NV * IS * IS * 4);
         assert_int_equal(gim_ism_render_twin(&idd, ism), GIM_OK);
         b_ism = gltest_ism_ssbo(ism, (size_t)(NV - ism_first) * IS * IS);

@@ -392,7 +392,7 @@ static void shade_uses_vpl_ism(void **state) {
     memset(&c, 0, sizeof c);
     c.normal[2] = 1.0f; c.area = 1.0f; c.reflectance = 0.5f;
     memset(&id, 0, sizeof id);
-    id.caches = &c; id.cache_count = 1; id.points = pts; id.point_count = NPT; id.size = IS; id.scene_scale = 4.0f;
+    id.caches = &c; id.cache_count = 1; id.points = pts; id.point_count = NPT; id.size = IS; id.splat = GIM_ISM_VPL_SPLAT; id.scene_scale = 4.0f;
     id.env = env;
     assert_int_equal(gim_ism_render_twin(&id, ism), GIM_OK);
     r[0] = rec(gim_v3(0, 0, 2), gim_v3(0, 0, -1), gim_v3(0, 0, -1));
