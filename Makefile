@@ -203,7 +203,7 @@ bench: deps
 	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu && $(B)/bench/bench_gpu --small > /dev/null
 	@tools/bench-plots.sh bench
 
-# every method at game sizes on a real GPU: the table between the README's bench:gpu markers
+# every method at game sizes on a real GPU: the table between docs/benchmarks.md's bench:gpu markers
 bench-gpu: deps
 	@$(DEPS) examples
 	@$(MAKE) --no-print-directory $(B)/bench/bench_gpu

@@ -1,11 +1,11 @@
 #!/bin/sh
-# Plots and the README table from DIR/results.csv (written by build/bench/bench_frame; DIR is
+# Plots and the docs/benchmarks.md table from DIR/results.csv (written by build/bench/bench_frame; DIR is
 # bench for the CI-sized sweep of `make bench`, bench/full for `make bench-full`):
 #   DIR/pareto_SCENE.png  error against the ground truth vs frame time, one series per method (the trade)
 #   DIR/fig3.png          FULL : BRSM frame-time ratio vs RSM size, per VAL count (Bischoff 2017 Fig. 3; street)
 #   DIR/fig5.png          mean relative difference to FULL vs VAL count, per RSM size (Bischoff 2017 Fig. 5; street)
 #   DIR/flicker.png       flicker (change beyond FULL's own) vs VAL count, per method (street)
-# and the table between the README's markers for the CSV's sweep: <!-- bench:ci --> (ci) or
+# and the table between docs/benchmarks.md's markers for the CSV's sweep: <!-- bench:ci --> (ci) or
 # <!-- bench:frame --> (full). Columns are found by their names in the CSV's header.
 # Usage: tools/bench-plots.sh [DIR]
 set -eu

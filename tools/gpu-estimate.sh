@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The GPU frame-time estimate of README "Benchmarks > On a GPU", from the cost model
+# The GPU frame-time estimate of docs/gpu-estimate.md (and docs/benchmarks.md, "On a GPU"), from the cost model
 # and instruction counts, until a GPU has been lent: compiles the hot shaders as gimany.h builds
 # them (#include lines expanded, "#version 430 core\n" prepended, nothing else), with the
 # uniforms that pick a branch for the whole dispatch fixed to the default frame's values,
